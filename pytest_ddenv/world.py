@@ -1,0 +1,395 @@
+"""The world model: immutable `World`s made of `Model`s, sub-worlds, bounds and distances.
+
+This layer knows YAML and geometry only (no pybullet, no pytest). A `World` also satisfies the reduction
+engine's `Geometry` protocol (`centroids(names)` and `distances(points, names)`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import os
+from collections.abc import Collection, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from pytest_ddenv import geometry
+from pytest_ddenv.errors import WorldError
+from pytest_ddenv.geometry import FloatArray
+
+ShapeKind = Literal["box", "cylinder", "sphere", "mesh"]
+SHAPE_KINDS: tuple[ShapeKind, ...] = ("box", "cylinder", "sphere", "mesh")
+TagValue = str | int | float | bool
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A rigid pose: position in metres, fixed-axis roll/pitch/yaw in radians."""
+
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    roll: float = 0.0
+    pitch: float = 0.0
+    yaw: float = 0.0
+
+    @property
+    def position(self) -> FloatArray:
+        return np.array([self.x, self.y, self.z])
+
+    @property
+    def rotation(self) -> FloatArray:
+        return geometry.rotation_matrix(self.roll, self.pitch, self.yaw)
+
+    def as_list(self) -> list[float]:
+        return [self.x, self.y, self.z, self.roll, self.pitch, self.yaw]
+
+    def compose(self, child: Pose) -> Pose:
+        """The pose of `child` (given in this pose's frame) in this pose's parent frame."""
+        if child == Pose():
+            return self
+        rotation = self.rotation
+        position = self.position + rotation @ child.position
+        roll, pitch, yaw = geometry.rpy_from_matrix(rotation @ child.rotation)
+        return Pose(*(float(v) for v in position), roll, pitch, yaw)
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One collision shape of a model, placed at `pose` in the model's frame.
+
+    box: `size` (x, y, z full lengths). cylinder: `radius` and `length` (axis along local z).
+    sphere: `radius`. mesh: `mesh` (a file path, absolute or relative to the world file) and `scale`.
+    """
+
+    kind: ShapeKind
+    size: tuple[float, float, float] | None = None
+    radius: float | None = None
+    length: float | None = None
+    mesh: str | None = None
+    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    pose: Pose = Pose()
+
+
+@dataclass(frozen=True)
+class Model:
+    """A reducible object of the world: a named rigid body made of one or more shapes."""
+
+    name: str
+    shapes: tuple[Shape, ...]
+    pose: Pose = Pose()
+    mass: float | None = None
+    static: bool = True
+    mu: float = 1.0
+    mu2: float = 1.0
+    restitution: float = 0.0
+    color: tuple[float, float, float, float] = (0.6, 0.6, 0.6, 1.0)
+    keep: bool = False
+    tags: Mapping[str, TagValue] = field(default_factory=dict, hash=False)
+
+    @property
+    def dynamic(self) -> bool:
+        return not self.static
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """What the robot does in the world: start pose, goal, time limit (simulated seconds)."""
+
+    robot: str = "husky"
+    start: Pose = Pose()
+    start_z_given: bool = False
+    goal: tuple[float, float, float | None] = (0.0, 0.0, None)
+    goal_tolerance: float = 0.3
+    timeout: float = 60.0
+
+
+@dataclass(frozen=True)
+class Physics:
+    """Simulation settings that are part of a run's reproducibility key."""
+
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    timestep: float = 1.0 / 240.0
+    solver_iterations: int = 50
+
+
+@dataclass(frozen=True)
+class Ground:
+    """The infinite ground plane: a world setting, never a reducible model."""
+
+    z: float = 0.0
+    mu: float = 1.0
+    mu2: float = 1.0
+    restitution: float = 0.0
+
+
+@dataclass(frozen=True)
+class World:
+    """An ordered, immutable collection of models plus scenario, physics and ground settings.
+
+    The model order is the canonical creation order of the simulation; sub-worlds keep it.
+    """
+
+    models: tuple[Model, ...] = ()
+    scenario: Scenario | None = None
+    physics: Physics = Physics()
+    ground: Ground | None = Ground()
+    name: str = ""
+    source: str | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        seen: set[str] = set()
+        for index, model in enumerate(self.models):
+            if model.name in seen:
+                raise WorldError(
+                    f"duplicate model name '{model.name}'; names must be unique",
+                    source=self.source,
+                    model=f"#{index}",
+                    field="name",
+                )
+            seen.add(model.name)
+
+    # -- files ---------------------------------------------------------------------------------------
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> World:
+        """Read a world file: YAML (`.yaml`, `.yml`) or Gazebo SDF (`.world`, `.sdf`) by extension."""
+        from pytest_ddenv import world_yaml
+
+        path = Path(path)
+        if path.suffix.lower() in (".world", ".sdf"):
+            try:
+                from pytest_ddenv import sdf
+            except ImportError as error:  # pragma: no cover - until SDF support lands
+                raise WorldError("SDF worlds are not supported by this version", source=path) from error
+            return sdf.load_sdf(path)
+        return world_yaml.load_yaml(path)
+
+    @classmethod
+    def from_yaml(cls, text: str, *, source: str | os.PathLike[str] | None = None) -> World:
+        """Parse YAML text; `source` names it in errors and anchors relative mesh paths."""
+        from pytest_ddenv import world_yaml
+
+        return world_yaml.parse_yaml(text, source=source)
+
+    def to_yaml(self) -> str:
+        from pytest_ddenv import world_yaml
+
+        return world_yaml.dump_yaml(self)
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the world, as YAML or SDF by extension, atomically (write then rename)."""
+        path = Path(path)
+        if path.suffix.lower() in (".world", ".sdf"):
+            from pytest_ddenv import sdf
+
+            text = sdf.dump_sdf(self)
+        else:
+            text = self.to_yaml()
+        temporary = path.with_name(f".{path.name}.tmp{os.getpid()}")
+        temporary.write_text(text, encoding="utf-8")
+        os.replace(temporary, path)
+
+    # -- models --------------------------------------------------------------------------------------
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(model.name for model in self.models)
+
+    @property
+    def reducible_names(self) -> tuple[str, ...]:
+        """Names of the models a reduction may remove (all but `keep: true`)."""
+        return tuple(model.name for model in self.models if not model.keep)
+
+    def __len__(self) -> int:
+        return len(self.models)
+
+    def __iter__(self) -> Iterator[Model]:
+        return iter(self.models)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._index
+
+    def model(self, name: str) -> Model:
+        try:
+            return self.models[self._index[name]]
+        except KeyError:
+            raise WorldError(f"no model named '{name}' in this world", source=self.source) from None
+
+    def select(self, names: Iterable[str]) -> World:
+        """The sub-world with only the named models, in this world's order. Unknown names are an error."""
+        wanted = self._checked(names)
+        return dataclasses.replace(self, models=tuple(m for m in self.models if m.name in wanted))
+
+    def without(self, names: Iterable[str]) -> World:
+        """The sub-world without the named models, in this world's order. Unknown names are an error."""
+        unwanted = self._checked(names)
+        return dataclasses.replace(self, models=tuple(m for m in self.models if m.name not in unwanted))
+
+    def _checked(self, names: Iterable[str]) -> frozenset[str]:
+        if isinstance(names, str):
+            raise TypeError("pass a collection of model names, not a single string")
+        chosen = frozenset(names)
+        unknown = sorted(chosen - self._index.keys())
+        if unknown:
+            raise WorldError(
+                f"unknown model name(s) {', '.join(repr(n) for n in unknown)}; "
+                f"the world has: {', '.join(self.names) or '(no models)'}",
+                source=self.source,
+            )
+        return chosen
+
+    @functools.cached_property
+    def _index(self) -> dict[str, int]:
+        return {model.name: index for index, model in enumerate(self.models)}
+
+    # -- geometry ------------------------------------------------------------------------------------
+    def bounds(self, name: str) -> FloatArray:
+        """Axis-aligned bounds of a model in the world frame: a (2, 3) array [min, max]."""
+        return _model_geometry(self.model(name), self.source).bounds
+
+    def centroid(self, name: str) -> FloatArray:
+        """Centre of the model's axis-aligned bounds in the world frame."""
+        low, high = self.bounds(name)
+        return (low + high) / 2.0
+
+    def centroids(self, names: Sequence[str] | None = None) -> FloatArray:
+        """Centroids (E, 3) of the named models (all models by default)."""
+        chosen = self.names if names is None else tuple(names)
+        if not chosen:
+            return np.zeros((0, 3))
+        return np.stack([self.centroid(name) for name in chosen])
+
+    def distances(self, points: FloatArray, names: Sequence[str] | None = None) -> FloatArray:
+        """Distance (N, E) from each point to the surface of each named model; 0 inside a model.
+
+        Uses every shape's real extent (a 20 m slab is 0 m away from a robot driving on it).
+        """
+        chosen = self.names if names is None else tuple(names)
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        result = np.empty((len(points), len(chosen)))
+        for column, name in enumerate(chosen):
+            result[:, column] = _model_geometry(self.model(name), self.source).distance(points)
+        return result
+
+
+def model_names_matching(world: World, names: Collection[str]) -> tuple[str, ...]:
+    """The names of `world` that are in `names`, in the world's order."""
+    return tuple(name for name in world.names if name in names)
+
+
+@dataclass(frozen=True)
+class _PlacedShape:
+    shape: Shape
+    translation: FloatArray
+    rotation: FloatArray
+    mesh_path: Path | None
+
+
+class _ModelGeometry:
+    """World-frame placement of a model's shapes with cached distance queries."""
+
+    def __init__(self, model: Model, source: str | None) -> None:
+        self.model = model
+        self.placed: list[_PlacedShape] = []
+        for shape in model.shapes:
+            pose = model.pose.compose(shape.pose)
+            mesh_path = resolve_mesh_path(shape.mesh, source) if shape.kind == "mesh" else None
+            self.placed.append(_PlacedShape(shape, pose.position, pose.rotation, mesh_path))
+        self.bounds = self._bounds()
+
+    def _bounds(self) -> FloatArray:
+        lows, highs = [], []
+        for placed in self.placed:
+            shape = placed.shape
+            if shape.kind == "box":
+                assert shape.size is not None
+                corners = geometry.box_corners(np.array(shape.size))
+                world_points = placed.translation + corners @ placed.rotation.T
+                lows.append(world_points.min(axis=0))
+                highs.append(world_points.max(axis=0))
+            elif shape.kind == "cylinder":
+                assert shape.radius is not None and shape.length is not None
+                axis = placed.rotation[:, 2]
+                half = np.abs(axis) * shape.length / 2.0 + shape.radius * np.sqrt(np.clip(1.0 - axis**2, 0, 1))
+                lows.append(placed.translation - half)
+                highs.append(placed.translation + half)
+            elif shape.kind == "sphere":
+                assert shape.radius is not None
+                lows.append(placed.translation - shape.radius)
+                highs.append(placed.translation + shape.radius)
+            else:
+                vertices = _mesh_vertices_world(placed)
+                lows.append(vertices.min(axis=0))
+                highs.append(vertices.max(axis=0))
+        return np.stack([np.min(lows, axis=0), np.max(highs, axis=0)])
+
+    def distance(self, points: FloatArray) -> FloatArray:
+        best = np.full(len(points), np.inf)
+        for placed in self.placed:
+            shape = placed.shape
+            local = geometry.to_local(points, placed.translation, placed.rotation)
+            if shape.kind == "box":
+                assert shape.size is not None
+                d = geometry.box_distance(local, np.array(shape.size))
+            elif shape.kind == "cylinder":
+                assert shape.radius is not None and shape.length is not None
+                d = geometry.cylinder_distance(local, shape.radius, shape.length)
+            elif shape.kind == "sphere":
+                assert shape.radius is not None
+                d = geometry.sphere_distance(local, shape.radius)
+            else:
+                d = _mesh_distance(placed, local)
+            best = np.minimum(best, d)
+        return best
+
+
+@functools.lru_cache(maxsize=4096)
+def _model_geometry(model: Model, source: str | None) -> _ModelGeometry:
+    return _ModelGeometry(model, source)
+
+
+def resolve_mesh_path(mesh: str | None, source: str | None) -> Path:
+    """A mesh path as given, or relative to the directory of the world file that names it."""
+    if mesh is None:
+        raise WorldError("a mesh shape needs a 'mesh' file", source=source)
+    path = Path(mesh).expanduser()
+    if not path.is_absolute() and source is not None:
+        path = Path(source).parent / path
+    return path
+
+
+@functools.lru_cache(maxsize=256)
+def load_mesh(path: Path, scale: tuple[float, float, float]) -> object:
+    """A trimesh.Trimesh of the file with `scale` applied (loaded once per process)."""
+    import trimesh
+
+    try:
+        loaded = trimesh.load(str(path), force="mesh")
+    except Exception as error:  # trimesh raises many types for unreadable files
+        raise WorldError(f"cannot read mesh file: {error}", source=str(path)) from error
+    if math.prod(scale) != 1.0 or scale != (1.0, 1.0, 1.0):
+        loaded.apply_scale(np.array(scale))
+    return loaded
+
+
+def _mesh_vertices_world(placed: _PlacedShape) -> FloatArray:
+    assert placed.mesh_path is not None
+    mesh = load_mesh(placed.mesh_path, placed.shape.scale)
+    vertices = np.asarray(mesh.vertices, dtype=float)  # type: ignore[attr-defined]
+    return placed.translation + vertices @ placed.rotation.T
+
+
+def _mesh_distance(placed: _PlacedShape, local: FloatArray) -> FloatArray:
+    import trimesh
+
+    assert placed.mesh_path is not None
+    mesh = load_mesh(placed.mesh_path, placed.shape.scale)
+    _, distance, _ = trimesh.proximity.closest_point(mesh, local)
+    distance = np.asarray(distance, dtype=float)
+    if getattr(mesh, "is_watertight", False):
+        inside = mesh.contains(local)  # type: ignore[attr-defined]
+        distance = np.where(inside, 0.0, distance)
+    return distance

@@ -1,0 +1,416 @@
+"""The YAML world format (`format: 1`): strict parsing with errors that name file, model and field.
+
+The format is documented field by field in docs/world-format.md.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from pytest_ddenv.errors import ScenarioError, WorldError
+from pytest_ddenv.world import (
+    SHAPE_KINDS,
+    Ground,
+    Model,
+    Physics,
+    Pose,
+    Scenario,
+    Shape,
+    TagValue,
+    World,
+    resolve_mesh_path,
+)
+
+FORMAT_VERSION = 1
+TOP_LEVEL_KEYS = ("format", "name", "physics", "ground", "scenario", "models")
+MODEL_KEYS = (
+    "name", "pose", "shapes", *SHAPE_KINDS, "static", "mass", "mu", "mu2", "restitution", "color", "keep", "tags",
+)
+SHAPE_KEYS = (*SHAPE_KINDS, "pose")
+SCENARIO_KEYS = ("robot", "start", "goal", "goal_tolerance", "timeout")
+PHYSICS_KEYS = ("gravity", "timestep", "solver_iterations")
+GROUND_KEYS = ("z", "mu", "mu2", "restitution")
+MAX_FILE_BYTES = 50 * 1024 * 1024
+
+
+class _Reader:
+    """Validates one document; knows where it is (file, model) to build precise errors."""
+
+    def __init__(self, source: str | None) -> None:
+        self.source = source
+        self.model: str | None = None
+        self.error_type: type[WorldError] = WorldError
+
+    def fail(self, field: str | None, message: str) -> WorldError:
+        return self.error_type(message, source=self.source, model=self.model, field=field)
+
+    def mapping(self, value: Any, field: str, allowed: tuple[str, ...]) -> Mapping[str, Any]:
+        if not isinstance(value, Mapping):
+            raise self.fail(field, f"expected a mapping of {', '.join(allowed)}, got {_describe(value)}")
+        for key in value:
+            if key not in allowed:
+                raise self.fail(
+                    f"{field}.{key}" if field else str(key),
+                    f"unknown key '{key}'; expected one of: {', '.join(allowed)}",
+                )
+        return value
+
+    def number(self, value: Any, field: str, *, positive: bool = False, non_negative: bool = False) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(field, f"expected a number, got {_describe(value)}")
+        number = float(value)
+        if not math.isfinite(number):
+            raise self.fail(field, f"expected a finite number, got {number}")
+        if positive and number <= 0:
+            raise self.fail(field, f"expected a positive number, got {number}")
+        if non_negative and number < 0:
+            raise self.fail(field, f"expected a number >= 0, got {number}")
+        return number
+
+    def numbers(self, value: Any, field: str, counts: tuple[int, ...], *, positive: bool = False) -> list[float]:
+        if not isinstance(value, (list, tuple)) or len(value) not in counts:
+            expected = " or ".join(str(c) for c in counts)
+            raise self.fail(field, f"expected a list of {expected} numbers, got {_describe(value)}")
+        return [self.number(item, f"{field}[{i}]", positive=positive) for i, item in enumerate(value)]
+
+    def pose(self, value: Any, field: str) -> Pose:
+        return Pose(*self.numbers(value, field, (3, 6)))
+
+    def boolean(self, value: Any, field: str) -> bool:
+        if not isinstance(value, bool):
+            raise self.fail(field, f"expected true or false, got {_describe(value)}")
+        return value
+
+    def text(self, value: Any, field: str) -> str:
+        if not isinstance(value, str) or not value.strip():
+            raise self.fail(field, f"expected a non-empty string, got {_describe(value)}")
+        return value
+
+
+def _describe(value: Any) -> str:
+    if isinstance(value, str):
+        return f"the string {value!r}"
+    if value is None:
+        return "nothing (null)"
+    return f"{type(value).__name__} {value!r}"
+
+
+def load_yaml(path: str | os.PathLike[str]) -> World:
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+    except OSError as error:
+        raise WorldError(f"cannot read world file: {error.strerror}", source=path) from error
+    if size > MAX_FILE_BYTES:
+        raise WorldError(f"file is {size} bytes, more than the {MAX_FILE_BYTES} byte limit", source=path)
+    return parse_yaml(path.read_text(encoding="utf-8"), source=path)
+
+
+def parse_yaml(text: str, *, source: str | os.PathLike[str] | None = None) -> World:
+    source_name = str(source) if source is not None else None
+    try:
+        document = yaml.safe_load(text)
+    except yaml.MarkedYAMLError as error:
+        mark = error.problem_mark or error.context_mark
+        line = mark.line + 1 if mark is not None else None
+        problem = error.problem or "invalid YAML"
+        raise WorldError(f"YAML syntax error: {problem}", source=source_name, line=line) from error
+    except yaml.YAMLError as error:
+        raise WorldError(f"YAML error: {error}", source=source_name) from error
+    reader = _Reader(source_name)
+    root = reader.mapping(document, "", TOP_LEVEL_KEYS)
+    if "format" not in root:
+        raise reader.fail("format", f"missing; this reader expects 'format: {FORMAT_VERSION}'")
+    if root["format"] != FORMAT_VERSION or isinstance(root["format"], bool):
+        raise reader.fail("format", f"unknown format version {root['format']!r}; this reader supports {FORMAT_VERSION}")
+    name = reader.text(root["name"], "name") if "name" in root else (Path(source_name).stem if source_name else "")
+    models_value = root.get("models") or []
+    if not isinstance(models_value, list):
+        raise reader.fail("models", f"expected a list of models, got {_describe(models_value)}")
+    models = []
+    seen: dict[str, int] = {}
+    for index, item in enumerate(models_value):
+        model = _parse_model(reader, item, index)
+        if model.name in seen:
+            raise WorldError(
+                f"duplicate model name '{model.name}' (also model #{seen[model.name]}); names must be unique",
+                source=source_name, model=f"#{index}", field="name",
+            )
+        seen[model.name] = index
+        models.append(model)
+    reader.model = None
+    return World(
+        models=tuple(models),
+        scenario=_parse_scenario(reader, root["scenario"]) if root.get("scenario") is not None else None,
+        physics=_parse_physics(reader, root.get("physics")),
+        ground=_parse_ground(reader, root.get("ground", {})),
+        name=name,
+        source=source_name,
+    )
+
+
+def _parse_model(reader: _Reader, item: Any, index: int) -> Model:
+    reader.model = f"#{index}"
+    data = reader.mapping(item, "", MODEL_KEYS)
+    if "name" not in data:
+        raise reader.fail("name", "missing; every model needs a unique name")
+    name = reader.text(data["name"], "name")
+    reader.model = f"'{name}' (#{index})"
+    inline = [kind for kind in SHAPE_KINDS if kind in data]
+    if "shapes" in data and inline:
+        raise reader.fail("shapes", f"give either 'shapes' or a single '{inline[0]}', not both")
+    if len(inline) > 1:
+        raise reader.fail(inline[1], f"a model has one inline shape; use 'shapes' for {', '.join(inline)}")
+    if inline:
+        shapes = (_parse_shape(reader, {inline[0]: data[inline[0]]}, inline[0]),)
+    elif "shapes" in data:
+        raw_shapes = data["shapes"]
+        if not isinstance(raw_shapes, list) or not raw_shapes:
+            raise reader.fail("shapes", f"expected a non-empty list of shapes, got {_describe(raw_shapes)}")
+        shapes = tuple(_parse_shape(reader, raw, f"shapes[{i}]") for i, raw in enumerate(raw_shapes))
+    else:
+        raise reader.fail("shapes", f"missing; give 'shapes' or one of {', '.join(SHAPE_KINDS)}")
+    mass = reader.number(data["mass"], "mass") if "mass" in data else None
+    static = reader.boolean(data["static"], "static") if "static" in data else mass is None
+    if not static and (mass is None or mass <= 0):
+        raise reader.fail("mass", f"a dynamic model needs a positive mass (kg), got {mass}")
+    mu = reader.number(data.get("mu", 1.0), "mu", non_negative=True)
+    color = reader.numbers(data.get("color", [0.6, 0.6, 0.6, 1.0]), "color", (3, 4))
+    if any(not 0.0 <= c <= 1.0 for c in color):
+        raise reader.fail("color", f"expected components between 0 and 1, got {color}")
+    model = Model(
+        name=name,
+        shapes=shapes,
+        pose=reader.pose(data["pose"], "pose") if "pose" in data else Pose(),
+        mass=mass,
+        static=static,
+        mu=mu,
+        mu2=reader.number(data.get("mu2", mu), "mu2", non_negative=True),
+        restitution=reader.number(data.get("restitution", 0.0), "restitution", non_negative=True),
+        color=(color[0], color[1], color[2], color[3] if len(color) == 4 else 1.0),
+        keep=reader.boolean(data["keep"], "keep") if "keep" in data else False,
+        tags=_parse_tags(reader, data.get("tags", {})),
+    )
+    return model
+
+
+def _parse_shape(reader: _Reader, raw: Any, field: str) -> Shape:
+    if isinstance(raw, Mapping):
+        unknown = [key for key in raw if key not in SHAPE_KEYS]
+        if unknown:
+            raise reader.fail(
+                field, f"unknown shape type {unknown[0]!r}; expected one of: {', '.join(SHAPE_KINDS)}"
+            )
+    data = reader.mapping(raw, field, SHAPE_KEYS)
+    kinds = [kind for kind in SHAPE_KINDS if kind in data]
+    if len(kinds) != 1:
+        raise reader.fail(
+            field, f"a shape needs exactly one of {', '.join(SHAPE_KINDS)}, got {', '.join(kinds) or 'none'}"
+        )
+    kind = kinds[0]
+    value = data[kind]
+    where = f"{field}.{kind}" if field != kind else kind
+    pose = reader.pose(data["pose"], f"{field}.pose") if "pose" in data else Pose()
+    if kind == "box":
+        size = reader.numbers(value, where, (3,), positive=True)
+        return Shape("box", size=(size[0], size[1], size[2]), pose=pose)
+    if kind == "cylinder":
+        spec = reader.mapping(value, where, ("radius", "length"))
+        for key in ("radius", "length"):
+            if key not in spec:
+                raise reader.fail(f"{where}.{key}", "missing; a cylinder needs radius and length (m)")
+        return Shape(
+            "cylinder",
+            radius=reader.number(spec["radius"], f"{where}.radius", positive=True),
+            length=reader.number(spec["length"], f"{where}.length", positive=True),
+            pose=pose,
+        )
+    if kind == "sphere":
+        spec = reader.mapping(value, where, ("radius",))
+        if "radius" not in spec:
+            raise reader.fail(f"{where}.radius", "missing; a sphere needs a radius (m)")
+        return Shape("sphere", radius=reader.number(spec["radius"], f"{where}.radius", positive=True), pose=pose)
+    spec = reader.mapping(value, where, ("file", "scale"))
+    if "file" not in spec:
+        raise reader.fail(f"{where}.file", "missing; a mesh needs a file (.stl, .obj, .dae)")
+    mesh_file = reader.text(spec["file"], f"{where}.file")
+    if not resolve_mesh_path(mesh_file, reader.source).is_file():
+        raise reader.fail(
+            f"{where}.file", f"mesh file not found: {resolve_mesh_path(mesh_file, reader.source)}"
+        )
+    scale_value = spec.get("scale", 1.0)
+    if isinstance(scale_value, (list, tuple)):
+        scale = reader.numbers(scale_value, f"{where}.scale", (3,), positive=True)
+    else:
+        scale = [reader.number(scale_value, f"{where}.scale", positive=True)] * 3
+    return Shape("mesh", mesh=mesh_file, scale=(scale[0], scale[1], scale[2]), pose=pose)
+
+
+def _parse_tags(reader: _Reader, value: Any) -> dict[str, TagValue]:
+    if not isinstance(value, Mapping):
+        raise reader.fail("tags", f"expected a mapping of tag names to values, got {_describe(value)}")
+    tags: dict[str, TagValue] = {}
+    for key, tag in value.items():
+        if not isinstance(key, str) or not isinstance(tag, (str, int, float, bool)):
+            raise reader.fail(f"tags.{key}", f"expected a string key and a scalar value, got {_describe(tag)}")
+        tags[key] = tag
+    return tags
+
+
+def _parse_scenario(reader: _Reader, value: Any) -> Scenario:
+    reader.error_type = ScenarioError
+    try:
+        data = reader.mapping(value, "scenario", SCENARIO_KEYS)
+        robot = reader.text(data.get("robot", "husky"), "scenario.robot")
+        if "start" not in data:
+            raise reader.fail("scenario.start", "missing; give the robot's start as {x: .., y: .., yaw: ..}")
+        start = reader.mapping(data["start"], "scenario.start", ("x", "y", "z", "yaw"))
+        for key in ("x", "y"):
+            if key not in start:
+                raise reader.fail(f"scenario.start.{key}", "missing")
+        if "goal" not in data:
+            raise reader.fail("scenario.goal", "missing; give the goal as {x: .., y: ..}")
+        goal = reader.mapping(data["goal"], "scenario.goal", ("x", "y", "z"))
+        for key in ("x", "y"):
+            if key not in goal:
+                raise reader.fail(f"scenario.goal.{key}", "missing")
+        if "timeout" not in data:
+            raise reader.fail("scenario.timeout", "missing; give the time limit in simulated seconds")
+        return Scenario(
+            robot=robot,
+            start=Pose(
+                x=reader.number(start["x"], "scenario.start.x"),
+                y=reader.number(start["y"], "scenario.start.y"),
+                z=reader.number(start["z"], "scenario.start.z") if "z" in start else 0.0,
+                yaw=reader.number(start.get("yaw", 0.0), "scenario.start.yaw"),
+            ),
+            start_z_given="z" in start,
+            goal=(
+                reader.number(goal["x"], "scenario.goal.x"),
+                reader.number(goal["y"], "scenario.goal.y"),
+                reader.number(goal["z"], "scenario.goal.z") if "z" in goal else None,
+            ),
+            goal_tolerance=reader.number(data.get("goal_tolerance", 0.3), "scenario.goal_tolerance", positive=True),
+            timeout=reader.number(data["timeout"], "scenario.timeout", positive=True),
+        )
+    finally:
+        reader.error_type = WorldError
+
+
+def _parse_physics(reader: _Reader, value: Any) -> Physics:
+    if value is None:
+        return Physics()
+    data = reader.mapping(value, "physics", PHYSICS_KEYS)
+    default = Physics()
+    gravity = reader.numbers(data.get("gravity", list(default.gravity)), "physics.gravity", (3,))
+    iterations = data.get("solver_iterations", default.solver_iterations)
+    if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
+        raise reader.fail("physics.solver_iterations", f"expected a positive integer, got {_describe(iterations)}")
+    return Physics(
+        gravity=(gravity[0], gravity[1], gravity[2]),
+        timestep=reader.number(data.get("timestep", default.timestep), "physics.timestep", positive=True),
+        solver_iterations=iterations,
+    )
+
+
+def _parse_ground(reader: _Reader, value: Any) -> Ground | None:
+    if value is None or value is False:
+        return None
+    data = reader.mapping(value, "ground", GROUND_KEYS)
+    mu = reader.number(data.get("mu", 1.0), "ground.mu", non_negative=True)
+    return Ground(
+        z=reader.number(data.get("z", 0.0), "ground.z"),
+        mu=mu,
+        mu2=reader.number(data.get("mu2", mu), "ground.mu2", non_negative=True),
+        restitution=reader.number(data.get("restitution", 0.0), "ground.restitution", non_negative=True),
+    )
+
+
+# -- writing ---------------------------------------------------------------------------------------------
+
+
+def dump_yaml(world: World) -> str:
+    document: dict[str, Any] = {"format": FORMAT_VERSION}
+    if world.name:
+        document["name"] = world.name
+    if world.physics != Physics():
+        document["physics"] = {
+            "gravity": list(world.physics.gravity),
+            "timestep": world.physics.timestep,
+            "solver_iterations": world.physics.solver_iterations,
+        }
+    document["ground"] = None if world.ground is None else _ground_dict(world.ground)
+    if world.scenario is not None:
+        document["scenario"] = _scenario_dict(world.scenario)
+    document["models"] = [_model_dict(model) for model in world.models]
+    return yaml.safe_dump(document, sort_keys=False, default_flow_style=None, width=120)
+
+
+def _ground_dict(ground: Ground) -> dict[str, float]:
+    return {"z": ground.z, "mu": ground.mu, "mu2": ground.mu2, "restitution": ground.restitution}
+
+
+def _scenario_dict(scenario: Scenario) -> dict[str, Any]:
+    start: dict[str, float] = {"x": scenario.start.x, "y": scenario.start.y}
+    if scenario.start_z_given:
+        start["z"] = scenario.start.z
+    start["yaw"] = scenario.start.yaw
+    goal: dict[str, float] = {"x": scenario.goal[0], "y": scenario.goal[1]}
+    if scenario.goal[2] is not None:
+        goal["z"] = scenario.goal[2]
+    return {
+        "robot": scenario.robot,
+        "start": start,
+        "goal": goal,
+        "goal_tolerance": scenario.goal_tolerance,
+        "timeout": scenario.timeout,
+    }
+
+
+def _shape_dict(shape: Shape) -> dict[str, Any]:
+    if shape.kind == "box":
+        assert shape.size is not None
+        spec: Any = list(shape.size)
+    elif shape.kind == "cylinder":
+        spec = {"radius": shape.radius, "length": shape.length}
+    elif shape.kind == "sphere":
+        spec = {"radius": shape.radius}
+    else:
+        spec = {"file": shape.mesh, "scale": list(shape.scale)}
+    result: dict[str, Any] = {shape.kind: spec}
+    if shape.pose != Pose():
+        result["pose"] = shape.pose.as_list()
+    return result
+
+
+def _model_dict(model: Model) -> dict[str, Any]:
+    result: dict[str, Any] = {"name": model.name}
+    if model.pose != Pose():
+        result["pose"] = model.pose.as_list()
+    if len(model.shapes) == 1 and model.shapes[0].pose == Pose():
+        result.update(_shape_dict(model.shapes[0]))
+    else:
+        result["shapes"] = [_shape_dict(shape) for shape in model.shapes]
+    if model.mass is not None:
+        result["mass"] = model.mass
+    if model.static != (model.mass is None):
+        result["static"] = model.static
+    if model.mu != 1.0 or model.mu2 != model.mu:
+        result["mu"] = model.mu
+    if model.mu2 != model.mu:
+        result["mu2"] = model.mu2
+    if model.restitution:
+        result["restitution"] = model.restitution
+    if model.color != (0.6, 0.6, 0.6, 1.0):
+        result["color"] = list(model.color)
+    if model.keep:
+        result["keep"] = True
+    if model.tags:
+        result["tags"] = dict(model.tags)
+    return result
