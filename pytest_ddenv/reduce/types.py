@@ -1,0 +1,222 @@
+"""The values the reduction engine exchanges with its caller: outcomes, traces, observations, results.
+
+Everything here is plain data (frozen dataclasses, numpy arrays, strings). The engine knows the elements
+of a world only by their names; the geometry and the traces come from the caller.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_ddenv.errors import ReductionError
+
+FloatArray = NDArray[np.float64]
+Candidate = tuple[str, ...]
+"""A sub-world: element names in the original order (kept elements included)."""
+
+
+class Outcome(str, enum.Enum):
+    """What one simulation of a candidate world showed."""
+
+    FAIL = "fail"
+    """The same failure f as the original world."""
+    OTHER = "other"
+    """A different failure f' (not f)."""
+    PASS = "pass"
+    """The test passed (not f)."""
+    ERROR = "error"
+    """The simulation or the test itself broke; never counts as f."""
+
+
+@dataclass(frozen=True, eq=False)
+class Trace:
+    """What the schemas need from one failing run, as plain numpy arrays in the world frame."""
+
+    times: FloatArray
+    """(T,) simulated seconds."""
+    positions: FloatArray
+    """(T, 3) robot position in the world frame."""
+    yaw_rates: FloatArray
+    """(T,) angular velocity about z (rad/s)."""
+    failure_position: FloatArray | None = None
+    """(3,) where the failure was detected, or None."""
+    first_sensed: Mapping[str, float] = field(default_factory=dict)
+    """Element name -> first time the robot's laser sensed it (absent = never sensed)."""
+    touched: frozenset[str] = frozenset()
+    """Elements the robot touched."""
+
+    def __post_init__(self) -> None:
+        times = np.asarray(self.times, dtype=np.float64).reshape(-1)
+        count = times.shape[0]
+        positions = np.asarray(self.positions, dtype=np.float64)
+        if positions.size == 0 and count == 0:
+            positions = np.zeros((0, 3))
+        if positions.shape != (count, 3):
+            raise ReductionError(
+                f"Trace.positions must have shape (T, 3) = ({count}, 3) to match Trace.times, "
+                f"got {positions.shape}"
+            )
+        yaw_rates = np.asarray(self.yaw_rates, dtype=np.float64).reshape(-1)
+        if yaw_rates.shape != (count,):
+            raise ReductionError(
+                f"Trace.yaw_rates must have shape (T,) = ({count},) to match Trace.times, got {yaw_rates.shape}"
+            )
+        failure_position = None
+        if self.failure_position is not None:
+            failure_position = np.asarray(self.failure_position, dtype=np.float64).reshape(-1)
+            if failure_position.shape != (3,):
+                raise ReductionError(
+                    f"Trace.failure_position must be None or have shape (3,), got {failure_position.shape}"
+                )
+        for name, value in (("times", times), ("positions", positions), ("yaw_rates", yaw_rates)):
+            if not np.all(np.isfinite(value)):
+                raise ReductionError(f"Trace.{name} contains NaN or infinite values")
+        object.__setattr__(self, "times", times)
+        object.__setattr__(self, "positions", positions)
+        object.__setattr__(self, "yaw_rates", yaw_rates)
+        object.__setattr__(self, "failure_position", failure_position)
+        object.__setattr__(self, "first_sensed", {str(k): float(v) for k, v in dict(self.first_sensed).items()})
+        object.__setattr__(self, "touched", frozenset(self.touched))
+
+    @classmethod
+    def empty(cls) -> Trace:
+        """A trace without samples (T = 0), no failure position, nothing sensed."""
+        return cls(times=np.zeros(0), positions=np.zeros((0, 3)), yaw_rates=np.zeros(0))
+
+    def __len__(self) -> int:
+        return int(self.times.shape[0])
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What a probe returns for one simulation of one candidate."""
+
+    outcome: Outcome
+    trace: Trace | None = None
+    """The run's trace, when the outcome is FAIL and it is available."""
+    signature: Mapping[str, Any] | None = None
+    """JSON-able failure signature, logged verbatim."""
+    seed: int | None = None
+    sim_time: float = 0.0
+    wall_time: float = 0.0
+    detail: str = ""
+    """Free text, e.g. an error message."""
+
+
+@runtime_checkable
+class Geometry(Protocol):
+    """Where the elements are, supplied by the world model (one world frame)."""
+
+    def centroids(self, names: tuple[str, ...] | list[str]) -> FloatArray:
+        """(E, 3) a representative point of each named element."""
+        ...
+
+    def distances(self, points: FloatArray, names: tuple[str, ...] | list[str]) -> FloatArray:
+        """(N, E) distance from each point to each element's real surface (0 inside)."""
+        ...
+
+
+Probe = Callable[[Candidate, int], Observation]
+"""probe(candidate, attempt) -> Observation. attempt is 0, 1, 2, ... per candidate (a distinct seed each)."""
+
+Precondition = Callable[[Candidate], "str | None"]
+"""precondition(candidate) -> None to allow probing it, or the reason to skip it (treated as not f)."""
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The verdict on one candidate: does it reproduce f (after deflaking)?"""
+
+    reproduces: bool
+    fails: int
+    """How many of the runs gave f."""
+    runs: int
+    """How many runs the verdict is based on (the attempts 0 .. runs-1)."""
+    trace: Trace | None = field(default=None, compare=False, repr=False)
+    """The trace of the first f run, when there was one (not persisted in the log)."""
+
+
+@dataclass(frozen=True)
+class ProgressEvent:
+    """Reported to `on_progress` as the reduction goes."""
+
+    kind: str
+    """"start", "round", "probe", "step" (a smaller world was adopted), "verify" or "end"."""
+    size: int
+    """Current number of elements (kept ones included)."""
+    probes: int
+    """Simulations run so far."""
+    granularity: int
+    elapsed: float
+    """Wall seconds since the reduction started."""
+    candidate: Candidate | None = None
+    outcome: Outcome | None = None
+
+
+@dataclass(frozen=True)
+class Reduction:
+    """The result of `reduce`: the minimal world and how it was reached."""
+
+    original: Candidate
+    minimal: Candidate
+    """The smallest failing world found (kept elements included), original order."""
+    kept: Candidate
+    """Elements that were never reducible (`keep`)."""
+    probes: int
+    """Simulations run by the reduction (first runs and deflake re-runs; failure-rate runs excluded)."""
+    cache_hits: int
+    """Candidates whose verdict came from the cache (or a resumed log) instead of a simulation."""
+    skipped: int
+    """Distinct candidates a precondition skipped without simulating them."""
+    errors: int
+    """Simulations whose outcome was ERROR (the probe raised or reported an error)."""
+    steps: tuple[tuple[int, int], ...]
+    """(probes so far, size) at the start and after each adopted smaller world."""
+    one_minimal: bool
+    """True when every single reducible element of `minimal` was shown necessary (see docs/algorithm.md)."""
+    incomplete_reason: str | None
+    """None, "budget: max_probes", "budget: max_seconds" or "interrupted"."""
+    failure_rate: tuple[int, int]
+    """(fails, runs) of `minimal` over `failure_rate_runs` extra attempts."""
+    wall_time: float
+    partition: str
+    priority: str
+    granularity: str
+    deflake: int | str
+    seed: int
+
+    @property
+    def original_size(self) -> int:
+        return len(self.original)
+
+    @property
+    def minimal_size(self) -> int:
+        return len(self.minimal)
+
+    @property
+    def removed(self) -> Candidate:
+        """The elements the reduction removed, original order."""
+        keep = set(self.minimal)
+        return tuple(name for name in self.original if name not in keep)
+
+
+class ReductionInterrupted(ReductionError, KeyboardInterrupt):
+    """Raised by `reduce` on KeyboardInterrupt, after flushing the log.
+
+    It is a KeyboardInterrupt (so ``except KeyboardInterrupt`` and pytest's interrupt handling still see a
+    Ctrl-C) and a ReductionError; `.reduction` is the best world found so far, with
+    ``incomplete_reason == "interrupted"`` and ``one_minimal == False``.
+    """
+
+    def __init__(self, reduction: Reduction) -> None:
+        self.reduction = reduction
+        super().__init__(
+            f"reduction interrupted after {reduction.probes} probes; best world so far has "
+            f"{len(reduction.minimal)} of {len(reduction.original)} elements"
+        )

@@ -1,0 +1,23 @@
+"""The examples in the documentation run, so the docs cannot rot."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from pytest_ddenv import World
+
+DOCS = Path(__file__).resolve().parent.parent / "docs"
+
+
+def yaml_blocks(page: str) -> list[str]:
+    return re.findall(r"```yaml\n(.*?)```", (DOCS / page).read_text(), flags=re.S)
+
+
+def test_world_format_example_loads_and_round_trips() -> None:
+    (example,) = yaml_blocks("world-format.md")
+    world = World.from_yaml(example, source="docs/world-format.md")
+    assert world.names == ("near_plateau", "far_plateau", "barrel", "cinder_block", "ball", "start_pad")
+    assert world.reducible_names[-1] == "ball" and world.model("start_pad").keep
+    assert world.model("cinder_block").dynamic and world.model("barrel").static
+    assert World.from_yaml(world.to_yaml()) == world

@@ -1,0 +1,35 @@
+"""The package installs, registers its pytest plugin and ships its console script."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+import pytest_ddenv
+
+
+def test_version_is_the_installed_distribution_version() -> None:
+    from importlib.metadata import version
+
+    assert pytest_ddenv.__version__ == version("pytest-ddenv")
+
+
+def test_pytest_header_lists_the_plugin(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile("def test_ok():\n    pass\n")
+    result = pytester.runpytest_subprocess()
+    result.stdout.fnmatch_lines([f"plugins:*ddenv-{pytest_ddenv.__version__}*"])
+    result.assert_outcomes(passed=1)
+
+
+def test_markers_are_registered(pytester: pytest.Pytester) -> None:
+    result = pytester.runpytest("--markers")
+    result.stdout.fnmatch_lines(["@pytest.mark.ddenv(*", "@pytest.mark.robot_failure(*"])
+
+
+def test_console_script_version_and_help() -> None:
+    version = subprocess.run([sys.executable, "-m", "pytest_ddenv.cli", "--version"], capture_output=True, text=True)
+    assert version.returncode == 0 and version.stdout.strip() == f"ddenv {pytest_ddenv.__version__}"
+    helped = subprocess.run(["ddenv", "--help"], capture_output=True, text=True)
+    assert helped.returncode == 0 and "usage: ddenv" in helped.stdout

@@ -1,0 +1,144 @@
+"""Properties of the world model, checked with generated worlds and points."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pytest_ddenv import Ground, Model, Pose, Scenario, Shape, World
+from pytest_ddenv.geometry import to_local
+
+finite = st.floats(min_value=-50, max_value=50, allow_nan=False, allow_infinity=False)
+angle = st.floats(min_value=-math.pi, max_value=math.pi, allow_nan=False)
+positive = st.floats(min_value=0.01, max_value=5, allow_nan=False)
+poses = st.builds(Pose, finite, finite, finite, angle, angle, angle)
+
+boxes = st.builds(lambda size, pose: Shape("box", size=size, pose=pose), st.tuples(positive, positive, positive), poses)
+cylinders = st.builds(lambda r, h, pose: Shape("cylinder", radius=r, length=h, pose=pose), positive, positive, poses)
+spheres = st.builds(lambda r, pose: Shape("sphere", radius=r, pose=pose), positive, poses)
+shapes = st.one_of(boxes, cylinders, spheres)
+
+
+@st.composite
+def models(draw: st.DrawFn, name: str) -> Model:
+    mass = draw(st.one_of(st.none(), positive))
+    mu = draw(st.floats(min_value=0, max_value=1000, allow_nan=False))
+    return Model(
+        name=name,
+        shapes=tuple(draw(st.lists(shapes, min_size=1, max_size=3))),
+        pose=draw(poses),
+        mass=mass,
+        static=mass is None or draw(st.booleans()),
+        mu=mu,
+        mu2=draw(st.one_of(st.just(mu), st.floats(min_value=0, max_value=10, allow_nan=False))),
+        restitution=draw(st.floats(min_value=0, max_value=1, allow_nan=False)),
+        color=draw(st.tuples(*[st.floats(min_value=0, max_value=1, allow_nan=False)] * 4)),
+        keep=draw(st.booleans()),
+        tags=draw(st.dictionaries(st.sampled_from(["kind", "note"]), st.one_of(st.text(max_size=5), st.integers()))),
+    )
+
+
+@st.composite
+def worlds(draw: st.DrawFn) -> World:
+    names = draw(st.lists(st.text("abcdefgh_0123456789", min_size=1, max_size=8), unique=True, max_size=8))
+    scenario = draw(
+        st.one_of(
+            st.none(),
+            st.builds(
+                lambda x, y, yaw, gx, gy, t, z: Scenario(
+                    start=Pose(x, y, 0.0 if z is None else z, 0, 0, yaw), start_z_given=z is not None,
+                    goal=(gx, gy, None), timeout=t,
+                ),
+                finite, finite, angle, finite, finite, positive, st.one_of(st.none(), finite),
+            ),
+        )
+    )
+    ground = draw(st.one_of(st.none(), st.builds(Ground, finite, positive, positive, st.just(0.0))))
+    return World(models=tuple(draw(models(name)) for name in names), scenario=scenario, ground=ground, name="gen")
+
+
+@given(worlds())
+@settings(max_examples=60, deadline=None)
+def test_save_then_load_gives_the_same_world(world: World) -> None:
+    assert World.from_yaml(world.to_yaml()) == world
+
+
+@given(worlds(), st.data())
+@settings(max_examples=60, deadline=None)
+def test_select_and_without_are_complementary_and_keep_order(world: World, data: st.DataObject) -> None:
+    chosen = data.draw(st.sets(st.sampled_from(world.names)) if world.names else st.just(set()))
+    selected, rest = world.select(chosen), world.without(chosen)
+    assert set(selected.names) | set(rest.names) == set(world.names)
+    assert not set(selected.names) & set(rest.names)
+    order = {name: i for i, name in enumerate(world.names)}
+    for part in (selected, rest):
+        assert [order[n] for n in part.names] == sorted(order[n] for n in part.names)
+        assert all(part.model(n) == world.model(n) for n in part.names)
+
+
+def brute_force_distance(shape: Shape, local_points: np.ndarray) -> np.ndarray:
+    """Distance to a densely sampled solid (surface and interior grid), independent of the analytic code."""
+    u = np.linspace(-0.5, 0.5, 41)
+    if shape.kind == "box":
+        grid = np.stack(np.meshgrid(u, u, u, indexing="ij"), axis=-1).reshape(-1, 3) * np.array(shape.size)
+    elif shape.kind == "cylinder":
+        theta = np.linspace(0, 2 * np.pi, 120, endpoint=False)
+        rings = [np.column_stack([r * np.cos(theta), r * np.sin(theta)]) for r in np.linspace(0, shape.radius, 12)]
+        disk = np.vstack(rings)
+        grid = np.vstack([np.column_stack([disk, np.full(len(disk), z * shape.length)]) for z in u])
+    else:
+        phi, theta = np.meshgrid(np.linspace(0, np.pi, 60), np.linspace(0, 2 * np.pi, 120), indexing="ij")
+        unit = np.stack([np.sin(phi) * np.cos(theta), np.sin(phi) * np.sin(theta), np.cos(phi)], -1).reshape(-1, 3)
+        grid = np.vstack([unit * r for r in np.linspace(0, shape.radius, 10)])
+    return np.min(np.linalg.norm(local_points[:, None, :] - grid[None, :, :], axis=2), axis=1)
+
+
+@given(shapes, poses, st.lists(st.tuples(finite, finite, finite), min_size=1, max_size=5))
+@settings(max_examples=40, deadline=None)
+def test_distances_match_a_brute_force_reference(shape: Shape, pose: Pose, raw_points: list) -> None:
+    model = Model("m", (dataclasses.replace(shape, pose=Pose()),), pose=pose)
+    world = World(models=(model,))
+    points = pose.position + (np.array(raw_points) / 10.0)  # near the shape, so the tolerance is meaningful
+    computed = world.distances(points)[:, 0]
+    reference = brute_force_distance(model.shapes[0], to_local(points, pose.position, pose.rotation))
+    largest = max(shape.size or (0,)) if shape.kind == "box" else max(shape.radius or 0, shape.length or 0)
+    assert np.all(computed >= 0)
+    assert np.all(computed <= reference + 1e-9)  # the sampled solid is inside the true one
+    assert np.allclose(computed, reference, atol=0.06 * largest + 1e-9)
+
+
+@given(shapes, poses, st.lists(st.tuples(*[st.floats(-0.49, 0.49)] * 3), min_size=1, max_size=10))
+@settings(max_examples=60, deadline=None)
+def test_points_inside_a_shape_are_at_distance_zero(shape: Shape, pose: Pose, fractions: list) -> None:
+    model = Model("m", (shape,), pose=pose)
+    f = np.array(fractions)
+    if shape.kind == "box":
+        local = f * np.array(shape.size)
+    elif shape.kind == "cylinder":
+        local = np.column_stack([f[:, 0] * shape.radius, f[:, 1] * shape.radius, f[:, 2] * shape.length])
+    else:
+        local = f * shape.radius
+    placed = pose.compose(shape.pose)
+    points = placed.position + local @ placed.rotation.T
+    assert np.allclose(World(models=(model,)).distances(points), 0.0, atol=1e-9)
+
+
+def test_a_robot_driving_on_a_20m_slab_is_at_distance_zero_from_it() -> None:
+    slab = Model("asphalt", (Shape("box", size=(20.0, 20.0, 1.43)),), pose=Pose(-8.5, 2.3, 0.165))
+    world = World(models=(slab,))
+    trajectory = np.column_stack([np.linspace(-17, 1, 50), np.linspace(-7, 12, 50), np.full(50, 0.88)])
+    assert world.distances(trajectory).max() == pytest.approx(0.0, abs=1e-3)
+    assert world.centroid("asphalt") == pytest.approx([-8.5, 2.3, 0.165])
+    low, high = world.bounds("asphalt")
+    assert low == pytest.approx([-18.5, -7.7, 0.165 - 0.715]) and high == pytest.approx([1.5, 12.3, 0.88])
+
+
+def test_bounds_of_rotated_cylinder_are_exact() -> None:
+    lying = Model("barrel", (Shape("cylinder", radius=0.3, length=1.0),), pose=Pose(0, 0, 0.3, math.pi / 2, 0, 0))
+    low, high = World(models=(lying,)).bounds("barrel")
+    assert low == pytest.approx([-0.3, -0.5, 0.0]) and high == pytest.approx([0.3, 0.5, 0.6])
