@@ -8,10 +8,11 @@ degrades as documented on each class and in docs/algorithm.md, never fails.
 
 from __future__ import annotations
 
+import functools
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -33,6 +34,21 @@ class Partitioner(Protocol):
     name: str
 
     def __call__(self, current: Part, n: int, context: Context) -> list[Part]: ...
+
+
+@functools.cache
+def _thread_controller() -> Any:
+    from threadpoolctl import ThreadpoolController  # a dependency of scikit-learn
+
+    return ThreadpoolController()
+
+
+def fit_quietly(model: Any, *args: Any, **kwargs: Any) -> Any:
+    """Fit a small scikit-learn model single-threaded (BLAS threads cost more than they save on tiny
+    problems, and probes run in parallel anyway) and without convergence warnings."""
+    with warnings.catch_warnings(), _thread_controller().limit(limits=1):
+        warnings.simplefilter("ignore")
+        return model.fit(*args, **kwargs)
 
 
 def even_split(names: Sequence[str], n: int) -> list[Part]:
@@ -105,10 +121,8 @@ class ModelToModelPartition:
     def _kmeans(self, points: FloatArray, weights: FloatArray, clusters: int, seed: int) -> np.ndarray:
         from sklearn.cluster import KMeans
 
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            model = KMeans(n_clusters=clusters, random_state=seed, n_init=self.n_init)
-            model.fit(points, sample_weight=weights.astype(np.float64))
+        model = KMeans(n_clusters=clusters, random_state=seed % 2**32, n_init=self.n_init)
+        fit_quietly(model, points, sample_weight=weights.astype(np.float64))
         return np.asarray(model.labels_, dtype=int)
 
 
@@ -225,10 +239,8 @@ class LearnerPartition:
         for row, verdict in enumerate(context.history):
             features[row, [columns[name] for name in verdict.members]] = 1.0
         targets = np.array([int(verdict.reproduces) for verdict in context.history])
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            model = LogisticRegression(C=self.regularization, max_iter=1000)
-            model.fit(features, targets)
+        model = LogisticRegression(C=self.regularization, max_iter=1000)
+        fit_quietly(model, features, targets)
         coefficients = model.coef_[0]
         return {name: float(np.round(coefficients[columns[name]], 9)) for name in current}
 

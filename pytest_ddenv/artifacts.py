@@ -1,0 +1,159 @@
+"""Files a reduction leaves behind: minimal world (YAML, SDF), run log, summary, pictures.
+
+Every file is written atomically (write to a temporary name, then rename), so an interrupted reduction
+never leaves a half-written file; the run log is appended and flushed line by line by the engine.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pytest_ddenv.reduce import Reduction
+from pytest_ddenv.world import World
+
+SUMMARY_FORMAT = 1
+_UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
+
+
+def artifact_dir_name(test_id: str) -> str:
+    """A folder name for a test id: safe on every file system, no traversal, and unique per id."""
+    readable = _UNSAFE.sub("_", test_id.replace("::", "__")).strip("._") or "test"
+    digest = hashlib.sha1(test_id.encode("utf-8")).hexdigest()[:8]
+    return f"{readable[:80]}-{digest}"
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    temporary = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    temporary.write_text(text, encoding="utf-8")
+    os.replace(temporary, path)
+
+
+def fingerprint(world: World, settings: dict[str, Any], test_source: str = "") -> str:
+    """Identifies a reduction problem: a resumed log is only reused when this matches."""
+    import pybullet  # noqa: F401  (its version is part of the reproducibility key)
+    from importlib.metadata import version
+
+    payload = json.dumps(
+        {"world": world.to_yaml(), "settings": settings, "test": test_source, "pybullet": version("pybullet")},
+        sort_keys=True,
+        default=str,
+    )
+    return hashlib.sha256(payload.encode("utf-8")).hexdigest()
+
+
+@dataclass(frozen=True)
+class ArtifactPaths:
+    directory: Path
+
+    @property
+    def minimal_yaml(self) -> Path:
+        return self.directory / "minimal.yaml"
+
+    @property
+    def minimal_sdf(self) -> Path:
+        return self.directory / "minimal.sdf"
+
+    @property
+    def log(self) -> Path:
+        return self.directory / "runs.jsonl"
+
+    @property
+    def summary(self) -> Path:
+        return self.directory / "summary.json"
+
+    @property
+    def reduction_png(self) -> Path:
+        return self.directory / "reduction.png"
+
+    @property
+    def progress_png(self) -> Path:
+        return self.directory / "progress.png"
+
+
+def prepare(directory: Path, problem_fingerprint: str) -> ArtifactPaths:
+    """Create the folder; keep an earlier log only if it belongs to the same problem (resume)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    paths = ArtifactPaths(directory)
+    previous = read_summary(paths.summary)
+    if paths.log.exists() and (previous is None or previous.get("fingerprint") != problem_fingerprint):
+        paths.log.unlink()
+    return paths
+
+
+def read_summary(path: Path) -> dict[str, Any] | None:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def write_reduction(
+    paths: ArtifactPaths,
+    world: World,
+    reduction: Reduction,
+    *,
+    test_id: str,
+    replay_command: str,
+    problem_fingerprint: str,
+    reference: dict[str, Any],
+    extra: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Write the minimal world and the summary; returns the summary (plain JSON-able dict)."""
+    minimal = world.select(reduction.minimal)
+    write_text_atomic(paths.minimal_yaml, minimal.to_yaml())
+    files = {"minimal_yaml": str(paths.minimal_yaml), "log": str(paths.log), "summary": str(paths.summary)}
+    try:
+        minimal.save(paths.minimal_sdf)
+        files["minimal_sdf"] = str(paths.minimal_sdf)
+    except Exception:  # noqa: BLE001 - SDF export is optional; the YAML is the reference artifact
+        pass
+    summary = summary_of(world, reduction, test_id=test_id, replay_command=replay_command, reference=reference)
+    summary["fingerprint"] = problem_fingerprint
+    summary["files"] = files
+    summary.update(extra or {})
+    write_text_atomic(paths.summary, json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
+def summary_of(
+    world: World, reduction: Reduction, *, test_id: str, replay_command: str, reference: dict[str, Any]
+) -> dict[str, Any]:
+    removed = [name for name in reduction.original if name not in set(reduction.minimal)]
+    fails, runs = reduction.failure_rate
+    return {
+        "format": SUMMARY_FORMAT,
+        "test": test_id,
+        "world": world.source or world.name,
+        "complete": reduction.incomplete_reason is None,
+        "incomplete_reason": reduction.incomplete_reason,
+        "one_minimal": reduction.one_minimal,
+        "original_size": reduction.original_size,
+        "minimal_size": reduction.minimal_size,
+        "reduction_percent": round(100.0 * (1 - reduction.minimal_size / max(reduction.original_size, 1)), 1),
+        "minimal_models": list(reduction.minimal),
+        "removed_models": removed,
+        "kept_models": list(reduction.kept),
+        "probes": reduction.probes,
+        "cache_hits": reduction.cache_hits,
+        "skipped": reduction.skipped,
+        "errors": reduction.errors,
+        "steps": [list(step) for step in reduction.steps],
+        "failure_rate": {"fails": fails, "runs": runs},
+        "wall_time": round(reduction.wall_time, 3),
+        "schemas": {
+            "partition": reduction.partition,
+            "priority": reduction.priority,
+            "granularity": reduction.granularity,
+            "deflake": reduction.deflake,
+        },
+        "seed": reduction.seed,
+        "reference_failure": reference,
+        "replay": replay_command,
+    }

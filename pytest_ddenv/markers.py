@@ -1,0 +1,160 @@
+"""The `ddenv` and `robot_failure` markers: parsed and validated eagerly into plain values.
+
+No pytest import: the plugin hands over the markers' args and kwargs and turns `MarkerError` into a usage
+error that names the test.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from pytest_ddenv.errors import DdenvError
+
+DDENV_KEYWORDS = (
+    "world", "partition", "priority", "n_partitions", "granularity", "deflake", "tolerance", "keep", "seed", "budget",
+)
+
+
+class MarkerError(DdenvError):
+    """A marker's arguments are invalid; the message names the marker and the argument."""
+
+
+@dataclass(frozen=True)
+class ReductionSpec:
+    """What `@pytest.mark.ddenv(...)` says about a test (defaults when the marker is absent)."""
+
+    world: str | None = None
+    partition: str = "model2model"
+    priority: str = "avg-trajectory-proximal"
+    n_partitions: int = 2
+    granularity: str = "ddmin"
+    deflake: int | str = 3
+    tolerance: float = 0.5
+    keep: tuple[str, ...] = ()
+    seed: int = 0
+    max_probes: int | None = None
+    max_seconds: float | None = None
+
+
+@dataclass(frozen=True)
+class PredicateSpec:
+    """One `@pytest.mark.robot_failure(name, **params)`."""
+
+    name: str
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+
+def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> ReductionSpec:
+    from pytest_ddenv.reduce import DEFLAKE_POLICIES, PARTITIONS, PRIORITIES, PRIORITY_ALIASES
+
+    if len(args) > 1:
+        raise MarkerError("ddenv(...) takes at most one positional argument, the world file")
+    values = dict(kwargs)
+    if args:
+        if "world" in values:
+            raise MarkerError("ddenv(...): the world is given twice (positional and world=)")
+        values["world"] = args[0]
+    unknown = sorted(set(values) - set(DDENV_KEYWORDS))
+    if unknown:
+        raise MarkerError(f"ddenv(...): unknown argument '{unknown[0]}'; valid arguments: {', '.join(DDENV_KEYWORDS)}")
+    spec = ReductionSpec()
+    updates: dict[str, Any] = {}
+    if "world" in values:
+        updates["world"] = _string(values["world"], "world")
+    if "partition" in values:
+        updates["partition"] = _choice(values["partition"], "partition", PARTITIONS)
+    if "priority" in values:
+        priority = PRIORITY_ALIASES.get(values["priority"], values["priority"])
+        updates["priority"] = _choice(priority, "priority", PRIORITIES, shown=values["priority"])
+    if "granularity" in values:
+        updates["granularity"] = _choice(values["granularity"], "granularity", ("ddmin", "paper"))
+    if "n_partitions" in values:
+        updates["n_partitions"] = _integer(values["n_partitions"], "n_partitions", minimum=2)
+    if "deflake" in values:
+        updates["deflake"] = parse_deflake(values["deflake"], "ddenv(deflake=...)", DEFLAKE_POLICIES)
+    if "tolerance" in values:
+        updates["tolerance"] = _positive(values["tolerance"], "tolerance")
+    if "keep" in values:
+        keep = values["keep"]
+        if isinstance(keep, str):
+            keep = (keep,)
+        if not isinstance(keep, (list, tuple, set, frozenset)) or not all(isinstance(k, str) for k in keep):
+            raise MarkerError(f"ddenv(keep=...): expected a list of model names, got {keep!r}")
+        updates["keep"] = tuple(keep)
+    if "seed" in values:
+        updates["seed"] = _integer(values["seed"], "seed", minimum=0)
+    if "budget" in values:
+        updates.update(_budget(values["budget"]))
+    return ReductionSpec(**{**spec.__dict__, **updates})
+
+
+def parse_deflake(value: Any, where: str, policies: Sequence[str] = ("adaptive",)) -> int | str:
+    """An integer >= 0 (re-runs of a non-reproducing candidate) or a named policy such as 'adaptive'."""
+    if isinstance(value, str) and value in policies:
+        return value
+    if isinstance(value, str) and value.isdigit():
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise MarkerError(f"{where}: expected an integer >= 0 or one of {', '.join(policies)}, got {value!r}")
+    return value
+
+
+def parse_failure_markers(markers: Sequence[tuple[Sequence[Any], Mapping[str, Any]]]) -> tuple[PredicateSpec, ...]:
+    """Validate each robot_failure marker by building its predicate (unknown names or parameters fail here)."""
+    from pytest_ddenv.oracle import PREDICATES, make_predicate
+
+    specs = []
+    for args, kwargs in markers:
+        if len(args) != 1 or not isinstance(args[0], str):
+            raise MarkerError(
+                "robot_failure(...) takes the predicate name as its only positional argument, e.g. "
+                f"robot_failure('stuck', window=5.0); valid predicates: {', '.join(PREDICATES)}"
+            )
+        try:
+            make_predicate(args[0], **kwargs)
+        except DdenvError as error:
+            raise MarkerError(f"robot_failure({args[0]!r}, ...): {error}") from error
+        specs.append(PredicateSpec(args[0], dict(kwargs)))
+    return tuple(specs)
+
+
+def _string(value: Any, name: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise MarkerError(f"ddenv({name}=...): expected a non-empty string, got {value!r}")
+    return value
+
+
+def _choice(value: Any, name: str, choices: Sequence[str], *, shown: Any = None) -> str:
+    if value not in choices:
+        raise MarkerError(
+            f"ddenv({name}=...): unknown {name} {shown if shown is not None else value!r}; "
+            f"valid choices: {', '.join(choices)}"
+        )
+    return str(value)
+
+
+def _integer(value: Any, name: str, *, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise MarkerError(f"ddenv({name}=...): expected an integer >= {minimum}, got {value!r}")
+    return value
+
+
+def _positive(value: Any, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+        raise MarkerError(f"ddenv({name}=...): expected a positive number, got {value!r}")
+    return float(value)
+
+
+def _budget(value: Any) -> dict[str, Any]:
+    if isinstance(value, int) and not isinstance(value, bool):
+        return {"max_probes": _integer(value, "budget", minimum=1)}
+    if isinstance(value, Mapping) and value and set(value) <= {"probes", "seconds"}:
+        budget: dict[str, Any] = {}
+        if "probes" in value:
+            budget["max_probes"] = _integer(value["probes"], "budget", minimum=1)
+        if "seconds" in value:
+            budget["max_seconds"] = _positive(value["seconds"], "budget")
+        return budget
+    raise MarkerError(f"ddenv(budget=...): expected a probe count or {{'probes': N, 'seconds': S}}, got {value!r}")

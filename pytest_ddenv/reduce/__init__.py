@@ -1,0 +1,54 @@
+"""The reduction engine: delta debugging over the elements of a failing world (a pure library).
+
+It knows elements only by name; the caller supplies a probe (simulate a sub-world), optionally the
+world's geometry and the reference trace of the failing run. See docs/algorithm.md.
+"""
+
+from pytest_ddenv.reduce.context import Context
+from pytest_ddenv.reduce.deflake import DEFLAKE_POLICIES, FixedReruns, SequentialTest
+from pytest_ddenv.reduce.engine import reduce
+from pytest_ddenv.reduce.log import VOLATILE_FIELDS, ProbeLog
+from pytest_ddenv.reduce.partition import PARTITIONS, Partitioner
+from pytest_ddenv.reduce.priority import PRIORITIES, PRIORITY_ALIASES, Prioritizer
+from pytest_ddenv.reduce.settings import COMPLEMENT_ORDERS, GRANULARITIES
+from pytest_ddenv.reduce.types import (
+    Candidate,
+    Decision,
+    Geometry,
+    Observation,
+    Outcome,
+    Precondition,
+    Probe,
+    ProgressEvent,
+    Reduction,
+    ReductionInterrupted,
+    Trace,
+)
+
+__all__ = [
+    "COMPLEMENT_ORDERS",
+    "DEFLAKE_POLICIES",
+    "GRANULARITIES",
+    "PARTITIONS",
+    "PRIORITIES",
+    "PRIORITY_ALIASES",
+    "VOLATILE_FIELDS",
+    "Candidate",
+    "Context",
+    "Decision",
+    "FixedReruns",
+    "Geometry",
+    "Observation",
+    "Outcome",
+    "Partitioner",
+    "Precondition",
+    "Prioritizer",
+    "Probe",
+    "ProbeLog",
+    "ProgressEvent",
+    "Reduction",
+    "ReductionInterrupted",
+    "SequentialTest",
+    "Trace",
+    "reduce",
+]

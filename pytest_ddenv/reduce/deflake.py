@@ -1,0 +1,103 @@
+"""Deflake policies: from the outcomes of a candidate's runs so far, decide f / not f / run again.
+
+`FixedReruns(n)` is the paper's rule: a candidate whose first run is not f is re-run up to n more times
+and reproduces f as soon as one run does. A world that fails once in four runs therefore "reproduces f"
+under this rule (the rule is biased toward accepting reductions; the final failure rate tells).
+
+`SequentialTest` (``deflake="adaptive"``) is Wald's sequential probability ratio test of
+H0: P(f) <= 0.05 ("f is not reproduced, only noise") against H1: P(f) >= 0.5 ("f is reproduced"), with
+both error probabilities 1 - confidence. It stops as soon as the evidence is conclusive, and it also
+confirms accepted candidates: at confidence 0.95 one f is not enough (two are), and five runs without f
+reject. After `max_runs` runs without a conclusion it decides on the observed rate.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+from pytest_ddenv.errors import ReductionError
+from pytest_ddenv.reduce.types import Outcome
+
+DEFLAKE_POLICIES: tuple[str, ...] = ("adaptive",)
+"""Named policies; `deflake` also accepts a non-negative int (fixed re-runs)."""
+
+
+class DeflakePolicy(Protocol):
+    """Decides from the outcomes so far: True (reproduces f), False (does not), None (run again)."""
+
+    def verdict(self, outcomes: Sequence[Outcome]) -> bool | None: ...
+
+    @property
+    def label(self) -> int | str: ...
+
+
+@dataclass(frozen=True)
+class FixedReruns:
+    """The paper's rule: f on any of 1 + reruns runs; stop at the first f."""
+
+    reruns: int
+
+    @property
+    def label(self) -> int:
+        return self.reruns
+
+    def verdict(self, outcomes: Sequence[Outcome]) -> bool | None:
+        if Outcome.FAIL in outcomes:
+            return True
+        if len(outcomes) >= self.reruns + 1:
+            return False
+        return None
+
+
+@dataclass(frozen=True)
+class SequentialTest:
+    """Wald's SPRT on the rate of f; ERROR, PASS and OTHER all count as "not f"."""
+
+    confidence: float = 0.95
+    noise_rate: float = 0.05
+    """P(f) under H0: a world that does not reproduce f."""
+    reproduce_rate: float = 0.5
+    """P(f) under H1: a world that reproduces f."""
+    max_runs: int = 30
+
+    @property
+    def label(self) -> str:
+        return "adaptive"
+
+    def verdict(self, outcomes: Sequence[Outcome]) -> bool | None:
+        fails = sum(1 for outcome in outcomes if outcome is Outcome.FAIL)
+        others = len(outcomes) - fails
+        error = 1.0 - self.confidence
+        upper = math.log((1.0 - error) / error)
+        lower = math.log(error / (1.0 - error))
+        ratio = fails * math.log(self.reproduce_rate / self.noise_rate) + others * math.log(
+            (1.0 - self.reproduce_rate) / (1.0 - self.noise_rate)
+        )
+        if ratio >= upper:
+            return True
+        if ratio <= lower:
+            return False
+        if len(outcomes) >= self.max_runs:
+            return fails / len(outcomes) >= (self.noise_rate + self.reproduce_rate) / 2.0
+        return None
+
+
+def make_policy(deflake: int | str, confidence: float) -> DeflakePolicy:
+    """`deflake` is a non-negative int (fixed re-runs, also as a digit string) or "adaptive"."""
+    if not isinstance(confidence, (int, float)) or isinstance(confidence, bool) or not 0.5 < confidence < 1.0:
+        raise ReductionError(f"confidence must be a number strictly between 0.5 and 1, got {confidence!r}")
+    if isinstance(deflake, str) and deflake.strip().isdigit():
+        deflake = int(deflake.strip())
+    if isinstance(deflake, int) and not isinstance(deflake, bool):
+        if deflake < 0:
+            raise ReductionError(f"deflake must be >= 0 re-runs or 'adaptive', got {deflake}")
+        return FixedReruns(deflake)
+    if deflake == "adaptive":
+        return SequentialTest(confidence=float(confidence))
+    raise ReductionError(
+        f"deflake must be a non-negative int (fixed re-runs) or one of {', '.join(DEFLAKE_POLICIES)}, "
+        f"got {deflake!r}"
+    )

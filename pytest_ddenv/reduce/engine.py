@@ -1,0 +1,415 @@
+"""`reduce`: Algorithm 1 of the paper made ddmin-faithful, ending with a proof of 1-minimality.
+
+Each round partitions the current world (partition schema), orders the parts (priority schema), and tries
+the parts ("subsets") in priority order, then their complements (by default in reverse priority order:
+the part least likely to matter is removed first). The first candidate that reproduces f (after
+deflaking) becomes the current world. Granularity follows ddmin (after a subset: n_partitions; after a
+complement: max(n-1, 2); no progress: min(2n, size)) or the paper (n+1 every round). When no candidate
+of the finest round (every part one element) reproduces f, a verification pass tries removing each single
+remaining element; only if none reproduces f is the result declared 1-minimal. See docs/algorithm.md.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import os
+import time
+from dataclasses import dataclass
+from collections.abc import Callable, Collection, MutableMapping, Sequence
+from typing import Any
+
+from pytest_ddenv.errors import ReductionError
+from pytest_ddenv.reduce.context import Context, Verdict
+from pytest_ddenv.reduce.log import LOG_FORMAT, ProbeLog
+from pytest_ddenv.reduce.partition import Partitioner
+from pytest_ddenv.reduce.priority import Prioritizer
+from pytest_ddenv.reduce.prober import Budget, BudgetExhausted, Prober, Trial
+from pytest_ddenv.reduce.settings import Settings, validate
+from pytest_ddenv.reduce.types import (
+    Candidate,
+    Decision,
+    Geometry,
+    Outcome,
+    Precondition,
+    Probe,
+    ProgressEvent,
+    Reduction,
+    ReductionInterrupted,
+    Trace,
+)
+
+
+def reduce(
+    elements: Sequence[str],
+    probe: Probe,
+    *,
+    geometry: Geometry | None = None,
+    reference: Trace | None = None,
+    partition: str | Partitioner = "model2model",
+    priority: str | Prioritizer = "avg-trajectory-proximal",
+    n_partitions: int = 2,
+    granularity: str = "ddmin",
+    deflake: int | str = 3,
+    confidence: float = 0.95,
+    keep: Collection[str] = (),
+    preconditions: Sequence[Precondition] = (),
+    max_probes: int | None = None,
+    max_seconds: float | None = None,
+    seed: int = 0,
+    cache: MutableMapping[Any, Any] | None = None,
+    executor: concurrent.futures.Executor | None = None,
+    log: ProbeLog | str | os.PathLike[str] | None = None,
+    failure_rate_runs: int = 5,
+    on_progress: Callable[[ProgressEvent], None] | None = None,
+    complement_order: str = "reverse",
+) -> Reduction:
+    """Reduce a failing world to a 1-minimal failing sub-world.
+
+    `elements` are the names of the world's elements (original order; the original world is assumed to
+    fail with f: its run is `reference`, attempt 0). `probe(candidate, attempt)` simulates a sub-world
+    (names in original order, `keep` elements included) and returns an Observation. See docs/algorithm.md
+    for every option. Raises ReductionError for invalid arguments and ReductionInterrupted (carrying the
+    partial `.reduction`) on KeyboardInterrupt; budgets end the reduction early with the best world so far
+    and ``incomplete_reason`` set.
+    """
+    settings = validate(
+        elements,
+        probe,
+        geometry=geometry,
+        reference=reference,
+        partition=partition,
+        priority=priority,
+        n_partitions=n_partitions,
+        granularity=granularity,
+        complement_order=complement_order,
+        deflake=deflake,
+        confidence=confidence,
+        keep=keep,
+        preconditions=preconditions,
+        max_probes=max_probes,
+        max_seconds=max_seconds,
+        seed=seed,
+        cache=cache,
+        executor=executor,
+        log=log,
+        failure_rate_runs=failure_rate_runs,
+        on_progress=on_progress,
+    )
+    return _Engine(settings).run()
+
+
+Part = tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """The parts of one round: `ordered` by priority (subsets), `removal` the order complements are tried."""
+
+    ordered: list[Part]
+    removal: list[Part]
+    subsets: bool
+    """False when every part alone is already known not to reproduce f (a carried-over round)."""
+
+    def without(self, removed: Part) -> _Plan:
+        """The next round after removing `removed`: same parts and order, continuing after the removed one
+        (picire's complement offset), subsets not tried again (they all failed in this round)."""
+        at = self.removal.index(removed)
+        return _Plan(
+            ordered=[part for part in self.ordered if part != removed],
+            removal=self.removal[at + 1 :] + self.removal[:at],
+            subsets=False,
+        )
+
+
+class _Engine:
+    """The state of one reduction."""
+
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self.started_at = time.monotonic()
+        self.log = self._open_log(settings)
+        self.cache: MutableMapping[Any, Any] = settings.cache if settings.cache is not None else {}
+        preloaded: dict[frozenset[str], list[Outcome]] = {}
+        self.resumed = bool(self.log is not None and self.log.records)
+        if self.log is not None:
+            for key, decision in self.log.decisions().items():
+                self.cache.setdefault(key, decision)
+            preloaded = self.log.partial_runs()
+        self.current: tuple[str, ...] = settings.reducible
+        self.context = Context(
+            elements=settings.reducible, geometry=settings.geometry, trace=settings.reference, seed=settings.seed
+        )
+        self.context.history.append(Verdict(frozenset(self.current), True))
+        self.granularity = min(settings.n_partitions, len(self.current))
+        self.round_index = 0
+        self.carried: _Plan | None = None
+        """After a complement was adopted, ddmin goes on with the remaining n-1 parts."""
+        self.minimal_runs = 1  # the reference run of the original world is its attempt 0
+        self.prober = Prober(
+            probe=settings.probe,
+            policy=settings.policy,
+            keep=settings.keep,
+            preconditions=settings.preconditions,
+            cache=self.cache,
+            preloaded=preloaded,
+            budget=Budget(settings.max_probes, settings.max_seconds, self.started_at),
+            executor=settings.executor,
+            log=self.log,
+            context=self.context,
+            elapsed=self.elapsed,
+            on_probe=lambda candidate, outcome: self.emit("probe", candidate=candidate, outcome=outcome),
+        )
+        self.steps: list[tuple[int, int]] = [(0, len(settings.elements))]
+
+    # -- driver -------------------------------------------------------------------------------------------
+
+    def run(self) -> Reduction:
+        try:
+            try:
+                self.write_start()
+                try:
+                    one_minimal, incomplete = self.reduce_to_one_minimal(), None
+                except BudgetExhausted as exhausted:
+                    one_minimal, incomplete = False, exhausted.reason
+                failure_rate = self.measure_failure_rate()
+            except KeyboardInterrupt as interrupt:
+                if isinstance(interrupt, ReductionInterrupted):
+                    raise
+                partial = self.result(one_minimal=False, incomplete="interrupted", failure_rate=(0, 0))
+                self.write_end(partial)
+                raise ReductionInterrupted(partial) from interrupt
+            reduction = self.result(one_minimal=one_minimal, incomplete=incomplete, failure_rate=failure_rate)
+            self.write_end(reduction)
+            return reduction
+        finally:
+            if self.log is not None:
+                self.log.close()
+
+    def reduce_to_one_minimal(self) -> bool:
+        """ddmin rounds until the finest round fails, then the verification pass; True when 1-minimal."""
+        while self.current:
+            self.granularity = max(1, min(self.granularity, len(self.current)))
+            found = self.play_round()
+            if found is not None:
+                continue
+            if self.granularity < len(self.current):
+                self.granularity = self.coarser_or_finer(progress=None)
+                continue
+            if not self.verify():
+                return True
+        return True
+
+    def play_round(self) -> Trial | None:
+        """One round at the current granularity; adopts and returns the accepted trial, if any."""
+        plan = self.carried if self.carried is not None and len(self.carried.ordered) == self.granularity else None
+        self.carried = None
+        if plan is None:
+            parts = self.settings.partitioner(self.current, self.granularity, self.context)
+            self.check_parts(parts)
+            ordered = list(self.settings.prioritizer(parts, self.context, self.round_index))
+            removal = ordered[::-1] if self.settings.complement_order == "reverse" else ordered
+            plan = _Plan(ordered=ordered, removal=removal, subsets=True)
+        trials = self.trials_of(plan)
+        self.write(
+            {
+                "event": "round",
+                "index": self.round_index,
+                "granularity": self.granularity,
+                "size": len(self.full(self.current)),
+                "parts": [list(part) for part in plan.ordered],
+                "removal_order": [plan.ordered.index(part) for part in plan.removal],
+                "subsets": plan.subsets,
+            }
+        )
+        self.emit("round")
+        self.round_index += 1
+        found = self.prober.first_reproducing([trial for trial, _ in trials])
+        if found is None:
+            return None
+        trial, part = trials[found[0]]
+        self.adopt(trial, found[1])
+        self.granularity = self.coarser_or_finer(progress=trial.kind)
+        if trial.kind == "complement" and self.settings.granularity == "ddmin":
+            self.carried = plan.without(part)
+        return trial
+
+    def verify(self) -> bool:
+        """Try removing each single remaining element; adopt and return True if one still reproduces f."""
+        self.emit("verify")
+        trials = [
+            Trial(self.full(tuple(name for name in self.current if name != removed)), "verify")
+            for removed in self.current
+        ]
+        found = self.prober.first_reproducing(trials, quiet=True)
+        if found is None:
+            return False
+        self.adopt(trials[found[0]], found[1])
+        self.granularity = len(self.current)
+        return True
+
+    def coarser_or_finer(self, progress: str | None) -> int:
+        """The next granularity after a round that adopted a subset, a complement, or nothing (None)."""
+        n, size = self.granularity, len(self.current)
+        if self.settings.granularity == "paper":
+            return max(1, min(n + 1, size))
+        if progress == "subset":
+            return max(1, min(self.settings.n_partitions, size))
+        if progress == "complement":
+            return max(1, min(max(n - 1, 2), size))
+        return max(1, min(2 * n, size))
+
+    def trials_of(self, plan: _Plan) -> list[tuple[Trial, Part]]:
+        """Subsets in priority order, then complements in removal order, without repeats or no-ops."""
+        current = set(self.current)
+        seen = {frozenset(self.current)}
+        trials: list[tuple[Trial, Part]] = []
+        for kind, parts in (("subset", plan.ordered if plan.subsets else []), ("complement", plan.removal)):
+            for part in parts:
+                members = frozenset(part) if kind == "subset" else frozenset(current - set(part))
+                if members in seen:
+                    continue
+                seen.add(members)
+                trials.append((Trial(self.full(tuple(members)), kind), part))
+        return trials
+
+    def adopt(self, trial: Trial, decision: Decision) -> None:
+        self.current = tuple(name for name in trial.candidate if name not in self.settings.keep)
+        if decision.trace is not None:
+            self.context.trace = decision.trace
+        self.minimal_runs = decision.runs
+        self.steps.append((self.prober.counters.probes, len(trial.candidate)))
+        self.write(
+            {
+                "event": "step",
+                "kind": trial.kind,
+                "candidate": list(trial.candidate),
+                "size": len(trial.candidate),
+                "probes": self.prober.counters.probes,
+            }
+        )
+        self.emit("step", candidate=trial.candidate)
+
+    def measure_failure_rate(self) -> tuple[int, int]:
+        runs = self.settings.failure_rate_runs
+        if runs == 0:
+            return (0, 0)
+        minimal = self.full(self.current)
+        fails, runs = self.prober.measure(minimal, self.minimal_runs, runs)
+        self.write({"event": "failure-rate", "candidate": list(minimal), "fails": fails, "runs": runs})
+        return fails, runs
+
+    # -- helpers ------------------------------------------------------------------------------------------
+
+    def full(self, reducible: Sequence[str]) -> Candidate:
+        chosen = set(reducible) | self.settings.keep
+        return tuple(name for name in self.settings.elements if name in chosen)
+
+    def check_parts(self, parts: Sequence[Sequence[str]]) -> None:
+        flat = [name for part in parts for name in part]
+        if any(len(part) == 0 for part in parts) or sorted(flat) != sorted(self.current):
+            raise ReductionError(
+                f"partition schema {self.settings.partitioner.name!r} must return non-empty, disjoint parts "
+                f"covering the current world, got {[list(part) for part in parts]!r}"
+            )
+
+    def elapsed(self) -> float:
+        return time.monotonic() - self.started_at
+
+    def emit(self, kind: str, *, candidate: Candidate | None = None, outcome: Outcome | None = None) -> None:
+        if self.settings.on_progress is None:
+            return
+        self.settings.on_progress(
+            ProgressEvent(
+                kind=kind,
+                size=len(self.full(self.current)),
+                probes=self.prober.counters.probes,
+                granularity=self.granularity,
+                elapsed=self.elapsed(),
+                candidate=candidate,
+                outcome=outcome,
+            )
+        )
+
+    def write(self, record: dict[str, Any]) -> None:
+        if self.log is not None:
+            record["elapsed"] = round(self.elapsed(), 6)
+            self.log.write(record)
+
+    def result(self, *, one_minimal: bool, incomplete: str | None, failure_rate: tuple[int, int]) -> Reduction:
+        settings, counters = self.settings, self.prober.counters
+        return Reduction(
+            original=settings.elements,
+            minimal=self.full(self.current),
+            kept=tuple(name for name in settings.elements if name in settings.keep),
+            probes=counters.probes,
+            cache_hits=counters.cache_hits,
+            skipped=len(counters.skipped),
+            errors=counters.errors,
+            steps=tuple(self.steps),
+            one_minimal=one_minimal,
+            incomplete_reason=incomplete,
+            failure_rate=failure_rate,
+            wall_time=self.elapsed(),
+            partition=settings.partitioner.name,
+            priority=settings.prioritizer.name,
+            granularity=settings.granularity,
+            deflake=settings.policy.label,
+            seed=settings.seed,
+        )
+
+    def write_start(self) -> None:
+        settings = self.settings
+        self.write(
+            {
+                "event": "start",
+                "format": LOG_FORMAT,
+                "resumed": self.resumed,
+                "elements": list(settings.elements),
+                "keep": [name for name in settings.elements if name in settings.keep],
+                "partition": settings.partitioner.name,
+                "priority": settings.prioritizer.name,
+                "n_partitions": settings.n_partitions,
+                "granularity": settings.granularity,
+                "complement_order": settings.complement_order,
+                "deflake": settings.policy.label,
+                "seed": settings.seed,
+                "max_probes": settings.max_probes,
+                "max_seconds": settings.max_seconds,
+                "failure_rate_runs": settings.failure_rate_runs,
+                "reference": settings.reference is not None,
+            }
+        )
+        self.emit("start")
+
+    def write_end(self, reduction: Reduction) -> None:
+        self.write(
+            {
+                "event": "end",
+                "minimal": list(reduction.minimal),
+                "size": len(reduction.minimal),
+                "original_size": len(reduction.original),
+                "probes": reduction.probes,
+                "cache_hits": reduction.cache_hits,
+                "skipped": reduction.skipped,
+                "errors": reduction.errors,
+                "steps": [list(step) for step in reduction.steps],
+                "one_minimal": reduction.one_minimal,
+                "incomplete_reason": reduction.incomplete_reason,
+                "failure_rate": list(reduction.failure_rate),
+                "wall_time": reduction.wall_time,
+            }
+        )
+        self.emit("end")
+
+    @staticmethod
+    def _open_log(settings: Settings) -> ProbeLog | None:
+        if settings.log is None:
+            return None
+        log = settings.log if isinstance(settings.log, ProbeLog) else ProbeLog(settings.log, resume=True)
+        started = log.started_with()
+        if started is not None and (started[0] != settings.elements or set(started[1]) != settings.keep):
+            raise ReductionError(
+                f"the probe log {log.path or '(in memory)'} belongs to a reduction of a different world "
+                f"({len(started[0])} elements, keep={list(started[1])}); pass another log path or delete it"
+            )
+        return log

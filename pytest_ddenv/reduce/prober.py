@@ -1,0 +1,381 @@
+"""Deciding candidates: preconditions, cache, deflaked probing, budgets, serial or on an executor.
+
+`Prober.first_reproducing(trials)` answers one ddmin round: the first trial, in the given order, whose
+candidate reproduces f. With an executor the trials are probed concurrently (each candidate's attempts
+stay sequential, exactly as the deflake policy asks for them), and the answer is still the first in
+order: a later candidate that reproduces f first in wall time is not taken while an earlier one is
+undecided. So, for a probe that is a deterministic function of (candidate, attempt), the result is the
+serial one; only counters and the order of log lines differ.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import os
+import time
+from collections.abc import Callable, MutableMapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from pytest_ddenv.errors import ReductionError
+from pytest_ddenv.reduce.context import Context, Verdict
+from pytest_ddenv.reduce.deflake import DeflakePolicy
+from pytest_ddenv.reduce.log import ProbeLog
+from pytest_ddenv.reduce.types import Candidate, Decision, Observation, Outcome, Precondition, Probe, Trace
+
+
+class BudgetExhausted(Exception):
+    """Internal: a budget ran out before the round could be decided."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One candidate of a round and why it is tried ("subset", "complement" or "verify")."""
+
+    candidate: Candidate
+    kind: str
+
+
+@dataclass(frozen=True)
+class Budget:
+    max_probes: int | None
+    max_seconds: float | None
+    started_at: float
+
+    def exhausted(self, probes_started: int) -> str | None:
+        if self.max_probes is not None and probes_started >= self.max_probes:
+            return "budget: max_probes"
+        if self.max_seconds is not None and time.monotonic() - self.started_at >= self.max_seconds:
+            return "budget: max_seconds"
+        return None
+
+
+@dataclass
+class _Open:
+    """A candidate being decided: its outcomes so far (attempt i = outcomes[i])."""
+
+    trial: Trial
+    outcomes: list[Outcome]
+    trace: Trace | None = None
+    in_flight: bool = False
+    decision: Decision | None = None
+
+
+@dataclass
+class Counters:
+    probes: int = 0
+    """Reduction probes completed."""
+    started: int = 0
+    """Reduction probes started (submitted); the probe budget counts these."""
+    cache_hits: int = 0
+    errors: int = 0
+    abandoned: int = 0
+    """Concurrent probes still running when their round was decided (results not waited for)."""
+    skipped: set[frozenset[str]] = field(default_factory=set)
+
+
+def call_probe(probe: Probe, candidate: Candidate, attempt: int) -> Any:
+    """Run one probe; an exception from it becomes an ERROR observation (KeyboardInterrupt passes)."""
+    started = time.perf_counter()
+    try:
+        return probe(candidate, attempt)
+    except Exception as error:  # noqa: BLE001 - a broken run is an outcome, not a reason to stop reducing
+        return Observation(
+            Outcome.ERROR,
+            detail=f"probe raised {type(error).__name__}: {error}",
+            wall_time=time.perf_counter() - started,
+        )
+
+
+def checked_observation(value: Any) -> Observation:
+    if not isinstance(value, Observation):
+        raise ReductionError(f"the probe must return an Observation, got {type(value).__name__}: {value!r}")
+    if not isinstance(value.outcome, Outcome):
+        try:
+            value = replace(value, outcome=Outcome(value.outcome))
+        except ValueError:
+            choices = ", ".join(outcome.value for outcome in Outcome)
+            raise ReductionError(f"Observation.outcome must be one of {choices}, got {value.outcome!r}") from None
+    return value
+
+
+class Prober:
+    """Decides candidates for the engine and keeps the books (counters, cache, log, learner history)."""
+
+    def __init__(
+        self,
+        *,
+        probe: Probe,
+        policy: DeflakePolicy,
+        keep: frozenset[str],
+        preconditions: tuple[Precondition, ...],
+        cache: MutableMapping[Any, Any],
+        preloaded: dict[frozenset[str], list[Outcome]],
+        budget: Budget,
+        executor: concurrent.futures.Executor | None,
+        log: ProbeLog | None,
+        context: Context,
+        elapsed: Callable[[], float],
+        on_probe: Callable[[Candidate, Outcome], None],
+    ) -> None:
+        self.probe = probe
+        self.policy = policy
+        self.keep = keep
+        self.preconditions = preconditions
+        self.cache = cache
+        self.preloaded = preloaded
+        self.budget = budget
+        self.executor = executor
+        self.log = log
+        self.context = context
+        self.elapsed = elapsed
+        self.on_probe = on_probe
+        self.counters = Counters()
+        self._consulted: set[frozenset[str]] = set()
+        workers = getattr(executor, "_max_workers", None)
+        self.window = workers if isinstance(workers, int) and workers > 0 else (os.cpu_count() or 2)
+
+    # -- one round ----------------------------------------------------------------------------------------
+
+    def first_reproducing(self, trials: Sequence[Trial], *, quiet: bool = False) -> tuple[int, Decision] | None:
+        """Index and verdict of the first trial that reproduces f, or None if none does.
+
+        `quiet` (the verification pass) does not count or log verdicts already known.
+        Raises BudgetExhausted when a budget runs out before the answer is known.
+        """
+        if self.executor is None:
+            return self._serial(trials, quiet)
+        return self._concurrent(trials, quiet)
+
+    def _serial(self, trials: Sequence[Trial], quiet: bool) -> tuple[int, Decision] | None:
+        for index, trial in enumerate(trials):
+            status = self._status(trial)
+            if isinstance(status, str):
+                self._consult_skip(trial, status, quiet)
+                continue
+            if isinstance(status, Decision):
+                self._consult(trial, status, cached=True, quiet=quiet)
+                decision = status
+            else:
+                decision = self._decide_serially(status)
+                self._consult(trial, decision, cached=False, quiet=quiet)
+            if decision.reproduces:
+                return index, decision
+        return None
+
+    def _decide_serially(self, state: _Open) -> Decision:
+        while (verdict := self.policy.verdict(state.outcomes)) is None:
+            reason = self.budget.exhausted(self.counters.started)
+            if reason is not None:
+                raise BudgetExhausted(reason)
+            self.counters.started += 1
+            attempt = len(state.outcomes)
+            observation = checked_observation(call_probe(self.probe, state.trial.candidate, attempt))
+            self._take(state, attempt, observation)
+        return self._decide(state, verdict)
+
+    def _concurrent(self, trials: Sequence[Trial], quiet: bool) -> tuple[int, Decision] | None:
+        assert self.executor is not None
+        statuses: list[str | Decision | _Open] = [self._status(trial) for trial in trials]
+        for status in statuses:
+            if isinstance(status, _Open) and (verdict := self.policy.verdict(status.outcomes)) is not None:
+                self._decide(status, verdict)
+        futures: dict[concurrent.futures.Future[Any], tuple[_Open, int]] = {}
+        position = {id(status): index for index, status in enumerate(statuses)}
+        finished = False
+        try:
+            while (answer := self._resolve(statuses)) == "wait":
+                reason = self._submit(statuses, futures)
+                if not futures:
+                    raise BudgetExhausted(reason or "budget: max_probes")
+                done, _ = concurrent.futures.wait(futures, return_when=concurrent.futures.FIRST_COMPLETED)
+                for future in sorted(done, key=lambda f: position[id(futures[f][0])]):
+                    state, attempt = futures.pop(future)
+                    self._finish(state, attempt, future)
+            finished = True
+        finally:
+            for future in list(futures):
+                if future.cancel():
+                    futures.pop(future)
+            if finished:  # results that are already there are recorded; the running ones are abandoned
+                for future in [f for f in futures if f.done()]:
+                    state, attempt = futures.pop(future)
+                    self._finish(state, attempt, future)
+            self.counters.abandoned += len(futures)
+        last = len(statuses) - 1 if answer is None else answer
+        for trial, status in zip(trials[: last + 1], statuses[: last + 1], strict=True):
+            if isinstance(status, str):
+                self._consult_skip(trial, status, quiet)
+            elif isinstance(status, Decision):
+                self._consult(trial, status, cached=True, quiet=quiet)
+            else:
+                assert status.decision is not None
+                self._consult(trial, status.decision, cached=False, quiet=quiet)
+        if answer is None:
+            return None
+        chosen = statuses[answer]
+        decision = chosen if isinstance(chosen, Decision) else chosen.decision  # type: ignore[union-attr]
+        assert isinstance(decision, Decision)
+        return answer, decision
+
+    def _submit(
+        self,
+        statuses: list[str | Decision | _Open],
+        futures: dict[concurrent.futures.Future[Any], tuple[_Open, int]],
+    ) -> str | None:
+        """Start the next attempt of undecided candidates, earliest first, up to the window and budget."""
+        assert self.executor is not None
+        for status in statuses:
+            if len(futures) >= self.window:
+                return None
+            if not isinstance(status, _Open) or status.decision is not None or status.in_flight:
+                continue
+            reason = self.budget.exhausted(self.counters.started)
+            if reason is not None:
+                return reason
+            self.counters.started += 1
+            status.in_flight = True
+            attempt = len(status.outcomes)
+            future = self.executor.submit(call_probe, self.probe, status.trial.candidate, attempt)
+            futures[future] = (status, attempt)
+        return None
+
+    def _finish(self, state: _Open, attempt: int, future: concurrent.futures.Future[Any]) -> None:
+        state.in_flight = False
+        self._take(state, attempt, checked_observation(future.result()))
+        if (verdict := self.policy.verdict(state.outcomes)) is not None:
+            self._decide(state, verdict)
+
+    @staticmethod
+    def _resolve(statuses: Sequence[str | Decision | _Open]) -> int | None | str:
+        """The index of the first reproducing candidate, None if none reproduces, "wait" if unknown yet."""
+        for index, status in enumerate(statuses):
+            if isinstance(status, str):
+                continue
+            decision = status if isinstance(status, Decision) else status.decision
+            if decision is None:
+                return "wait"
+            if decision.reproduces:
+                return index
+        return None
+
+    # -- extra runs of a decided world ----------------------------------------------------------------------
+
+    def measure(self, candidate: Candidate, first_attempt: int, runs: int) -> tuple[int, int]:
+        """(fails, runs) over attempts first_attempt .. first_attempt+runs-1; no budget applies."""
+        attempts = range(first_attempt, first_attempt + runs)
+        if self.executor is None or runs <= 1:
+            results = [call_probe(self.probe, candidate, attempt) for attempt in attempts]
+        else:
+            submitted = [self.executor.submit(call_probe, self.probe, candidate, a) for a in attempts]
+            results = [future.result() for future in submitted]
+        fails = 0
+        for attempt, result in zip(attempts, results, strict=True):
+            observation = checked_observation(result)
+            self._log_probe(Trial(candidate, "failure-rate"), attempt, observation, purpose="failure-rate")
+            fails += observation.outcome is Outcome.FAIL
+        return fails, runs
+
+    # -- bookkeeping --------------------------------------------------------------------------------------
+
+    def _status(self, trial: Trial) -> str | Decision | _Open:
+        """A skip reason, a known verdict, or an open candidate (with runs already logged, when resuming)."""
+        for check in self.preconditions:
+            reason = check(trial.candidate)
+            if reason is not None:
+                return str(reason)
+        key = frozenset(trial.candidate)
+        known = self.cache.get(key)
+        if isinstance(known, Decision):
+            return known
+        return _Open(trial, list(self.preloaded.get(key, ())))
+
+    def _take(self, state: _Open, attempt: int, observation: Observation) -> None:
+        self.counters.probes += 1
+        state.outcomes.append(observation.outcome)
+        if observation.outcome is Outcome.FAIL and state.trace is None:
+            state.trace = observation.trace
+        self._log_probe(state.trial, attempt, observation, purpose="reduce")
+        self.on_probe(state.trial.candidate, observation.outcome)
+
+    def _log_probe(self, trial: Trial, attempt: int, observation: Observation, *, purpose: str) -> None:
+        if observation.outcome is Outcome.ERROR:
+            self.counters.errors += 1
+        self._write(
+            {
+                "event": "probe",
+                "purpose": purpose,
+                "kind": trial.kind,
+                "candidate": list(trial.candidate),
+                "size": len(trial.candidate),
+                "attempt": attempt,
+                "seed": observation.seed,
+                "outcome": observation.outcome.value,
+                "signature": observation.signature,
+                "sim_time": observation.sim_time,
+                "wall_time": observation.wall_time,
+                "detail": observation.detail,
+            }
+        )
+
+    def _decide(self, state: _Open, verdict: bool) -> Decision:
+        fails = sum(1 for outcome in state.outcomes if outcome is Outcome.FAIL)
+        decision = Decision(reproduces=verdict, fails=fails, runs=len(state.outcomes), trace=state.trace)
+        state.decision = decision
+        self.cache[frozenset(state.trial.candidate)] = decision
+        self._write(
+            {
+                "event": "accept" if verdict else "reject",
+                "kind": state.trial.kind,
+                "candidate": list(state.trial.candidate),
+                "size": len(state.trial.candidate),
+                "reproduces": verdict,
+                "fails": fails,
+                "runs": len(state.outcomes),
+            }
+        )
+        return decision
+
+    def _consult(self, trial: Trial, decision: Decision, *, cached: bool, quiet: bool) -> None:
+        """The serial algorithm looks at this verdict now: feed the learner, count and log cache hits."""
+        key = frozenset(trial.candidate)
+        if key not in self._consulted:
+            self._consulted.add(key)
+            self.context.history.append(Verdict(frozenset(key - self.keep), decision.reproduces))
+        if cached and not quiet:
+            self.counters.cache_hits += 1
+            self._write(
+                {
+                    "event": "cache-hit",
+                    "kind": trial.kind,
+                    "candidate": list(trial.candidate),
+                    "size": len(trial.candidate),
+                    "reproduces": decision.reproduces,
+                    "fails": decision.fails,
+                    "runs": decision.runs,
+                }
+            )
+
+    def _consult_skip(self, trial: Trial, reason: str, quiet: bool) -> None:
+        key = frozenset(trial.candidate)
+        first_time = key not in self.counters.skipped
+        self.counters.skipped.add(key)
+        if first_time or not quiet:
+            self._write(
+                {
+                    "event": "skip",
+                    "kind": trial.kind,
+                    "candidate": list(trial.candidate),
+                    "size": len(trial.candidate),
+                    "reason": reason,
+                }
+            )
+
+    def _write(self, record: dict[str, Any]) -> None:
+        if self.log is not None:
+            record["elapsed"] = round(self.elapsed(), 6)
+            self.log.write(record)

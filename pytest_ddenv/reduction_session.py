@@ -1,0 +1,183 @@
+"""Reduce the world of one failed scenario test: confirm, reduce, write artifacts, describe the result.
+
+Called by the plugin from inside the test's call phase, after the test raised. Each probe calls the test
+function again with `robot_world` rebound to the candidate world; everything else the test received is
+passed unchanged.
+"""
+
+from __future__ import annotations
+
+import inspect
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import pytest
+
+from pytest_ddenv import artifacts
+from pytest_ddenv.markers import ReductionSpec, parse_deflake
+from pytest_ddenv.probe import FailureReference, keeps_start_support, make_probe, reference_from, trace_of
+from pytest_ddenv.reduce import Outcome, Reduction, reduce
+from pytest_ddenv.reduce.types import ProgressEvent, ReductionInterrupted
+from pytest_ddenv.robot_world import RobotWorld
+
+if TYPE_CHECKING:
+    from pytest_ddenv.sim import Run
+    from pytest_ddenv.world import World
+
+FIXTURE = "robot_world"
+Progress = Callable[..., None]
+
+
+@dataclass
+class ReductionSession:
+    item: pytest.Function
+    error: BaseException
+    spec: ReductionSpec
+    artifacts_root: Path
+    deflake: str | int | None
+    max_probes: int | None
+    max_seconds: float | None
+    progress: Progress
+
+    def run(self) -> dict[str, Any]:
+        robot_world: RobotWorld = self.item.funcargs[FIXTURE]  # type: ignore[assignment]
+        world = robot_world.world
+        reference = reference_from(self.error, self.item.path)
+        deflake = self.spec.deflake if self.deflake in (None, "") else parse_deflake(self.deflake, "--ddenv-deflake")
+        probe = make_probe(world, self._runner(robot_world), reference, tolerance=self.spec.tolerance,
+                           test_file=self.item.path)
+        confirmations = 1 + (deflake if isinstance(deflake, int) else 3)
+        confirmed = 0
+        for attempt in range(confirmations):
+            self.progress(f"confirming the failure ({attempt + 1}/{confirmations})")
+            if probe(world.names, attempt).outcome is Outcome.FAIL:
+                confirmed = attempt + 1
+                break
+        if not confirmed:
+            return self._not_reproducible(world, reference, confirmations)
+
+        settings = {**self.spec.__dict__, "deflake": deflake, "test": self.item.nodeid}
+        try:
+            test_source = inspect.getsource(self.item.obj)
+        except (OSError, TypeError):
+            test_source = ""
+        problem = artifacts.fingerprint(world, settings, test_source)
+        paths = artifacts.prepare(self.artifacts_root / artifacts.artifact_dir_name(self.item.nodeid), problem)
+        keep = set(self.spec.keep) | {m.name for m in world.models if m.keep}
+        unknown = keep - set(world.names)
+        if unknown:
+            raise pytest.UsageError(f"{self.item.nodeid}: ddenv(keep=...) names unknown model(s): {sorted(unknown)}")
+        last_run: Run | None = robot_world.runs[-1] if robot_world.runs else None
+        interrupted: ReductionInterrupted | None = None
+        try:
+            reduction = reduce(
+                world.names,
+                probe,
+                geometry=world,
+                reference=trace_of(last_run) if last_run is not None else None,
+                partition=self.spec.partition,
+                priority=self.spec.priority,
+                n_partitions=self.spec.n_partitions,
+                granularity=self.spec.granularity,
+                deflake=deflake,
+                keep=tuple(sorted(keep)),
+                preconditions=(keeps_start_support(world),),
+                max_probes=self.max_probes or self.spec.max_probes,
+                max_seconds=self.max_seconds or self.spec.max_seconds,
+                seed=self.spec.seed,
+                log=paths.log,
+                on_progress=self._on_progress,
+            )
+        except ReductionInterrupted as stop:
+            interrupted, reduction = stop, stop.reduction
+        summary = artifacts.write_reduction(
+            paths, world, reduction,
+            test_id=self.item.nodeid,
+            replay_command=_replay_command(self.item, paths.minimal_yaml),
+            problem_fingerprint=problem,
+            reference=reference.to_dict(),
+            extra={"confirmed_on_attempt": confirmed},
+        )
+        attachments = [paths.minimal_yaml, paths.log, paths.summary]
+        attachments += _pictures(world, reduction, paths)
+        result = self._describe(world, reduction, summary, [str(p) for p in attachments if p.exists()])
+        self.progress(result["line"], final=True)
+        if interrupted is not None:
+            raise interrupted
+        return result
+
+    def _runner(self, robot_world: RobotWorld) -> Callable[[World, int], tuple[BaseException | None, Run | None]]:
+        arguments = {name: self.item.funcargs[name] for name in inspect.signature(self.item.obj).parameters
+                     if name in self.item.funcargs}
+
+        def run_test(candidate: World, attempt: int) -> tuple[BaseException | None, Run | None]:
+            rebound = robot_world.rebound(candidate, attempt=attempt)
+            try:
+                self.item.obj(**{**arguments, FIXTURE: rebound})
+            except Exception as error:  # noqa: BLE001 - every exception is an outcome to classify
+                return error, rebound.runs[-1] if rebound.runs else None
+            return None, rebound.runs[-1] if rebound.runs else None
+
+        return run_test
+
+    def _on_progress(self, event: ProgressEvent) -> None:
+        probe_line = None
+        if event.kind == "probe" and event.candidate is not None and event.outcome is not None:
+            probe_line = f"probe {event.probes}: {len(event.candidate)} models -> {event.outcome.value}"
+        self.progress(f"reducing {self.item.name}: {event.size} models, {event.probes} probes", probe_line=probe_line)
+
+    def _not_reproducible(self, world: World, reference: FailureReference, runs: int) -> dict[str, Any]:
+        text = (
+            f"not reproducible: 0 of {runs} re-runs failed the same way ({reference.describe()}); "
+            "no reduction was run. The failure may depend on state outside the world (other fixtures, "
+            "globals) or on the seed; try a larger --ddenv-deflake."
+        )
+        line = f"{self.item.nodeid}: {text}"
+        return {"text": text + "\n", "line": line, "attachments": [], "reproducible": False}
+
+    def _describe(self, world: World, reduction: Reduction, summary: dict[str, Any],
+                  attachments: list[str]) -> dict[str, Any]:
+        fails, runs = reduction.failure_rate
+        status = "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
+        removed = summary["removed_models"]
+        text = "\n".join([
+            f"world: {summary['world']}",
+            f"reduced {reduction.original_size} -> {reduction.minimal_size} models "
+            f"({summary['reduction_percent']}%), {status}",
+            f"kept: {', '.join(reduction.minimal) or '(none)'}",
+            f"removed ({len(removed)}): {', '.join(removed) or '(none)'}",
+            f"probes: {reduction.probes} simulated, {reduction.cache_hits} from cache, "
+            f"{reduction.skipped} skipped, {reduction.errors} errors; {reduction.wall_time:.1f} s",
+            f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
+            f"minimal world fails {fails}/{runs} seeds",
+            f"artifacts: {Path(summary['files']['summary']).parent}",
+            f"replay: {summary['replay']}",
+        ]) + "\n"
+        line = (
+            f"{self.item.nodeid}: {reduction.original_size} -> {reduction.minimal_size} models "
+            f"({summary['reduction_percent']:.0f}%), {reduction.probes} probes, {reduction.wall_time:.0f} s, "
+            f"fails {fails}/{runs}{'' if reduction.one_minimal else ', ' + status} -> "
+            f"{Path(summary['files']['summary']).parent}"
+        )
+        return {"text": text, "line": line, "attachments": attachments, "summary": summary, "reproducible": True}
+
+
+def _replay_command(item: pytest.Item, minimal_yaml: Path) -> str:
+    from pytest_ddenv.plugin import replay_command
+
+    return replay_command(item, minimal_yaml)
+
+
+def _pictures(world: World, reduction: Reduction, paths: artifacts.ArtifactPaths) -> list[Path]:
+    """reduction.png and progress.png, when the picture module is available."""
+    try:
+        from pytest_ddenv import render
+    except ImportError:
+        return []
+    started = time.perf_counter()
+    written = render.write_reduction_pictures(world, reduction, paths)  # type: ignore[attr-defined]
+    del started
+    return list(written)

@@ -1,0 +1,131 @@
+"""The `Run` record: everything one simulation produced, as numpy arrays and plain values."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_ddenv.oracle import FailureSignature
+from pytest_ddenv.sim.settings import RunSettings
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class Run:
+    """One simulated run of a world with a seed.
+
+    Arrays are sampled at `settings.record_rate` (and always at the final tick):
+    `times` (T,), `poses` (T, 6) x y z roll pitch yaw of the robot base in the world frame,
+    `velocities` (T, 6) linear xyz + angular xyz (world frame), `wheel_contacts` (T, 4) normal force on
+    each wheel (front left, front right, rear left, rear right; > 0 = touching something).
+
+    `first_touch` / `last_touch`: model name -> first / last simulated time the robot touched it (checked
+    every control tick). `first_sensed`: model name -> first time a laser ray hit it.
+    """
+
+    seed: int
+    settings: RunSettings
+    world_name: str
+    model_names: tuple[str, ...]
+    times: FloatArray
+    poses: FloatArray
+    velocities: FloatArray
+    wheel_contacts: FloatArray
+    first_touch: Mapping[str, float]
+    last_touch: Mapping[str, float]
+    first_sensed: Mapping[str, float]
+    reached_goal: bool
+    goal_time: float | None
+    failure: FailureSignature | None
+    sim_time: float
+    wall_time: float
+    steps: int
+    pybullet_version: str
+    robot: str = "husky"
+
+    @property
+    def positions(self) -> FloatArray:
+        """(T, 3) x y z of the robot base."""
+        return self.poses[:, :3]
+
+    @property
+    def final_pose(self) -> FloatArray:
+        return self.poses[-1]
+
+    @property
+    def yaw_rates(self) -> FloatArray:
+        """(T,) angular velocity about the world z axis."""
+        return self.velocities[:, 5]
+
+    @property
+    def touched(self) -> frozenset[str]:
+        """Every model the robot touched during the run."""
+        return frozenset(self.first_touch)
+
+    @property
+    def failed(self) -> bool:
+        return self.failure is not None
+
+    def same_trajectory(self, other: Run) -> bool:
+        """Bit-identical recorded trajectory (times, poses and velocities)."""
+        return (
+            np.array_equal(self.times, other.times)
+            and np.array_equal(self.poses, other.poses)
+            and np.array_equal(self.velocities, other.velocities)
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-able data (arrays become nested lists of floats)."""
+        return {
+            "seed": self.seed,
+            "settings": self.settings.to_dict(),
+            "world_name": self.world_name,
+            "model_names": list(self.model_names),
+            "robot": self.robot,
+            "times": self.times.tolist(),
+            "poses": self.poses.tolist(),
+            "velocities": self.velocities.tolist(),
+            "wheel_contacts": self.wheel_contacts.tolist(),
+            "first_touch": dict(self.first_touch),
+            "last_touch": dict(self.last_touch),
+            "first_sensed": dict(self.first_sensed),
+            "reached_goal": self.reached_goal,
+            "goal_time": self.goal_time,
+            "failure": None if self.failure is None else self.failure.to_dict(),
+            "sim_time": self.sim_time,
+            "wall_time": self.wall_time,
+            "steps": self.steps,
+            "pybullet_version": self.pybullet_version,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Run:
+        def array(key: str, width: int) -> FloatArray:
+            return np.asarray(data[key], dtype=np.float64).reshape(-1, width)
+
+        return cls(
+            seed=int(data["seed"]),
+            settings=RunSettings.from_dict(data["settings"]),
+            world_name=str(data["world_name"]),
+            model_names=tuple(data["model_names"]),
+            robot=str(data.get("robot", "husky")),
+            times=np.asarray(data["times"], dtype=np.float64).reshape(-1),
+            poses=array("poses", 6),
+            velocities=array("velocities", 6),
+            wheel_contacts=array("wheel_contacts", 4),
+            first_touch={str(k): float(v) for k, v in data["first_touch"].items()},
+            last_touch={str(k): float(v) for k, v in data["last_touch"].items()},
+            first_sensed={str(k): float(v) for k, v in data["first_sensed"].items()},
+            reached_goal=bool(data["reached_goal"]),
+            goal_time=None if data["goal_time"] is None else float(data["goal_time"]),
+            failure=None if data["failure"] is None else FailureSignature.from_dict(data["failure"]),
+            sim_time=float(data["sim_time"]),
+            wall_time=float(data["wall_time"]),
+            steps=int(data["steps"]),
+            pybullet_version=str(data["pybullet_version"]),
+        )

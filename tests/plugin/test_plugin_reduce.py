@@ -1,0 +1,95 @@
+"""End to end through pytest: a failing robot test is reduced to its culprit (real simulation)."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from pytest_ddenv import World
+
+
+def summary_of(pytester: pytest.Pytester) -> dict:
+    (summary,) = Path(pytester.path, "ddenv-artifacts").glob("*/summary.json")
+    return json.loads(summary.read_text())
+
+
+def test_failing_robot_test_fails_normally_without_the_option(wall_project: pytest.Pytester) -> None:
+    result = wall_project.runpytest_subprocess()
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*RobotFailure*stuck*"])
+    assert not Path(wall_project.path, "ddenv-artifacts").exists()
+
+
+def test_failing_robot_test_is_reduced_to_the_wall(wall_project: pytest.Pytester) -> None:
+    result = wall_project.runpytest_subprocess("--ddenv-reduce", "-o", "junit_logging=system-out", "--junitxml=junit.xml")
+    result.assert_outcomes(failed=1)
+    # the reported failure is still the original one
+    result.stdout.fnmatch_lines(["*RobotFailure*stuck*", "*ddenv reduction*", "*reduced 6 -> 1 models*"])
+    result.stdout.fnmatch_lines(["*ddenv reductions*", "*test_reaches_goal: 6 -> 1 models (83%)*probes*fails*"])
+    summary = summary_of(wall_project)
+    assert summary["minimal_models"] == ["wall"]
+    assert summary["one_minimal"] is True and summary["complete"] is True
+    assert summary["original_size"] == 6 and summary["probes"] > 0
+    assert summary["failure_rate"]["fails"] >= 1
+    folder = Path(summary["files"]["summary"]).parent
+    assert World.load(folder / "minimal.yaml").names == ("wall",)
+    log_lines = (folder / "runs.jsonl").read_text().splitlines()
+    assert log_lines and all(json.loads(line) for line in log_lines)
+    assert "--ddenv-world" in summary["replay"]
+    system_out = "".join(e.text or "" for e in ET.parse(wall_project.path / "junit.xml").iter("system-out"))
+    assert f"[[ATTACHMENT|{folder / 'minimal.yaml'}]]" in system_out
+
+
+def test_replaying_the_minimal_world_fails_the_same_way(wall_project: pytest.Pytester) -> None:
+    wall_project.runpytest_subprocess("--ddenv-reduce").assert_outcomes(failed=1)
+    minimal = Path(summary_of(wall_project)["files"]["minimal_yaml"])
+    result = wall_project.runpytest_subprocess("--ddenv-world", str(minimal))
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*RobotFailure*stuck*"])
+
+
+def test_passing_robot_test_is_not_reduced(wall_project: pytest.Pytester) -> None:
+    wall_project.makefile(".yaml", open="format: 1\nscenario: {start: {x: 0, y: 0}, goal: {x: 3, y: 0}, timeout: 20}\n"
+                                        "models:\n  - {name: far, pose: [-5, 5, 0.25], box: [0.5, 0.5, 0.5]}\n")
+    wall_project.makepyfile(test_scenario=(
+        "import pytest\n"
+        "@pytest.mark.ddenv(world='open.yaml')\n"
+        "@pytest.mark.robot_failure('stuck', window=2.0)\n"
+        "def test_reaches_goal(robot_world):\n"
+        "    assert robot_world.run().reached_goal\n"
+    ))
+    result = wall_project.runpytest_subprocess("--ddenv-reduce")
+    result.assert_outcomes(passed=1)
+    assert "ddenv reductions" not in result.stdout.str()
+
+
+def test_failing_test_without_robot_world_is_not_reduced(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile("def test_plain():\n    assert 1 == 2\n")
+    result = pytester.runpytest_subprocess("--ddenv-reduce")
+    result.assert_outcomes(failed=1)
+    assert "ddenv" not in result.stdout.str().split("short test summary")[0].split("FAILURES")[-1]
+
+
+def test_failure_that_does_not_reproduce_is_reported(wall_project: pytest.Pytester) -> None:
+    wall_project.makepyfile(test_scenario=(
+        "import pytest\n"
+        "calls = []\n"
+        "@pytest.mark.ddenv(world='wall.yaml', deflake=2)\n"
+        "def test_flaky_outside_the_world(robot_world):\n"
+        "    calls.append(1)\n"
+        "    robot_world.run(timeout=1.0)\n"
+        "    assert len(calls) > 1, 'fails only the first time'\n"
+    ))
+    result = wall_project.runpytest_subprocess("--ddenv-reduce")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*not reproducible: 0 of 3 re-runs failed the same way*"])
+
+
+def test_reduction_works_under_xdist(wall_project: pytest.Pytester) -> None:
+    result = wall_project.runpytest_subprocess("-n", "2", "--ddenv-reduce")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*ddenv reductions*", "*6 -> 1 models*"])
+    assert summary_of(wall_project)["minimal_models"] == ["wall"]

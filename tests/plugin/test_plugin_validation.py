@@ -1,0 +1,68 @@
+"""Markers and options are validated eagerly with errors that say what and where."""
+
+from __future__ import annotations
+
+import pytest
+
+from pytest_ddenv.plugin import replay_command  # noqa: F401  (importable without pybullet work)
+
+
+@pytest.mark.parametrize(
+    ("marker", "message"),
+    [
+        ("ddenv(world='wall.yaml', partition='kmeans')", "*unknown partition 'kmeans'; valid choices: *model2model*"),
+        ("ddenv(world='wall.yaml', priority='nearest')", "*unknown priority 'nearest'; valid choices:*failure-proximal*"),
+        ("ddenv(world='wall.yaml', colour=3)", "*unknown argument 'colour'; valid arguments: world, partition*"),
+        ("ddenv(world='wall.yaml', deflake=-1)", "*deflake=...*expected an integer >= 0 or one of*adaptive*"),
+        ("ddenv(world='wall.yaml', budget='lots')", "*budget=...*expected a probe count*"),
+        ("robot_failure('wobbly')", "*robot_failure('wobbly', ...)*wobbly*stuck*"),
+        ("robot_failure('stuck', windw=3)", "*robot_failure('stuck', ...)*windw*"),
+    ],
+)
+def test_bad_marker_is_a_usage_error_naming_the_test(wall_project: pytest.Pytester, marker: str, message: str) -> None:
+    wall_project.makepyfile(test_scenario=(
+        "import pytest\n"
+        f"@pytest.mark.{marker}\n"
+        "def test_robot(robot_world):\n"
+        "    robot_world.run()\n"
+    ))
+    result = wall_project.runpytest_subprocess()
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["ERROR: test_scenario.py::test_robot: " + message])
+
+
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [
+        (["--ddenv-deflake", "many"], "*--ddenv-deflake: expected an integer >= 0 or one of adaptive*"),
+        (["--ddenv-max-probes", "0"], "*--ddenv-max-probes: expected an integer >= 1, got '0'*"),
+        (["--ddenv-max-time", "soon"], "*--ddenv-max-time: expected a positive number of seconds*"),
+        (["--ddenv-workers", "two"], "*--ddenv-workers: expected an integer >= 1*"),
+        (["--ddenv-world", "nowhere.yaml"], "*--ddenv-world: no such file: nowhere.yaml*"),
+    ],
+)
+def test_bad_option_is_a_usage_error(pytester: pytest.Pytester, option: list[str], message: str) -> None:
+    pytester.makepyfile("def test_ok():\n    pass\n")
+    result = pytester.runpytest_subprocess(*option)
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines([message])
+
+
+def test_ini_options_have_the_same_names(pytester: pytest.Pytester) -> None:
+    pytester.makeini("[pytest]\nddenv_max_probes = zero\n")
+    pytester.makepyfile("def test_ok():\n    pass\n")
+    result = pytester.runpytest_subprocess()
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--ddenv-max-probes: expected an integer >= 1, got 'zero'*"])
+
+
+def test_options_are_listed_in_help(pytester: pytest.Pytester) -> None:
+    result = pytester.runpytest_subprocess("--help")
+    result.stdout.fnmatch_lines(["robot world reduction (pytest-ddenv):", "*--ddenv-reduce*", "*--ddenv-world=PATH*"])
+
+
+def test_missing_world_is_a_clear_error(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile("def test_robot(robot_world):\n    pass\n")
+    result = pytester.runpytest_subprocess()
+    result.assert_outcomes(errors=1)
+    result.stdout.fnmatch_lines(["*robot_world needs a world: @pytest.mark.ddenv(world=*"])
