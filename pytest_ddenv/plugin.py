@@ -10,6 +10,7 @@ from __future__ import annotations
 import inspect
 import shlex
 import time
+import traceback
 import warnings
 from collections.abc import Generator
 from pathlib import Path
@@ -217,7 +218,17 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
         max_seconds=float(_setting(item.config, "ddenv_max_time")) if _setting(item.config, "ddenv_max_time") else None,
         progress=_ProgressLine(item.config),
     )
-    result = session.run()
+    try:
+        result = session.run()
+    except (KeyboardInterrupt, pytest.UsageError):
+        raise
+    except Exception as crash:  # noqa: BLE001 - the test's own failure must stay what the user sees
+        detail = "".join(traceback.format_exception(crash))
+        result = {
+            "text": f"the reduction itself crashed; the test's failure above is unchanged.\n{detail}",
+            "line": f"{item.nodeid}: reduction crashed: {type(crash).__name__}: {crash}",
+            "attachments": [],
+        }
     item.stash[_result_key] = result
     attachments = "".join(f"[[ATTACHMENT|{path}]]\n" for path in result.get("attachments", []))
     if attachments:  # a stdout section reaches JUnit's <system-out> (with junit_logging = system-out)

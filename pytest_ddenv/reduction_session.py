@@ -8,7 +8,7 @@ passed unchanged.
 from __future__ import annotations
 
 import inspect
-import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,8 +47,8 @@ class ReductionSession:
         world = robot_world.world
         reference = reference_from(self.error, self.item.path)
         deflake = self.spec.deflake if self.deflake in (None, "") else parse_deflake(self.deflake, "--ddenv-deflake")
-        probe = make_probe(world, self._runner(robot_world), reference, tolerance=self.spec.tolerance,
-                           test_file=self.item.path)
+        run_test = self._runner(robot_world)
+        probe = make_probe(world, run_test, reference, tolerance=self.spec.tolerance, test_file=self.item.path)
         confirmations = 1 + (deflake if isinstance(deflake, int) else 3)
         confirmed = 0
         for attempt in range(confirmations):
@@ -102,7 +102,9 @@ class ReductionSession:
             extra={"confirmed_on_attempt": confirmed},
         )
         attachments = [paths.minimal_yaml, paths.log, paths.summary]
-        attachments += _pictures(world, reduction, paths)
+        if interrupted is None:
+            minimal_run = run_test(world.select(reduction.minimal), 0)[1]
+            attachments += _pictures(world, reduction, paths, last_run, minimal_run)
         result = self._describe(world, reduction, summary, [str(p) for p in attachments if p.exists()])
         self.progress(result["line"], final=True)
         if interrupted is not None:
@@ -171,13 +173,17 @@ def _replay_command(item: pytest.Item, minimal_yaml: Path) -> str:
     return replay_command(item, minimal_yaml)
 
 
-def _pictures(world: World, reduction: Reduction, paths: artifacts.ArtifactPaths) -> list[Path]:
-    """reduction.png and progress.png, when the picture module is available."""
+def _pictures(
+    world: World, reduction: Reduction, paths: artifacts.ArtifactPaths, original_run: Run | None,
+    minimal_run: Run | None,
+) -> list[Path]:
+    """reduction.png and progress.png (the original and the minimal world's failing trajectories)."""
     try:
         from pytest_ddenv import render
-    except ImportError:
+
+        return list(render.write_reduction_pictures(
+            world, reduction, paths, original_run=original_run, minimal_run=minimal_run
+        ))
+    except Exception as error:  # noqa: BLE001 - pictures are a convenience; never lose the reduction over one
+        warnings.warn(f"ddenv: pictures not written: {type(error).__name__}: {error}", stacklevel=1)
         return []
-    started = time.perf_counter()
-    written = render.write_reduction_pictures(world, reduction, paths)  # type: ignore[attr-defined]
-    del started
-    return list(written)

@@ -202,11 +202,27 @@ class TrajectorySegmentPartition:
         strongest = sorted(above.tolist(), key=lambda i: (-changes[i], i))[: n - 1]
         cuts = sorted({float(times[i + 1]) for i in strongest})
         edges = [float(times[0]), *cuts, float(times[-1])]
-        while len(edges) < n + 1:
-            widths = np.diff(edges)
-            widest = int(np.argmax(widths))
-            edges.insert(widest + 1, edges[widest] + widths[widest] / 2.0)
-        return np.asarray(edges[1:-1], dtype=np.float64)
+        return np.asarray(_subdivide(edges, n)[1:-1], dtype=np.float64)
+
+
+def _subdivide(edges: list[float], n: int) -> list[float]:
+    """Split the intervals between `edges` into n intervals in total, each into equal pieces, the number
+    of pieces proportional to its length (largest remainder; every interval keeps at least one)."""
+    widths = np.diff(edges)
+    total = float(widths.sum())
+    if len(widths) >= n or total <= 0.0:
+        return edges
+    ideal = n * widths / total
+    pieces = np.maximum(1, np.floor(ideal)).astype(int)
+    while pieces.sum() < n:
+        pieces[int(np.argmax(ideal - pieces))] += 1
+    while pieces.sum() > n:
+        shrinkable = np.where(pieces > 1, ideal - pieces, np.inf)
+        pieces[int(np.argmin(shrinkable))] -= 1
+    result = [edges[0]]
+    for start, width, count in zip(edges[:-1], widths, pieces, strict=True):
+        result.extend(start + width * (k + 1) / count for k in range(int(count)))
+    return result
 
 
 @dataclass(frozen=True)

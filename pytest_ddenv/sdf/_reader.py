@@ -433,23 +433,9 @@ class _Loader:
         if min(scale) <= 0:
             raise self.error(f"mesh scales must be positive, got {scale}", scale_element, model=model,
                              field=f"{where}/scale")
-        unit = self.collada_unit(path, model, f"{where}/uri") if path.suffix.lower() == ".dae" else 1.0
+        unit = collada_unit(path) if path.suffix.lower() == ".dae" else 1.0
         shape = Shape("mesh", mesh=str(path.resolve()), scale=(scale[0] * unit, scale[1] * unit, scale[2] * unit))
         return shape, None, unit
-
-    def collada_unit(self, path: Path, model: str, where: str) -> float:
-        """The `<asset><unit meter>` of a Collada file (trimesh does not apply it; Gazebo does)."""
-        root = parse_xml(read_limited(path, what="Collada mesh"), str(path), Lines())
-        for element in root.iter():
-            if local_name(element.tag) == "unit" and element.get("meter") is not None:
-                try:
-                    meter = float(element.get("meter", "1"))
-                except ValueError:
-                    break
-                if meter > 0 and math.isfinite(meter):
-                    return meter
-                break
-        return 1.0
 
     def surface(
         self, element: ET.Element, where: str, model: str
@@ -666,6 +652,19 @@ class _Loader:
             goal_tolerance=number(element, "goal_tolerance", default.goal_tolerance, positive=True),
             timeout=number(element, "timeout", default.timeout, positive=True),
         )
+
+
+def collada_unit(path: Path) -> float:
+    """The `<asset><unit meter>` of a Collada file in metres (trimesh does not apply it; Gazebo does)."""
+    root = parse_xml(read_limited(path, what="Collada mesh"), str(path), Lines())
+    for element in root.iter():
+        if local_name(element.tag) == "unit" and element.get("meter") is not None:
+            try:
+                meter = float(element.get("meter", "1"))
+            except ValueError:
+                return 1.0
+            return meter if meter > 0 and math.isfinite(meter) else 1.0
+    return 1.0
 
 
 class _Scope:

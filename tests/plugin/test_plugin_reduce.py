@@ -93,3 +93,39 @@ def test_reduction_works_under_xdist(wall_project: pytest.Pytester) -> None:
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(["*ddenv reductions*", "*6 -> 1 models*"])
     assert summary_of(wall_project)["minimal_models"] == ["wall"]
+
+
+def test_interrupted_reduction_keeps_its_best_world_and_resumes_without_reprobing(
+    wall_project: pytest.Pytester,
+) -> None:
+    partial = wall_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-max-probes", "2")
+    partial.assert_outcomes(failed=1)
+    partial.stdout.fnmatch_lines(["*6 -> * models*2 probes*incomplete (budget: max_probes)*"])
+    first = summary_of(wall_project)
+    assert first["complete"] is False and first["incomplete_reason"] == "budget: max_probes"
+    assert set(first["minimal_models"]) >= {"wall"}
+    assert World.load(first["files"]["minimal_yaml"]).names == tuple(first["minimal_models"])
+
+    resumed = wall_project.runpytest_subprocess("--ddenv-reduce")
+    resumed.assert_outcomes(failed=1)
+    second = summary_of(wall_project)
+    assert second["complete"] is True and second["minimal_models"] == ["wall"]
+    full = wall_project.runpytest_subprocess("--ddenv-reduce", "-p", "no:cacheprovider")
+    full.assert_outcomes(failed=1)
+    assert second["cache_hits"] >= 2  # the two probes of the interrupted run were not simulated again
+
+
+def test_a_crash_inside_the_reduction_never_replaces_the_tests_own_failure(wall_project: pytest.Pytester) -> None:
+    wall_project.makeconftest(
+        "import pytest_ddenv.reduction_session as session\n"
+        "def broken(*args, **kwargs):\n"
+        "    raise RuntimeError('engine exploded')\n"
+        "session.reduce = broken\n"
+    )
+    result = wall_project.runpytest_subprocess("--ddenv-reduce")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines([
+        "*RobotFailure: The 'stuck' predicate fired*",
+        "*the reduction itself crashed; the test's failure above is unchanged.*",
+        "*test_reaches_goal: reduction crashed: RuntimeError: engine exploded*",
+    ])

@@ -1,0 +1,22 @@
+"""Gazebo SDF interoperability: import SDF 1.4-1.7 worlds and models as Gazebo simulates them, export SDF 1.6.
+
+`load_sdf(path, model_paths=...)` / `parse_sdf(text)` read a world (applying its first `<state>` block) or a
+single-model file; `dump_sdf(world)` writes a world Gazebo loads. See docs/sdf.md for what is supported.
+"""
+
+from __future__ import annotations
+
+from pytest_ddenv.sdf._paths import MODEL_PATH_VARIABLES, model_search_paths
+from pytest_ddenv.sdf._reader import DDENV_NS, load_sdf, parse_sdf
+from pytest_ddenv.sdf._writer import dump_sdf
+from pytest_ddenv.sdf._xml import MAX_FILE_BYTES
+
+__all__ = [
+    "DDENV_NS",
+    "MAX_FILE_BYTES",
+    "MODEL_PATH_VARIABLES",
+    "dump_sdf",
+    "load_sdf",
+    "model_search_paths",
+    "parse_sdf",
+]

@@ -1,0 +1,215 @@
+"""Export a `World` as an SDF 1.6 world that Gazebo loads: no `<state>` block, nothing left of removed models.
+
+Every model becomes one static or dynamic model with one link whose collisions and visuals are the model's
+shapes. What SDF has no element for (the scenario, PyBullet's step and solver settings, `keep`, tags) is
+written in `ddenv:` elements, which Gazebo ignores and `load_sdf` reads back, so that YAML -> SDF -> YAML is
+lossless.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+
+from pytest_ddenv.sdf._reader import DDENV_NS, collada_unit
+from pytest_ddenv.world import Ground, Model, Pose, Scenario, Shape, World, resolve_mesh_path
+
+SDF_VERSION = "1.6"
+GAZEBO_PHYSICS = {"max_step_size": "0.001", "real_time_factor": "1", "real_time_update_rate": "1000"}
+GROUND_COLOR = (0.8, 0.8, 0.8, 1.0)
+ET.register_namespace("ddenv", DDENV_NS)
+
+
+def _number(value: float) -> str:
+    return repr(float(value))
+
+
+def _numbers(values: Sequence[float]) -> str:
+    return " ".join(_number(v) for v in values)
+
+
+def _pose(pose: Pose) -> str:
+    return _numbers(pose.as_list())
+
+
+def _sub(parent: ET.Element, tag: str, text: str | None = None, **attributes: str) -> ET.Element:
+    element = ET.SubElement(parent, tag, attributes)
+    if text is not None:
+        element.text = text
+    return element
+
+
+def _ddenv(tag: str) -> str:
+    return f"{{{DDENV_NS}}}{tag}"
+
+
+# -- geometry -----------------------------------------------------------------------------------------------
+def _geometry(parent: ET.Element, shape: Shape, source: str | None) -> None:
+    geometry = _sub(parent, "geometry")
+    if shape.kind == "box":
+        assert shape.size is not None
+        _sub(_sub(geometry, "box"), "size", _numbers(shape.size))
+    elif shape.kind == "cylinder":
+        cylinder = _sub(geometry, "cylinder")
+        _sub(cylinder, "radius", _number(shape.radius or 0.0))
+        _sub(cylinder, "length", _number(shape.length or 0.0))
+    elif shape.kind == "sphere":
+        _sub(_sub(geometry, "sphere"), "radius", _number(shape.radius or 0.0))
+    else:
+        path = resolve_mesh_path(shape.mesh, source).resolve()
+        unit = collada_unit(path) if path.suffix.lower() == ".dae" else 1.0
+        mesh = _sub(geometry, "mesh")
+        _sub(mesh, "uri", path.as_uri())
+        _sub(mesh, "scale", _numbers([s / unit for s in shape.scale]))
+
+
+def _surface(parent: ET.Element, mu: float, mu2: float, restitution: float) -> None:
+    surface = _sub(parent, "surface")
+    friction = _sub(surface, "friction")
+    ode = _sub(friction, "ode")
+    _sub(ode, "mu", _number(mu))
+    _sub(ode, "mu2", _number(mu2))
+    bullet = _sub(friction, "bullet")
+    _sub(bullet, "friction", _number(mu))
+    _sub(bullet, "friction2", _number(mu2))
+    if restitution:
+        _sub(_sub(surface, "bounce"), "restitution_coefficient", _number(restitution))
+
+
+def _material(parent: ET.Element, color: Sequence[float]) -> None:
+    material = _sub(parent, "material")
+    for tag in ("ambient", "diffuse"):
+        _sub(material, tag, _numbers(color))
+
+
+# -- inertia ----------------------------------------------------------------------------------------------------
+def _inertia(model: Model, source: str | None) -> tuple[Pose, tuple[float, float, float]]:
+    """Centre of mass and principal moments: exact for one primitive, else the model's bounding box."""
+    assert model.mass is not None
+    mass = model.mass
+    if len(model.shapes) == 1 and model.shapes[0].kind in ("box", "cylinder", "sphere"):
+        shape = model.shapes[0]
+        if shape.kind == "box":
+            assert shape.size is not None
+            x, y, z = shape.size
+            return shape.pose, (mass * (y * y + z * z) / 12, mass * (x * x + z * z) / 12, mass * (x * x + y * y) / 12)
+        assert shape.radius is not None
+        r = shape.radius
+        if shape.kind == "sphere":
+            moment = 2 * mass * r * r / 5
+            return shape.pose, (moment, moment, moment)
+        h = shape.length or 0.0
+        side = mass * (3 * r * r + h * h) / 12
+        return shape.pose, (side, side, mass * r * r / 2)
+    local = World(models=(Model(model.name, model.shapes),), ground=None, source=source)
+    low, high = local.bounds(model.name)
+    x, y, z = (float(v) for v in high - low)
+    centre = (low + high) / 2.0
+    return Pose(*(float(v) for v in centre)), (
+        mass * (y * y + z * z) / 12, mass * (x * x + z * z) / 12, mass * (x * x + y * y) / 12)
+
+
+def _inertial(link: ET.Element, model: Model, source: str | None) -> None:
+    assert model.mass is not None
+    inertial = _sub(link, "inertial")
+    centre, (ixx, iyy, izz) = _inertia(model, source)
+    _sub(inertial, "pose", _pose(centre))
+    _sub(inertial, "mass", _number(model.mass))
+    inertia = _sub(inertial, "inertia")
+    for tag, value in (("ixx", ixx), ("ixy", 0.0), ("ixz", 0.0), ("iyy", iyy), ("iyz", 0.0), ("izz", izz)):
+        _sub(inertia, tag, _number(value))
+
+
+# -- models -------------------------------------------------------------------------------------------------------
+def _model(parent: ET.Element, model: Model, source: str | None) -> None:
+    element = _sub(parent, "model", name=model.name)
+    _sub(element, "static", "true" if model.static else "false")
+    _sub(element, "pose", _pose(model.pose))
+    link = _sub(element, "link", name="link")
+    if model.mass is not None:
+        _inertial(link, model, source)
+    for index, shape in enumerate(model.shapes):
+        collision = _sub(link, "collision", name=f"collision_{index}")
+        _sub(collision, "pose", _pose(shape.pose))
+        _geometry(collision, shape, source)
+        _surface(collision, model.mu, model.mu2, model.restitution)
+    for index, shape in enumerate(model.shapes):
+        visual = _sub(link, "visual", name=f"visual_{index}")
+        _sub(visual, "pose", _pose(shape.pose))
+        _geometry(visual, shape, source)
+        _material(visual, model.color)
+    if model.keep:
+        _sub(element, _ddenv("keep"), "true")
+    for name, value in model.tags.items():
+        kind = "bool" if isinstance(value, bool) else type(value).__name__
+        text = ("true" if value else "false") if isinstance(value, bool) else (
+            repr(value) if isinstance(value, float) else str(value))
+        _sub(element, _ddenv("tag"), text, name=name, type=kind)
+
+
+def _ground(parent: ET.Element, ground: Ground, taken: set[str]) -> None:
+    name = "ground_plane"
+    while name in taken:
+        name += "_"
+    element = _sub(parent, "model", name=name)
+    _sub(element, "static", "true")
+    _sub(element, "pose", _pose(Pose(z=ground.z)))
+    link = _sub(element, "link", name="link")
+    collision = _sub(link, "collision", name="collision")
+    plane = _sub(_sub(collision, "geometry"), "plane")
+    _sub(plane, "normal", "0 0 1")
+    _sub(plane, "size", "100 100")
+    _surface(collision, ground.mu, ground.mu2, ground.restitution)
+    visual = _sub(link, "visual", name="visual")
+    plane = _sub(_sub(visual, "geometry"), "plane")
+    _sub(plane, "normal", "0 0 1")
+    _sub(plane, "size", "100 100")
+    _material(visual, GROUND_COLOR)
+
+
+def _sun(parent: ET.Element) -> None:
+    light = _sub(parent, "light", name="sun", type="directional")
+    _sub(light, "cast_shadows", "true")
+    _sub(light, "pose", "0 0 10 0 0 0")
+    _sub(light, "diffuse", "0.8 0.8 0.8 1")
+    _sub(light, "specular", "0.2 0.2 0.2 1")
+    attenuation = _sub(light, "attenuation")
+    for tag, value in (("range", "1000"), ("constant", "0.9"), ("linear", "0.01"), ("quadratic", "0.001")):
+        _sub(attenuation, tag, value)
+    _sub(light, "direction", "-0.5 0.1 -0.9")
+
+
+def _scenario(parent: ET.Element, scenario: Scenario) -> None:
+    element = _sub(parent, _ddenv("scenario"), robot=scenario.robot, timeout=_number(scenario.timeout),
+                   goal_tolerance=_number(scenario.goal_tolerance))
+    start = {"x": _number(scenario.start.x), "y": _number(scenario.start.y)}
+    if scenario.start_z_given:
+        start["z"] = _number(scenario.start.z)
+    start["yaw"] = _number(scenario.start.yaw)
+    _sub(element, _ddenv("start"), **start)
+    goal = {"x": _number(scenario.goal[0]), "y": _number(scenario.goal[1])}
+    if scenario.goal[2] is not None:
+        goal["z"] = _number(scenario.goal[2])
+    _sub(element, _ddenv("goal"), **goal)
+
+
+def dump_sdf(world: World) -> str:
+    """The world as SDF 1.6 text (a `<world>` with a sun, Gazebo physics, the ground plane and the models)."""
+    root = ET.Element("sdf", version=SDF_VERSION)
+    element = _sub(root, "world", name=world.name or "default")
+    _sub(element, "gravity", _numbers(world.physics.gravity))
+    physics = _sub(element, "physics", name="default_physics", default="0", type="ode")
+    for tag, value in GAZEBO_PHYSICS.items():
+        _sub(physics, tag, value)
+    _sub(element, _ddenv("physics"), timestep=_number(world.physics.timestep),
+         solver_iterations=str(world.physics.solver_iterations))
+    if world.scenario is not None:
+        _scenario(element, world.scenario)
+    _sun(element)
+    if world.ground is not None:
+        _ground(element, world.ground, set(world.names))
+    for model in world.models:
+        _model(element, model, world.source)
+    ET.indent(root, space="  ")
+    return '<?xml version="1.0" ?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+

@@ -1,0 +1,1 @@
+"""Tests of the reduction engine (pytest_ddenv.reduce)."""
