@@ -145,26 +145,41 @@ class ReductionSession:
         fails, runs = reduction.failure_rate
         status = "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
         removed = summary["removed_models"]
+        folder = _shown_path(Path(summary["files"]["summary"]).parent)
         text = "\n".join([
             f"world: {summary['world']}",
             f"reduced {reduction.original_size} -> {reduction.minimal_size} models "
             f"({summary['reduction_percent']}%), {status}",
             f"kept: {', '.join(reduction.minimal) or '(none)'}",
-            f"removed ({len(removed)}): {', '.join(removed) or '(none)'}",
+            f"removed ({len(removed)}): {_listing(removed)}",
             f"probes: {reduction.probes} simulated, {reduction.cache_hits} from cache, "
             f"{reduction.skipped} skipped, {reduction.errors} errors; {reduction.wall_time:.1f} s",
             f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
             f"minimal world fails {fails}/{runs} seeds",
-            f"artifacts: {Path(summary['files']['summary']).parent}",
+            f"artifacts: {folder}",
             f"replay: {summary['replay']}",
         ]) + "\n"
         line = (
             f"{self.item.nodeid}: {reduction.original_size} -> {reduction.minimal_size} models "
             f"({summary['reduction_percent']:.0f}%), {reduction.probes} probes, {reduction.wall_time:.0f} s, "
-            f"fails {fails}/{runs}{'' if reduction.one_minimal else ', ' + status} -> "
-            f"{Path(summary['files']['summary']).parent}"
+            f"fails {fails}/{runs}{'' if reduction.one_minimal else ', ' + status} -> {folder}"
         )
         return {"text": text, "line": line, "attachments": attachments, "summary": summary, "reproducible": True}
+
+
+def _listing(names: list[str], limit: int = 12) -> str:
+    if not names:
+        return "(none)"
+    shown = ", ".join(names[:limit])
+    return shown if len(names) <= limit else f"{shown}, ... and {len(names) - limit} more (see summary.json)"
+
+
+def _shown_path(path: Path) -> Path:
+    """A path relative to the working directory when it is inside it (shorter terminal lines)."""
+    try:
+        return path.relative_to(Path.cwd())
+    except ValueError:
+        return path
 
 
 def _replay_command(item: pytest.Item, minimal_yaml: Path) -> str:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
 from pytest_ddenv import World
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
@@ -12,6 +14,21 @@ DOCS = Path(__file__).resolve().parent.parent / "docs"
 
 def yaml_blocks(page: str) -> list[str]:
     return re.findall(r"```yaml\n(.*?)```", (DOCS / page).read_text(), flags=re.S)
+
+
+def python_blocks(page: str) -> list[str]:
+    return re.findall(r"```python\n(.*?)```", (DOCS / page).read_text(), flags=re.S)
+
+
+def test_writing_tests_example_fails_and_is_reduced(pytester: pytest.Pytester) -> None:
+    from plugin.conftest import WALL_WORLD
+
+    (example,) = python_blocks("writing-tests.md")
+    pytester.makefile(".yaml", wall=WALL_WORLD)
+    pytester.makepyfile(test_example=example)
+    result = pytester.runpytest_subprocess("--ddenv-reduce")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*RobotFailure: The 'stuck' predicate fired*touching wall*", "*6 -> 1 models*"])
 
 
 def test_world_format_example_loads_and_round_trips() -> None:

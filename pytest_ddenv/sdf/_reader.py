@@ -616,7 +616,10 @@ class _Loader:
             iterations = int(iterations_value)
         return Physics(gravity=gravity, timestep=timestep, solver_iterations=iterations)
 
-    def attribute_number(self, element: ET.Element, name: str, default: float, *, positive: bool = False) -> float:
+    def attribute_number(
+        self, element: ET.Element, name: str, default: float, *, positive: bool = False,
+        kind: type[WorldError] = WorldError,
+    ) -> float:
         text = element.get(name)
         if text is None:
             return default
@@ -626,9 +629,7 @@ class _Loader:
             value = math.nan
         if not math.isfinite(value) or (positive and value <= 0):
             raise self.error(f"expected a {'positive ' if positive else ''}number, got {text!r}", element,
-                             field=f"{local_name(element.tag)}/@{name}",
-                             kind=ScenarioError if "scenario" in element.tag or element.tag.endswith(("start", "goal"))
-                             else WorldError)
+                             field=f"ddenv:{local_name(element.tag)}/@{name}", kind=kind)
         return value
 
     def scenario(self, world: ET.Element) -> Scenario | None:
@@ -641,7 +642,10 @@ class _Loader:
             raise self.error("ddenv:scenario needs ddenv:start and ddenv:goal", element, field="ddenv:scenario",
                              kind=ScenarioError)
         default = Scenario()
-        number = self.attribute_number
+
+        def number(owner: ET.Element, name: str, fallback: float, *, positive: bool = False) -> float:
+            return self.attribute_number(owner, name, fallback, positive=positive, kind=ScenarioError)
+
         return Scenario(
             robot=element.get("robot", default.robot),
             start=Pose(x=number(start, "x", 0.0), y=number(start, "y", 0.0), z=number(start, "z", 0.0),

@@ -14,18 +14,27 @@ GROUND_BODY_NAME = "<ground>"
 _NATIVE_MESH_SUFFIXES = (".obj", ".stl")
 
 
-def build_world(p: Any, client: int, world: World) -> dict[int, str]:
+WHEEL_MU = 1.0
+"""The robot wheels' friction coefficient (the Husky URDF's lateral_friction)."""
+
+
+def effective_mu(mu: float, friction: str) -> float:
+    """pybullet lateralFriction for a world mu: min(mu, wheel mu) under "min", mu under "product"."""
+    return min(mu, WHEEL_MU) if friction == "min" else mu
+
+
+def build_world(p: Any, client: int, world: World, friction: str = "min") -> dict[int, str]:
     """Create the ground (if any) and every model; return body id -> model name (ground: '<ground>')."""
     bodies: dict[int, str] = {}
     if world.ground is not None:
         ground = world.ground
         shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=client)
         body = p.createMultiBody(0.0, shape, -1, [0.0, 0.0, ground.z], physicsClientId=client)
-        p.changeDynamics(body, -1, lateralFriction=ground.mu, restitution=ground.restitution,
+        p.changeDynamics(body, -1, lateralFriction=effective_mu(ground.mu, friction), restitution=ground.restitution,
                          physicsClientId=client)
         bodies[body] = GROUND_BODY_NAME
     for model in world.models:
-        bodies[_build_model(p, client, model, world.source)] = model.name
+        bodies[_build_model(p, client, model, world.source, friction)] = model.name
     return bodies
 
 
@@ -33,7 +42,7 @@ def _quaternion(p: Any, roll: float, pitch: float, yaw: float) -> list[float]:
     return list(p.getQuaternionFromEuler([roll, pitch, yaw]))
 
 
-def _build_model(p: Any, client: int, model: Model, source: str | None) -> int:
+def _build_model(p: Any, client: int, model: Model, source: str | None, friction: str = "min") -> int:
     shapes = model.shapes
     if len(shapes) == 1 or not any(s.kind == "mesh" for s in shapes):
         collision = _collision_shape(p, client, model, source)
@@ -52,7 +61,7 @@ def _build_model(p: Any, client: int, model: Model, source: str | None) -> int:
     for link in links:
         p.changeDynamics(
             body, link,
-            lateralFriction=model.mu,
+            lateralFriction=effective_mu(model.mu, friction),
             restitution=model.restitution,
             anisotropicFriction=_anisotropy(model),
             physicsClientId=client,

@@ -141,7 +141,7 @@ class Simulator:
             fixedTimeStep=dt, numSolverIterations=int(physics.solver_iterations),
             deterministicOverlappingPairs=1, physicsClientId=client,
         )
-        bodies = build_world(p, client, world)
+        bodies = build_world(p, client, world, settings.friction)
         jitter = rng_start.standard_normal(3)
         start_x = scenario.start.x + noise.start_xy * jitter[0]
         start_y = scenario.start.y + noise.start_xy * jitter[1]
@@ -379,15 +379,15 @@ class _Laser:
             self.ranges[i] = self.robot.laser_min_range + hit[2] * span + noise[i]
 
     def avoid(self, v: float, w: float, settings: RunSettings) -> tuple[float, float]:
-        """Slow down and turn away from the closest obstacle in the front half when it is within 1.5 m."""
-        front = np.abs(self.angles) < math.pi / 2
-        if not front.any():
+        """Reactive avoidance: stop and turn away while a laser hit lies in the robot's corridor ahead.
+
+        The corridor is 0.8 m wide (the Husky is 0.67 m) and 1.4 m deep from the robot's centre.
+        """
+        ahead = self.ranges * np.cos(self.angles)
+        side = self.ranges * np.sin(self.angles)
+        finite = np.isfinite(self.ranges)
+        blocking = finite & (ahead > 0.0) & (ahead < 1.4) & (np.abs(side) < 0.4)
+        if not blocking.any():
             return v, w
-        ranges = np.where(front, self.ranges, np.inf)
-        index = int(np.argmin(ranges))
-        closest = float(ranges[index])
-        if not math.isfinite(closest) or closest > 1.5:
-            return v, w
-        away = -math.copysign(1.0, float(self.angles[index]) or 1.0)
-        factor = max(0.0, (closest - 0.7) / 0.8)
-        return v * factor, max(-settings.max_turn_rate, min(settings.max_turn_rate, w + away * (1.0 - factor) * 1.5))
+        away = -1.0 if float(np.sum(side[blocking])) > 0 else 1.0  # turn away from the obstacle's side
+        return 0.0, away * settings.max_turn_rate

@@ -50,6 +50,12 @@ class RunSettings:
     (0 rays = no laser). `avoid_obstacles` turns away from close laser hits (off: the paper's robot was
     blind). Recording: poses are recorded at `record_rate` Hz (at most the control rate). `stop_early`
     ends the run once a predicate fires or the goal is reached.
+
+    `friction` is how a model's `mu` meets the robot's wheels (mu 1): "min" (default) gives pybullet
+    `lateralFriction = min(mu, 1)`, so every robot contact gets min(mu, wheel mu) as in Gazebo/ODE, whose
+    worlds these are; "product" passes `mu` unchanged and Bullet multiplies the two coefficients (clamped
+    at 10), so a mu-1000 patch becomes a surface the skid-steered Husky cannot turn on. See
+    docs/simulation.md.
     """
 
     control_rate: float = 20.0
@@ -63,7 +69,8 @@ class RunSettings:
     stop_early: bool = True
     max_speed: float = 1.0
     turn_gain: float = 2.0
-    max_turn_rate: float = 1.5
+    max_turn_rate: float = 0.8
+    friction: str = "min"
 
     def __post_init__(self) -> None:
         for name in ("control_rate", "laser_rate", "laser_range", "laser_fov", "record_rate", "max_speed",
@@ -73,6 +80,8 @@ class RunSettings:
                 raise ScenarioError(f"expected a finite number > 0, got {value!r}", field=f"settings.{name}")
         if isinstance(self.laser_rays, bool) or not isinstance(self.laser_rays, int) or self.laser_rays < 0:
             raise ScenarioError(f"expected an integer >= 0, got {self.laser_rays!r}", field="settings.laser_rays")
+        if self.friction not in ("min", "product"):
+            raise ScenarioError(f"expected 'min' or 'product', got {self.friction!r}", field="settings.friction")
         if not isinstance(self.noise, NoiseSettings):
             raise ScenarioError("expected a NoiseSettings", field="settings.noise")
 

@@ -1,0 +1,443 @@
+"""`SimulationPool`: persistent local worker processes, each with one live `Simulator`.
+
+Thread-safe and blocking: each calling thread takes an idle worker, sends it one request and waits for the
+reply, the worker's death, or the watchdog. A worker that dies mid-simulation is replaced and the
+simulation retried once on the fresh worker; a second death, a watchdog kill, or closing the pool raise
+`SimulationError`. ``workers=1`` runs in the calling process (no subprocess, no fault isolation).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import multiprocessing
+import os
+import queue
+import sys
+import threading
+import time
+import weakref
+from collections.abc import Iterator, Sequence
+from dataclasses import replace
+from multiprocessing.connection import Connection, wait
+from multiprocessing.context import BaseContext
+from typing import TYPE_CHECKING, Any
+
+from pytest_ddenv.execution.base import (
+    DEFAULT_WATCHDOG_FACTOR,
+    DEFAULT_WATCHDOG_FLOOR,
+    PoolStats,
+    StatsBook,
+    check_watchdog,
+)
+from pytest_ddenv.execution.errors import PoolConfigError, SimulationError
+from pytest_ddenv.execution.request import (
+    Fault,
+    Reply,
+    SimRequest,
+    describe_request,
+    execute,
+    fault_for,
+    parse_faults,
+)
+from pytest_ddenv.execution.worker import worker_main
+
+if TYPE_CHECKING:
+    from pytest_ddenv.execution.request import PredicateLike
+    from pytest_ddenv.sim import Run, RunSettings, Simulator
+    from pytest_ddenv.world import World
+
+STARTUP_TIMEOUT = 120.0
+"""Seconds a new worker may take to import pybullet and connect its simulator."""
+CLOSE_GRACE = 1.0
+"""Seconds `close()` lets workers exit on their own before terminating them."""
+_PRELOAD = ["pytest_ddenv.execution.worker", "pytest_ddenv.sim"]
+
+
+def cpu_count() -> int:
+    """Cores this process may use (affinity-aware)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def resolve_workers(workers: int | str) -> int:
+    """`workers` as a positive count: an int >= 1, a digit string, or 'auto' (one per core)."""
+    if workers == "auto":
+        return cpu_count()
+    if isinstance(workers, str) and workers.strip().isdigit():
+        workers = int(workers)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise PoolConfigError(f"workers must be an integer >= 1 or 'auto', got {workers!r}")
+    return workers
+
+
+def default_context() -> str:
+    return "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+
+
+_main_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def _main_module_hidden() -> Iterator[None]:
+    """Start a worker without it re-importing the parent's __main__ (workers never need it): user scripts
+    without an ``if __name__ == "__main__"`` guard would otherwise run again in every worker."""
+    with _main_lock:
+        main = sys.modules.get("__main__")
+        if main is None:
+            yield
+            return
+        saved = {key: main.__dict__[key] for key in ("__file__", "__spec__") if key in main.__dict__}
+        main.__dict__.pop("__file__", None)
+        main.__dict__["__spec__"] = None
+        try:
+            yield
+        finally:
+            main.__dict__.pop("__spec__", None)
+            main.__dict__.update(saved)
+
+
+class _Died(Exception):
+    def __init__(self, how: str) -> None:
+        super().__init__(how)
+        self.how = how
+
+
+class _Hung(Exception):
+    pass
+
+
+class _Worker:
+    """One worker process and the parent's end of its pipe."""
+
+    def __init__(self, context: BaseContext, name: str) -> None:
+        parent, child = context.Pipe(duplex=True)
+        self.process: Any = context.Process(target=worker_main, args=(child,), name=name, daemon=True)
+        with _main_module_hidden():
+            self.process.start()
+        child.close()
+        self.conn: Connection = parent
+        self.name = name
+        self.ready = False
+        self.send_lock = threading.Lock()
+
+    def __repr__(self) -> str:
+        return f"worker {self.name} (pid {self.process.pid})"
+
+    def exit_description(self) -> str:
+        self.process.join(timeout=1.0)
+        code = self.process.exitcode
+        if code is None:
+            return f"{self} stopped answering"
+        if code < 0:
+            import signal
+
+            try:
+                return f"{self} was killed by {signal.Signals(-code).name}"
+            except ValueError:  # pragma: no cover
+                return f"{self} was killed by signal {-code}"
+        return f"{self} exited with status {code}"
+
+    def await_ready(self, timeout: float) -> None:
+        status = self._wait(timeout)
+        if status == "timeout":
+            raise _Died(f"{self} did not start within {timeout:g} s")
+        try:
+            message = self.conn.recv()
+        except (EOFError, OSError):
+            raise _Died(f"{self.exit_description()} while starting") from None
+        if message[0] == "failed":
+            raise SimulationError(f"{self} could not start a simulator: {message[1]}") from message[1]
+        self.ready = True
+
+    def call(self, request: SimRequest, watchdog: float | None) -> Reply:
+        try:
+            with self.send_lock:
+                self.conn.send(request)
+        except (BrokenPipeError, OSError):
+            raise _Died(self.exit_description()) from None
+        status = self._wait(watchdog)
+        if status == "timeout":
+            raise _Hung()
+        try:
+            reply = self.conn.recv()
+        except (EOFError, OSError):
+            raise _Died(self.exit_description()) from None
+        assert isinstance(reply, Reply)
+        return reply
+
+    def _wait(self, timeout: float | None) -> str:
+        ready = wait([self.conn, self.process.sentinel], timeout)
+        if self.conn in ready:
+            return "reply"
+        return "died" if ready else "timeout"
+
+    def ask_to_stop(self) -> None:
+        try:
+            with self.send_lock:
+                self.conn.send(None)
+        except (BrokenPipeError, OSError):
+            pass
+
+    def dispose(self, grace: float = 0.0) -> None:
+        """Make sure the process is gone and reaped: wait `grace`, then terminate, then kill."""
+        process = self.process
+        if grace > 0:
+            process.join(grace)
+        if process.is_alive():
+            process.terminate()
+            process.join(1.0)
+        if process.is_alive():
+            process.kill()
+            process.join(5.0)
+        self.conn.close()
+
+
+def _shutdown(live: set[_Worker], grace: float) -> None:
+    workers = list(live)
+    for worker in workers:
+        worker.ask_to_stop()
+    deadline = time.monotonic() + grace
+    for worker in workers:
+        worker.dispose(max(0.0, deadline - time.monotonic()))
+        live.discard(worker)
+
+
+class SimulationPool:
+    """A pool of persistent simulation workers (see the module docstring).
+
+    `workers`: count or 'auto' (one per core); 1 = in-process. `watchdog`: wall-clock seconds a simulation
+    may take before its worker is killed, 'auto' (max(`watchdog_floor`, `watchdog_factor` x the slowest
+    simulation so far)) or None (never). `context`: multiprocessing start method ('forkserver' where
+    available, else 'spawn'; 'fork' is refused: pybullet and fork do not mix). `fault_injection`: test-only
+    faults (see `Fault`); default from $DDENV_FAULT_INJECTION. `in_process`: force (or forbid) the
+    in-process mode regardless of `workers`.
+    """
+
+    def __init__(
+        self,
+        workers: int | str = "auto",
+        *,
+        watchdog: float | str | None = "auto",
+        watchdog_floor: float = DEFAULT_WATCHDOG_FLOOR,
+        watchdog_factor: float = DEFAULT_WATCHDOG_FACTOR,
+        context: str | None = None,
+        fault_injection: str | Sequence[Fault] | None = None,
+        in_process: bool | None = None,
+        startup_timeout: float = STARTUP_TIMEOUT,
+    ) -> None:
+        self._size = resolve_workers(workers)
+        self._watchdog = check_watchdog(watchdog)
+        self._floor = float(watchdog_floor)
+        self._factor = float(watchdog_factor)
+        self._startup_timeout = float(startup_timeout)
+        self._faults = parse_faults(fault_injection)
+        self._in_process = self._size == 1 if in_process is None else bool(in_process)
+        self._stats = StatsBook(self._size)
+        self._sequence = itertools.count(1)
+        self._sequence_lock = threading.Lock()
+        self._closed = False
+        self._idle: queue.Queue[_Worker | None] = queue.Queue()
+        self._live: set[_Worker] = set()
+        self._names = itertools.count(1)
+        self._local: Simulator | None = None
+        self._local_lock = threading.Lock()
+        if self._in_process:
+            if self._size != 1:
+                raise PoolConfigError(f"an in-process pool has exactly 1 worker, got workers={workers!r}")
+            unsafe = sorted({f.kind for f in self._faults} - {"error"})
+            if unsafe:
+                raise PoolConfigError(f"fault(s) {', '.join(unsafe)} would take down the calling process; "
+                                      "use worker processes (in_process=False) to inject them")
+            self._context: BaseContext | None = None
+        else:
+            method = context or default_context()
+            if method == "fork":
+                raise PoolConfigError("the 'fork' start method is not supported (pybullet is not fork-safe); "
+                                      "use 'forkserver' or 'spawn'")
+            try:
+                self._context = multiprocessing.get_context(method)
+            except ValueError:
+                raise PoolConfigError(f"unknown multiprocessing start method {method!r}; valid: "
+                                      f"{', '.join(multiprocessing.get_all_start_methods())}") from None
+            if method == "forkserver":
+                self._context.set_forkserver_preload(_PRELOAD)  # type: ignore[attr-defined]
+            for _ in range(self._size):
+                self._idle.put(self._start_worker(count=False))
+        self._finalizer = weakref.finalize(self, _shutdown, self._live, 0.0)
+
+    # -- public API ----------------------------------------------------------------------------------
+    @property
+    def size(self) -> int:
+        return self._size
+
+    @property
+    def in_process(self) -> bool:
+        return self._in_process
+
+    @property
+    def stats(self) -> PoolStats:
+        return self._stats.snapshot()
+
+    @property
+    def pids(self) -> list[int]:
+        """Process ids of the live workers (empty in-process)."""
+        return sorted(w.process.pid for w in list(self._live) if w.process.pid is not None)
+
+    def watchdog_seconds(self) -> float | None:
+        """The watchdog the next simulation gets (None: none)."""
+        if self._watchdog == "auto":
+            return self._stats.watchdog(self._floor, self._factor)
+        return self._watchdog  # type: ignore[return-value]
+
+    def simulate(
+        self,
+        world: World,
+        *,
+        seed: int,
+        predicates: Sequence[PredicateLike] = (),
+        settings: RunSettings | None = None,
+        timeout: float | None = None,
+    ) -> Run:
+        """Simulate `world` with `seed` on a worker and return its Run (same as `Simulator().run`).
+
+        Raises what the simulation raises (e.g. ScenarioError), or SimulationError when the pool could not
+        complete it (worker died twice, watchdog, pool closed).
+        """
+        from pytest_ddenv.sim import RunSettings
+
+        if self._closed:
+            raise SimulationError("the simulation pool is closed")
+        request = SimRequest(world, seed, tuple(predicates), settings or RunSettings(), timeout)
+        with self._sequence_lock:
+            sequence = next(self._sequence)
+        if self._in_process:
+            return self._simulate_here(replace(request, fault=fault_for(self._faults, sequence, 0)))
+        return self._simulate_on_worker(request, sequence)
+
+    def close(self, grace: float = CLOSE_GRACE) -> None:
+        """Stop every worker (let them exit for `grace` seconds, then terminate/kill) and reap them."""
+        self._closed = True
+        _shutdown(self._live, grace)
+        with self._local_lock:
+            if self._local is not None:
+                self._local.close()
+                self._local = None
+        self._finalizer.detach()
+
+    def __enter__(self) -> SimulationPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        mode = "in-process" if self._in_process else f"{self._size} workers"
+        return f"SimulationPool({mode}{', closed' if self._closed else ''})"
+
+    # -- in-process ----------------------------------------------------------------------------------
+    def _simulate_here(self, request: SimRequest) -> Run:
+        started = time.perf_counter()
+        with self._local_lock:
+            if self._local is None:
+                from pytest_ddenv.sim import Simulator
+
+                self._local = Simulator()
+            reply = execute(self._local, request)
+        return self._finish(reply, started)
+
+    # -- worker processes ----------------------------------------------------------------------------
+    def _simulate_on_worker(self, request: SimRequest, sequence: int) -> Run:
+        what = describe_request(request)
+        worker = self._acquire()
+        for try_index in (0, 1):
+            attempt = replace(request, fault=fault_for(self._faults, sequence, try_index))
+            watchdog = self.watchdog_seconds()
+            try:
+                if not worker.ready:
+                    worker.await_ready(self._startup_timeout)
+                started = time.perf_counter()
+                reply = worker.call(attempt, watchdog)
+            except _Died as died:
+                retry = try_index == 0 and not self._closed
+                self._forget(worker, free_slot=not retry)
+                self._raise_if_closed(what)
+                self._stats.add("crashes")
+                if retry:
+                    self._stats.add("retries")
+                    worker = self._start_worker()
+                    continue
+                self._stats.add("errors")
+                raise SimulationError(
+                    f"simulation of {what} failed twice: its worker died each time (last: {died.how})"
+                ) from None
+            except _Hung:
+                self._forget(worker)
+                self._raise_if_closed(what)
+                self._stats.add("timeouts")
+                self._stats.add("errors")
+                raise SimulationError(
+                    f"simulation of {what} ran past the {watchdog:g} s watchdog; its worker was killed"
+                ) from None
+            except BaseException:  # interrupted mid-call, or the worker could not start: its state is unknown
+                self._forget(worker)
+                self._stats.add("errors")
+                raise
+            self._release(worker)
+            return self._finish(reply, started)
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    def _finish(self, reply: Reply, started: float) -> Run:
+        self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds)
+        if reply.error is not None:
+            raise reply.error
+        assert reply.run is not None
+        return reply.run
+
+    def _raise_if_closed(self, what: str) -> None:
+        if self._closed:
+            self._stats.add("errors")
+            raise SimulationError(f"the simulation pool was closed while simulating {what}")
+
+    def _start_worker(self, *, count: bool = True) -> _Worker:
+        assert self._context is not None
+        worker = _Worker(self._context, f"ddenv-sim-{next(self._names)}")
+        self._live.add(worker)
+        if count:
+            self._stats.add("restarts")
+        if self._closed:  # close() raced with us: do not leave it behind
+            self._forget(worker, free_slot=False)
+            raise SimulationError("the simulation pool is closed")
+        return worker
+
+    def _forget(self, worker: _Worker, *, free_slot: bool = True) -> None:
+        """Kill (if needed) and reap a worker whose state is unknown or dead. With `free_slot`, its slot goes
+        back to the idle queue empty (a new worker starts when someone needs it)."""
+        self._live.discard(worker)
+        worker.dispose()
+        if free_slot and not self._closed:
+            self._idle.put(None)
+
+    def _acquire(self) -> _Worker:
+        while True:
+            if self._closed:
+                raise SimulationError("the simulation pool is closed")
+            try:
+                item = self._idle.get(timeout=0.2)
+            except queue.Empty:
+                continue
+            if item is None:
+                return self._start_worker()
+            if item.process.is_alive():
+                return item
+            self._live.discard(item)  # died while idle
+            item.dispose()
+            self._stats.add("crashes")
+            return self._start_worker()
+
+    def _release(self, worker: _Worker) -> None:
+        if self._closed:
+            return
+        self._idle.put(worker)

@@ -1,0 +1,236 @@
+"""Running a world's scenario without pytest: the probe of `ddenv reduce` and the check of `ddenv replay`.
+
+A scenario run here is what the simplest scenario test does (`robot_world.run()` with failure predicates):
+the same seeds (`RobotWorld`), the same `RobotFailure`, the same oracle. No pytest import.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.markers import PredicateSpec
+from pytest_ddenv.reduce import Observation, Outcome
+from pytest_ddenv.robot_world import RobotFailure, RobotWorld
+from pytest_ddenv.world import World
+
+if TYPE_CHECKING:  # pragma: no cover
+    from pytest_ddenv.oracle import FailureSignature
+    from pytest_ddenv.probe import FailureReference, RunTest
+    from pytest_ddenv.reduce.types import Candidate, Probe
+    from pytest_ddenv.sim import Run
+
+REFERENCE_LOCATION = "ddenv"
+"""The `FailureReference.location` of a failure found by running a world's scenario (no test file)."""
+
+
+class ArtifactError(DdenvError):
+    """An artifacts folder is missing a file or holds something that cannot be replayed."""
+
+
+def predicates_to_json(predicates: Sequence[PredicateSpec]) -> list[dict[str, Any]]:
+    """Predicates as recorded in summary.json: [{"name": ..., "params": {...}}, ...]."""
+    return [{"name": spec.name, "params": dict(spec.params)} for spec in predicates]
+
+
+def predicates_from_json(data: Any) -> tuple[PredicateSpec, ...]:
+    """The inverse of `predicates_to_json`, validated by building each predicate."""
+    from pytest_ddenv.oracle import make_predicate
+
+    if not isinstance(data, list):
+        raise ArtifactError(f"'predicates' must be a list of {{name, params}}, got {data!r}")
+    specs = []
+    for item in data:
+        if not isinstance(item, Mapping) or not isinstance(item.get("name"), str):
+            raise ArtifactError(f"each predicate must be {{name, params}}, got {item!r}")
+        params = dict(item.get("params") or {})
+        make_predicate(item["name"], **params)
+        specs.append(PredicateSpec(item["name"], params))
+    return tuple(specs)
+
+
+def run_scenario(world: World, predicates: Sequence[PredicateSpec], *, seed: int = 0, attempt: int = 0,
+                 timeout: float | None = None) -> Run:
+    """Simulate the world's scenario once (never raises for a predicate failure; see `Run.failure`)."""
+    robot_world = RobotWorld(world, predicates=predicates, seed=seed, attempt=attempt)
+    return robot_world.run(timeout=timeout, raise_on_failure=False)
+
+
+def scenario_runner(predicates: Sequence[PredicateSpec], *, seed: int = 0, timeout: float | None = None) -> RunTest:
+    """A `run_test` for `probe.make_probe`: the scenario of the candidate world, as a test would run it."""
+
+    def run_test(world: World, attempt: int) -> tuple[BaseException | None, Run | None]:
+        robot_world = RobotWorld(world, predicates=predicates, seed=seed, attempt=attempt)
+        try:
+            robot_world.run(timeout=timeout)
+        except Exception as error:  # noqa: BLE001 - every exception is an outcome to classify
+            return error, robot_world.runs[-1] if robot_world.runs else None
+        return None, robot_world.runs[-1] if robot_world.runs else None
+
+    return run_test
+
+
+def reference_of(run: Run) -> FailureReference:
+    """The failure a reduction of this run's world must reproduce."""
+    from pytest_ddenv.probe import FailureReference
+
+    if run.failure is None:
+        raise ValueError("the run did not fail")
+    return FailureReference(RobotFailure.__qualname__, REFERENCE_LOCATION, run.failure)
+
+
+@dataclass
+class ScenarioProbe:
+    """A picklable probe (for process-pool workers): simulate a candidate sub-world and classify it.
+
+    Each process builds its `probe.make_probe` closure on first use; the closure is never pickled.
+    """
+
+    world: World
+    predicates: tuple[PredicateSpec, ...]
+    reference: FailureReference
+    tolerance: float
+    seed: int = 0
+    timeout: float | None = None
+    _probe: Probe | None = field(default=None, init=False, repr=False, compare=False)
+
+    def __call__(self, candidate: Candidate, attempt: int) -> Observation:
+        if self._probe is None:
+            from pytest_ddenv.probe import make_probe
+
+            runner = scenario_runner(self.predicates, seed=self.seed, timeout=self.timeout)
+            self._probe = make_probe(self.world, runner, self.reference, tolerance=self.tolerance)
+        return self._probe(candidate, attempt)
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state["_probe"] = None
+        return state
+
+
+# -- replay -------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ReplayRun:
+    seed: int
+    outcome: Outcome
+    failure: FailureSignature | None
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """What re-running a minimal world showed."""
+
+    directory: Path
+    world: World
+    reference: FailureSignature
+    predicates: tuple[PredicateSpec, ...]
+    tolerance: float
+    runs: tuple[ReplayRun, ...]
+
+    @property
+    def reproduced(self) -> int:
+        return sum(1 for run in self.runs if run.outcome is Outcome.FAIL)
+
+    @property
+    def ok(self) -> bool:
+        """Every replayed seed failed the same way."""
+        return bool(self.runs) and self.reproduced == len(self.runs)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "artifacts": str(self.directory),
+            "models": list(self.world.names),
+            "reference_failure": self.reference.to_dict(),
+            "predicates": predicates_to_json(self.predicates),
+            "tolerance": self.tolerance,
+            "runs": [
+                {"seed": run.seed, "outcome": run.outcome.value,
+                 "failure": None if run.failure is None else run.failure.to_dict()}
+                for run in self.runs
+            ],
+            "reproduced": self.reproduced,
+            "ok": self.ok,
+        }
+
+
+def read_artifacts(directory: Path) -> tuple[dict[str, Any], World]:
+    """summary.json and minimal.yaml of an artifacts folder (ArtifactError when missing or invalid)."""
+    summary_path, minimal_path = directory / "summary.json", directory / "minimal.yaml"
+    if not directory.is_dir():
+        raise ArtifactError(f"{directory}: no such artifacts folder")
+    try:
+        summary = json.loads(summary_path.read_text(encoding="utf-8"))
+    except OSError:
+        raise ArtifactError(f"{summary_path}: missing; is {directory} a ddenv artifacts folder?") from None
+    except ValueError as error:
+        raise ArtifactError(f"{summary_path}: not valid JSON ({error})") from None
+    if not isinstance(summary, dict):
+        raise ArtifactError(f"{summary_path}: expected a JSON object")
+    if not minimal_path.is_file():
+        raise ArtifactError(f"{minimal_path}: missing; the reduction did not write its minimal world")
+    return summary, World.load(minimal_path)
+
+
+def recorded_signature(summary: Mapping[str, Any], where: Path) -> FailureSignature:
+    from pytest_ddenv.oracle import FailureSignature
+
+    signature = (summary.get("reference_failure") or {}).get("signature")
+    if not isinstance(signature, Mapping):
+        raise ArtifactError(f"{where}: the reference failure has no predicate signature (the test failed "
+                            "with an exception, not a failure predicate); replay it with the 'replay' command "
+                            "in summary.json instead")
+    try:
+        return FailureSignature.from_dict(signature)
+    except (KeyError, TypeError, ValueError) as error:
+        raise ArtifactError(f"{where}: invalid reference failure signature ({error})") from None
+
+
+def recorded_predicates(summary: Mapping[str, Any], reference: FailureSignature) -> tuple[PredicateSpec, ...]:
+    """The predicates recorded in the summary, else the reference's predicate with default parameters."""
+    if "predicates" in summary:
+        return predicates_from_json(summary["predicates"])
+    return (PredicateSpec(reference.predicate, {}),)
+
+
+def recorded_seeds(log: Path, minimal: Sequence[str], fallback: int) -> list[int]:
+    """Seeds of the logged runs of the minimal world that failed the same way, else [fallback]."""
+    wanted = sorted(minimal)
+    seeds: list[int] = []
+    try:
+        lines = log.read_text(encoding="utf-8").splitlines()
+    except OSError:
+        lines = []
+    for line in lines:
+        try:
+            record = json.loads(line)
+        except ValueError:
+            continue
+        if (isinstance(record, dict) and record.get("event") == "probe" and record.get("outcome") == "fail"
+                and sorted(record.get("candidate", ())) == wanted and isinstance(record.get("seed"), int)
+                and record["seed"] not in seeds):
+            seeds.append(record["seed"])
+    return seeds or [fallback]
+
+
+def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None = None, max_runs: int = 5,
+           tolerance: float | None = None, timeout: float | None = None) -> ReplayResult:
+    """Re-run the minimal world of an artifacts folder with its recorded failing seeds (at most `max_runs`)."""
+    from pytest_ddenv.oracle import classify
+
+    folder = Path(directory)
+    summary, world = read_artifacts(folder)
+    reference = recorded_signature(summary, folder / "summary.json")
+    chosen = tuple(predicates) if predicates else recorded_predicates(summary, reference)
+    limit = float(summary.get("tolerance", 0.5)) if tolerance is None else tolerance
+    run_timeout = timeout if timeout is not None else summary.get("timeout")
+    seed = int(summary.get("scenario_seed", summary.get("seed", 0)))
+    seeds = recorded_seeds(folder / "runs.jsonl", world.names, seed)[:max_runs]
+    results = []
+    for run_seed in seeds:
+        run = run_scenario(world, chosen, seed=run_seed, timeout=run_timeout)
+        results.append(ReplayRun(run_seed, classify(run, reference, limit), run.failure))
+    return ReplayResult(folder, world, reference, chosen, limit, tuple(results))

@@ -1,0 +1,247 @@
+"""Budgets, interrupts, preconditions, keep, outcomes, progress and argument validation."""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pytest_ddenv.errors import DdenvError, ReductionError
+from pytest_ddenv.reduce import (
+    DEFLAKE_POLICIES,
+    PARTITIONS,
+    PRIORITIES,
+    Observation,
+    Outcome,
+    ProgressEvent,
+    ReductionInterrupted,
+    reduce,
+)
+
+from .conftest import FunctionOracle, SetOracle, names
+
+CULPRITS = frozenset({"m0004", "m0017"})
+
+
+def reproduces(candidate: tuple[str, ...]) -> bool:
+    return CULPRITS <= set(candidate)
+
+
+# -- budgets ----------------------------------------------------------------------------------------------
+
+
+def test_a_zero_probe_budget_returns_the_original() -> None:
+    result = reduce(names(20), SetOracle(CULPRITS), max_probes=0, failure_rate_runs=0)
+    assert result.minimal == names(20)
+    assert result.incomplete_reason == "budget: max_probes" and not result.one_minimal
+    assert result.probes == 0
+
+
+@pytest.mark.parametrize("budget", [1, 3, 7, 15])
+def test_a_probe_budget_gives_the_best_world_so_far(budget: int) -> None:
+    oracle = SetOracle(CULPRITS)
+    result = reduce(names(64), oracle, max_probes=budget, deflake=0, failure_rate_runs=2)
+    assert result.probes == budget
+    assert result.incomplete_reason == "budget: max_probes" and not result.one_minimal
+    assert reproduces(result.minimal)
+    assert result.failure_rate == (2, 2), "the best world so far is still measured"
+    assert len(result.minimal) == result.steps[-1][1]
+
+
+def test_a_time_budget() -> None:
+    def slow(candidate: tuple[str, ...], attempt: int) -> Observation:
+        time.sleep(0.01)
+        return SetOracle(CULPRITS)(candidate, attempt)
+
+    result = reduce(names(200), slow, max_seconds=0.05, deflake=0, failure_rate_runs=0)
+    assert result.incomplete_reason == "budget: max_seconds"
+    assert reproduces(result.minimal) and 0 < result.probes < 40
+
+
+def test_budgets_with_an_executor() -> None:
+    with ThreadPoolExecutor(max_workers=2) as executor:
+        result = reduce(names(64), SetOracle(CULPRITS), max_probes=6, deflake=0, executor=executor)
+    assert result.incomplete_reason == "budget: max_probes"
+    assert reproduces(result.minimal) and result.probes <= 6
+
+
+# -- interrupt --------------------------------------------------------------------------------------------
+
+
+def test_keyboard_interrupt_raises_with_the_partial_result(tmp_path: Path) -> None:
+    path = tmp_path / "runs.jsonl"
+    calls = 0
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        nonlocal calls
+        calls += 1
+        if calls == 12:
+            raise KeyboardInterrupt
+        return SetOracle(CULPRITS)(candidate, attempt)
+
+    with pytest.raises(ReductionInterrupted) as caught:
+        reduce(names(64), probe, log=path, deflake=0)
+    assert isinstance(caught.value, KeyboardInterrupt) and isinstance(caught.value, DdenvError)
+    partial = caught.value.reduction
+    assert partial.incomplete_reason == "interrupted" and not partial.one_minimal
+    assert partial.probes == 11
+    assert reproduces(partial.minimal) and len(partial.minimal) < 64
+    last = path.read_text().splitlines()[-1]
+    assert '"event": "end"' in last and '"interrupted"' in last
+
+
+def test_interrupt_from_progress_callback_while_parallel() -> None:
+    def stop(event: ProgressEvent) -> None:
+        if event.kind == "probe" and event.probes >= 5:
+            raise KeyboardInterrupt
+
+    with ThreadPoolExecutor(max_workers=2) as executor, pytest.raises(ReductionInterrupted) as caught:
+        reduce(names(64), SetOracle(CULPRITS), deflake=0, executor=executor, on_progress=stop)
+    assert reproduces(caught.value.reduction.minimal)
+
+
+# -- preconditions, keep, outcomes ------------------------------------------------------------------------
+
+
+def test_preconditions_skip_candidates_without_probing() -> None:
+    ground = "m0000"
+
+    def needs_ground(candidate: tuple[str, ...]) -> str | None:
+        return None if ground in candidate else "the robot spawns on m0000"
+
+    oracle = SetOracle(CULPRITS)
+    result = reduce(names(24), oracle, preconditions=[needs_ground], deflake=0)
+    assert all(ground in candidate for candidate, _ in oracle.calls)
+    assert result.skipped > 0
+    assert set(result.minimal) == CULPRITS | {ground}
+    assert result.one_minimal, "1-minimal relative to the preconditions"
+
+
+def test_keep_elements_stay_in_every_candidate() -> None:
+    keep = {"m0001", "m0010"}
+    oracle = SetOracle(CULPRITS)
+    result = reduce(names(24), oracle, keep=keep, deflake=0)
+    assert all(keep <= set(candidate) for candidate, _ in oracle.calls)
+    assert set(result.minimal) == CULPRITS | keep
+    assert result.kept == ("m0001", "m0010")
+    assert result.minimal == tuple(sorted(result.minimal)), "original order"
+
+
+def test_only_kept_elements() -> None:
+    oracle = SetOracle(frozenset())
+    result = reduce(names(3), oracle, keep=names(3), failure_rate_runs=0)
+    assert result.minimal == names(3) and result.one_minimal and result.probes == 0
+
+
+def test_empty_world_and_failure_without_any_element() -> None:
+    assert reduce((), SetOracle(frozenset()), failure_rate_runs=0).minimal == ()
+    result = reduce(names(9), SetOracle(frozenset()), deflake=0)
+    assert result.minimal == () and result.one_minimal
+
+
+@pytest.mark.parametrize("outcome", [Outcome.OTHER, Outcome.ERROR, Outcome.PASS])
+def test_only_the_same_failure_counts(outcome: Outcome) -> None:
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        if reproduces(candidate):
+            return Observation(Outcome.FAIL)
+        return Observation(outcome if len(candidate) < 10 else Outcome.PASS)
+
+    result = reduce(names(32), probe, deflake=1)
+    assert set(result.minimal) == CULPRITS
+    assert (result.errors > 0) == (outcome is Outcome.ERROR)
+
+
+def test_a_probe_that_raises_is_an_error_outcome() -> None:
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        if len(candidate) == 1:
+            raise RuntimeError("simulator crashed")
+        return FunctionOracle(lambda c: reproduces(tuple(c)))(candidate, attempt)
+
+    result = reduce(names(20), probe, deflake=0)
+    assert set(result.minimal) == CULPRITS and result.errors > 0
+
+
+def test_a_probe_that_returns_garbage_is_reported() -> None:
+    with pytest.raises(ReductionError, match="must return an Observation"):
+        reduce(names(4), lambda candidate, attempt: True, deflake=0)  # type: ignore[arg-type,return-value]
+    with pytest.raises(ReductionError, match="outcome must be one of fail, other, pass, error"):
+        reduce(names(4), lambda candidate, attempt: Observation("boom"), deflake=0)  # type: ignore[arg-type]
+    result = reduce(names(4), lambda candidate, attempt: Observation("fail"), deflake=0)  # type: ignore[arg-type]
+    assert result.minimal == ()
+
+
+def test_progress_events() -> None:
+    events: list[ProgressEvent] = []
+    result = reduce(names(20), SetOracle(CULPRITS), deflake=0, on_progress=events.append)
+    kinds = [event.kind for event in events]
+    assert kinds[0] == "start" and kinds[-1] == "end"
+    assert {"round", "probe", "step", "verify"} <= set(kinds)
+    assert kinds.count("probe") == result.probes
+    assert kinds.count("step") == len(result.steps) - 1
+
+
+def test_paper_granularity_also_ends_one_minimal() -> None:
+    result = reduce(names(40), SetOracle(CULPRITS), granularity="paper", deflake=0)
+    assert set(result.minimal) == CULPRITS and result.one_minimal and result.granularity == "paper"
+
+
+def test_reduction_records_the_schemas() -> None:
+    result = reduce(names(5), SetOracle(CULPRITS & set(names(5))), partition="timeseg", priority="timestep",
+                    deflake="adaptive", seed=4)
+    assert (result.partition, result.priority, result.deflake, result.seed) == ("timeseg", "timestep", "adaptive", 4)
+    assert result.removed == tuple(name for name in names(5) if name not in result.minimal)
+
+
+# -- validation -------------------------------------------------------------------------------------------
+
+VALID: dict[str, Any] = {}
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        ({"partition": "kmeans"}, "valid choices: " + ", ".join(PARTITIONS)),
+        ({"priority": "nearest"}, "valid choices: " + ", ".join(PRIORITIES)),
+        ({"granularity": "fast"}, "granularity must be one of ddmin, paper"),
+        ({"deflake": "maybe"}, "one of " + ", ".join(DEFLAKE_POLICIES)),
+        ({"n_partitions": 1}, "n_partitions must be an int >= 2"),
+        ({"max_probes": -1}, "max_probes must be an int >= 0"),
+        ({"max_seconds": "1s"}, "max_seconds must be None or a number"),
+        ({"keep": ["nope"]}, "keep names elements that are not in the world: nope"),
+        ({"keep": "m0001"}, "not the string"),
+        ({"confidence": 0.3}, "confidence must be a number strictly between 0.5 and 1"),
+        ({"seed": -1}, "seed must be an int >= 0"),
+        ({"failure_rate_runs": 1.5}, "failure_rate_runs must be an int >= 0"),
+        ({"cache": []}, "cache must be None or a MutableMapping"),
+        ({"executor": object()}, "executor must be None or a concurrent.futures.Executor"),
+        ({"log": 3}, "log must be None, a path or a ProbeLog"),
+        ({"preconditions": [3]}, "every precondition must be callable"),
+        ({"reference": [1, 2]}, "reference must be a Trace or None"),
+        ({"geometry": object()}, "geometry must provide centroids"),
+        ({"complement_order": "sideways"}, "complement_order must be one of reverse, priority"),
+    ],
+)
+def test_invalid_arguments_are_named(arguments: dict[str, Any], message: str) -> None:
+    with pytest.raises(ReductionError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        reduce(names(4), SetOracle(frozenset({"m0001"})), **arguments)
+
+
+@pytest.mark.parametrize(
+    "elements, message",
+    [
+        (["a", "b", "a"], "unique; repeated: a"),
+        (["a", ""], "non-empty str"),
+        ("abc", "sequence of element names"),
+    ],
+)
+def test_invalid_elements(elements: Any, message: str) -> None:
+    with pytest.raises(ReductionError, match=message):
+        reduce(elements, SetOracle(frozenset()))
+
+
+def test_invalid_probe() -> None:
+    with pytest.raises(ReductionError, match="probe must be a callable"):
+        reduce(names(3), "probe")  # type: ignore[arg-type]
