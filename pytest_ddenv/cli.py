@@ -1,47 +1,686 @@
-"""The `ddenv` command line."""
+"""The `ddenv` command line: run, show, reduce, replay and convert worlds without pytest.
+
+Exit codes: 0 success, 1 the scenario failed (or the original world does not fail, or a replay did not
+reproduce), 2 usage or input error, 3 internal error (a bug: please report it), 130 interrupted.
+Errors are one line on stderr, `ddenv: error: ...`; `--debug` shows the traceback. `--json` prints one
+JSON object on stdout instead of text. See docs/cli.md.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
+import os
+import shlex
 import sys
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 from pytest_ddenv import __version__
 from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.markers import PredicateSpec
+
+if TYPE_CHECKING:  # pragma: no cover
+    from pytest_ddenv.reduce import ProgressEvent, Reduction
+    from pytest_ddenv.sim import Run
+    from pytest_ddenv.world import World
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_USAGE = 2
+EXIT_INTERNAL = 3
+EXIT_INTERRUPTED = 130
+
+YAML_SUFFIXES = (".yaml", ".yml")
+SDF_SUFFIXES = (".sdf", ".world")
 
 
+class UsageError(DdenvError):
+    """The command line is wrong: a bad option value, an unknown model, a missing file."""
+
+
+class _ArgumentError(Exception):
+    """argparse found a usage error (raised instead of printing usage and exiting)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:
+        raise _ArgumentError(f"{message} (see '{self.prog} --help')")
+
+
+# -- argument types -------------------------------------------------------------------------------------
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    value = _non_negative_int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return value
+
+
+def parse_predicate(text: str) -> PredicateSpec:
+    """`NAME[:key=value,...]`, e.g. `stuck:window=5,min_progress=0.2` or `collided:models=[wall,barrel]`.
+
+    Values are numbers, true/false, none, or [a,b,...] lists of names; validated by `oracle.make_predicate`.
+    """
+    from pytest_ddenv.oracle import make_predicate
+
+    name, _, rest = text.partition(":")
+    params: dict[str, Any] = {}
+    for item in _split_top_level(rest):
+        key, equals, value = item.partition("=")
+        if not equals or not key.strip():
+            raise UsageError(f"--predicate {text!r}: expected key=value, got {item!r} "
+                             "(form: NAME[:key=value,...], e.g. stuck:window=5,min_progress=0.2)")
+        params[key.strip()] = _predicate_value(value.strip())
+    try:
+        make_predicate(name.strip(), **params)
+    except DdenvError as error:
+        raise UsageError(f"--predicate {text!r}: {error}") from None
+    return PredicateSpec(name.strip(), params)
+
+
+def _split_top_level(text: str) -> list[str]:
+    """Split at commas that are not inside [...]."""
+    items, depth, current = [], 0, ""
+    for char in text:
+        depth += char == "["
+        depth -= char == "]"
+        if char == "," and depth == 0:
+            items.append(current)
+            current = ""
+        else:
+            current += char
+    if current.strip():
+        items.append(current)
+    return [item for item in items if item.strip()]
+
+
+def _predicate_value(text: str) -> Any:
+    lowered = text.lower()
+    if lowered in ("none", "null"):
+        return None
+    if lowered in ("true", "false"):
+        return lowered == "true"
+    if text.startswith("[") and text.endswith("]"):
+        return [item.strip() for item in text[1:-1].split(",") if item.strip()]
+    for convert in (int, float):
+        try:
+            return convert(text)
+        except ValueError:
+            pass
+    return text
+
+
+# -- the parser -----------------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    common = _Parser(add_help=False)
+    common.add_argument("--json", action="store_true", default=argparse.SUPPRESS,
+                        help="print one JSON object on stdout instead of text")
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show tracebacks for errors")
+    parser = _Parser(
         prog="ddenv",
         description="Reduce the simulated world of a failing robot scenario to the objects that cause the failure.",
-        epilog="Inside pytest, use `pytest --ddenv-reduce`. Documentation: docs/index.md",
+        epilog="Exit codes: 0 success, 1 the scenario failed or a replay did not reproduce, 2 usage or input "
+               "error, 3 internal error. Inside pytest, use `pytest --ddenv-reduce`. Documentation: docs/cli.md",
+        parents=[common],
     )
+    parser.set_defaults(json=False, debug=False)
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    parser.add_argument("--debug", action="store_true", help="show tracebacks for errors")
-    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
-    check = commands.add_parser("check", help="load a world file and report its models, or the first error")
-    check.add_argument("world", help="world file (.yaml)")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    _add_check(commands, common)
+    _add_run(commands, common)
+    _add_show(commands, common)
+    _add_reduce(commands, common)
+    _add_replay(commands, common)
+    _add_convert(commands, common)
     return parser
 
 
+def _add_check(commands: Any, common: argparse.ArgumentParser) -> None:
+    check = commands.add_parser("check", parents=[common], help="load a world file and report its models, or the first error")
+    check.add_argument("world", help="world file (.yaml, .sdf)")
+
+
+def _add_predicate_option(parser: argparse.ArgumentParser, *, required: bool) -> None:
+    parser.add_argument("--predicate", "-p", dest="predicates", action="append", type=str, default=[],
+                        required=required, metavar="NAME[:k=v,...]",
+                        help="failure predicate, repeatable, e.g. stuck:window=5,min_progress=0.2 "
+                             "(stuck, flipped, high_centered, fell, collided, timeout)")
+
+
+def _add_run(commands: Any, common: argparse.ArgumentParser) -> None:
+    run = commands.add_parser("run", parents=[common], help="simulate a world's scenario once and picture it")
+    run.add_argument("world", help="world file (.yaml, .sdf)")
+    run.add_argument("--seed", type=_non_negative_int, default=0, help="seed of the run's noise (default 0)")
+    _add_predicate_option(run, required=False)
+    run.add_argument("--timeout", type=_positive_float, help="simulated seconds (default: the world's scenario)")
+    run.add_argument("-o", "--output", help="picture to write (default: WORLD-run.png in the current folder)")
+    run.add_argument("--no-picture", action="store_true", help="do not write a picture")
+    run.add_argument("--record", metavar="RUNS.jsonl", help="append the run (trajectory included) to this file")
+
+
+def _add_show(commands: Any, common: argparse.ArgumentParser) -> None:
+    show = commands.add_parser("show", parents=[common], help="draw a world, optionally with recorded runs")
+    show.add_argument("world", help="world file (.yaml, .sdf)")
+    show.add_argument("--runs", metavar="FILE", help="runs to draw: a `ddenv run --record` file, or a "
+                                                      "reduction's runs.jsonl (failure poses)")
+    show.add_argument("-o", "--output", help="picture to write (default: WORLD.png in the current folder)")
+
+
+def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
+    from pytest_ddenv.reduce import GRANULARITIES, PARTITIONS, PRIORITIES, PRIORITY_ALIASES
+    from pytest_ddenv.reduce.partition import PARTITION_ALIASES
+
+    reduce = commands.add_parser("reduce", parents=[common], help="reduce a failing world to the models the failure needs")
+    reduce.add_argument("world", help="world file (.yaml, .sdf)")
+    _add_predicate_option(reduce, required=True)
+    reduce.add_argument("--partition", default="model2model", choices=[*PARTITIONS, *PARTITION_ALIASES],
+                        help="partition schema (default model2model)")
+    reduce.add_argument("--priority", default="avg-trajectory-proximal", choices=[*PRIORITIES, *PRIORITY_ALIASES],
+                        help="priority schema (default avg-trajectory-proximal)")
+    reduce.add_argument("--granularity", default="ddmin", choices=GRANULARITIES, help="default ddmin")
+    reduce.add_argument("--n-partitions", type=_positive_int, default=2, metavar="N", help="first split (default 2)")
+    reduce.add_argument("--deflake", default="3", metavar="N|adaptive",
+                        help="re-runs of a candidate that does not fail, or 'adaptive' (default 3)")
+    reduce.add_argument("--tolerance", type=_positive_float, default=0.5, metavar="M",
+                        help="same failure: failure position within this many metres (default 0.5)")
+    reduce.add_argument("--keep", action="append", default=[], metavar="MODEL", help="never remove this model")
+    reduce.add_argument("--seed", type=_non_negative_int, default=0, help="seed of the runs and the schemas")
+    reduce.add_argument("--timeout", type=_positive_float, help="simulated seconds per run (default: the world's)")
+    reduce.add_argument("--max-probes", type=_positive_int, metavar="N", help="stop after N simulations")
+    reduce.add_argument("--max-time", type=_positive_float, metavar="S", help="stop after S wall seconds")
+    reduce.add_argument("--workers", type=_positive_int, default=1, metavar="N",
+                        help="simulate candidates in N processes (default 1)")
+    reduce.add_argument("--out", metavar="DIR", help="artifacts folder (default ddenv-artifacts/WORLD)")
+    reduce.add_argument("--quiet", "-q", action="store_true", help="no progress on stderr")
+
+
+def _add_replay(commands: Any, common: argparse.ArgumentParser) -> None:
+    replay = commands.add_parser("replay", parents=[common],
+                                 help="re-run a reduction's minimal world and check it still fails the same way")
+    replay.add_argument("artifacts", metavar="ARTIFACT_DIR", help="a folder written by ddenv reduce or pytest --ddenv-reduce")
+    _add_predicate_option(replay, required=False)
+    replay.add_argument("--runs", type=_positive_int, default=5, metavar="N",
+                        help="replay at most N recorded failing seeds (default 5)")
+    replay.add_argument("--tolerance", type=_positive_float, metavar="M", help="default: the recorded one")
+
+
+def _add_convert(commands: Any, common: argparse.ArgumentParser) -> None:
+    convert = commands.add_parser("convert", parents=[common], help="convert a world between YAML and SDF")
+    convert.add_argument("input", help="world file to read (.yaml, .yml, .sdf, .world)")
+    convert.add_argument("output", help="world file to write; the format follows the extension")
+
+
+# -- main -----------------------------------------------------------------------------------------------
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    arguments = parser.parse_args(argv)
+    arguments_list = list(sys.argv[1:] if argv is None else argv)
+    try:
+        arguments = parser.parse_args(arguments_list)
+    except _ArgumentError as error:
+        return _fail(str(error), as_json="--json" in arguments_list)
+    except SystemExit as exit_:  # --help, --version
+        return int(exit_.code or 0)
     if arguments.command is None:
         parser.print_help()
-        return 0
+        return EXIT_OK
+    handler = _HANDLERS[arguments.command]
     try:
-        if arguments.command == "check":
-            from pytest_ddenv.world import World
-
-            world = World.load(arguments.world)
-            print(f"{arguments.world}: {len(world)} models ({len(world.reducible_names)} reducible)")
-        return 0
-    except DdenvError as error:
+        return handler(arguments)
+    except (DdenvError, OSError) as error:
         if arguments.debug:
             raise
-        print(f"ddenv: error: {error}", file=sys.stderr)
-        return 2
+        return _fail(_describe_error(error), as_json=arguments.json)
+    except KeyboardInterrupt:
+        print("ddenv: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as error:  # noqa: BLE001 - one line instead of a traceback, unless --debug
+        if arguments.debug:
+            raise
+        message = f"internal error: {type(error).__name__}: {error} (run with --debug for the traceback)"
+        return _fail(message, as_json=arguments.json, code=EXIT_INTERNAL)
+
+
+def _describe_error(error: BaseException) -> str:
+    if isinstance(error, OSError) and error.filename is not None:
+        return f"{error.filename}: {error.strerror or error}"
+    return str(error)
+
+
+def _fail(message: str, *, as_json: bool, code: int = EXIT_USAGE) -> int:
+    print(f"ddenv: error: {message}", file=sys.stderr)
+    if as_json:
+        _print_json({"ok": False, "error": message, "exit_code": code})
+    return code
+
+
+def _print_json(data: Any) -> None:
+    print(json.dumps(data, indent=2, default=str))
+
+
+def _emit(arguments: argparse.Namespace, text: str, data: dict[str, Any]) -> None:
+    if arguments.json:
+        _print_json(data)
+    else:
+        print(text)
+
+
+# -- check, convert ---------------------------------------------------------------------------------------
+def _load_world(path: str) -> World:
+    from pytest_ddenv.world import World
+
+    file = Path(path)
+    if not file.exists():
+        raise UsageError(f"{path}: no such world file")
+    if file.is_dir():
+        raise UsageError(f"{path}: is a folder, not a world file")
+    return World.load(file)
+
+
+def _cmd_check(arguments: argparse.Namespace) -> int:
+    world = _load_world(arguments.world)
+    text = f"{arguments.world}: {len(world)} models ({len(world.reducible_names)} reducible)"
+    _emit(arguments, text, {"ok": True, "world": arguments.world, "models": len(world),
+                            "reducible": len(world.reducible_names), "names": list(world.names)})
+    return EXIT_OK
+
+
+def _cmd_convert(arguments: argparse.Namespace) -> int:
+    source, target = Path(arguments.input), Path(arguments.output)
+    for path, role in ((source, "input"), (target, "output")):
+        if path.suffix.lower() not in (*YAML_SUFFIXES, *SDF_SUFFIXES):
+            raise UsageError(f"{path}: unknown {role} format {path.suffix or '(no extension)'!r}; "
+                             "use .yaml/.yml (ddenv YAML) or .sdf/.world (Gazebo SDF)")
+    if source.resolve() == target.resolve():
+        raise UsageError(f"{target}: the output would overwrite the input")
+    world = _load_world(arguments.input)
+    try:
+        world.save(target)
+    except ImportError:
+        raise UsageError("SDF export is not available in this version of pytest-ddenv") from None
+    text = f"wrote {target} ({len(world)} models) from {source}"
+    _emit(arguments, text, {"ok": True, "input": str(source), "output": str(target), "models": len(world)})
+    return EXIT_OK
+
+
+# -- run, show --------------------------------------------------------------------------------------------
+def _predicates(texts: Sequence[str]) -> tuple[PredicateSpec, ...]:
+    return tuple(parse_predicate(text) for text in texts)
+
+
+def _require_scenario(world: World, path: str) -> None:
+    if world.scenario is None:
+        raise UsageError(f"{path}: the world has no 'scenario' (robot, start, goal, timeout) to simulate")
+
+
+def _world_stem(path: str) -> str:
+    return Path(path).stem or "world"
+
+
+def _cmd_run(arguments: argparse.Namespace) -> int:
+    from pytest_ddenv.replay import run_scenario
+
+    world = _load_world(arguments.world)
+    _require_scenario(world, arguments.world)
+    predicates = _predicates(arguments.predicates)
+    run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout)
+    picture = None
+    if not arguments.no_picture:
+        from pytest_ddenv import render
+
+        target = arguments.output or f"{_world_stem(arguments.world)}-run.png"
+        picture = render.plot_world(world, [run], path=target, title=f"{_world_stem(arguments.world)}: "
+                                    f"{len(world)} models, seed {arguments.seed}")
+    if arguments.record:
+        with open(arguments.record, "a", encoding="utf-8") as record:
+            record.write(json.dumps(run.to_dict()) + "\n")
+    passed = run.failure is None and run.reached_goal
+    _emit(arguments, _run_text(arguments.world, world, run, picture), {
+        "ok": passed,
+        "world": arguments.world,
+        "models": len(world),
+        "seed": run.seed,
+        "outcome": _run_outcome(run),
+        "reached_goal": run.reached_goal,
+        "goal_time": run.goal_time,
+        "failure": None if run.failure is None else run.failure.to_dict(),
+        "explanation": None if run.failure is None else run.failure.explain(),
+        "touched": sorted(run.touched),
+        "sim_time": run.sim_time,
+        "wall_time": run.wall_time,
+        "picture": None if picture is None else str(picture),
+    })
+    return EXIT_OK if passed else EXIT_FAILED
+
+
+def _run_outcome(run: Run) -> str:
+    if run.failure is not None:
+        return "failed"
+    return "reached_goal" if run.reached_goal else "goal_not_reached"
+
+
+def _run_text(path: str, world: World, run: Run, picture: Path | None) -> str:
+    head = f"{path}: {len(world)} models, seed {run.seed}: "
+    if run.failure is not None:
+        lines = [head + f"FAILED ({run.failure.predicate} at t = {run.failure.time:.2f} s)", run.failure.explain()]
+    elif run.reached_goal:
+        lines = [head + f"reached the goal at t = {run.goal_time or run.sim_time:.2f} s"]
+    else:
+        lines = [head + f"FAILED (the goal was not reached within {run.sim_time:.1f} s; no predicate fired)"]
+    lines.append(f"simulated {run.sim_time:.1f} s in {run.wall_time:.2f} s wall")
+    if picture is not None:
+        lines.append(f"picture: {picture}")
+    return "\n".join(lines)
+
+
+def _cmd_show(arguments: argparse.Namespace) -> int:
+    from pytest_ddenv import render
+
+    world = _load_world(arguments.world)
+    runs, poses = _read_runs(Path(arguments.runs)) if arguments.runs else ([], [])
+    target = arguments.output or f"{_world_stem(arguments.world)}.png"
+    picture = render.plot_world(world, runs, path=target, failure_poses=poses)
+    text = f"wrote {picture} ({len(world)} models, {len(runs)} runs, {len(poses)} failure poses)"
+    _emit(arguments, text, {"ok": True, "picture": str(picture), "models": len(world), "runs": len(runs),
+                            "failure_poses": len(poses)})
+    return EXIT_OK
+
+
+def _read_runs(path: Path) -> tuple[list[Run], list[list[float]]]:
+    """Runs (`ddenv run --record` lines) and failure poses (probe-log lines) of a JSON-lines file."""
+    from pytest_ddenv.sim import Run
+
+    if not path.is_file():
+        raise UsageError(f"{path}: no such runs file")
+    runs: list[Run] = []
+    poses: list[list[float]] = []
+    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        if not line.strip():
+            continue
+        try:
+            record = json.loads(line)
+        except ValueError:
+            raise UsageError(f"{path}:{number}: not a JSON line") from None
+        if isinstance(record, dict) and "poses" in record:
+            try:
+                runs.append(Run.from_dict(record))
+            except (KeyError, TypeError, ValueError) as error:
+                raise UsageError(f"{path}:{number}: not a recorded run ({error})") from None
+        elif isinstance(record, dict) and record.get("event") == "probe":
+            pose = (record.get("signature") or {}).get("pose")
+            if isinstance(pose, list) and len(pose) >= 3:
+                poses.append([float(v) for v in pose])
+    if not runs and not poses:
+        raise UsageError(f"{path}: no runs and no failure poses in this file")
+    return runs, poses
+
+
+# -- reduce ------------------------------------------------------------------------------------------------
+def _cmd_reduce(arguments: argparse.Namespace) -> int:
+    from pytest_ddenv.markers import parse_deflake
+    from pytest_ddenv.reduce import DEFLAKE_POLICIES, PRIORITY_ALIASES
+    from pytest_ddenv.replay import run_scenario
+
+    world = _load_world(arguments.world)
+    _require_scenario(world, arguments.world)
+    predicates = _predicates(arguments.predicates)
+    deflake = parse_deflake(arguments.deflake, "--deflake", DEFLAKE_POLICIES)
+    keep = _keep(world, arguments.keep)
+    priority = PRIORITY_ALIASES.get(arguments.priority, arguments.priority)
+    progress = _Progress(sys.stderr, quiet=arguments.quiet)
+    progress.note(f"simulating the original world ({len(world)} models, seed {arguments.seed})")
+    original = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout)
+    if original.failure is None:
+        return _does_not_fail(arguments, original)
+    progress.note(f"it fails: {original.failure.predicate} at t = {original.failure.time:.2f} s; reducing")
+    reduction, interrupted = _reduce(arguments, world, original, predicates, deflake, keep, priority, progress)
+    summary, pictures = _write_artifacts(arguments, world, reduction, original, predicates, deflake, priority)
+    summary["pictures"] = [str(p) for p in pictures]
+    _emit(arguments, _reduction_text(arguments.world, reduction, summary), {"ok": True, **summary})
+    return EXIT_INTERRUPTED if interrupted else EXIT_OK
+
+
+def _keep(world: World, names: Sequence[str]) -> tuple[str, ...]:
+    unknown = sorted(set(names) - set(world.names))
+    if unknown:
+        raise UsageError(f"--keep: no model named {', '.join(map(repr, unknown))} in the world")
+    return tuple(sorted(set(names) | {m.name for m in world.models if m.keep}))
+
+
+def _does_not_fail(arguments: argparse.Namespace, run: Run) -> int:
+    outcome = "reached the goal" if run.reached_goal else "no failure predicate fired"
+    message = (f"{arguments.world}: the original world does not fail with seed {arguments.seed} ({outcome} "
+               f"after {run.sim_time:.1f} s simulated); nothing to reduce. Check the --predicate options "
+               "with `ddenv run`.")
+    print(f"ddenv: {message}", file=sys.stderr)
+    if arguments.json:
+        _print_json({"ok": False, "error": message, "exit_code": EXIT_FAILED, "outcome": _run_outcome(run)})
+    return EXIT_FAILED
+
+
+def _settings(arguments: argparse.Namespace, predicates: Sequence[PredicateSpec], deflake: int | str,
+              priority: str) -> dict[str, Any]:
+    from pytest_ddenv.replay import predicates_to_json
+
+    return {
+        "predicates": predicates_to_json(predicates), "partition": arguments.partition, "priority": priority,
+        "granularity": arguments.granularity, "n_partitions": arguments.n_partitions, "deflake": deflake,
+        "tolerance": arguments.tolerance, "keep": sorted(arguments.keep), "seed": arguments.seed,
+        "timeout": arguments.timeout,
+    }
+
+
+def _artifacts_folder(arguments: argparse.Namespace) -> Path:
+    return Path(arguments.out) if arguments.out else Path("ddenv-artifacts") / _world_stem(arguments.world)
+
+
+def _reduce(arguments: argparse.Namespace, world: World, original: Run, predicates: Sequence[PredicateSpec],
+            deflake: int | str, keep: tuple[str, ...], priority: str,
+            progress: _Progress) -> tuple[Reduction, bool]:
+    from pytest_ddenv import artifacts
+    from pytest_ddenv.probe import keeps_start_support, trace_of
+    from pytest_ddenv.reduce import ReductionInterrupted, reduce
+    from pytest_ddenv.replay import ScenarioProbe, reference_of
+
+    probe = ScenarioProbe(world, tuple(predicates), reference_of(original), arguments.tolerance,
+                          seed=arguments.seed, timeout=arguments.timeout)
+    problem = artifacts.fingerprint(world, _settings(arguments, predicates, deflake, priority))
+    paths = artifacts.prepare(_artifacts_folder(arguments), problem)
+    arguments.fingerprint = problem
+    executor = _executor(arguments.workers)
+    try:
+        reduction = reduce(
+            world.names, probe, geometry=world, reference=trace_of(original), partition=arguments.partition,
+            priority=priority, n_partitions=arguments.n_partitions, granularity=arguments.granularity,
+            deflake=deflake, keep=keep, preconditions=(keeps_start_support(world),),
+            max_probes=arguments.max_probes, max_seconds=arguments.max_time, seed=arguments.seed,
+            executor=executor, log=paths.log, on_progress=progress.update,
+        )
+        return reduction, False
+    except ReductionInterrupted as stop:
+        progress.note("interrupted: writing the best world found so far")
+        return stop.reduction, True
+    finally:
+        progress.close()
+        if executor is not None:
+            executor.shutdown(wait=True, cancel_futures=True)
+
+
+def _executor(workers: int) -> Any:
+    if workers <= 1:
+        return None
+    import concurrent.futures
+    import multiprocessing
+
+    return concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+
+
+def _write_artifacts(arguments: argparse.Namespace, world: World, reduction: Reduction, original: Run,
+                     predicates: Sequence[PredicateSpec], deflake: int | str,
+                     priority: str) -> tuple[dict[str, Any], list[Path]]:
+    from pytest_ddenv import artifacts, render
+    from pytest_ddenv.replay import predicates_to_json, reference_of, run_scenario
+
+    paths = artifacts.ArtifactPaths(_artifacts_folder(arguments))
+    summary = artifacts.write_reduction(
+        paths, world, reduction,
+        test_id=f"ddenv reduce {arguments.world}",
+        replay_command=f"ddenv replay {shlex.quote(str(paths.directory))}",
+        problem_fingerprint=arguments.fingerprint,
+        reference=reference_of(original).to_dict(),
+        extra={
+            "predicates": predicates_to_json(predicates),
+            "tolerance": arguments.tolerance,
+            "timeout": arguments.timeout,
+            "scenario_seed": arguments.seed,
+            "command": "ddenv " + " ".join(shlex.quote(a) for a in _command_line(arguments)),
+        },
+    )
+    minimal_run = run_scenario(world.select(reduction.minimal), predicates, seed=arguments.seed,
+                               timeout=arguments.timeout)
+    pictures = render.write_reduction_pictures(world, reduction, paths, original_run=original,
+                                               minimal_run=minimal_run)
+    return summary, pictures
+
+
+def _command_line(arguments: argparse.Namespace) -> list[str]:
+    words = ["reduce", arguments.world]
+    for text in arguments.predicates:
+        words += ["--predicate", text]
+    words += ["--partition", arguments.partition, "--priority", arguments.priority, "--deflake", arguments.deflake,
+              "--seed", str(arguments.seed)]
+    return words
+
+
+def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any]) -> str:
+    fails, runs = reduction.failure_rate
+    status = "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
+    removed = summary["removed_models"]
+    return "\n".join([
+        f"{path}: {reduction.original_size} -> {reduction.minimal_size} models "
+        f"({summary['reduction_percent']}% removed), {status}",
+        f"kept: {', '.join(reduction.minimal) or '(none)'}",
+        f"removed ({len(removed)}): {_shorten(removed)}",
+        f"probes: {reduction.probes} simulated, {reduction.cache_hits} from cache, {reduction.skipped} skipped, "
+        f"{reduction.errors} errors; {reduction.wall_time:.1f} s",
+        f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
+        f"minimal world fails {fails}/{runs} seeds",
+        f"artifacts: {Path(summary['files']['summary']).parent}",
+        f"pictures: {', '.join(summary.get('pictures', [])) or '(none)'}",
+        f"replay: {summary['replay']}",
+    ])
+
+
+def _shorten(names: Sequence[str], limit: int = 8) -> str:
+    if not names:
+        return "(none)"
+    shown = ", ".join(names[:limit])
+    return shown if len(names) <= limit else f"{shown}, ... (+{len(names) - limit} more, see summary.json)"
+
+
+class _Progress:
+    """A one-line progress bar on a terminal (probes, current size, elapsed); a line per step otherwise."""
+
+    WIDTH = 24
+
+    def __init__(self, stream: IO[str], *, quiet: bool = False) -> None:
+        self.stream = stream
+        self.quiet = quiet
+        self.live = not quiet and stream.isatty() and os.environ.get("TERM") != "dumb"
+        self.original: int | None = None
+        self.started = time.perf_counter()
+        self._width = 0
+
+    def note(self, text: str) -> None:
+        if not self.quiet:
+            self._clear()
+            print(f"ddenv: {text}", file=self.stream, flush=True)
+
+    def update(self, event: ProgressEvent) -> None:
+        if self.quiet:
+            return
+        if self.original is None:
+            self.original = event.size
+        line = self._line(event)
+        if self.live:
+            self.stream.write("\r" + line.ljust(self._width))
+            self.stream.flush()
+            self._width = len(line)
+        elif event.kind in ("start", "step", "verify", "end"):
+            print(line, file=self.stream, flush=True)
+
+    def _line(self, event: ProgressEvent) -> str:
+        original = max(self.original or event.size, 1)
+        done = (original - event.size) / max(original - 1, 1)
+        filled = round(self.WIDTH * min(max(done, 0.0), 1.0))
+        minutes, seconds = divmod(int(event.elapsed), 60)
+        bar = "#" * filled + "-" * (self.WIDTH - filled)
+        return (f"[{bar}] {original} -> {event.size} models | {event.probes} probes | "
+                f"{minutes:02d}:{seconds:02d} | {event.kind}")
+
+    def _clear(self) -> None:
+        if self.live and self._width:
+            self.stream.write("\r" + " " * self._width + "\r")
+            self._width = 0
+
+    def close(self) -> None:
+        if self.live and self._width:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._width = 0
+
+
+# -- replay ------------------------------------------------------------------------------------------------
+def _cmd_replay(arguments: argparse.Namespace) -> int:
+    from pytest_ddenv.replay import replay
+
+    predicates = _predicates(arguments.predicates) or None
+    result = replay(arguments.artifacts, predicates=predicates, max_runs=arguments.runs,
+                    tolerance=arguments.tolerance)
+    reference = result.reference
+    lines = [f"{arguments.artifacts}: minimal world of {len(result.world)} models; reference failure: "
+             f"{reference.predicate} at t = {reference.time:.2f} s at ({reference.position[0]:.2f}, "
+             f"{reference.position[1]:.2f}, {reference.position[2]:.2f}) m"]
+    for run in result.runs:
+        what = "no failure" if run.failure is None else f"{run.failure.predicate} at t = {run.failure.time:.2f} s"
+        lines.append(f"  seed {run.seed}: {run.outcome.value} ({what})")
+    verdict = "reproduced" if result.ok else "NOT reproduced"
+    lines.append(f"{verdict}: {result.reproduced}/{len(result.runs)} runs failed the same way")
+    _emit(arguments, "\n".join(lines), result.to_dict())
+    return EXIT_OK if result.ok else EXIT_FAILED
+
+
+_HANDLERS: dict[str, Callable[[argparse.Namespace], int]] = {
+    "check": _cmd_check,
+    "run": _cmd_run,
+    "show": _cmd_show,
+    "reduce": _cmd_reduce,
+    "replay": _cmd_replay,
+    "convert": _cmd_convert,
+}
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ candidate world: no private re-run machinery of pytest is used.
 from __future__ import annotations
 
 import inspect
+import os
 import shlex
 import time
 import traceback
@@ -47,6 +48,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         ("workers", "simulation worker processes: a number, or 'auto' for one per core", {"metavar": "N"}),
         ("world", "run every robot test against this world file instead of its own (e.g. a minimal.yaml)",
          {"metavar": "PATH"}),
+        ("model-path", "extra folders (separated by ':') searched for SDF <include>s of model://NAME",
+         {"metavar": "DIRS"}),
     ]
     for name, help_text, extra in options:
         ini_name = f"ddenv_{name.replace('-', '_')}"
@@ -158,16 +161,17 @@ def robot_world(request: pytest.FixtureRequest) -> Any:
 
     item = request.node
     spec, predicates = item.stash.get(_spec_key, (ReductionSpec(), ()))
+    model_paths = [p for p in str(_setting(request.config, "ddenv_model_path") or "").split(os.pathsep) if p]
     override = _setting(request.config, "ddenv_world")
     param = getattr(request, "param", None)
     if override:
-        world = World.load(override)
+        world = World.load(override, model_paths=model_paths)
     elif isinstance(param, World):
         world = param
     elif param is not None:
-        world = World.load(_world_path(item, param))
+        world = World.load(_world_path(item, param), model_paths=model_paths)
     elif spec.world is not None:
-        world = World.load(_world_path(item, spec.world))
+        world = World.load(_world_path(item, spec.world), model_paths=model_paths)
     else:
         raise DdenvError(
             f"{item.nodeid}: robot_world needs a world: @pytest.mark.ddenv(world='worlds/x.yaml'), "

@@ -43,10 +43,15 @@ __all__ = [
     "WORLD_SIZE",
     "Footprint",
     "category",
+    "draw_progress",
+    "draw_reduction",
+    "draw_world",
     "footprints",
+    "friction",
     "plot_progress",
     "plot_reduction",
     "plot_world",
+    "probe_sizes_from_log",
     "write_reduction_pictures",
 ]
 
@@ -232,7 +237,7 @@ def _pyplot() -> Any:
 def _figure(size: tuple[int, int]) -> tuple[Figure, Axes]:
     plt = _pyplot()
     figure = plt.figure(figsize=(size[0] / DPI, size[1] / DPI), dpi=DPI)
-    axes = figure.add_axes((0.08, 0.08, 0.64, 0.84))
+    axes = figure.add_axes((0.07, 0.08, 0.62, 0.84))
     return figure, axes
 
 
@@ -268,12 +273,20 @@ def _draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghost
             patches,
             facecolor=_fill(model),
             edgecolor="#9a9a9a" if ghost else edge,
-            linewidth=2.4 if strong else 0.7 if len(patches) == 1 else 0.4,
+            linewidth=_edge_widths(footprint, strong),
             linestyle="--" if ghost else "-",
             alpha=0.15 if ghost else 0.45 if terrain else 0.9,
             zorder=1 + layer * 0.001 + (0.5 if strong else 0.0),
         )
         axes.add_collection(collection)
+
+
+def _edge_widths(footprint: Footprint, strong: bool) -> list[float]:
+    """A thick edge on the largest shape of a highlighted model, thin edges on its small parts."""
+    areas = [_polygon_area(polygon) for polygon in footprint.polygons]
+    largest = int(np.argmax(areas))
+    thin = 0.7 if len(areas) == 1 else 0.4
+    return [2.4 if strong and index == largest else thin for index in range(len(areas))]
 
 
 def _fill(model: Model) -> str:
@@ -296,16 +309,28 @@ def _draw_scenario(axes: Axes, world: World) -> None:
               linestyle="none", zorder=6, label="goal")
 
 
-def _draw_run(axes: Axes, run: Run, color: str, label: str, *, dashed: bool = False) -> None:
+def _draw_run(axes: Axes, run: Run, color: str, label: str, *, underlay: bool = False) -> None:
+    """A trajectory; an `underlay` is wide and translucent so a run drawn on top of it stays visible."""
     positions = np.asarray(run.positions)
     if len(positions):
-        axes.plot(positions[:, 0], positions[:, 1], color=color, linewidth=2.0, linestyle="--" if dashed else "-",
-                  zorder=7, label=f"{label}: {_run_outcome(run)}")
+        axes.plot(positions[:, 0], positions[:, 1], color=color, linewidth=6.0 if underlay else 1.8,
+                  alpha=0.35 if underlay else 1.0, solid_capstyle="round", zorder=6.5 if underlay else 7,
+                  label=_wrap(f"{label}: {_run_outcome(run)}"))
     if run.failure is not None:
-        _draw_failure_pose(axes, run.failure.pose, color)
+        _draw_failure_pose(axes, run.failure.pose, color, dashed=underlay)
 
 
-def _draw_failure_pose(axes: Axes, pose: Sequence[float], color: str) -> None:
+def _wrap(text: str, width: int = 36) -> str:
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width=width, subsequent_indent="  "))
+
+
+def _models(count: int) -> str:
+    return f"{count} model" if count == 1 else f"{count} models"
+
+
+def _draw_failure_pose(axes: Axes, pose: Sequence[float], color: str, *, dashed: bool = False) -> None:
     """The robot's outline at the failure pose and a cross at its centre."""
     from matplotlib.patches import Polygon
 
@@ -314,7 +339,8 @@ def _draw_failure_pose(axes: Axes, pose: Sequence[float], color: str) -> None:
     corners = np.array([[length, width], [-length, width], [-length, -width], [length, -width]]) / 2.0
     rotation = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
     outline = np.array([x, y]) + corners @ rotation.T
-    axes.add_patch(Polygon(outline, closed=True, fill=False, edgecolor=color, linewidth=1.6, zorder=8))
+    axes.add_patch(Polygon(outline, closed=True, fill=False, edgecolor=color, linewidth=1.6, zorder=8,
+                           linestyle="--" if dashed else "-"))
     nose = np.array([x, y]) + rotation @ np.array([length / 2.0, 0.0])
     axes.plot([x, nose[0]], [y, nose[1]], color=color, linewidth=1.6, zorder=8)
     axes.plot([x], [y], marker="X", markersize=13, color=color, markeredgecolor="white", linestyle="none", zorder=9)
@@ -322,7 +348,7 @@ def _draw_failure_pose(axes: Axes, pose: Sequence[float], color: str) -> None:
 
 def _run_outcome(run: Run) -> str:
     if run.failure is not None:
-        return f"{run.failure.predicate} at t = {run.failure.time:.1f} s"
+        return f"{run.failure.predicate} at t\u00a0=\u00a0{run.failure.time:.1f}\u00a0s"
     if run.reached_goal:
         return "reached the goal" + (f" at t = {run.goal_time:.1f} s" if run.goal_time is not None else "")
     return f"no failure, goal not reached ({run.times[-1]:.1f} s)" if len(run.times) else "no failure"
@@ -403,21 +429,43 @@ def _title(world: World, text: str | None) -> str:
 
 # -- labels --------------------------------------------------------------------------------------------
 def _label_models(axes: Axes, figure: Figure, prints: Sequence[Footprint], names: Sequence[str]) -> None:
-    """Name each model with a leader line, moving labels until none overlaps another or leaves the axes."""
+    """Name each model with a leader line, placing labels so none overlaps another, leaves the axes, or
+    covers a small labelled model or a marker (start, goal, failure) when a free place exists."""
     by_name = {fp.name: fp for fp in prints}
     chosen = [name for name in names if name in by_name]
     shown, hidden = chosen[:MAX_LABELS], chosen[MAX_LABELS:]
     renderer = figure.canvas.get_renderer()  # type: ignore[attr-defined]
     frame = axes.get_window_extent(renderer)
+    obstacles = _marker_boxes(axes) + [_display_box(axes, by_name[name]) for name in shown
+                                       if by_name[name].extent <= TERRAIN_EXTENT / 4]
     placed: list[Any] = []
     for name in shown:
         anchor = _anchor(by_name[name], axes)
         text = f"{name}\ntop {by_name[name].top:.2f} m"
-        label = _place_label(axes, renderer, frame, placed, text, anchor)
-        placed.append(label.get_window_extent(renderer))
+        placed.append(_place_label(axes, renderer, frame, placed, obstacles, text, anchor))
     if hidden:
         axes.text(0.99, 0.01, f"+{len(hidden)} more kept models (see summary.json)", transform=axes.transAxes,
                   ha="right", va="bottom", fontsize=8, color="#333333")
+
+
+def _marker_boxes(axes: Axes) -> list[Any]:
+    """Display boxes around the start, goal and failure markers."""
+    from matplotlib.transforms import Bbox
+
+    boxes = []
+    for line in axes.get_lines():
+        if line.get_linestyle() not in ("None", "none", ""):
+            continue
+        for x, y in axes.transData.transform(np.column_stack(line.get_data()).astype(float)):
+            boxes.append(Bbox.from_extents(x - 10, y - 10, x + 10, y + 10))
+    return boxes
+
+
+def _display_box(axes: Axes, footprint: Footprint) -> Any:
+    from matplotlib.transforms import Bbox
+
+    corners = axes.transData.transform(np.stack([footprint.low, footprint.high]))
+    return Bbox.from_extents(*corners.min(axis=0), *corners.max(axis=0))
 
 
 def _anchor(footprint: Footprint, axes: Axes) -> tuple[float, float]:
@@ -430,34 +478,46 @@ def _anchor(footprint: Footprint, axes: Axes) -> tuple[float, float]:
     return float(point[0]), float(point[1])
 
 
-_OFFSETS = [(dx * r, dy * r) for r in (28, 48, 72, 100) for dx, dy in
-            ((1, 1), (-1, 1), (1, -1), (-1, -1), (0, 1.2), (0, -1.2), (1.3, 0), (-1.3, 0))]
+_DIRECTIONS = [(math.cos(a), math.sin(a)) for a in np.radians([45, 135, -45, -135, 90, -90, 0, 180,
+                                                                      20, 160, -20, -160, 70, 110, -70, -110])]
+_OFFSETS = [(round(dx * r, 1), round(dy * r, 1)) for r in (30, 50, 75, 105, 140, 180) for dx, dy in _DIRECTIONS]
+_LABEL_PAD = 4.0
+"""Pixels around a label's text taken by its rounded box."""
 
 
-def _place_label(axes: Axes, renderer: Any, frame: Any, placed: list[Any], text: str,
+def _place_label(axes: Axes, renderer: Any, frame: Any, placed: list[Any], obstacles: Sequence[Any], text: str,
                  anchor: tuple[float, float]) -> Any:
-    """Try offsets around the anchor (nearest first); keep the first free one, else the last tried."""
-    chosen = _OFFSETS[-1]
+    """Try offsets around the anchor, nearest first; take the first free one, else the least crowded.
+
+    Returns the display box the label occupies.
+    """
+    best: tuple[float, tuple[float, float]] | None = None
     for dx, dy in _OFFSETS:
         trial = axes.annotate(text, xy=anchor, xytext=(dx, dy), textcoords="offset points",
                               **_label_style(dx, dy))
-        box = trial.get_window_extent(renderer)
+        box = trial.get_window_extent(renderer).padded(_LABEL_PAD)
         trial.remove()
-        inside = frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1
-        if inside and not any(box.overlaps(other) for other in placed):
-            chosen = (dx, dy)
+        if not (frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1):
+            continue
+        cost = 100.0 * sum(box.overlaps(other) for other in placed) + sum(box.overlaps(o) for o in obstacles)
+        if best is None or cost < best[0]:
+            best = (cost, (dx, dy))
+        if cost == 0:
             break
-    return axes.annotate(text, xy=anchor, xytext=chosen, textcoords="offset points", **_label_style(*chosen),
-                         arrowprops={"arrowstyle": "-", "color": _EDGE, "linewidth": 0.8, "shrinkA": 0,
-                                     "shrinkB": 0})
+    offset = best[1] if best is not None else _OFFSETS[0]
+    label = axes.annotate(text, xy=anchor, xytext=offset, textcoords="offset points", **_label_style(*offset),
+                          arrowprops={"arrowstyle": "-", "color": _EDGE, "linewidth": 0.8, "shrinkA": 0,
+                                      "shrinkB": 0})
+    return label.get_window_extent(renderer).padded(_LABEL_PAD)
 
 
 def _label_style(dx: float, dy: float) -> dict[str, Any]:
     return {
         "fontsize": 8.5,
         "zorder": 11,
-        "ha": "left" if dx > 0 else "right" if dx < 0 else "center",
-        "va": "bottom" if dy > 0 else "top" if dy < 0 else "center",
+        "ha": "left" if dx > 1e-6 else "right" if dx < -1e-6 else "center",
+        "va": "bottom" if dy > 1e-6 else "top" if dy < -1e-6 else "center",
+        "multialignment": "left",
         "bbox": {"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": _EDGE, "alpha": 0.9},
     }
 
@@ -470,6 +530,12 @@ def plot_world(world: World, runs: Sequence[Run] = (), *, path: str | Path, titl
     `failure_poses` marks extra failure poses (x, y, z, roll, pitch, yaw) without trajectories, e.g. from
     a probe log. Models the runs touched when they failed are labelled.
     """
+    return _save(draw_world(world, runs, title=title, failure_poses=failure_poses), path)
+
+
+def draw_world(world: World, runs: Sequence[Run] = (), *, title: str | None = None,
+               failure_poses: Sequence[Sequence[float]] = ()) -> Figure:
+    """The figure of `plot_world` (close it with `matplotlib.pyplot.close` when done)."""
     figure, axes = _figure(WORLD_SIZE)
     prints = footprints(world)
     _draw_models(axes, world, prints)
@@ -484,7 +550,7 @@ def plot_world(world: World, runs: Sequence[Run] = (), *, path: str | Path, titl
     axes.set_title(_title(world, title), fontsize=12)
     _legend(axes, world, prints)
     _label_models(axes, figure, prints, touched)
-    return _save(figure, path)
+    return figure
 
 
 def plot_reduction(world: World, minimal: Sequence[str], *, path: str | Path, original_run: Run | None = None,
@@ -492,9 +558,18 @@ def plot_reduction(world: World, minimal: Sequence[str], *, path: str | Path, or
                    title: str | None = None) -> Path:
     """Write the original world with removed models ghosted and the `minimal` models highlighted and labelled.
 
-    `original_run` and `minimal_run` are drawn (dashed and solid) with their failure poses; without an
-    original run, `failure_pose` (the reference failure's pose) is marked instead.
+    `original_run` (wide, translucent) and `minimal_run` (thin, on top) are drawn with their failure poses;
+    without an original run, `failure_pose` (the reference failure's pose) is marked instead.
     """
+    figure = draw_reduction(world, minimal, original_run=original_run, minimal_run=minimal_run,
+                            failure_pose=failure_pose, title=title)
+    return _save(figure, path)
+
+
+def draw_reduction(world: World, minimal: Sequence[str], *, original_run: Run | None = None,
+                   minimal_run: Run | None = None, failure_pose: Sequence[float] | None = None,
+                   title: str | None = None) -> Figure:
+    """The figure of `plot_reduction` (close it with `matplotlib.pyplot.close` when done)."""
     kept = frozenset(minimal)
     removed = frozenset(world.names) - kept
     figure, axes = _figure(WORLD_SIZE)
@@ -503,36 +578,44 @@ def plot_reduction(world: World, minimal: Sequence[str], *, path: str | Path, or
     _draw_scenario(axes, world)
     points: list[FloatArray] = []
     if original_run is not None:
-        _draw_run(axes, original_run, _RUN_COLORS[0], f"original ({len(world)} models)", dashed=True)
+        _draw_run(axes, original_run, _RUN_COLORS[0], f"original run ({_models(len(world))})", underlay=True)
         points.append(np.asarray(original_run.positions)[:, :2])
     elif failure_pose is not None:
         _draw_failure_pose(axes, failure_pose, _RUN_COLORS[0])
         points.append(np.asarray(failure_pose, dtype=float)[:2])
     if minimal_run is not None:
-        _draw_run(axes, minimal_run, _RUN_COLORS[1], f"minimal ({len(kept)} models)")
+        _draw_run(axes, minimal_run, _RUN_COLORS[1], f"minimal world run ({_models(len(kept))})")
         points.append(np.asarray(minimal_run.positions)[:, :2])
     _view(axes, world, prints, points)
-    default = f"{_title(world, None).split(':')[0]}: {len(world)} → {len(kept)} models"
+    default = f"{_title(world, None).split(':')[0]}: {len(world)} → {_models(len(kept))}"
     axes.set_title(title or default, fontsize=12)
     _legend(axes, world, prints, ghosted=bool(removed), highlighted=True)
     _label_models(axes, figure, prints, [name for name in world.names if name in kept])
-    return _save(figure, path)
+    return figure
 
 
 def plot_progress(steps: Sequence[tuple[int, int]], *, path: str | Path, probes: int | None = None,
-                  probe_sizes: Sequence[tuple[int, int, str]] = (), title: str | None = None) -> Path:
+                  probe_sizes: Sequence[tuple[int, int, str]] = (), title: str | None = None,
+                  note: str | None = None) -> Path:
     """Write world size against the number of probes (the paper's Fig. 2) to `path`.
 
     `steps`: (probes so far, size) at the start and after each accepted step (`Reduction.steps`);
     `probes`: total probes (extends the last step); `probe_sizes`: (probe number, candidate size, outcome)
-    of every simulation, drawn as small dots coloured by outcome.
+    of every simulation, drawn as small dots coloured by outcome; `note`: text under the legend.
     """
+    return _save(draw_progress(steps, probes=probes, probe_sizes=probe_sizes, title=title, note=note), path)
+
+
+def draw_progress(steps: Sequence[tuple[int, int]], *, probes: int | None = None,
+                  probe_sizes: Sequence[tuple[int, int, str]] = (), title: str | None = None,
+                  note: str | None = None) -> Figure:
+    """The figure of `plot_progress` (close it with `matplotlib.pyplot.close` when done)."""
     from matplotlib.lines import Line2D
     from matplotlib.ticker import MaxNLocator
 
     plt = _pyplot()
     figure = plt.figure(figsize=(PROGRESS_SIZE[0] / DPI, PROGRESS_SIZE[1] / DPI), dpi=DPI)
-    axes = figure.add_axes((0.09, 0.12, 0.66, 0.78))
+    axes = figure.add_axes((0.08, 0.12, 0.62, 0.78))
     steps = [(int(p), int(s)) for p, s in steps] or [(0, 0)]
     total = max(probes if probes is not None else 0, steps[-1][0], max((p for p, _, _ in probe_sizes), default=0))
     xs = [p for p, _ in steps] + [total]
@@ -543,20 +626,22 @@ def plot_progress(steps: Sequence[tuple[int, int]], *, path: str | Path, probes:
         axes.plot([p for p, _ in steps[1:]], [s for _, s in steps[1:]], "o", color="#1f77b4",
                   markeredgecolor="black", markersize=7, zorder=4)
         handles.append(Line2D([], [], marker="o", color="#1f77b4", markeredgecolor="black", linestyle="none",
-                              label="accepted step (smaller world)"))
+                              label="accepted step\n(a smaller world fails)"))
     handles += _probe_dots(axes, probe_sizes)
     axes.set_xlim(0, max(total, 1) * 1.03)
-    axes.set_ylim(0, max(ys + [s for _, s, _ in probe_sizes]) * 1.08 + 0.5)
+    axes.set_ylim(-0.5, max(ys + [s for _, s, _ in probe_sizes]) * 1.08 + 0.5)
     axes.xaxis.set_major_locator(MaxNLocator(integer=True))
     axes.yaxis.set_major_locator(MaxNLocator(integer=True))
     axes.set_xlabel("probes (simulations run)")
     axes.set_ylabel("world size (models)")
     axes.grid(True, color="#dddddd", linewidth=0.6)
     axes.set_axisbelow(True)
-    axes.set_title(title or f"{steps[0][1]} → {steps[-1][1]} models in {total} probes", fontsize=12)
+    axes.set_title(title or f"{steps[0][1]} → {_models(steps[-1][1])} in {total} probes", fontsize=12)
     axes.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=9,
                 frameon=False)
-    return _save(figure, path)
+    if note:
+        axes.text(1.02, 0.0, note, transform=axes.transAxes, ha="left", va="bottom", fontsize=9)
+    return figure
 
 
 def _probe_dots(axes: Axes, probe_sizes: Sequence[tuple[int, int, str]]) -> list[Any]:
@@ -569,7 +654,7 @@ def _probe_dots(axes: Axes, probe_sizes: Sequence[tuple[int, int, str]]) -> list
         chosen = [(p, s) for p, s, o in probe_sizes if o == outcome]
         if not chosen:
             continue
-        axes.scatter([p for p, _ in chosen], [s for _, s in chosen], s=14, color=color, alpha=0.7, zorder=2,
+        axes.scatter([p for p, _ in chosen], [s for _, s in chosen], s=18, color=color, alpha=0.8, zorder=5,
                      linewidths=0)
         handles.append(Line2D([], [], marker="o", color=color, alpha=0.7, linestyle="none", markersize=5,
                               label=labels[outcome]))
@@ -587,16 +672,26 @@ def write_reduction_pictures(world: World, reduction: Reduction, paths: Artifact
     failure_pose = None if original_run is not None else _reference_pose(paths.summary)
     name = world.name or (Path(world.source).stem if world.source else "world")
     status = "1-minimal" if reduction.one_minimal else (reduction.incomplete_reason or "incomplete")
-    reduction_title = (f"{name}: {reduction.original_size} → {reduction.minimal_size} models "
+    reduction_title = (f"{name}: {reduction.original_size} → {_models(reduction.minimal_size)} "
                        f"({reduction.probes} probes, {status})")
     written = [
         plot_reduction(world, reduction.minimal, path=paths.reduction_png, original_run=original_run,
                        minimal_run=minimal_run, failure_pose=failure_pose, title=reduction_title),
         plot_progress(reduction.steps, path=paths.progress_png, probes=reduction.probes,
                       probe_sizes=probe_sizes_from_log(paths.log),
-                      title=f"{name}: world size during the reduction ({status})"),
+                      title=f"{name}: world size during the reduction ({status})",
+                      note=_progress_note(reduction)),
     ]
     return written
+
+
+def _progress_note(reduction: Reduction) -> str:
+    fails, runs = reduction.failure_rate
+    lines = [f"{reduction.probes} probes ({reduction.cache_hits} cached, {reduction.skipped} skipped)",
+             f"{reduction.wall_time:.0f} s wall time"]
+    if runs:
+        lines.append(f"minimal world fails {fails}/{runs} seeds")
+    return "\n".join(lines)
 
 
 def probe_sizes_from_log(log: Path) -> list[tuple[int, int, str]]:

@@ -155,18 +155,30 @@ class World:
 
     # -- files ---------------------------------------------------------------------------------------
     @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> World:
-        """Read a world file: YAML (`.yaml`, `.yml`) or Gazebo SDF (`.world`, `.sdf`) by extension."""
+    def load(cls, path: str | os.PathLike[str], *, model_paths: Sequence[str | os.PathLike[str]] = ()) -> World:
+        """Read a world file: YAML (`.yaml`, `.yml`) or Gazebo SDF (`.world`, `.sdf`) by extension.
+
+        `model_paths` are extra folders searched for SDF `<include>`s of `model://NAME`.
+        """
         from pytest_ddenv import world_yaml
 
         path = Path(path)
         if path.suffix.lower() in (".world", ".sdf"):
-            try:
-                from pytest_ddenv import sdf
-            except ImportError as error:  # pragma: no cover - until SDF support lands
-                raise WorldError("SDF worlds are not supported by this version", source=path) from error
-            return sdf.load_sdf(path)
+            return cls.from_sdf(path, model_paths=model_paths)
         return world_yaml.load_yaml(path)
+
+    @classmethod
+    def from_sdf(cls, path: str | os.PathLike[str], *, model_paths: Sequence[str | os.PathLike[str]] = ()) -> World:
+        """Import a Gazebo SDF world or model file as Gazebo simulates it (see docs/sdf.md)."""
+        from pytest_ddenv import sdf
+
+        return sdf.load_sdf(Path(path), model_paths=model_paths)
+
+    def to_sdf(self) -> str:
+        """An SDF 1.6 world that Gazebo loads (see docs/sdf.md)."""
+        from pytest_ddenv import sdf
+
+        return sdf.dump_sdf(self)
 
     @classmethod
     def from_yaml(cls, text: str, *, source: str | os.PathLike[str] | None = None) -> World:
@@ -184,9 +196,7 @@ class World:
         """Write the world, as YAML or SDF by extension, atomically (write then rename)."""
         path = Path(path)
         if path.suffix.lower() in (".world", ".sdf"):
-            from pytest_ddenv import sdf
-
-            text = sdf.dump_sdf(self)
+            text = self.to_sdf()
         else:
             text = self.to_yaml()
         temporary = path.with_name(f".{path.name}.tmp{os.getpid()}")

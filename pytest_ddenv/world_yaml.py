@@ -37,6 +37,8 @@ SCENARIO_KEYS = ("robot", "start", "goal", "goal_tolerance", "timeout")
 PHYSICS_KEYS = ("gravity", "timestep", "solver_iterations")
 GROUND_KEYS = ("z", "mu", "mu2", "restitution")
 MAX_FILE_BYTES = 50 * 1024 * 1024
+_SafeLoader: type[yaml.SafeLoader] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_SafeDumper: type[yaml.SafeDumper] = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 
 
 class _Reader:
@@ -115,7 +117,7 @@ def load_yaml(path: str | os.PathLike[str]) -> World:
 def parse_yaml(text: str, *, source: str | os.PathLike[str] | None = None) -> World:
     source_name = str(source) if source is not None else None
     try:
-        document = yaml.safe_load(text)
+        document = yaml.load(text, Loader=_SafeLoader)  # noqa: S506 - a safe loader (C when available)
     except yaml.MarkedYAMLError as error:
         mark = error.problem_mark or error.context_mark
         line = mark.line + 1 if mark is not None else None
@@ -349,7 +351,7 @@ def dump_yaml(world: World) -> str:
     if world.scenario is not None:
         document["scenario"] = _scenario_dict(world.scenario)
     document["models"] = [_model_dict(model) for model in world.models]
-    return yaml.safe_dump(document, sort_keys=False, default_flow_style=None, width=120)
+    return yaml.dump(document, Dumper=_SafeDumper, sort_keys=False, default_flow_style=None, width=120)
 
 
 def _ground_dict(ground: Ground) -> dict[str, float]:

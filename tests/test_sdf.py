@@ -472,3 +472,12 @@ def test_import_of_exported_scenarios_reproduces_the_same_simulation(name: str) 
     second = sim.simulate(exported, seed=3, timeout=1.5)
     assert np.array_equal(first.poses, second.poses)
     assert first.reached_goal == second.reached_goal
+
+
+def test_bad_ddenv_scenario_is_a_scenario_error() -> None:
+    from pytest_ddenv.errors import ScenarioError
+
+    text = (f'<sdf version="1.6" xmlns:ddenv="{sdf.DDENV_NS}"><world name="w"><ddenv:scenario timeout="-1">'
+            '<ddenv:start x="0" y="0"/><ddenv:goal x="1" y="0"/></ddenv:scenario></world></sdf>')
+    with pytest.raises(ScenarioError, match="timeout"):
+        parse_sdf(text, source="x.world")

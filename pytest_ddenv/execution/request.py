@@ -3,6 +3,7 @@ that runs a request on a live `Simulator` (shared by local workers, dask tasks a
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import time
@@ -113,6 +114,10 @@ def inject(fault: FaultKind | None) -> None:
     if fault is None:
         return
     if fault == "crash":
+        with contextlib.suppress(Exception):  # no core file: a test must not litter or wait for the dump
+            import resource
+
+            resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
         os.kill(os.getpid(), signal.SIGSEGV)
         time.sleep(5)  # the signal is delivered asynchronously
     if fault == "kill":

@@ -94,7 +94,9 @@ class Context:
         """(E,) distance from one point to each named element, or None without geometry."""
         if self.geometry is None:
             return None
-        return self._measure(np.asarray(point, dtype=np.float64).reshape(1, 3))[0, [self._index[n] for n in names]]
+        distances = self._measure(np.asarray(point, dtype=np.float64).reshape(1, 3))
+        row: FloatArray = distances[0, [self._index[name] for name in names]]
+        return row
 
     def failure_point(self) -> FloatArray | None:
         """Where the latest failure happened: the failure position, else the last trace point, else None."""
@@ -103,7 +105,8 @@ class Context:
         if self.trace.failure_position is not None:
             return self.trace.failure_position
         if len(self.trace) > 0:
-            return self.trace.positions[-1]
+            last: FloatArray = self.trace.positions[-1]
+            return last
         return None
 
     def _measure(self, points: FloatArray) -> FloatArray:

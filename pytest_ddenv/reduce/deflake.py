@@ -98,6 +98,5 @@ def make_policy(deflake: int | str, confidence: float) -> DeflakePolicy:
     if deflake == "adaptive":
         return SequentialTest(confidence=float(confidence))
     raise ReductionError(
-        f"deflake must be a non-negative int (fixed re-runs) or one of {', '.join(DEFLAKE_POLICIES)}, "
-        f"got {deflake!r}"
+        f"deflake must be a non-negative int (fixed re-runs) or one of {', '.join(DEFLAKE_POLICIES)}, got {deflake!r}"
     )

@@ -14,8 +14,8 @@ from __future__ import annotations
 import concurrent.futures
 import os
 import time
-from dataclasses import dataclass
 from collections.abc import Callable, Collection, MutableMapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from pytest_ddenv.errors import ReductionError

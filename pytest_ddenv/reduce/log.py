@@ -130,9 +130,7 @@ class ProbeLog:
         runs: dict[frozenset[str], dict[int, Outcome]] = {}
         for record in self.records:
             if record.get("event") == "probe" and record.get("purpose", "reduce") == "reduce":
-                runs.setdefault(frozenset(record["candidate"]), {})[int(record["attempt"])] = Outcome(
-                    record["outcome"]
-                )
+                runs.setdefault(frozenset(record["candidate"]), {})[int(record["attempt"])] = Outcome(record["outcome"])
         decided = self.decisions()
         partial: dict[frozenset[str], list[Outcome]] = {}
         for key, by_attempt in runs.items():
@@ -157,7 +155,9 @@ class ProbeLog:
             except json.JSONDecodeError as error:
                 if number == len(lines):  # a line cut short by a crash: everything before it is good
                     break
-                raise ReductionError(f"{path}:{number}: not a probe-log line ({error}); delete the file to start over")
+                raise ReductionError(
+                    f"{path}:{number}: not a probe-log line ({error}); delete the file to start over"
+                ) from error
             if not isinstance(record, dict) or "event" not in record:
                 raise ReductionError(f"{path}:{number}: not a probe-log record; delete the file to start over")
             records.append(record)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import functools
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -31,7 +31,8 @@ YAW_RATE_DELTA = 0.2
 class Partitioner(Protocol):
     """A partition schema."""
 
-    name: str
+    @property
+    def name(self) -> str: ...
 
     def __call__(self, current: Part, n: int, context: Context) -> list[Part]: ...
 
@@ -118,7 +119,7 @@ class ModelToModelPartition:
             groups.setdefault(int(label), []).append(name)
         return finish_parts(list(groups.values()), n, context)
 
-    def _kmeans(self, points: FloatArray, weights: FloatArray, clusters: int, seed: int) -> np.ndarray:
+    def _kmeans(self, points: FloatArray, weights: np.ndarray, clusters: int, seed: int) -> np.ndarray:
         from sklearn.cluster import KMeans
 
         model = KMeans(n_clusters=clusters, random_state=seed % 2**32, n_init=self.n_init)
@@ -126,7 +127,7 @@ class ModelToModelPartition:
         return np.asarray(model.labels_, dtype=int)
 
 
-def _segment_assignment(current: Part, n: int, context: Context, boundaries: FloatArray) -> list[Part] | None:
+def _segment_assignment(current: Part, n: int, context: Context, boundaries: FloatArray) -> list[list[str]] | None:
     """Assign each element to the time segment whose trace points come closest to its surface.
 
     `boundaries` are the n-1 inner cut times. Returns None when there are no distances to use.
@@ -261,7 +262,7 @@ class LearnerPartition:
         return {name: float(np.round(coefficients[columns[name]], 9)) for name in current}
 
 
-PARTITION_SCHEMAS: dict[str, type[Partitioner]] = {
+PARTITION_SCHEMAS: dict[str, Callable[[], Partitioner]] = {
     "model2model": ModelToModelPartition,
     "timeseg": TimeSegmentPartition,
     "trajectoryseg": TrajectorySegmentPartition,

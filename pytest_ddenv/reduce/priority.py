@@ -9,7 +9,7 @@ geometry, no trace, T = 0, nothing sensed) orders like `sequential`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -24,7 +24,8 @@ Part = tuple[str, ...]
 class Prioritizer(Protocol):
     """A priority schema."""
 
-    name: str
+    @property
+    def name(self) -> str: ...
 
     def __call__(self, parts: Sequence[Part], context: Context, round_index: int) -> list[Part]: ...
 
@@ -46,7 +47,7 @@ def _flatten(parts: Sequence[Part]) -> tuple[list[str], list[int]]:
 
 def _min_per_part(values: np.ndarray, owners: list[int], count: int) -> np.ndarray:
     """values (..., E) -> (..., count): the minimum over each part's columns."""
-    result = np.full(values.shape[:-1] + (count,), np.inf)
+    result = np.full((*values.shape[:-1], count), np.inf)
     for column, owner in enumerate(owners):
         result[..., owner] = np.minimum(result[..., owner], values[..., column])
     return result
@@ -135,7 +136,7 @@ class TimestepPriority:
         return _by_score(parts, scores, context)
 
 
-PRIORITY_SCHEMAS: dict[str, type[Prioritizer]] = {
+PRIORITY_SCHEMAS: dict[str, Callable[[], Prioritizer]] = {
     "random": RandomPriority,
     "sequential": SequentialPriority,
     "failure-proximal": FailureProximalPriority,

@@ -83,7 +83,7 @@ def call_probe(probe: Probe, candidate: Candidate, attempt: int) -> Any:
     started = time.perf_counter()
     try:
         return probe(candidate, attempt)
-    except Exception as error:  # noqa: BLE001 - a broken run is an outcome, not a reason to stop reducing
+    except Exception as error:
         return Observation(
             Outcome.ERROR,
             detail=f"probe raised {type(error).__name__}: {error}",
@@ -188,7 +188,7 @@ class Prober:
         position = {id(status): index for index, status in enumerate(statuses)}
         finished = False
         try:
-            while (answer := self._resolve(statuses)) == "wait":
+            while not (resolution := self._resolve(statuses))[0]:
                 reason = self._submit(statuses, futures)
                 if not futures:
                     raise BudgetExhausted(reason or "budget: max_probes")
@@ -206,6 +206,7 @@ class Prober:
                     state, attempt = futures.pop(future)
                     self._finish(state, attempt, future)
             self.counters.abandoned += len(futures)
+        answer = resolution[1]
         last = len(statuses) - 1 if answer is None else answer
         for trial, status in zip(trials[: last + 1], statuses[: last + 1], strict=True):
             if isinstance(status, str):
@@ -251,17 +252,17 @@ class Prober:
             self._decide(state, verdict)
 
     @staticmethod
-    def _resolve(statuses: Sequence[str | Decision | _Open]) -> int | None | str:
-        """The index of the first reproducing candidate, None if none reproduces, "wait" if unknown yet."""
+    def _resolve(statuses: Sequence[str | Decision | _Open]) -> tuple[bool, int | None]:
+        """(known, index): is the round's answer known yet, and the first reproducing index (or None)."""
         for index, status in enumerate(statuses):
             if isinstance(status, str):
                 continue
             decision = status if isinstance(status, Decision) else status.decision
             if decision is None:
-                return "wait"
+                return False, None
             if decision.reproduces:
-                return index
-        return None
+                return True, index
+        return True, None
 
     # -- extra runs of a decided world ----------------------------------------------------------------------
 

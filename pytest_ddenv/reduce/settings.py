@@ -102,9 +102,9 @@ def validate(
     unknown = sorted(kept - set(names))
     if unknown:
         raise ReductionError(f"keep names elements that are not in the world: {', '.join(unknown)}")
-    if geometry is not None and not (callable(getattr(geometry, "centroids", None)) and callable(
-        getattr(geometry, "distances", None)
-    )):
+    if geometry is not None and not (
+        callable(getattr(geometry, "centroids", None)) and callable(getattr(geometry, "distances", None))
+    ):
         raise ReductionError("geometry must provide centroids(names) and distances(points, names), or be None")
     if reference is not None and not isinstance(reference, Trace):
         raise ReductionError(f"reference must be a Trace or None, got {type(reference).__name__}")

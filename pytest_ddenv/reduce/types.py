@@ -7,7 +7,7 @@ of a world only by their names; the geometry and the traces come from the caller
 from __future__ import annotations
 
 import enum
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
@@ -59,8 +59,7 @@ class Trace:
             positions = np.zeros((0, 3))
         if positions.shape != (count, 3):
             raise ReductionError(
-                f"Trace.positions must have shape (T, 3) = ({count}, 3) to match Trace.times, "
-                f"got {positions.shape}"
+                f"Trace.positions must have shape (T, 3) = ({count}, 3) to match Trace.times, got {positions.shape}"
             )
         yaw_rates = np.asarray(self.yaw_rates, dtype=np.float64).reshape(-1)
         if yaw_rates.shape != (count,):
@@ -113,11 +112,11 @@ class Observation:
 class Geometry(Protocol):
     """Where the elements are, supplied by the world model (one world frame)."""
 
-    def centroids(self, names: tuple[str, ...] | list[str]) -> FloatArray:
+    def centroids(self, names: Sequence[str]) -> FloatArray:
         """(E, 3) a representative point of each named element."""
         ...
 
-    def distances(self, points: FloatArray, names: tuple[str, ...] | list[str]) -> FloatArray:
+    def distances(self, points: FloatArray, names: Sequence[str]) -> FloatArray:
         """(N, E) distance from each point to each element's real surface (0 inside)."""
         ...
 

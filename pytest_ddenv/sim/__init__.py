@@ -16,9 +16,9 @@ from pytest_ddenv.sim.settings import NoiseSettings, RunSettings
 from pytest_ddenv.world import World
 
 __all__ = [
+    "ROBOTS",
     "Husky",
     "NoiseSettings",
-    "ROBOTS",
     "Robot",
     "Run",
     "RunSettings",

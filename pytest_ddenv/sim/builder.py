@@ -132,9 +132,9 @@ def _mesh_shape(p: Any, client: int, shape: Shape, model: Model, source: str | N
                                        flags=flags, **frame)
     else:
         mesh = load_mesh(path, shape.scale)
-        vertices = np.asarray(mesh.vertices, dtype=float).tolist()  # type: ignore[attr-defined]
+        vertices = np.asarray(mesh.vertices, dtype=float).tolist()  # type: ignore[attr-defined,type-var]
         if model.static:
-            indices = np.asarray(mesh.faces, dtype=int).reshape(-1).tolist()  # type: ignore[attr-defined]
+            indices = np.asarray(mesh.faces, dtype=int).reshape(-1).tolist()  # type: ignore[attr-defined,type-var]
             index = p.createCollisionShape(p.GEOM_MESH, vertices=vertices, indices=indices, flags=flags, **frame)
         else:
             index = p.createCollisionShape(p.GEOM_MESH, vertices=vertices, **frame)

@@ -10,7 +10,14 @@ from typing import Any
 import numpy as np
 
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.oracle import GROUND, Contact, FailureSignature, History, Predicate, RobotState
+from pytest_ddenv.oracle import (
+    GROUND,
+    Contact,
+    FailureSignature,
+    History,
+    Predicate,
+    RobotState,
+)
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.robot import ROBOTS, Robot
 from pytest_ddenv.sim.run import Run
@@ -252,7 +259,7 @@ class Simulator:
             odo = rng_odo.standard_normal(2)
             imu = rng_imu.standard_normal(1)
             act = rng_act.standard_normal(2)
-            v_meas, w_meas = robot.measured_velocity()
+            v_meas, _ = robot.measured_velocity()
             yaw_est = _wrap(yaw + noise.imu_yaw * float(imu[0]))
             v_meas *= 1.0 + noise.odometry * float(odo[0])
             estimate[0] += v_meas * math.cos(yaw_est) * tick_dt

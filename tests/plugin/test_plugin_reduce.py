@@ -129,3 +129,39 @@ def test_a_crash_inside_the_reduction_never_replaces_the_tests_own_failure(wall_
         "*the reduction itself crashed; the test's failure above is unchanged.*",
         "*test_reaches_goal: reduction crashed: RuntimeError: engine exploded*",
     ])
+
+
+def test_a_robot_test_runs_in_a_gazebo_world_with_includes_from_the_model_path(
+    wall_project: pytest.Pytester,
+) -> None:
+    models = wall_project.mkdir("models")
+    wall_model = models / "wall_block"
+    wall_model.mkdir()
+    (wall_model / "model.config").write_text("<?xml version='1.0'?><model><name>wall_block</name>"
+                                              "<sdf version='1.6'>model.sdf</sdf></model>")
+    (wall_model / "model.sdf").write_text(
+        "<?xml version='1.0'?><sdf version='1.6'><model name='wall_block'><static>true</static>"
+        "<link name='link'><collision name='c'><geometry><box><size>0.3 4 1</size></box></geometry>"
+        "</collision></link></model></sdf>"
+    )
+    World.load(wall_project.path / "wall.yaml").select(["far_box_a"]).save(wall_project.path / "base.world")
+    text = (wall_project.path / "base.world").read_text().replace(
+        "</world>", "<include><uri>model://wall_block</uri><name>wall</name><pose>2 0 0.5 0 0 0</pose></include></world>"
+    )
+    (wall_project.path / "gazebo.world").write_text(text)
+    wall_project.makepyfile(test_scenario=SCENARIO_TEST_SDF)
+    result = wall_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-model-path", str(models))
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*RobotFailure*stuck*touching wall*", "*2 -> 1 models*"])
+    missing = wall_project.runpytest_subprocess()
+    missing.assert_outcomes(errors=1)
+    missing.stdout.fnmatch_lines(["*wall_block*"])
+
+
+SCENARIO_TEST_SDF = (
+    "import pytest\n"
+    "@pytest.mark.ddenv(world='gazebo.world')\n"
+    "@pytest.mark.robot_failure('stuck', window=2.0, min_progress=0.2)\n"
+    "def test_reaches_goal(robot_world):\n"
+    "    assert robot_world.run().reached_goal\n"
+)

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from pytest_ddenv.reduce import PARTITIONS, PRIORITIES, VOLATILE_FIELDS, ProbeLog, Reduction, reduce
 
-from .conftest import line_geometry, line_trace, names, uniform  # noqa: TID252 - test helpers
+from .conftest import line_geometry, line_trace, names, uniform
 
 PROPERTY_SETTINGS = settings(
     max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]

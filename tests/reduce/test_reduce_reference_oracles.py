@@ -53,7 +53,10 @@ def test_the_answers_are_the_unique_one_minimal_subsets() -> None:
 @pytest.mark.parametrize("case, oracle, expected", CASES, ids=[case for case, _, _ in CASES])
 @pytest.mark.parametrize("partition", PARTITIONS)
 def test_every_schema_finds_the_unique_answer(
-    synthetic: ModuleType, case: str, oracle: Callable[[frozenset[str]], bool], expected: tuple[str, ...],
+    synthetic: ModuleType,
+    case: str,
+    oracle: Callable[[frozenset[str]], bool],
+    expected: tuple[str, ...],
     partition: str,
 ) -> None:
     geometry = synthetic.line_geometry(ELEMENTS)
@@ -140,13 +143,19 @@ def test_1024_elements_eight_culprits_probe_count(
     for trial in range(10):
         culprits = frozenset(random.Random(trial).sample(elements, 8))
         result = reduce(
-            elements, synthetic.SetOracle(culprits), partition="even", priority="sequential", deflake=0,
+            elements,
+            synthetic.SetOracle(culprits),
+            partition="even",
+            priority="sequential",
+            deflake=0,
             failure_rate_runs=0,
         )
         assert set(result.minimal) == culprits and result.one_minimal
         counts.append(result.probes)
     mean = statistics.mean(counts)
     record_property("probes_1024_8_mean", mean)
-    print(f"1024 elements, 8 culprits: mean {mean:.1f} probes over 10 sets (complement-only ddmin 292, "
-          f"picire 219-330, adaptive deletion 137)")
+    print(
+        f"1024 elements, 8 culprits: mean {mean:.1f} probes over 10 sets (complement-only ddmin 292, "
+        f"picire 219-330, adaptive deletion 137)"
+    )
     assert mean < 400  # a regression guard, well above the measured ~274

@@ -164,6 +164,7 @@ def test_learner_falls_back_to_model2model_without_both_labels() -> None:
 
 def test_proximity_priorities_use_surfaces_not_centroids() -> None:
     elements = ("big", "small")
+
     # "big" is a huge ball whose centre is far from the failure but whose surface touches it
     class Balls(PointGeometry):
         def distances(self, points: np.ndarray, names: Any) -> np.ndarray:
@@ -173,8 +174,12 @@ def test_proximity_priorities_use_surfaces_not_centroids() -> None:
             return np.maximum(gaps - radii, 0.0)
 
     geometry = Balls({"big": (11.0, 0.0, 0.0), "small": (3.0, 0.0, 0.0)})
-    trace = Trace(times=[0.0, 1.0], positions=[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], yaw_rates=[0.0, 0.0],
-                  failure_position=[1.0, 0.0, 0.0])
+    trace = Trace(
+        times=[0.0, 1.0],
+        positions=[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
+        yaw_rates=[0.0, 0.0],
+        failure_position=[1.0, 0.0, 0.0],
+    )
     context = Context(elements, geometry=geometry, trace=trace)
     for priority in ("failure-proximal", "min-trajectory-proximal", "avg-trajectory-proximal"):
         assert make_prioritizer(priority)([("small",), ("big",)], context, 0)[0] == ("big",), priority

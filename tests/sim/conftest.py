@@ -8,7 +8,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from pytest_ddenv.sim import Simulator  # noqa: E402
+from pytest_ddenv.sim import Simulator
 
 
 @pytest.fixture(scope="session")

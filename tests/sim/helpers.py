@@ -43,6 +43,6 @@ def ditch_world(*, near: bool = True, far: bool = True, timeout: float = 20.0) -
 
 
 def digest(run: object) -> str:
-    poses = getattr(run, "poses")
-    velocities = getattr(run, "velocities")
+    poses = run.poses
+    velocities = run.velocities
     return hashlib.sha1(poses.tobytes() + velocities.tobytes()).hexdigest()

@@ -1,0 +1,70 @@
+"""A tiny world with a wall across the robot's path, and a bare reduction driven through a pool."""
+
+from __future__ import annotations
+
+import concurrent.futures
+import textwrap
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import pytest
+
+from pytest_ddenv.markers import PredicateSpec
+from pytest_ddenv.oracle import classify
+from pytest_ddenv.probe import trace_of
+from pytest_ddenv.reduce import Observation, Outcome, Reduction, reduce
+from pytest_ddenv.robot_world import ATTEMPT_SEED_STRIDE
+from pytest_ddenv.world import World
+
+WALL_WORLD = textwrap.dedent(
+    """\
+    format: 1
+    name: wall
+    scenario:
+      start: {x: 0.0, y: 0.0, yaw: 0.0}
+      goal: {x: 4.0, y: 0.0}
+      timeout: 20
+    models:
+      - {name: far_box_a, pose: [-4, 4, 0.25], box: [0.5, 0.5, 0.5]}
+      - {name: far_box_b, pose: [-4, -4, 0.25], box: [0.5, 0.5, 0.5]}
+      - {name: wall, pose: [2.0, 0, 0.5], box: [0.3, 4.0, 1.0]}
+      - {name: side_post, pose: [2, 5, 0.5], cylinder: {radius: 0.2, length: 1.0}}
+      - {name: far_box_c, pose: [8, 6, 0.25], box: [0.5, 0.5, 0.5]}
+      - {name: ball, pose: [-3, 0, 0.2], sphere: {radius: 0.2}}
+    """
+)
+STUCK = (PredicateSpec("stuck", {"window": 2.0, "min_progress": 0.2}),)
+SimulateFn = Callable[..., Any]
+
+
+@pytest.fixture(scope="session")
+def wall_world() -> World:
+    return World.from_yaml(WALL_WORLD, source="wall.yaml")
+
+
+def reduce_with(
+    simulate: SimulateFn,
+    world: World,
+    *,
+    workers: int = 2,
+    deflake: int = 0,
+    predicates: Sequence[PredicateSpec] = STUCK,
+    seed: int = 0,
+) -> Reduction:
+    """Reduce `world` with probes that call `simulate` (a pool's), `workers` probes in flight at once."""
+    reference = simulate(world, seed=seed, predicates=predicates)
+    assert reference.failure is not None, "the test world must fail"
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        run = simulate(world.select(candidate), seed=seed + attempt * ATTEMPT_SEED_STRIDE, predicates=predicates)
+        outcome = classify(run, reference.failure, 0.5)
+        return Observation(outcome, trace=trace_of(run) if outcome is Outcome.FAIL else None, seed=run.seed,
+                           sim_time=run.sim_time)
+
+    executor = concurrent.futures.ThreadPoolExecutor(workers) if workers > 1 else None
+    try:
+        return reduce(world.names, probe, geometry=world, reference=trace_of(reference), deflake=deflake,
+                      seed=seed, failure_rate_runs=0, executor=executor)
+    finally:
+        if executor is not None:
+            executor.shutdown(wait=True)

@@ -1,0 +1,59 @@
+"""make_pool and the validation of pool settings."""
+
+from __future__ import annotations
+
+import pytest
+
+from pytest_ddenv.execution import (
+    Fault,
+    PoolConfigError,
+    SimulationPool,
+    cpu_count,
+    make_pool,
+    resolve_workers,
+)
+from pytest_ddenv.execution.request import fault_for, parse_faults
+
+
+def test_workers_auto_is_one_per_core() -> None:
+    assert resolve_workers("auto") == cpu_count() >= 1
+    assert resolve_workers("3") == resolve_workers(3) == 3
+
+
+@pytest.mark.parametrize("workers", [0, -1, "two", True, 1.5, None, ""])
+def test_bad_worker_counts_are_refused(workers: object) -> None:
+    with pytest.raises(PoolConfigError, match="workers must be an integer >= 1 or 'auto'"):
+        make_pool(workers)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("executor", ["http://host:8786", "threads", "tcp:/host"])
+def test_bad_executors_are_refused(executor: str) -> None:
+    with pytest.raises(PoolConfigError, match="unknown executor"):
+        make_pool(2, executor)
+
+
+def test_one_worker_is_in_process() -> None:
+    with make_pool(1) as pool:
+        assert isinstance(pool, SimulationPool) and pool.in_process and pool.size == 1
+
+
+def test_fork_and_bad_settings_are_refused() -> None:
+    with pytest.raises(PoolConfigError, match="fork"):
+        SimulationPool(2, context="fork")
+    with pytest.raises(PoolConfigError, match="watchdog"):
+        SimulationPool(2, watchdog=0)
+    with pytest.raises(PoolConfigError, match="would take down the calling process"):
+        SimulationPool(1, fault_injection="crash@1")
+
+
+def test_fault_specifications() -> None:
+    assert parse_faults("crash@3, hang@5x2") == (Fault("crash", 3), Fault("hang", 5, 2))
+    assert fault_for(parse_faults("hang@5x2"), 5, 1) == "hang" and fault_for(parse_faults("hang@5"), 5, 1) is None
+    for text in ("crash", "crash@x", "boom@1", "crash@0"):
+        with pytest.raises(PoolConfigError):
+            parse_faults(text)
+
+
+def test_faults_come_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("DDENV_FAULT_INJECTION", "exit@2")
+    assert parse_faults(None) == (Fault("exit", 2),)

@@ -1,0 +1,112 @@
+"""Faults: a worker that dies is replaced and its simulation retried once; a hung one is killed by the
+watchdog; close() and Ctrl-C leave no process behind."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+
+import psutil
+import pytest
+
+from pytest_ddenv.execution import Fault, SimulationError, SimulationPool
+from pytest_ddenv.world import World
+
+from .conftest import STUCK, reduce_with
+
+
+def gone(pid: int) -> bool:
+    """True when `pid` no longer exists (a zombie still exists: it was not reaped)."""
+    try:
+        return psutil.Process(pid).status() == psutil.STATUS_DEAD
+    except psutil.NoSuchProcess:
+        return True
+
+
+@pytest.mark.parametrize("kind", ["crash", "kill"])
+def test_a_worker_crash_is_retried_and_the_reduction_still_finds_the_wall(kind: str, wall_world: World) -> None:
+    with SimulationPool(2, fault_injection=[Fault(kind, 3), Fault(kind, 6)]) as pool:
+        reduction = reduce_with(pool.simulate, wall_world)
+        stats = pool.stats
+    assert reduction.minimal == ("wall",) and reduction.errors == 0
+    assert stats.crashes == 2 and stats.retries == 2 and stats.restarts == 2 and stats.errors == 0
+
+
+def test_a_simulation_whose_worker_dies_twice_raises(wall_world: World) -> None:
+    with SimulationPool(2, fault_injection="exit@1x2") as pool:
+        with pytest.raises(SimulationError, match=r"failed twice.*exited with status 70"):
+            pool.simulate(wall_world, seed=0, predicates=STUCK)
+        assert pool.simulate(wall_world, seed=0, predicates=STUCK).failure is not None  # the pool goes on
+        stats = pool.stats
+    assert (stats.crashes, stats.retries, stats.errors) == (2, 1, 1)
+
+
+def test_a_hung_worker_is_killed_by_the_watchdog_and_the_reduction_goes_on(wall_world: World) -> None:
+    with SimulationPool(2, watchdog=5.0, fault_injection="hang@4") as pool:
+        started = time.monotonic()
+        reduction = reduce_with(pool.simulate, wall_world, deflake=1)
+        stats = pool.stats
+    assert reduction.minimal == ("wall",)
+    assert reduction.errors == 1 and stats.timeouts == 1 and stats.errors == 1
+    assert time.monotonic() - started < 45
+
+
+def test_the_automatic_watchdog_follows_the_slowest_simulation(wall_world: World) -> None:
+    with SimulationPool(2, watchdog_floor=1.0, watchdog_factor=10.0) as pool:
+        assert pool.watchdog_seconds() == 1.0
+        run = pool.simulate(wall_world, seed=0, predicates=STUCK)
+        assert pool.watchdog_seconds() == pytest.approx(max(1.0, 10 * pool.stats.slowest))
+        assert pool.stats.slowest >= run.wall_time
+
+
+def test_close_stops_busy_workers_promptly_and_reaps_them(wall_world: World) -> None:
+    pool = SimulationPool(2, fault_injection="hang@1")
+    outcome: list[BaseException] = []
+
+    def blocked() -> None:
+        try:
+            pool.simulate(wall_world, seed=0)
+        except BaseException as error:  # noqa: BLE001
+            outcome.append(error)
+
+    thread = threading.Thread(target=blocked)
+    thread.start()
+    pool.simulate(wall_world.select(["ball"]), seed=0, timeout=0.5)  # both workers are up
+    pids = pool.pids
+    started = time.monotonic()
+    pool.close()
+    thread.join(10)
+    assert time.monotonic() - started < 5
+    assert not thread.is_alive() and isinstance(outcome[0], SimulationError) and "closed" in str(outcome[0])
+    assert len(pids) == 2 and all(gone(pid) for pid in pids)
+    assert not [c for c in psutil.Process().children(recursive=True) if c.pid in pids]
+
+
+def test_ctrl_c_while_waiting_kills_only_that_worker_and_the_pool_goes_on(wall_world: World) -> None:
+    with SimulationPool(2, fault_injection="hang@2") as pool:
+        pool.simulate(wall_world.select(["ball"]), seed=0, timeout=0.5)
+        before = pool.pids
+        timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
+        timer.start()
+        started = time.monotonic()
+        with pytest.raises(KeyboardInterrupt):
+            pool.simulate(wall_world, seed=0, predicates=STUCK)  # simulation 2 hangs
+        assert time.monotonic() - started < 5
+        timer.join()
+        assert len(pool.pids) == 1 and sum(gone(pid) for pid in before) == 1  # the hung worker was killed
+        assert pool.simulate(wall_world, seed=0, predicates=STUCK).failure is not None
+        pids = pool.pids
+    assert all(gone(pid) for pid in pids + before)
+
+
+def test_workers_ignore_sigint_so_ctrl_c_in_a_terminal_does_not_kill_them(wall_world: World) -> None:
+    with SimulationPool(2) as pool:
+        pool.simulate(wall_world.select(["ball"]), seed=0, timeout=0.5)
+        pids = pool.pids
+        for pid in pids:
+            os.kill(pid, signal.SIGINT)
+        time.sleep(0.3)
+        assert pool.simulate(wall_world, seed=0, predicates=STUCK).failure is not None
+        assert pool.stats.crashes == 0

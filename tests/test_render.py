@@ -1,0 +1,185 @@
+"""Pictures: non-empty PNGs of the expected pixel size for every shipped scenario world and for a reduction."""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pytest_ddenv import render
+from pytest_ddenv.artifacts import ArtifactPaths
+from pytest_ddenv.oracle import FailureSignature
+from pytest_ddenv.reduce import Reduction
+from pytest_ddenv.sim import Run, RunSettings
+from pytest_ddenv.world import World
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENARIOS = ("ditch", "rubble", "friction")
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", f"{path} is not a PNG"
+    width, height = struct.unpack(">II", data[16:24])
+    return width, height
+
+
+def fake_run(points: list[tuple[float, float]], *, failure: str | None = "stuck", touched: tuple[str, ...] = (),
+             seed: int = 0) -> Run:
+    """A Run with a straight-segment trajectory through `points` (no simulation)."""
+    positions = np.array([[x, y, 0.15] for x, y in points], dtype=float)
+    count = len(positions)
+    yaw = math.atan2(points[-1][1] - points[0][1], points[-1][0] - points[0][0])
+    poses = np.column_stack([positions, np.zeros((count, 2)), np.full(count, yaw)])
+    times = np.linspace(0.0, 0.5 * (count - 1), count)
+    signature = None if failure is None else FailureSignature(failure, float(times[-1]), tuple(poses[-1]), touched)
+    return Run(
+        seed=seed, settings=RunSettings(), world_name="fake", model_names=(), times=times, poses=poses,
+        velocities=np.zeros((count, 6)), wheel_contacts=np.zeros((count, 4)), first_touch={n: 1.0 for n in touched},
+        last_touch={n: 1.0 for n in touched}, first_sensed={}, reached_goal=failure is None,
+        goal_time=None if failure else float(times[-1]), failure=signature, sim_time=float(times[-1]), wall_time=0.1,
+        steps=count, pybullet_version="test",
+    )
+
+
+def fake_reduction(world: World, minimal: tuple[str, ...]) -> Reduction:
+    return Reduction(
+        original=world.names, minimal=minimal, kept=(), probes=24, cache_hits=2, skipped=1, errors=0,
+        steps=((0, len(world)), (3, len(world) // 2), (9, len(world) // 4), (17, len(minimal))), one_minimal=True,
+        incomplete_reason=None, failure_rate=(5, 5), wall_time=12.0, partition="model2model",
+        priority="avg-trajectory-proximal", granularity="ddmin", deflake=3, seed=0,
+    )
+
+
+@pytest.fixture(scope="module")
+def worlds() -> dict[str, World]:
+    return {name: World.load(ROOT / "worlds" / f"{name}.yaml") for name in SCENARIOS}
+
+
+def scenario_run(world: World) -> Run:
+    assert world.scenario is not None
+    start, goal = world.scenario.start, world.scenario.goal
+    middle = ((start.x + goal[0]) / 2.0, (start.y + goal[1]) / 2.0)
+    return fake_run([(start.x, start.y), middle], touched=world.names[:2])
+
+
+# -- footprints ------------------------------------------------------------------------------------------
+def test_footprints_follow_the_real_outline_of_each_shape() -> None:
+    world = World.from_yaml(
+        """
+format: 1
+models:
+- {name: turned, pose: [0, 0, 0.5, 0, 0, 0.7853981633974483], box: [2.0, 1.0, 1.0]}
+- {name: lying_wall, pose: [5, 0, 0.1, 1.5707963267948966, 0, 0], box: [2.0, 0.2, 2.0]}
+- {name: drum, pose: [0, 5, 0.5, 0, 0, 0], cylinder: {radius: 0.5, length: 1.0}}
+- {name: log, pose: [5, 5, 0.3, 1.5707963267948966, 0, 0], cylinder: {radius: 0.3, length: 2.0}}
+- {name: ball, pose: [-5, 0, 0.25, 0, 0, 0], sphere: {radius: 0.25}}
+"""
+    )
+    prints = {fp.name: fp for fp in render.footprints(world)}
+    assert prints["turned"].area == pytest.approx(2.0)
+    assert prints["turned"].high[0] == pytest.approx(1.5 / math.sqrt(2))  # rotated 45 degrees
+    assert prints["lying_wall"].area == pytest.approx(4.0, rel=1e-6)  # a 2 x 2 patch once laid down
+    assert prints["drum"].area == pytest.approx(math.pi * 0.25, rel=0.01)
+    assert prints["log"].area == pytest.approx(2.0 * 0.6, rel=0.01)  # a lying cylinder is a rectangle
+    assert prints["ball"].area == pytest.approx(math.pi * 0.0625, rel=0.01)
+    assert prints["turned"].top == pytest.approx(1.0)
+
+
+def test_friction_and_motion_categories() -> None:
+    world = World.from_yaml(
+        """
+format: 1
+models:
+- {name: rock, box: [1, 1, 1]}
+- {name: crate, box: [1, 1, 1], static: false, mass: 5}
+- {name: ice, box: [1, 1, 0.1], mu: 0.1}
+- {name: carpet, box: [1, 1, 0.1], mu: 100}
+"""
+    )
+    assert [render.category(m) for m in world] == ["static", "dynamic", "static", "static"]
+    assert [render.friction(m) for m in world] == [None, None, "low", "high"]
+
+
+# -- world pictures ----------------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_world_picture_of_each_scenario(name: str, worlds: dict[str, World], tmp_path: Path) -> None:
+    world = worlds[name]
+    started = time.process_time()
+    path = render.plot_world(world, [scenario_run(world)], path=tmp_path / f"{name}.png")
+    elapsed = time.process_time() - started
+    assert path.stat().st_size > 10_000
+    assert png_size(path) == render.WORLD_SIZE
+    assert elapsed < 3.0, f"drawing {name} took {elapsed:.2f} s of CPU"
+
+
+def test_world_picture_without_runs_or_scenario(tmp_path: Path) -> None:
+    world = World.from_yaml("format: 1\nmodels:\n- {name: rock, box: [1, 1, 1]}\n")
+    path = render.plot_world(world, path=tmp_path / "nested" / "rock.png")
+    assert png_size(path) == render.WORLD_SIZE
+    assert not list(path.parent.glob(".*tmp*")), "no temporary file is left behind"
+
+
+# -- reduction and progress pictures -----------------------------------------------------------------------
+def test_reduction_labels_never_overlap(worlds: dict[str, World]) -> None:
+    import matplotlib.pyplot as plt
+
+    world = worlds["ditch"]
+    kept = world.names[::6]  # eight models spread over the world, some side by side
+    figure = render.draw_reduction(world, kept, original_run=scenario_run(world), minimal_run=scenario_run(world))
+    try:
+        renderer = figure.canvas.get_renderer()  # type: ignore[attr-defined]
+        axes = figure.axes[0]
+        labels = [text for text in axes.texts if text.get_text().split("\n")[0] in kept]
+        assert len(labels) == len(kept)
+        boxes = [text.get_window_extent(renderer) for text in labels]
+        for index, box in enumerate(boxes):
+            assert not any(box.overlaps(other) for other in boxes[index + 1 :]), labels[index].get_text()
+        assert axes.get_xlabel() == "x (m)" and axes.get_ylabel() == "y (m)"
+        assert axes.get_legend() is not None
+    finally:
+        plt.close(figure)
+
+
+def test_reduction_pictures_in_an_artifacts_folder(worlds: dict[str, World], tmp_path: Path) -> None:
+    world = worlds["rubble"]
+    minimal = world.names[:3]
+    reduction = fake_reduction(world, minimal)
+    paths = ArtifactPaths(tmp_path)
+    log_lines = [{"event": "start"}] + [
+        {"event": "probe", "purpose": "reduce", "size": size, "outcome": outcome, "candidate": []}
+        for size, outcome in [(18, "pass"), (18, "fail"), (9, "other"), (9, "fail"), (3, "fail"), (2, "error")]
+    ]
+    paths.log.write_text("".join(json.dumps(line) + "\n" for line in log_lines))
+    paths.summary.write_text(json.dumps({"reference_failure": {"signature": {"pose": [0, -1, 0.2, 0, 0, 0.3]}}}))
+    written = render.write_reduction_pictures(world, reduction, paths)
+    assert written == [paths.reduction_png, paths.progress_png]
+    assert png_size(paths.reduction_png) == render.WORLD_SIZE
+    assert png_size(paths.progress_png) == render.PROGRESS_SIZE
+    assert min(p.stat().st_size for p in written) > 5_000
+    assert render.probe_sizes_from_log(paths.log)[:2] == [(1, 18, "pass"), (2, 18, "fail")]
+
+
+def test_reduction_picture_with_both_runs(worlds: dict[str, World], tmp_path: Path) -> None:
+    world = worlds["friction"]
+    reduction = fake_reduction(world, world.names[:4])
+    paths = ArtifactPaths(tmp_path)
+    run = scenario_run(world)
+    written = render.write_reduction_pictures(world, reduction, paths, original_run=run, minimal_run=run)
+    assert [png_size(path) for path in written] == [render.WORLD_SIZE, render.PROGRESS_SIZE]
+
+
+def test_progress_picture_of_a_reduction_that_removed_nothing(tmp_path: Path) -> None:
+    path = render.plot_progress([(0, 1)], probes=0, path=tmp_path / "progress.png")
+    assert png_size(path) == render.PROGRESS_SIZE
+
+
+def test_documentation_pictures_are_small() -> None:
+    images = sorted((ROOT / "docs" / "images").glob("*.png"))
+    for image in images:
+        assert image.stat().st_size < 200_000, f"{image} is larger than 200 KB"
