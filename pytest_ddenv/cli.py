@@ -147,7 +147,6 @@ def build_parser() -> argparse.ArgumentParser:
                "error, 3 internal error. Inside pytest, use `pytest --ddenv-reduce`. Documentation: docs/cli.md",
         parents=[common],
     )
-    parser.set_defaults(json=False, debug=False)
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     _add_check(commands, common)
@@ -244,6 +243,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _fail(str(error), as_json="--json" in arguments_list)
     except SystemExit as exit_:  # --help, --version
         return int(exit_.code or 0)
+    arguments.json = getattr(arguments, "json", False)  # the options are shared with every subcommand, so
+    arguments.debug = getattr(arguments, "debug", False)  # they have no default (argparse.SUPPRESS)
     if arguments.command is None:
         parser.print_help()
         return EXIT_OK

@@ -489,26 +489,28 @@ def _place_label(axes: Axes, renderer: Any, frame: Any, placed: list[Any], obsta
                  anchor: tuple[float, float]) -> Any:
     """Try offsets around the anchor, nearest first; take the first free one, else the least crowded.
 
-    Returns the display box the label occupies.
+    Returns the display box the label's text occupies.
     """
-    best: tuple[float, tuple[float, float]] | None = None
+    from matplotlib.text import Text
+
+    best: tuple[float, tuple[float, float], Any] | None = None
     for dx, dy in _OFFSETS:
         trial = axes.annotate(text, xy=anchor, xytext=(dx, dy), textcoords="offset points",
                               **_label_style(dx, dy))
-        box = trial.get_window_extent(renderer).padded(_LABEL_PAD)
+        box = trial.get_window_extent(renderer).padded(_LABEL_PAD)  # no arrow yet: the text box only
         trial.remove()
         if not (frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1):
             continue
         cost = 100.0 * sum(box.overlaps(other) for other in placed) + sum(box.overlaps(o) for o in obstacles)
         if best is None or cost < best[0]:
-            best = (cost, (dx, dy))
+            best = (cost, (dx, dy), box)
         if cost == 0:
             break
-    offset = best[1] if best is not None else _OFFSETS[0]
+    offset, box = (best[1], best[2]) if best is not None else (_OFFSETS[0], None)
     label = axes.annotate(text, xy=anchor, xytext=offset, textcoords="offset points", **_label_style(*offset),
                           arrowprops={"arrowstyle": "-", "color": _EDGE, "linewidth": 0.8, "shrinkA": 0,
                                       "shrinkB": 0})
-    return label.get_window_extent(renderer).padded(_LABEL_PAD)
+    return box if box is not None else Text.get_window_extent(label, renderer).padded(_LABEL_PAD)
 
 
 def _label_style(dx: float, dy: float) -> dict[str, Any]:

@@ -128,6 +128,7 @@ def test_world_picture_without_runs_or_scenario(tmp_path: Path) -> None:
 # -- reduction and progress pictures -----------------------------------------------------------------------
 def test_reduction_labels_never_overlap(worlds: dict[str, World]) -> None:
     import matplotlib.pyplot as plt
+    from matplotlib.text import Text
 
     world = worlds["ditch"]
     kept = world.names[::6]  # eight models spread over the world, some side by side
@@ -137,7 +138,7 @@ def test_reduction_labels_never_overlap(worlds: dict[str, World]) -> None:
         axes = figure.axes[0]
         labels = [text for text in axes.texts if text.get_text().split("\n")[0] in kept]
         assert len(labels) == len(kept)
-        boxes = [text.get_window_extent(renderer) for text in labels]
+        boxes = [Text.get_window_extent(text, renderer) for text in labels]  # the text, not its leader line
         for index, box in enumerate(boxes):
             assert not any(box.overlaps(other) for other in boxes[index + 1 :]), labels[index].get_text()
         assert axes.get_xlabel() == "x (m)" and axes.get_ylabel() == "y (m)"

@@ -120,3 +120,14 @@ def check_watchdog(watchdog: float | str | None) -> float | str | None:
     if isinstance(watchdog, bool) or not isinstance(watchdog, (int, float)) or not watchdog > 0:
         raise PoolConfigError(f"watchdog must be a number of seconds > 0, 'auto' or None, got {watchdog!r}")
     return float(watchdog)
+
+
+def check_preload(preload: Sequence[str]) -> tuple[str, ...]:
+    from pytest_ddenv.execution.errors import PoolConfigError
+
+    if isinstance(preload, str):
+        preload = (preload,)
+    modules = tuple(preload)
+    if not all(isinstance(m, str) and m and all(part.isidentifier() for part in m.split(".")) for m in modules):
+        raise PoolConfigError(f"preload must be a list of importable module names, got {preload!r}")
+    return modules

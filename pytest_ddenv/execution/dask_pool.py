@@ -20,6 +20,7 @@ from pytest_ddenv.execution.base import (
     DEFAULT_WATCHDOG_FLOOR,
     PoolStats,
     StatsBook,
+    check_preload,
     check_watchdog,
 )
 from pytest_ddenv.execution.errors import PoolConfigError, SimulationError
@@ -69,7 +70,8 @@ class DaskSimulationPool:
     `n_workers` sizes a local cluster (default: one per core). `watchdog` as for `SimulationPool`, except
     that dask cannot kill a running task: a simulation past the watchdog is cancelled and reported as
     `SimulationError`, its worker thread finishes it in the background (the simulated time limit bounds it).
-    `fault_injection` supports only 'error' (a raising simulation) on dask.
+    `fault_injection` supports only 'error' (a raising simulation) on dask. `preload`: modules every dask
+    worker imports (now and when it restarts), e.g. the one registering a custom robot.
     """
 
     def __init__(
@@ -83,6 +85,7 @@ class DaskSimulationPool:
         fault_injection: str | Sequence[Fault] | None = None,
         connect_timeout: float = CONNECT_TIMEOUT,
         check_versions: bool = True,
+        preload: Sequence[str] = (),
     ) -> None:
         from pytest_ddenv.execution.local import cpu_count, resolve_workers
 
@@ -120,6 +123,11 @@ class DaskSimulationPool:
                 self._client.wait_for_workers(1, timeout=connect_timeout)
             if check_versions:
                 self._check_versions()
+            modules = check_preload(preload)
+            if modules:
+                from pytest_ddenv.execution.dask_preload import PreloadModules
+
+                self._client.register_plugin(PreloadModules(modules))
         except BaseException:
             self.close()
             raise

@@ -28,6 +28,7 @@ from pytest_ddenv.execution.base import (
     DEFAULT_WATCHDOG_FLOOR,
     PoolStats,
     StatsBook,
+    check_preload,
     check_watchdog,
 )
 from pytest_ddenv.execution.errors import PoolConfigError, SimulationError
@@ -112,9 +113,9 @@ class _Hung(Exception):
 class _Worker:
     """One worker process and the parent's end of its pipe."""
 
-    def __init__(self, context: BaseContext, name: str) -> None:
+    def __init__(self, context: BaseContext, name: str, preload: tuple[str, ...]) -> None:
         parent, child = context.Pipe(duplex=True)
-        self.process: Any = context.Process(target=worker_main, args=(child,), name=name, daemon=True)
+        self.process: Any = context.Process(target=worker_main, args=(child, preload), name=name, daemon=True)
         with _main_module_hidden():
             self.process.start()
         child.close()
@@ -213,7 +214,8 @@ class SimulationPool:
     simulation so far)) or None (never). `context`: multiprocessing start method ('forkserver' where
     available, else 'spawn'; 'fork' is refused: pybullet and fork do not mix). `fault_injection`: test-only
     faults (see `Fault`); default from $DDENV_FAULT_INJECTION. `in_process`: force (or forbid) the
-    in-process mode regardless of `workers`.
+    in-process mode regardless of `workers`. `preload`: modules every worker imports before its first
+    simulation (custom robots registered with `register_robot` must be registered in the workers too).
     """
 
     def __init__(
@@ -227,8 +229,10 @@ class SimulationPool:
         fault_injection: str | Sequence[Fault] | None = None,
         in_process: bool | None = None,
         startup_timeout: float = STARTUP_TIMEOUT,
+        preload: Sequence[str] = (),
     ) -> None:
         self._size = resolve_workers(workers)
+        self._preload = check_preload(preload)
         self._watchdog = check_watchdog(watchdog)
         self._floor = float(watchdog_floor)
         self._factor = float(watchdog_factor)
@@ -339,11 +343,15 @@ class SimulationPool:
 
     # -- in-process ----------------------------------------------------------------------------------
     def _simulate_here(self, request: SimRequest) -> Run:
-        started = time.perf_counter()
         with self._local_lock:
+            started = time.perf_counter()
             if self._local is None:
+                import importlib
+
                 from pytest_ddenv.sim import Simulator
 
+                for module in self._preload:
+                    importlib.import_module(module)
                 self._local = Simulator()
             reply = execute(self._local, request)
         return self._finish(reply, started)
@@ -403,7 +411,7 @@ class SimulationPool:
 
     def _start_worker(self, *, count: bool = True) -> _Worker:
         assert self._context is not None
-        worker = _Worker(self._context, f"ddenv-sim-{next(self._names)}")
+        worker = _Worker(self._context, f"ddenv-sim-{next(self._names)}", self._preload)
         self._live.add(worker)
         if count:
             self._stats.add("restarts")

@@ -6,6 +6,7 @@ Protocol over a duplex pipe: the worker sends ``("ready", pid)`` once its simula
 
 from __future__ import annotations
 
+import importlib
 import os
 import pickle
 import signal
@@ -39,11 +40,16 @@ def _quiet_stdout() -> None:
         pass
 
 
-def worker_main(conn: Connection) -> None:
-    """Entry point of a worker process (must stay importable: spawn and forkserver import it by name)."""
+def worker_main(conn: Connection, preload: tuple[str, ...] = ()) -> None:
+    """Entry point of a worker process (must stay importable: spawn and forkserver import it by name).
+
+    `preload`: modules to import first, e.g. the one that calls `register_robot` for a custom robot.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the parent decides
     _quiet_stdout()
     try:
+        for module in preload:
+            importlib.import_module(module)
         from pytest_ddenv.sim import Simulator
 
         simulator = Simulator()

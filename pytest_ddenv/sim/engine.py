@@ -390,9 +390,10 @@ class _Laser:
 
         The corridor is 0.8 m wide (the Husky is 0.67 m) and 1.4 m deep from the robot's centre.
         """
-        ahead = self.ranges * np.cos(self.angles)
-        side = self.ranges * np.sin(self.angles)
         finite = np.isfinite(self.ranges)
+        ranges = np.where(finite, self.ranges, 0.0)
+        ahead = ranges * np.cos(self.angles)
+        side = ranges * np.sin(self.angles)
         blocking = finite & (ahead > 0.0) & (ahead < 1.4) & (np.abs(side) < 0.4)
         if not blocking.any():
             return v, w

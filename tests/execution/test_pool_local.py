@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import concurrent.futures
+import dataclasses
 import os
+from pathlib import Path
 
 import pytest
 
@@ -91,3 +93,17 @@ def test_in_process_pool_has_no_worker_process(wall_world: World) -> None:
 
 def test_simulation_error_is_a_ddenv_error() -> None:
     assert issubclass(SimulationError, DdenvError)
+
+
+def test_preloaded_modules_register_custom_robots_in_the_workers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, wall_world: World
+) -> None:
+    (tmp_path / "ddenv_twin_robot.py").write_text(
+        "from pytest_ddenv.sim import Husky, register_robot\nregister_robot('husky_twin', Husky, replace=True)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    twin = dataclasses.replace(wall_world, scenario=dataclasses.replace(wall_world.scenario, robot="husky_twin"))
+    with SimulationPool(2) as plain, pytest.raises(ScenarioError, match="unknown robot 'husky_twin'"):
+        plain.simulate(twin, seed=0)
+    with SimulationPool(2, preload=["ddenv_twin_robot"]) as pool:
+        assert pool.simulate(twin, seed=0, predicates=STUCK).failure is not None
