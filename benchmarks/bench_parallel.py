@@ -17,7 +17,7 @@ import statistics
 import time
 from pathlib import Path
 
-from pytest_ddenv.execution import SimulationPool, cpu_count
+from pytest_ddenv.execution import PoolStats, SimulationPool, cpu_count
 from pytest_ddenv.markers import PredicateSpec
 from pytest_ddenv.probe import keeps_start_support, make_probe, reference_from, trace_of
 from pytest_ddenv.reduce import Reduction, reduce
@@ -130,6 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--throughput-runs", type=int, default=12)
     parser.add_argument("--overhead-runs", type=int, default=100)
     parser.add_argument("--no-yard", action="store_true", help="skip the synthetic 40-object yard")
+    parser.add_argument("--repeat", type=int, default=3, help="reductions per worker count (median reported)")
     args = parser.parse_args(argv)
     cases = [(World.load(args.world), PREDICATES, "stuck(window=5.0, min_progress=0.2)")]
     if not args.no_yard:
@@ -140,22 +141,31 @@ def main(argv: list[str] | None = None) -> int:
     except OSError:  # pragma: no cover
         load = "?"
     print(f"cores: {cpu_count()}, load average before: {load}; pools are started and warmed before timing\n")
-    print("| world | predicate | workers | wall time (s) | speed-up | probes | pool errors | minimal world |")
+    print("| world | predicate | workers | wall time (s), median | speed-up | probes | pool errors | minimal world |")
     print("|---|---|---:|---:|---:|---:|---:|---|")
+    with SimulationPool(1) as warm:  # imports (scikit-learn, ...) and caches must not be charged to one row
+        reduce_on(yard(8), warm, cases[-1][1])
     same = True
     for world, predicates, shown in cases:
-        rows = []
+        timings: dict[int, list[float]] = {workers: [] for workers in args.workers}
+        results: dict[int, tuple[Reduction, PoolStats]] = {}
+        minimals: set[tuple[str, ...]] = set()
+        for repeat in range(args.repeat):  # alternate the order: a loaded machine drifts
+            for workers in args.workers if repeat % 2 == 0 else list(reversed(args.workers)):
+                with warm_pool(workers, world) as pool:
+                    reduction, seconds = reduce_on(world, pool, predicates)
+                    timings[workers].append(seconds)
+                    results.setdefault(workers, (reduction, pool.stats))
+                    minimals.add(reduction.minimal)
+        base = statistics.median(timings[args.workers[0]])
         for workers in args.workers:
-            with warm_pool(workers, world) as pool:
-                reduction, seconds = reduce_on(world, pool, predicates)
-                rows.append((workers, reduction, seconds, pool.stats))
-        base = rows[0][2]
-        for workers, reduction, seconds, stats in rows:
+            reduction, stats = results[workers]
+            seconds = statistics.median(timings[workers])
             print(f"| {Path(world.source or world.name).name} ({len(world)}) | {shown} | {workers} | {seconds:.1f} | "
                   f"{base / seconds:.2f}x | {reduction.probes} | {stats.errors} | "
                   f"{reduction.minimal_size}: {', '.join(reduction.minimal)} |")
-        same = same and len({r.minimal for _, r, _, _ in rows}) == 1
-    print(f"\nidentical minimal worlds across worker counts: {'yes' if same else 'NO'}")
+        same = same and len(minimals) == 1
+    print(f"\nidentical minimal worlds across worker counts and repeats: {'yes' if same else 'NO'}")
 
     world = cases[0][0]
     print(f"\nThroughput: {args.throughput_runs} independent simulations of {Path(args.world).name}\n")
@@ -164,6 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     times = []
     for workers in args.workers:
         with warm_pool(workers, world) as pool:
+            throughput(world, pool, workers)  # every worker has built this world once
             times.append(throughput(world, pool, args.throughput_runs))
         print(f"| {workers} | {times[-1]:.1f} | {times[0] / times[-1]:.2f}x |")
 

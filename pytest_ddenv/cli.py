@@ -190,7 +190,12 @@ def _add_show(commands: Any, common: argparse.ArgumentParser) -> None:
 
 
 def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
-    from pytest_ddenv.reduce import GRANULARITIES, PARTITIONS, PRIORITIES, PRIORITY_ALIASES
+    from pytest_ddenv.reduce import (
+        GRANULARITIES,
+        PARTITIONS,
+        PRIORITIES,
+        PRIORITY_ALIASES,
+    )
     from pytest_ddenv.reduce.partition import PARTITION_ALIASES
 
     reduce = commands.add_parser("reduce", parents=[common], help="reduce a failing world to the models the failure needs")
@@ -258,7 +263,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("ddenv: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except Exception as error:  # noqa: BLE001 - one line instead of a traceback, unless --debug
+    except Exception as error:
         if arguments.debug:
             raise
         message = f"internal error: {type(error).__name__}: {error} (run with --debug for the traceback)"
@@ -581,12 +586,12 @@ def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any]) ->
     status = "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
     removed = summary["removed_models"]
     return "\n".join([
-        f"{path}: {reduction.original_size} -> {reduction.minimal_size} models "
-        f"({summary['reduction_percent']}% removed), {status}",
+        (f"{path}: {reduction.original_size} -> {reduction.minimal_size} models "
+        f"({summary['reduction_percent']}% removed), {status}"),
         f"kept: {', '.join(reduction.minimal) or '(none)'}",
         f"removed ({len(removed)}): {_shorten(removed)}",
-        f"probes: {reduction.probes} simulated, {reduction.cache_hits} from cache, {reduction.skipped} skipped, "
-        f"{reduction.errors} errors; {reduction.wall_time:.1f} s",
+        (f"probes: {reduction.probes} simulated, {reduction.cache_hits} from cache, {reduction.skipped} skipped, "
+        f"{reduction.errors} errors; {reduction.wall_time:.1f} s"),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
         f"minimal world fails {fails}/{runs} seeds",
         f"artifacts: {Path(summary['files']['summary']).parent}",
@@ -662,9 +667,9 @@ def _cmd_replay(arguments: argparse.Namespace) -> int:
     result = replay(arguments.artifacts, predicates=predicates, max_runs=arguments.runs,
                     tolerance=arguments.tolerance)
     reference = result.reference
-    lines = [f"{arguments.artifacts}: minimal world of {len(result.world)} models; reference failure: "
+    lines = [(f"{arguments.artifacts}: minimal world of {len(result.world)} models; reference failure: "
              f"{reference.predicate} at t = {reference.time:.2f} s at ({reference.position[0]:.2f}, "
-             f"{reference.position[1]:.2f}, {reference.position[2]:.2f}) m"]
+             f"{reference.position[1]:.2f}, {reference.position[2]:.2f}) m")]
     for run in result.runs:
         what = "no failure" if run.failure is None else f"{run.failure.predicate} at t = {run.failure.time:.2f} s"
         lines.append(f"  seed {run.seed}: {run.outcome.value} ({what})")

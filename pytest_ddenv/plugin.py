@@ -273,7 +273,7 @@ class _ProgressLine:
         if self.reporter is None or hasattr(self.config, "workerinput"):
             return
         elapsed = time.monotonic() - self.started
-        line = f"ddenv: {text}, {elapsed:.0f} s"
+        line = f"ddenv: {text}" if final else f"ddenv: {text}, {elapsed:.0f} s"
         suspend = self.capture.global_and_fixture_disabled() if self.capture is not None else _nullcontext()
         with suspend:
             if self.verbose and probe_line:
@@ -328,4 +328,9 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
 
 
 def replay_command(item: pytest.Item, minimal_yaml: Path) -> str:
-    return f"pytest {shlex.quote(item.nodeid)} --ddenv-world {shlex.quote(str(minimal_yaml))}"
+    """The command that re-runs the test on its minimal world (run from the rootdir)."""
+    try:
+        shown = minimal_yaml.relative_to(item.config.rootpath)
+    except ValueError:
+        shown = minimal_yaml
+    return f"pytest {shlex.quote(item.nodeid)} --ddenv-world {shlex.quote(str(shown))}"

@@ -99,7 +99,12 @@ class ReductionSession:
             replay_command=_replay_command(self.item, paths.minimal_yaml),
             problem_fingerprint=problem,
             reference=reference.to_dict(),
-            extra={"confirmed_on_attempt": confirmed},
+            extra={
+                "confirmed_on_attempt": confirmed,
+                "predicates": [{"name": p.name, "params": dict(p.params)} for p in robot_world.predicates],
+                "tolerance": self.spec.tolerance,
+                "scenario_seed": robot_world.seed,
+            },
         )
         attachments = [paths.minimal_yaml, paths.log, paths.summary]
         if interrupted is None:
@@ -150,7 +155,7 @@ class ReductionSession:
             f"world: {summary['world']}",
             f"reduced {reduction.original_size} -> {reduction.minimal_size} models "
             f"({summary['reduction_percent']}%), {status}",
-            f"kept: {', '.join(reduction.minimal) or '(none)'}",
+            f"minimal world: {', '.join(reduction.minimal) or '(no models)'}",
             f"removed ({len(removed)}): {_listing(removed)}",
             f"probes: {reduction.probes} simulated, {reduction.cache_hits} from cache, "
             f"{reduction.skipped} skipped, {reduction.errors} errors; {reduction.wall_time:.1f} s",

@@ -75,6 +75,7 @@ Friction = Literal["high", "low"] | None
 _FILL = {"static": "#b0b0b0", "dynamic": "#5b9bd5", "high": "#eb9486", "low": "#8fd3e8"}
 _EDGE = "#404040"
 _DYNAMIC_EDGE = "#1f4e96"
+_HIGHLIGHT = "#ff8c00"
 _RUN_COLORS = ("#d62728", "#7b2cbf", "#ff7f0e", "#2ca02c", "#8c564b", "#e377c2")
 _OUTCOME_COLORS = {"fail": "#d62728", "other": "#ff7f0e", "pass": "#2ca02c", "error": "#000000"}
 
@@ -163,7 +164,7 @@ def _shape_points(shape: Shape, source: str | None) -> FloatArray:
         return _sphere_points(shape.radius)
     try:
         mesh = load_mesh(resolve_mesh_path(shape.mesh, source), shape.scale)
-        return np.asarray(mesh.vertices, dtype=float)  # type: ignore[attr-defined]
+        return np.asarray(mesh.vertices, dtype=np.float64)  # type: ignore[attr-defined]
     except Exception:  # noqa: BLE001 - an unreadable mesh still gets a visible marker
         return geometry.box_corners(np.full(3, 0.2))
 
@@ -258,7 +259,10 @@ def _save(figure: Figure, path: str | Path) -> Path:
 # -- drawing -------------------------------------------------------------------------------------------
 def _draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghosted: frozenset[str] = frozenset(),
                  highlighted: frozenset[str] = frozenset()) -> None:
-    """Footprints, largest first so small models stay visible on top of slabs and terrain."""
+    """Footprints, largest first so small models stay visible on top of slabs and terrain.
+
+    Highlighted models get an orange halo under their outline; ghosted ones are faint and dashed.
+    """
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Polygon
 
@@ -267,26 +271,23 @@ def _draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghost
         model, footprint = world.models[index], prints[index]
         ghost, strong = footprint.name in ghosted, footprint.name in highlighted
         terrain = footprint.extent > TERRAIN_EXTENT
-        edge = _DYNAMIC_EDGE if model.dynamic and friction(model) else _EDGE
-        patches = [Polygon(polygon, closed=True) for polygon in footprint.polygons]
-        collection = PatchCollection(
-            patches,
+        zorder = 1 + layer * 0.001 + (0.5 if strong else 0.0)
+        if strong:
+            axes.add_collection(PatchCollection([Polygon(_largest(footprint), closed=True)], facecolor="none",
+                                                edgecolor=_HIGHLIGHT, linewidth=5.0, zorder=zorder - 0.0005))
+        axes.add_collection(PatchCollection(
+            [Polygon(polygon, closed=True) for polygon in footprint.polygons],
             facecolor=_fill(model),
-            edgecolor="#9a9a9a" if ghost else edge,
-            linewidth=_edge_widths(footprint, strong),
+            edgecolor="#9a9a9a" if ghost else _DYNAMIC_EDGE if model.dynamic and friction(model) else _EDGE,
+            linewidth=0.7 if len(footprint.polygons) == 1 else 0.4,
             linestyle="--" if ghost else "-",
             alpha=0.15 if ghost else 0.45 if terrain else 0.9,
-            zorder=1 + layer * 0.001 + (0.5 if strong else 0.0),
-        )
-        axes.add_collection(collection)
+            zorder=zorder,
+        ))
 
 
-def _edge_widths(footprint: Footprint, strong: bool) -> list[float]:
-    """A thick edge on the largest shape of a highlighted model, thin edges on its small parts."""
-    areas = [_polygon_area(polygon) for polygon in footprint.polygons]
-    largest = int(np.argmax(areas))
-    thin = 0.7 if len(areas) == 1 else 0.4
-    return [2.4 if strong and index == largest else thin for index in range(len(areas))]
+def _largest(footprint: Footprint) -> FloatArray:
+    return max(footprint.polygons, key=_polygon_area)
 
 
 def _fill(model: Model) -> str:
@@ -378,9 +379,8 @@ def _view(axes: Axes, world: World, prints: Sequence[Footprint], points: Sequenc
 
 def _fit_equal_aspect(axes: Axes, low: FloatArray, high: FloatArray) -> None:
     """Grow the shorter side of the view so one metre is as long on x as on y for the axes' box."""
-    box = axes.get_position()
-    figure_width, figure_height = axes.figure.get_size_inches()
-    box_ratio = (box.height * figure_height) / (box.width * figure_width)
+    box = axes.get_window_extent()
+    box_ratio = box.height / box.width
     center, span = (low + high) / 2.0, high - low
     if span[1] / span[0] < box_ratio:
         span[1] = span[0] * box_ratio
@@ -401,7 +401,8 @@ def _legend(axes: Axes, world: World, prints: Sequence[Footprint], *, ghosted: b
     frictions = {friction(m) for m in world.models}
     extents = [fp.extent for fp in prints]
     if highlighted:
-        handles.append(Patch(facecolor="white", edgecolor=_EDGE, linewidth=2.4, label="kept (needed for the failure)"))
+        handles.append(Patch(facecolor="white", edgecolor=_HIGHLIGHT, linewidth=2.5,
+                             label="kept (needed for the failure)"))
     if ghosted:
         handles.append(Patch(facecolor=_FILL["static"], edgecolor="#9a9a9a", alpha=0.25, linestyle="--",
                              label="removed by the reduction"))
@@ -441,11 +442,19 @@ def _label_models(axes: Axes, figure: Figure, prints: Sequence[Footprint], names
     placed: list[Any] = []
     for name in shown:
         anchor = _anchor(by_name[name], axes)
-        text = f"{name}\ntop {by_name[name].top:.2f} m"
+        text = f"{_short(name)}\ntop {by_name[name].top:.2f} m"
         placed.append(_place_label(axes, renderer, frame, placed, obstacles, text, anchor))
     if hidden:
         axes.text(0.99, 0.01, f"+{len(hidden)} more kept models (see summary.json)", transform=axes.transAxes,
                   ha="right", va="bottom", fontsize=8, color="#333333")
+
+
+def _short(name: str, limit: int = 30) -> str:
+    """A long model name with its middle elided (the full names are in summary.json)."""
+    if len(name) <= limit:
+        return name
+    keep = (limit - 1) // 2
+    return f"{name[:keep]}…{name[-keep:]}"
 
 
 def _marker_boxes(axes: Axes) -> list[Any]:
@@ -506,11 +515,11 @@ def _place_label(axes: Axes, renderer: Any, frame: Any, placed: list[Any], obsta
             best = (cost, (dx, dy), box)
         if cost == 0:
             break
-    offset, box = (best[1], best[2]) if best is not None else (_OFFSETS[0], None)
+    offset = best[1] if best is not None else _OFFSETS[0]
     label = axes.annotate(text, xy=anchor, xytext=offset, textcoords="offset points", **_label_style(*offset),
                           arrowprops={"arrowstyle": "-", "color": _EDGE, "linewidth": 0.8, "shrinkA": 0,
                                       "shrinkB": 0})
-    return box if box is not None else Text.get_window_extent(label, renderer).padded(_LABEL_PAD)
+    return best[2] if best is not None else Text.get_window_extent(label, renderer).padded(_LABEL_PAD)
 
 
 def _label_style(dx: float, dy: float) -> dict[str, Any]:

@@ -205,7 +205,7 @@ def test_run_needs_a_scenario(capsys: pytest.CaptureFixture[str], worlds: dict[s
 def test_show_default_picture_and_bad_runs_files(capsys: pytest.CaptureFixture[str], worlds: dict[str, Path],
                                                  tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
-    code, out, _ = run(capsys, "show", str(worlds["wall"]))
+    code, _, _ = run(capsys, "show", str(worlds["wall"]))
     assert code == 0 and (tmp_path / "wall.png").exists()
     (tmp_path / "bad.jsonl").write_text("{not json\n")
     (tmp_path / "empty.jsonl").write_text("{}\n")
@@ -316,10 +316,10 @@ def test_convert_bad_input(capsys: pytest.CaptureFixture[str], worlds: dict[str,
 def test_subprocess_smoke(worlds: dict[str, Path]) -> None:
     done = subprocess.run(
         [sys.executable, "-m", "pytest_ddenv.cli", "run", str(worlds["wall"]), "-p", STUCK, "--no-picture", "--json"],
-        capture_output=True, text=True, timeout=120,
+        check=False, capture_output=True, text=True, timeout=120,
     )
     assert done.returncode == 1, done.stderr
     assert json.loads(done.stdout)["failure"]["predicate"] == "stuck"
     done = subprocess.run([sys.executable, "-m", "pytest_ddenv.cli", "check", "missing.yaml"],
-                          capture_output=True, text=True, timeout=120)
+                          check=False, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and done.stderr.strip().startswith("ddenv: error:") and done.stdout == ""

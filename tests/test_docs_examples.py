@@ -38,3 +38,19 @@ def test_world_format_example_loads_and_round_trips() -> None:
     assert world.reducible_names[-1] == "ball" and world.model("start_pad").keep
     assert world.model("cinder_block").dynamic and world.model("barrel").static
     assert World.from_yaml(world.to_yaml()) == world
+
+
+def test_every_docs_page_linked_from_the_index_exists() -> None:
+    links = re.findall(r"\]\(([^)#]+\.md)\)", (DOCS / "index.md").read_text())
+    assert links
+    missing = [link for link in links if not (DOCS / link).resolve().is_file()]
+    assert not missing, f"docs/index.md links to missing pages: {missing}"
+
+
+def test_ci_examples_are_valid_yaml_that_keep_the_artifacts() -> None:
+    import yaml
+
+    github, gitlab = (yaml.safe_load(block) for block in yaml_blocks("ci.md"))
+    upload = github["jobs"]["robot-scenarios"]["steps"][-1]
+    assert upload["if"] == "always()" and "ddenv-artifacts/" in upload["with"]["path"]
+    assert gitlab["robot-scenarios"]["artifacts"]["when"] == "always"

@@ -128,17 +128,16 @@ def test_world_picture_without_runs_or_scenario(tmp_path: Path) -> None:
 # -- reduction and progress pictures -----------------------------------------------------------------------
 def test_reduction_labels_never_overlap(worlds: dict[str, World]) -> None:
     import matplotlib.pyplot as plt
-    from matplotlib.text import Text
 
     world = worlds["ditch"]
     kept = world.names[::6]  # eight models spread over the world, some side by side
     figure = render.draw_reduction(world, kept, original_run=scenario_run(world), minimal_run=scenario_run(world))
     try:
-        renderer = figure.canvas.get_renderer()  # type: ignore[attr-defined]
+        figure.canvas.draw()
         axes = figure.axes[0]
-        labels = [text for text in axes.texts if text.get_text().split("\n")[0] in kept]
+        labels = [text for text in axes.texts if text.get_bbox_patch() is not None]
         assert len(labels) == len(kept)
-        boxes = [Text.get_window_extent(text, renderer) for text in labels]  # the text, not its leader line
+        boxes = [text.get_bbox_patch().get_window_extent() for text in labels]  # the drawn label boxes
         for index, box in enumerate(boxes):
             assert not any(box.overlaps(other) for other in boxes[index + 1 :]), labels[index].get_text()
         assert axes.get_xlabel() == "x (m)" and axes.get_ylabel() == "y (m)"

@@ -9,11 +9,12 @@ deaths it gives up (KilledWorker), which becomes `SimulationError`.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 import uuid
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 from pytest_ddenv.execution.base import (
     DEFAULT_WATCHDOG_FACTOR,
@@ -24,7 +25,15 @@ from pytest_ddenv.execution.base import (
     check_watchdog,
 )
 from pytest_ddenv.execution.errors import PoolConfigError, SimulationError
-from pytest_ddenv.execution.request import Fault, Reply, SimRequest, describe_request, execute, fault_for, parse_faults
+from pytest_ddenv.execution.request import (
+    Fault,
+    Reply,
+    SimRequest,
+    describe_request,
+    execute,
+    fault_for,
+    parse_faults,
+)
 
 if TYPE_CHECKING:
     from pytest_ddenv.execution.request import PredicateLike
@@ -131,7 +140,7 @@ class DaskSimulationPool:
         except BaseException:
             self.close()
             raise
-        self._size = max(1, sum(self._client.nthreads().values()))
+        self._size = max(1, int(sum(self._client.nthreads().values())))
         self._stats = StatsBook(self._size)
         self._sequence = 0
         self._lock = threading.Lock()
@@ -206,13 +215,11 @@ class DaskSimulationPool:
         self._closed = True
         client = getattr(self, "_client", None)
         if client is not None:
-            try:
+            with contextlib.suppress(Exception):  # best effort at shutdown
                 client.close(timeout=10)
-            except Exception:  # noqa: BLE001 - best effort at shutdown
-                pass
         self._close_cluster()
 
-    def __enter__(self) -> DaskSimulationPool:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -224,16 +231,14 @@ class DaskSimulationPool:
     # -- helpers -------------------------------------------------------------------------------------
     def _close_cluster(self) -> None:
         if self._cluster is not None:
-            try:
+            with contextlib.suppress(Exception):
                 self._cluster.close(timeout=10)
-            except Exception:  # noqa: BLE001
-                pass
             self._cluster = None
 
     def _check_versions(self) -> None:
         try:
             remote: dict[str, dict[str, str]] = self._client.run(worker_versions)
-        except Exception as error:  # noqa: BLE001 - typically ModuleNotFoundError on the worker
+        except Exception as error:  # typically ModuleNotFoundError on the worker
             raise PoolConfigError(
                 f"the dask workers at {self.address} cannot run pytest-ddenv ({type(error).__name__}: {error}); "
                 "install the same pytest-ddenv, pybullet and numpy on every worker"

@@ -8,7 +8,7 @@ from typing import Any
 from distributed.diagnostics.plugin import WorkerPlugin
 
 
-class PreloadModules(WorkerPlugin):  # type: ignore[misc]
+class PreloadModules(WorkerPlugin):
     """Import `modules` on each worker (e.g. the module that registers a custom robot)."""
 
     name = "pytest-ddenv-preload"

@@ -20,8 +20,7 @@ import weakref
 from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from multiprocessing.connection import Connection, wait
-from multiprocessing.context import BaseContext
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 from pytest_ddenv.execution.base import (
     DEFAULT_WATCHDOG_FACTOR,
@@ -90,7 +89,7 @@ def _main_module_hidden() -> Iterator[None]:
         if main is None:
             yield
             return
-        saved = {key: main.__dict__[key] for key in ("__file__", "__spec__") if key in main.__dict__}
+        saved: dict[str, Any] = {k: main.__dict__[k] for k in ("__file__", "__spec__") if k in main.__dict__}
         main.__dict__.pop("__file__", None)
         main.__dict__["__spec__"] = None
         try:
@@ -113,7 +112,7 @@ class _Hung(Exception):
 class _Worker:
     """One worker process and the parent's end of its pipe."""
 
-    def __init__(self, context: BaseContext, name: str, preload: tuple[str, ...]) -> None:
+    def __init__(self, context: Any, name: str, preload: tuple[str, ...]) -> None:
         parent, child = context.Pipe(duplex=True)
         self.process: Any = context.Process(target=worker_main, args=(child, preload), name=name, daemon=True)
         with _main_module_hidden():
@@ -255,7 +254,7 @@ class SimulationPool:
             if unsafe:
                 raise PoolConfigError(f"fault(s) {', '.join(unsafe)} would take down the calling process; "
                                       "use worker processes (in_process=False) to inject them")
-            self._context: BaseContext | None = None
+            self._context: Any = None
         else:
             method = context or default_context()
             if method == "fork":
@@ -267,7 +266,7 @@ class SimulationPool:
                 raise PoolConfigError(f"unknown multiprocessing start method {method!r}; valid: "
                                       f"{', '.join(multiprocessing.get_all_start_methods())}") from None
             if method == "forkserver":
-                self._context.set_forkserver_preload(_PRELOAD)  # type: ignore[attr-defined]
+                self._context.set_forkserver_preload(_PRELOAD)
             for _ in range(self._size):
                 self._idle.put(self._start_worker(count=False))
         self._finalizer = weakref.finalize(self, _shutdown, self._live, 0.0)
@@ -331,7 +330,7 @@ class SimulationPool:
                 self._local = None
         self._finalizer.detach()
 
-    def __enter__(self) -> SimulationPool:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -50,8 +50,10 @@ def reduce_with(
     deflake: int = 0,
     predicates: Sequence[PredicateSpec] = STUCK,
     seed: int = 0,
+    executor: concurrent.futures.Executor | None = None,
 ) -> Reduction:
-    """Reduce `world` with probes that call `simulate` (a pool's), `workers` probes in flight at once."""
+    """Reduce `world` with probes that call `simulate` (a pool's), `workers` probes in flight at once
+    (on `executor` if given: the caller shuts it down)."""
     reference = simulate(world, seed=seed, predicates=predicates)
     assert reference.failure is not None, "the test world must fail"
 
@@ -61,10 +63,12 @@ def reduce_with(
         return Observation(outcome, trace=trace_of(run) if outcome is Outcome.FAIL else None, seed=run.seed,
                            sim_time=run.sim_time)
 
-    executor = concurrent.futures.ThreadPoolExecutor(workers) if workers > 1 else None
+    own = executor is None and workers > 1
+    if own:
+        executor = concurrent.futures.ThreadPoolExecutor(workers)
     try:
         return reduce(world.names, probe, geometry=world, reference=trace_of(reference), deflake=deflake,
                       seed=seed, failure_rate_runs=0, executor=executor)
     finally:
-        if executor is not None:
+        if own and executor is not None:
             executor.shutdown(wait=True)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 
 from pytest_ddenv.execution import PoolConfigError, SimulationPool, make_pool
@@ -13,11 +15,11 @@ distributed = pytest.importorskip(
     "distributed", reason="dask.distributed is not installed (pip install 'pytest-ddenv[dask]')"
 )
 
-from pytest_ddenv.execution import DaskSimulationPool  # noqa: E402
+from pytest_ddenv.execution import DaskSimulationPool
 
 
 @pytest.fixture(scope="module")
-def dask_pool() -> DaskSimulationPool:
+def dask_pool() -> Iterator[DaskSimulationPool]:
     with DaskSimulationPool(None, n_workers=2, watchdog=120.0) as pool:
         yield pool
 

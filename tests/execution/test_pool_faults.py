@@ -3,15 +3,18 @@ watchdog; close() and Ctrl-C leave no process behind."""
 
 from __future__ import annotations
 
+import concurrent.futures
 import os
 import signal
 import threading
 import time
+from pathlib import Path
 
-import psutil
 import pytest
 
 from pytest_ddenv.execution import Fault, SimulationError, SimulationPool
+from pytest_ddenv.execution.request import FaultKind
+from pytest_ddenv.reduce import ReductionInterrupted
 from pytest_ddenv.world import World
 
 from .conftest import STUCK, reduce_with
@@ -20,13 +23,28 @@ from .conftest import STUCK, reduce_with
 def gone(pid: int) -> bool:
     """True when `pid` no longer exists (a zombie still exists: it was not reaped)."""
     try:
-        return psutil.Process(pid).status() == psutil.STATUS_DEAD
-    except psutil.NoSuchProcess:
+        os.kill(pid, 0)
+    except ProcessLookupError:
         return True
+    return False
+
+
+def children() -> set[int]:
+    """Process ids of this process's children, zombies included (Linux /proc)."""
+    found = set()
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == os.getpid():
+                found.add(int(entry.name))
+    return found
 
 
 @pytest.mark.parametrize("kind", ["crash", "kill"])
-def test_a_worker_crash_is_retried_and_the_reduction_still_finds_the_wall(kind: str, wall_world: World) -> None:
+def test_a_worker_crash_is_retried_and_the_reduction_still_finds_the_wall(kind: FaultKind, wall_world: World) -> None:
     with SimulationPool(2, fault_injection=[Fault(kind, 3), Fault(kind, 6)]) as pool:
         reduction = reduce_with(pool.simulate, wall_world)
         stats = pool.stats
@@ -81,7 +99,7 @@ def test_close_stops_busy_workers_promptly_and_reaps_them(wall_world: World) -> 
     assert time.monotonic() - started < 5
     assert not thread.is_alive() and isinstance(outcome[0], SimulationError) and "closed" in str(outcome[0])
     assert len(pids) == 2 and all(gone(pid) for pid in pids)
-    assert not [c for c in psutil.Process().children(recursive=True) if c.pid in pids]
+    assert not children() & set(pids)
 
 
 def test_ctrl_c_while_waiting_kills_only_that_worker_and_the_pool_goes_on(wall_world: World) -> None:
@@ -110,3 +128,22 @@ def test_workers_ignore_sigint_so_ctrl_c_in_a_terminal_does_not_kill_them(wall_w
         time.sleep(0.3)
         assert pool.simulate(wall_world, seed=0, predicates=STUCK).failure is not None
         assert pool.stats.crashes == 0
+
+
+def test_ctrl_c_during_a_parallel_reduction_stops_hung_workers_promptly(wall_world: World) -> None:
+    """What the plugin does on Ctrl-C: the engine raises ReductionInterrupted, then pool.close() frees the
+    probe threads (their simulations raise SimulationError), then the executor shuts down."""
+    pool = SimulationPool(2, fault_injection="hang@3,hang@4,hang@5,hang@6,hang@7")
+    executor = concurrent.futures.ThreadPoolExecutor(2)
+    timer = threading.Timer(2.0, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    with pytest.raises(ReductionInterrupted) as raised:
+        reduce_with(pool.simulate, wall_world, executor=executor)
+    timer.join()
+    pids = pool.pids
+    started = time.monotonic()
+    pool.close()
+    executor.shutdown(wait=True)
+    assert time.monotonic() - started < 5
+    assert raised.value.reduction.incomplete_reason == "interrupted"
+    assert len(pids) == 2 and all(gone(pid) for pid in pids) and not children() & set(pids)

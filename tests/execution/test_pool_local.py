@@ -5,13 +5,15 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import os
+import pickle
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from pytest_ddenv.errors import DdenvError, ScenarioError
 from pytest_ddenv.execution import SimulationError, SimulationPool
-from pytest_ddenv.oracle import make_predicate
+from pytest_ddenv.oracle import PREDICATES, make_predicate
 from pytest_ddenv.robot_world import RobotFailure, RobotWorld
 from pytest_ddenv.sim import Run, Simulator
 from pytest_ddenv.world import World
@@ -20,7 +22,7 @@ from .conftest import STUCK, reduce_with
 
 
 @pytest.fixture(scope="module")
-def pool() -> SimulationPool:
+def pool() -> Iterator[SimulationPool]:
     with SimulationPool(2, watchdog=120.0) as pool:
         yield pool
 
@@ -102,8 +104,16 @@ def test_preloaded_modules_register_custom_robots_in_the_workers(
         "from pytest_ddenv.sim import Husky, register_robot\nregister_robot('husky_twin', Husky, replace=True)\n"
     )
     monkeypatch.syspath_prepend(str(tmp_path))
+    assert wall_world.scenario is not None
     twin = dataclasses.replace(wall_world, scenario=dataclasses.replace(wall_world.scenario, robot="husky_twin"))
     with SimulationPool(2) as plain, pytest.raises(ScenarioError, match="unknown robot 'husky_twin'"):
         plain.simulate(twin, seed=0)
     with SimulationPool(2, preload=["ddenv_twin_robot"]) as pool:
         assert pool.simulate(twin, seed=0, predicates=STUCK).failure is not None
+
+
+@pytest.mark.parametrize("name", sorted(PREDICATES))
+def test_every_built_in_predicate_crosses_the_process_boundary(name: str) -> None:
+    """RobotWorld hands built predicate objects to `simulate`: they must pickle (specs always do)."""
+    predicate = make_predicate(name)
+    assert type(pickle.loads(pickle.dumps(predicate))) is type(predicate)

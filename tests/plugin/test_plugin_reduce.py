@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shlex
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -45,8 +46,9 @@ def test_failing_robot_test_is_reduced_to_the_wall(wall_project: pytest.Pytester
 
 def test_replaying_the_minimal_world_fails_the_same_way(wall_project: pytest.Pytester) -> None:
     wall_project.runpytest_subprocess("--ddenv-reduce").assert_outcomes(failed=1)
-    minimal = Path(summary_of(wall_project)["files"]["minimal_yaml"])
-    result = wall_project.runpytest_subprocess("--ddenv-world", str(minimal))
+    command = shlex.split(summary_of(wall_project)["replay"])  # exactly what summary.json tells the user
+    assert command[0] == "pytest" and "--ddenv-world" in command
+    result = wall_project.runpytest_subprocess(*command[1:])
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(["*RobotFailure*stuck*"])
 
@@ -165,3 +167,15 @@ SCENARIO_TEST_SDF = (
     "def test_reaches_goal(robot_world):\n"
     "    assert robot_world.run().reached_goal\n"
 )
+
+
+def test_ddenv_replay_reproduces_a_plugin_made_reduction(wall_project: pytest.Pytester) -> None:
+    from pytest_ddenv.cli import main
+
+    wall_project.runpytest_subprocess("--ddenv-reduce").assert_outcomes(failed=1)
+    summary = summary_of(wall_project)
+    assert summary["predicates"] == [{"name": "stuck", "params": {"window": 2.0, "min_progress": 0.2}}]
+    assert summary["tolerance"] == 0.5 and summary["scenario_seed"] == 0
+    folder = Path(summary["files"]["summary"]).parent
+    assert (folder / "reduction.png").stat().st_size > 0 and (folder / "progress.png").stat().st_size > 0
+    assert main(["replay", str(folder)]) == 0  # 0: the minimal world still fails the same way

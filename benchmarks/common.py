@@ -1,0 +1,393 @@
+"""Shared building blocks of the reduction benchmarks (paper_tables.py, scale.py).
+
+Everything here drives the reduction exactly as the plugin does (pytest_ddenv/reduction_session.py): the
+test's body is `RobotWorld(candidate, predicates, seed, attempt).run()`, the probe is
+`pytest_ddenv.probe.make_probe` (same failure = same predicate, failure position within `tolerance` of the
+reference `FailureSignature`), the reference trace is the original failing run's, the only precondition is
+`keeps_start_support(world)`, and `keep: true` models are kept. Simulations go through a
+`pytest_ddenv.execution` pool (`make_pool(workers)`); with more than one worker the engine gets a
+ThreadPoolExecutor of as many threads, as the plugin does.
+
+The picire adapter (`picire_reduce`) hands picire the *same* probe function: picire's config is a list of
+indices into the world's reducible models; a config is FAIL iff our deflake rule (`deflake=N`: the first run,
+then up to N re-runs, each with a fresh noise seed, FAIL as soon as one run gives our Outcome.FAIL) says
+the candidate reproduces f; a candidate the precondition refuses is PASS without a simulation, as in our
+engine. Attempt k of a candidate uses the noise seed `seed + k * 1_000_003`, in both tools.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import contextlib
+import json
+import os
+import platform
+import subprocess
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pytest_ddenv.execution import Pool, make_pool
+from pytest_ddenv.markers import PredicateSpec
+from pytest_ddenv.probe import FailureReference, keeps_start_support, make_probe, reference_from, trace_of
+from pytest_ddenv.reduce import Observation, Outcome, Reduction, reduce
+from pytest_ddenv.robot_world import RobotWorld
+from pytest_ddenv.world import World
+
+ROOT = Path(__file__).resolve().parent.parent
+TOLERANCE = 0.5
+"""The plugin's default `tolerance` (ReductionSpec): same failure = failure position within 0.5 m."""
+
+STUCK = PredicateSpec("stuck", {"window": 5.0, "min_progress": 0.2})
+HIGH_CENTERED = PredicateSpec("high_centered", {})
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    world: Path
+    predicates: tuple[PredicateSpec, ...]
+
+
+SCENARIOS: dict[str, Scenario] = {
+    # the predicates of examples/test_paper_scenarios.py
+    "ditch": Scenario("ditch", ROOT / "worlds" / "ditch.yaml", (STUCK,)),
+    "rubble": Scenario("rubble", ROOT / "worlds" / "rubble.yaml", (HIGH_CENTERED, STUCK)),
+    "friction": Scenario("friction", ROOT / "worlds" / "friction.yaml", (STUCK,)),
+}
+
+
+# -- the problem: a world, its test, its original failure ------------------------------------------------
+
+
+@dataclass
+class Problem:
+    """A failing world and everything a reduction of it needs (built once per world and seed)."""
+
+    world: World
+    predicates: tuple[PredicateSpec, ...]
+    seed: int
+    pool: Pool
+    reference: FailureReference
+    reference_trace: Any
+    failure: str
+    """The original failure, e.g. 'stuck at t=9.5 s'."""
+    keep: tuple[str, ...]
+    reducible: tuple[str, ...]
+    counter: SimCounter = field(default_factory=lambda: SimCounter())
+
+    def run_test(self, candidate: World, attempt: int) -> tuple[BaseException | None, Any]:
+        """The scenario test's body (`robot_world.run()`), as a reduction probe calls it."""
+        robot_world = RobotWorld(candidate, predicates=self.predicates, seed=self.seed, attempt=attempt,
+                                 simulate=self.simulate)
+        try:
+            robot_world.run()
+        except Exception as error:  # noqa: BLE001 - every exception is an outcome to classify
+            return error, robot_world.runs[-1] if robot_world.runs else None
+        return None, robot_world.runs[-1]
+
+    def simulate(self, world: World, **kwargs: Any) -> Any:
+        self.counter.add()
+        return self.pool.simulate(world, **kwargs)
+
+    def probe(self) -> Callable[[tuple[str, ...], int], Observation]:
+        return make_probe(self.world, self.run_test, self.reference, tolerance=TOLERANCE)
+
+    def preconditions(self) -> tuple[Callable[[tuple[str, ...]], str | None], ...]:
+        return (keeps_start_support(self.world),)
+
+
+class SimCounter:
+    """Thread-safe count of simulations started (independent of the engine's own counters)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.count = 0
+
+    def add(self) -> None:
+        with self._lock:
+            self.count += 1
+
+    def reset(self) -> int:
+        with self._lock:
+            value, self.count = self.count, 0
+        return value
+
+
+class NotFailing(RuntimeError):
+    pass
+
+
+def make_problem(world: World, predicates: Sequence[PredicateSpec], seed: int, pool: Pool) -> Problem:
+    """Run the original world once with noise seed `seed` (the failing run a user would have seen)."""
+    keep = tuple(m.name for m in world.models if m.keep)
+    problem = Problem(world=world, predicates=tuple(predicates), seed=seed, pool=pool,
+                      reference=FailureReference("", ""), reference_trace=None, failure="", keep=keep,
+                      reducible=tuple(n for n in world.names if n not in keep))
+    error, run = problem.run_test(world, 0)
+    problem.counter.reset()
+    if error is None or run is None or run.failure is None:
+        raise NotFailing(f"{world.name}: seed {seed}: the original world does not fail "
+                         f"({'passed' if error is None else type(error).__name__})")
+    problem.reference = reference_from(error, None)
+    problem.reference_trace = trace_of(run)
+    problem.failure = problem.reference.describe()
+    return problem
+
+
+@contextlib.contextmanager
+def pool_of(workers: int) -> Iterator[Pool]:
+    """A pool of `workers` simulation processes (1: in this process), warmed up before any timing."""
+    pool = make_pool(workers)
+    try:
+        yield pool
+    finally:
+        pool.close()
+
+
+def warm(pool: Pool, world: World) -> None:
+    """Start every worker (imports, pybullet connect) so that no reduction pays for it."""
+    with concurrent.futures.ThreadPoolExecutor(pool.size) as threads:
+        list(threads.map(lambda seed: pool.simulate(world, seed=seed, timeout=0.1), range(pool.size)))
+
+
+# -- our engine -----------------------------------------------------------------------------------------
+
+
+@dataclass
+class Row:
+    """One reduction's measurements (one JSON object in --out)."""
+
+    tool: str
+    world: str
+    seed: int
+    partition: str
+    priority: str
+    deflake: str
+    original_size: int
+    final_size: int
+    minimal: list[str]
+    simulations: int
+    cache_hits: int
+    one_minimal: bool
+    failure_rate: tuple[int, int]
+    wall_time: float
+    workers: int
+    failure: str
+    note: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def reduction_percent(self) -> float:
+        return 100.0 * (self.original_size - self.final_size) / max(1, self.original_size)
+
+    def to_dict(self) -> dict[str, Any]:
+        data = asdict(self)
+        data["reduction_percent"] = round(self.reduction_percent, 1)
+        return data
+
+
+def ddenv_reduce(problem: Problem, *, partition: str, priority: str, deflake: int | str, workers: int,
+                 max_seconds: float | None = None, failure_rate_runs: int = 10,
+                 world_label: str | None = None) -> Row:
+    """Reduce with our engine (the plugin's call of `reduce`), then measure the minimal world's failure rate."""
+    probe = problem.probe()
+    executor = concurrent.futures.ThreadPoolExecutor(workers) if workers > 1 else None
+    problem.counter.reset()
+    started = time.perf_counter()
+    try:
+        reduction: Reduction = reduce(
+            problem.world.names, probe, geometry=problem.world, reference=problem.reference_trace,
+            partition=partition, priority=priority, deflake=deflake, keep=problem.keep,
+            preconditions=problem.preconditions(), seed=problem.seed, executor=executor,
+            max_seconds=max_seconds, failure_rate_runs=0,
+        )
+    finally:
+        if executor is not None:
+            executor.shutdown(wait=True, cancel_futures=True)
+    wall = time.perf_counter() - started
+    started_sims = problem.counter.reset()
+    rate = failure_rate(problem, reduction.minimal, failure_rate_runs, workers)
+    return Row(
+        tool="ddenv", world=world_label or problem.world.name, seed=problem.seed, partition=partition,
+        priority=priority, deflake=str(deflake), original_size=len(problem.reducible),
+        final_size=len([n for n in reduction.minimal if n not in problem.keep]), minimal=list(reduction.minimal),
+        simulations=reduction.probes, cache_hits=reduction.cache_hits, one_minimal=reduction.one_minimal,
+        failure_rate=rate, wall_time=wall, workers=workers, failure=problem.failure,
+        note=reduction.incomplete_reason or "",
+        extra={"simulations_started": started_sims, "skipped": reduction.skipped, "errors": reduction.errors,
+               "steps": [list(s) for s in reduction.steps]},
+    )
+
+
+def failure_rate(problem: Problem, candidate: Sequence[str], runs: int, workers: int) -> tuple[int, int]:
+    """(fails, runs) of `candidate` over fresh noise seeds (attempts 100.., never used by a reduction)."""
+    if runs <= 0:
+        return (0, 0)
+    probe = problem.probe()
+    candidate = tuple(candidate)
+    with concurrent.futures.ThreadPoolExecutor(max(1, workers)) as threads:
+        outcomes = list(threads.map(lambda k: probe(candidate, 100 + k).outcome, range(runs)))
+    problem.counter.reset()
+    return sum(o is Outcome.FAIL for o in outcomes), runs
+
+
+# -- picire ---------------------------------------------------------------------------------------------
+
+
+PICIRE_CONFIGS: dict[str, dict[str, Any]] = {
+    # picire's DD() with no arguments: ZellerSplit(n=2), ConfigCache, subset-first, forward/forward
+    "default": {},
+    # picire README's recommended invocation: no subset tests, complements backward
+    "skip-subsets+backward": {"subset_iterator": "skip", "complement_iterator": "backward"},
+    "complement-first": {"subset_first": False},
+    "balanced-split": {"split": "balanced"},
+}
+
+
+def picire_dd(test: Callable[[list[int], tuple[str, ...]], Any], config: dict[str, Any]) -> Any:
+    import picire
+    from picire import config_iterators, config_splitters
+
+    kwargs: dict[str, Any] = {}
+    for key, value in config.items():
+        if key in ("subset_iterator", "complement_iterator"):
+            kwargs[key] = getattr(config_iterators, value)
+        elif key == "split":
+            kwargs[key] = config_splitters.BalancedSplit() if value == "balanced" else config_splitters.ZellerSplit()
+        else:
+            kwargs[key] = value
+    return picire.DD(test, **kwargs)
+
+
+def picire_reduce(problem: Problem, *, config_name: str, deflake: int, failure_rate_runs: int = 10,
+                  world_label: str | None = None, max_simulations: int | None = None) -> Row:
+    """picire's sequential DD driven by our probe (see the module docstring for the outcome mapping)."""
+    import picire
+
+    probe = problem.probe()
+    precondition = problem.preconditions()
+    keep = set(problem.keep)
+    names = problem.world.names
+    reducible = problem.reducible
+    counts = {"simulations": 0, "tests": 0, "retests": 0, "skipped": 0}
+
+    def candidate_of(config: Sequence[int]) -> tuple[str, ...]:
+        chosen = {reducible[i] for i in config} | keep
+        return tuple(n for n in names if n in chosen)
+
+    def test(config: list[int], config_id: tuple[str, ...]) -> Any:
+        counts["tests"] += 1
+        if "assert" in config_id:
+            counts["retests"] += 1
+        candidate = candidate_of(config)
+        if any(check(candidate) for check in precondition):
+            counts["skipped"] += 1
+            return picire.Outcome.PASS
+        for attempt in range(deflake + 1):
+            if max_simulations is not None and counts["simulations"] >= max_simulations:
+                raise _Budget()
+            counts["simulations"] += 1
+            if probe(candidate, attempt).outcome is Outcome.FAIL:
+                return picire.Outcome.FAIL
+        return picire.Outcome.PASS
+
+    dd = picire_dd(test, PICIRE_CONFIGS[config_name])
+    problem.counter.reset()
+    started = time.perf_counter()
+    note = ""
+    try:
+        result = dd(list(range(len(reducible))))
+    except _Budget:
+        result, note = list(range(len(reducible))), f"stopped at {max_simulations} simulations"
+    except AssertionError:
+        # picire re-tests the current config at the start of every iteration (`assert ... is FAIL`);
+        # with a flaky failure that re-test can pass and picire aborts
+        result, note = None, "picire aborted: its per-iteration re-test of the current config passed"
+    wall = time.perf_counter() - started
+    problem.counter.reset()
+    minimal = candidate_of(result) if result is not None else tuple(names)
+    one_minimal = result is not None and not note
+    rate = failure_rate(problem, minimal, failure_rate_runs, 1) if result is not None else (0, 0)
+    return Row(
+        tool=f"picire {picire_version()} {config_name}", world=world_label or problem.world.name, seed=problem.seed,
+        partition="picire", priority=config_name, deflake=str(deflake), original_size=len(reducible),
+        final_size=len(result) if result is not None else len(reducible), minimal=list(minimal),
+        simulations=counts["simulations"], cache_hits=0, one_minimal=one_minimal, failure_rate=rate,
+        wall_time=wall, workers=1, failure=problem.failure, note=note,
+        extra={"tests": counts["tests"], "retests": counts["retests"], "skipped": counts["skipped"]},
+    )
+
+
+class _Budget(Exception):
+    pass
+
+
+def picire_version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("picire")
+    except Exception:  # noqa: BLE001
+        return "?"
+
+
+# -- environment ----------------------------------------------------------------------------------------
+
+
+def machine() -> dict[str, Any]:
+    """Cores, CPU model, load and versions, for the record."""
+    model = "?"
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    versions = {}
+    for package in ("pytest-ddenv", "pybullet", "scikit-learn", "numpy", "picire"):
+        try:
+            from importlib.metadata import version
+
+            versions[package] = version(package)
+        except Exception:  # noqa: BLE001
+            versions[package] = "not installed"
+    commit = "?"
+    with contextlib.suppress(Exception):
+        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, check=False).stdout.strip() or "?"
+    return {
+        "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+        "cores": os.cpu_count(),
+        "cpu": model,
+        "load_average": load(),
+        "python": platform.python_version(),
+        "versions": versions,
+        "git": commit,
+    }
+
+
+def load() -> str:
+    try:
+        return " ".join(f"{v:.2f}" for v in os.getloadavg())
+    except OSError:
+        return "?"
+
+
+def write_json(path: str | os.PathLike[str] | None, payload: dict[str, Any]) -> None:
+    if not path:
+        return
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    Path(path).write_text(json.dumps(payload, indent=1, default=str) + "\n")
+
+
+def table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """A plain-text (and markdown-compatible) table."""
+    cells = [[str(h) for h in headers]] + [[str(c) for c in row] for row in rows]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(headers))]
+    lines = ["| " + " | ".join(c.ljust(w) for c, w in zip(cells[0], widths)) + " |",
+             "|" + "|".join("-" * (w + 2) for w in widths) + "|"]
+    lines += ["| " + " | ".join(c.ljust(w) for c, w in zip(row, widths)) + " |" for row in cells[1:]]
+    return "\n".join(lines)
