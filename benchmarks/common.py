@@ -248,11 +248,21 @@ PICIRE_CONFIGS: dict[str, dict[str, Any]] = {
 }
 
 
-def picire_dd(test: Callable[[list[int], tuple[str, ...]], Any], config: dict[str, Any]) -> Any:
+def picire_dd(test: Callable[[list[int], tuple[str, ...]], Any], config: dict[str, Any],
+              hits: list[int] | None = None) -> Any:
+    """picire's DD with `config`; its (default) ConfigCache counts hits into `hits[0]`."""
     import picire
     from picire import config_iterators, config_splitters
+    from picire.outcome_cache import ConfigCache
 
-    kwargs: dict[str, Any] = {}
+    class CountingCache(ConfigCache):
+        def lookup(self, config: Any) -> Any:
+            outcome = super().lookup(config)
+            if outcome is not None and hits is not None:
+                hits[0] += 1
+            return outcome
+
+    kwargs: dict[str, Any] = {"cache": CountingCache()}
     for key, value in config.items():
         if key in ("subset_iterator", "complement_iterator"):
             kwargs[key] = getattr(config_iterators, value)
@@ -295,7 +305,8 @@ def picire_reduce(problem: Problem, *, config_name: str, deflake: int, failure_r
                 return picire.Outcome.FAIL
         return picire.Outcome.PASS
 
-    dd = picire_dd(test, PICIRE_CONFIGS[config_name])
+    hits = [0]
+    dd = picire_dd(test, PICIRE_CONFIGS[config_name], hits)
     problem.counter.reset()
     started = time.perf_counter()
     note = ""
@@ -316,7 +327,7 @@ def picire_reduce(problem: Problem, *, config_name: str, deflake: int, failure_r
         tool=f"picire {picire_version()} {config_name}", world=world_label or problem.world.name, seed=problem.seed,
         partition="picire", priority=config_name, deflake=str(deflake), original_size=len(reducible),
         final_size=len(result) if result is not None else len(reducible), minimal=list(minimal),
-        simulations=counts["simulations"], cache_hits=0, one_minimal=one_minimal, failure_rate=rate,
+        simulations=counts["simulations"], cache_hits=hits[0], one_minimal=one_minimal, failure_rate=rate,
         wall_time=wall, workers=1, failure=problem.failure, note=note,
         extra={"tests": counts["tests"], "retests": counts["retests"], "skipped": counts["skipped"]},
     )

@@ -27,6 +27,7 @@ REPORT_KEY = "ddenv"
 SECTION = "ddenv reduction"
 _spec_key = pytest.StashKey[tuple[ReductionSpec, tuple[PredicateSpec, ...]]]()
 _result_key = pytest.StashKey[dict[str, Any]]()
+_pool_key = pytest.StashKey[Any]()
 _STATELESS_FIXTURES = {"request", "pytestconfig", "record_property", "record_xml_attribute", "tmp_path_factory"}
 
 
@@ -45,7 +46,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         ("max-probes", "stop a reduction after this many simulations (best world so far is kept)", {"metavar": "N"}),
         ("max-time", "stop a reduction after this many wall-clock seconds", {"metavar": "SECONDS"}),
         ("seed", "base seed of every robot run (default: the marker's seed, else 0)", {"metavar": "N"}),
-        ("workers", "simulation worker processes: a number, or 'auto' for one per core", {"metavar": "N"}),
+        ("workers", "simulation worker processes: a number, 'auto' for one per core (the default), or 1 to "
+         "simulate in the pytest process", {"metavar": "N"}),
+        ("executor", "where probes simulate: 'local' worker processes (default), 'dask' (a local dask cluster) "
+         "or tcp://HOST:PORT of a dask scheduler", {"metavar": "ADDRESS"}),
         ("world", "run every robot test against this world file instead of its own (e.g. a minimal.yaml)",
          {"metavar": "PATH"}),
         ("model-path", "extra folders (separated by ':') searched for SDF <include>s of model://NAME",
@@ -112,6 +116,12 @@ def _validate_options(config: pytest.Config) -> None:
     workers = _setting(config, "ddenv_workers")
     if workers not in (None, "", "auto"):
         _int_setting(config, "ddenv_workers", 1)
+    executor = _setting(config, "ddenv_executor")
+    if executor not in (None, "", "local", "dask") and not str(executor).startswith(("tcp://", "tls://")):
+        raise pytest.UsageError(
+            f"--ddenv-executor: expected 'local', 'dask' or a dask scheduler address such as "
+            f"tcp://scheduler:8786, got {executor!r}"
+        )
     world = _setting(config, "ddenv_world")
     if world not in (None, "") and not Path(world).is_file():
         raise pytest.UsageError(f"--ddenv-world: no such file: {world}")
@@ -207,6 +217,30 @@ def _should_reduce(item: pytest.Function, error: BaseException) -> bool:
     return isinstance(item.funcargs.get(FIXTURE), RobotWorld)
 
 
+def _simulation_pool(config: pytest.Config) -> Any:
+    """The session's worker pool, started on the first reduction and closed at the end of the session."""
+    pool = config.stash.get(_pool_key, None)
+    if pool is None:
+        from pytest_ddenv.execution import PoolConfigError, make_pool
+
+        default = "1" if hasattr(config, "workerinput") else "auto"  # xdist already uses every core
+        workers = _setting(config, "ddenv_workers") or default
+        try:
+            pool = make_pool(int(workers) if str(workers).isdigit() else workers,
+                             _setting(config, "ddenv_executor") or None)
+        except PoolConfigError as error:
+            raise pytest.UsageError(str(error)) from None
+        config.stash[_pool_key] = pool
+    return pool
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    pool = config.stash.get(_pool_key, None)
+    if pool is not None:
+        pool.close()
+        del config.stash[_pool_key]
+
+
 def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
     from pytest_ddenv.reduction_session import ReductionSession
 
@@ -221,6 +255,7 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
         max_probes=_int_setting(item.config, "ddenv_max_probes", 1),
         max_seconds=float(_setting(item.config, "ddenv_max_time")) if _setting(item.config, "ddenv_max_time") else None,
         progress=_ProgressLine(item.config),
+        pool=_simulation_pool(item.config),
     )
     try:
         result = session.run()

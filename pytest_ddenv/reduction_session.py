@@ -7,8 +7,13 @@ passed unchanged.
 
 from __future__ import annotations
 
+import contextlib
 import inspect
+import signal
+import threading
 import warnings
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +29,7 @@ from pytest_ddenv.reduce.types import ProgressEvent, ReductionInterrupted
 from pytest_ddenv.robot_world import RobotWorld
 
 if TYPE_CHECKING:
+    from pytest_ddenv.execution import Pool
     from pytest_ddenv.sim import Run
     from pytest_ddenv.world import World
 
@@ -41,6 +47,7 @@ class ReductionSession:
     max_probes: int | None
     max_seconds: float | None
     progress: Progress
+    pool: Pool | None = None
 
     def run(self) -> dict[str, Any]:
         robot_world: RobotWorld = self.item.funcargs[FIXTURE]  # type: ignore[assignment]
@@ -72,27 +79,35 @@ class ReductionSession:
             raise pytest.UsageError(f"{self.item.nodeid}: ddenv(keep=...) names unknown model(s): {sorted(unknown)}")
         last_run: Run | None = robot_world.runs[-1] if robot_world.runs else None
         interrupted: ReductionInterrupted | None = None
+        threads = _probe_threads(self.pool)
         try:
-            reduction = reduce(
-                world.names,
-                probe,
-                geometry=world,
-                reference=trace_of(last_run) if last_run is not None else None,
-                partition=self.spec.partition,
-                priority=self.spec.priority,
-                n_partitions=self.spec.n_partitions,
-                granularity=self.spec.granularity,
-                deflake=deflake,
-                keep=tuple(sorted(keep)),
-                preconditions=(keeps_start_support(world),),
-                max_probes=self.max_probes or self.spec.max_probes,
-                max_seconds=self.max_seconds or self.spec.max_seconds,
-                seed=self.spec.seed,
-                log=paths.log,
-                on_progress=self._on_progress,
-            )
+            with _sigterm_as_interrupt():
+                reduction = reduce(
+                    world.names,
+                    probe,
+                    geometry=world,
+                    reference=trace_of(last_run) if last_run is not None else None,
+                    partition=self.spec.partition,
+                    priority=self.spec.priority,
+                    n_partitions=self.spec.n_partitions,
+                    granularity=self.spec.granularity,
+                    deflake=deflake,
+                    keep=tuple(sorted(keep)),
+                    preconditions=(keeps_start_support(world),),
+                    max_probes=self.max_probes or self.spec.max_probes,
+                    max_seconds=self.max_seconds or self.spec.max_seconds,
+                    seed=self.spec.seed,
+                    log=paths.log,
+                    on_progress=self._on_progress,
+                    executor=threads,
+                )
         except ReductionInterrupted as stop:
             interrupted, reduction = stop, stop.reduction
+            if self.pool is not None:
+                self.pool.close()  # first: probe threads blocked on simulations return at once
+        finally:
+            if threads is not None:
+                threads.shutdown(wait=interrupted is None, cancel_futures=True)
         summary = artifacts.write_reduction(
             paths, world, reduction,
             test_id=self.item.nodeid,
@@ -104,6 +119,7 @@ class ReductionSession:
                 "predicates": [{"name": p.name, "params": dict(p.params)} for p in robot_world.predicates],
                 "tolerance": self.spec.tolerance,
                 "scenario_seed": robot_world.seed,
+                "workers": None if self.pool is None else self.pool.stats.to_dict(),
             },
         )
         attachments = [paths.minimal_yaml, paths.log, paths.summary]
@@ -121,7 +137,9 @@ class ReductionSession:
                      if name in self.item.funcargs}
 
         def run_test(candidate: World, attempt: int) -> tuple[BaseException | None, Run | None]:
-            rebound = robot_world.rebound(candidate, attempt=attempt)
+            rebound = robot_world.rebound(
+                candidate, attempt=attempt, simulate=None if self.pool is None else self.pool.simulate
+            )
             try:
                 self.item.obj(**{**arguments, FIXTURE: rebound})
             except Exception as error:  # noqa: BLE001 - every exception is an outcome to classify
@@ -173,6 +191,30 @@ class ReductionSession:
             f"fails {fails}/{runs}{'' if reduction.one_minimal else ', ' + status} -> {folder}"
         )
         return {"text": text, "line": line, "attachments": attachments, "summary": summary, "reproducible": True}
+
+
+def _probe_threads(pool: Pool | None) -> ThreadPoolExecutor | None:
+    """Threads that run probes (the test function) while their simulations run in the pool's workers."""
+    if pool is None or pool.size < 2:
+        return None
+    return ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-probe")
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM (a CI job being cancelled) ends the reduction like Ctrl-C: best world kept, log complete."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _listing(names: list[str], limit: int = 12) -> str:

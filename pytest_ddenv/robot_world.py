@@ -55,9 +55,14 @@ class RobotWorld:
     def __repr__(self) -> str:
         return f"RobotWorld({self.world.name or self.world.source!r}, {len(self.world)} models, seed={self.seed})"
 
-    def rebound(self, world: World, *, attempt: int) -> RobotWorld:
-        """The same test setup on another world and attempt (what a reduction probe runs)."""
-        return RobotWorld(world, predicates=self.predicates, seed=self.seed, attempt=attempt, simulate=self._simulate)
+    def rebound(self, world: World, *, attempt: int, simulate: SimulateFn | None = None) -> RobotWorld:
+        """The same test setup on another world and attempt (what a reduction probe runs).
+
+        `simulate` replaces where the simulation runs (e.g. a worker pool's `simulate`).
+        """
+        return RobotWorld(
+            world, predicates=self.predicates, seed=self.seed, attempt=attempt, simulate=simulate or self._simulate
+        )
 
     def run(
         self,

@@ -192,7 +192,10 @@ class _Worker:
         if process.is_alive():
             process.kill()
             process.join(5.0)
-        self.conn.close()
+        try:
+            self.conn.close()
+        except OSError:  # closed already: close() and a waiting thread may both dispose of a dead worker
+            pass
 
 
 def _shutdown(live: set[_Worker], grace: float) -> None:
