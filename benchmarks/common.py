@@ -32,7 +32,13 @@ from typing import Any
 
 from pytest_ddenv.execution import Pool, make_pool
 from pytest_ddenv.markers import PredicateSpec
-from pytest_ddenv.probe import FailureReference, keeps_start_support, make_probe, reference_from, trace_of
+from pytest_ddenv.probe import (
+    FailureReference,
+    keeps_start_support,
+    make_probe,
+    reference_from,
+    trace_of,
+)
 from pytest_ddenv.reduce import Observation, Outcome, Reduction, reduce
 from pytest_ddenv.robot_world import RobotWorld
 from pytest_ddenv.world import World
@@ -251,9 +257,9 @@ PICIRE_CONFIGS: dict[str, dict[str, Any]] = {
 def picire_dd(test: Callable[[list[int], tuple[str, ...]], Any], config: dict[str, Any],
               hits: list[int] | None = None) -> Any:
     """picire's DD with `config`; its (default) ConfigCache counts hits into `hits[0]`."""
-    import picire
-    from picire import config_iterators, config_splitters
-    from picire.outcome_cache import ConfigCache
+    import picire  # type: ignore[import-untyped]
+    from picire import config_iterators, config_splitters  # type: ignore[import-untyped]
+    from picire.outcome_cache import ConfigCache  # type: ignore[import-untyped]
 
     class CountingCache(ConfigCache):
         def lookup(self, config: Any) -> Any:
@@ -276,7 +282,7 @@ def picire_dd(test: Callable[[list[int], tuple[str, ...]], Any], config: dict[st
 def picire_reduce(problem: Problem, *, config_name: str, deflake: int, failure_rate_runs: int = 10,
                   world_label: str | None = None, max_simulations: int | None = None) -> Row:
     """picire's sequential DD driven by our probe (see the module docstring for the outcome mapping)."""
-    import picire
+    import picire  # type: ignore[import-untyped]
 
     probe = problem.probe()
     precondition = problem.preconditions()

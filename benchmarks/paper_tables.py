@@ -29,7 +29,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import (  # noqa: E402
+from common import (
     PICIRE_CONFIGS,
     SCENARIOS,
     NotFailing,
@@ -45,7 +45,7 @@ from common import (  # noqa: E402
     write_json,
 )
 
-from pytest_ddenv.world import World  # noqa: E402
+from pytest_ddenv.world import World
 
 PAIRINGS: list[tuple[str, str, str]] = [
     # (label, partition, priority)
@@ -81,8 +81,8 @@ def paper_cell(scenario: str, pairing: str) -> str:
         tests, percent, minutes = PAPER_BEST[scenario]
         return f"{tests} tests, {percent}%, {minutes} min (paper best)"
     if (scenario, pairing) in ARTIFACT_LOGS:
-        tests, percent, minutes, _ = ARTIFACT_LOGS[(scenario, pairing)]
-        return f"{tests} tests, {percent}%, {minutes} min (log)"
+        logged = ARTIFACT_LOGS[(scenario, pairing)]
+        return f"{logged[0]} tests, {logged[1]}%, {logged[2]} min (log)"
     return "n/a"
 
 
@@ -207,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
     print("\nTargets\n")
     lines = []
     for name in args.scenarios:
-        tests, percent, minutes = PAPER_BEST[name]
+        tests, percent, _minutes = PAPER_BEST[name]
         default = theirs.get((name, "default"), [])
         for label, _, _ in pairings:
             rows = ours.get((name, label), [])
@@ -227,7 +227,7 @@ def main(argv: list[str] | None = None) -> int:
                 ratio + ("" if not default else (" yes" if sims <= 0.6 * statistics.mean(
                     r.simulations for r in default) else " NO")),
             ])
-    print(table(["scenario", "pairing", f">= paper's reduction", "1-minimal", "sims < paper's best (every seed)",
+    print(table(["scenario", "pairing", ">= paper's reduction", "1-minimal", "sims < paper's best (every seed)",
                  "< 5 min (every seed)", "sims vs picire default (<= 0.6x)"], lines))
     print(f"\ntotal {total / 60:.1f} min; load average at the end {load()}")
     write_json(args.out, results)

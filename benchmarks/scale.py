@@ -23,7 +23,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import (  # noqa: E402
+from common import (
     ROOT,
     Row,
     ddenv_reduce,
@@ -35,7 +35,7 @@ from common import (  # noqa: E402
     warm,
     write_json,
 )
-from make_yard import CULPRITS, PREDICATES, make_yard  # noqa: E402
+from make_yard import CULPRITS, PREDICATES, make_yard
 
 PAIRINGS = {
     "learner": ("learner", "avg-trajectory-proximal"),

@@ -1,0 +1,70 @@
+"""Ctrl-C or SIGTERM in the middle of a reduction: nothing is lost, and the next run resumes."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from pytest_ddenv import World
+
+from .conftest import SCENARIO_TEST
+
+SLOW_SCENARIO_TEST = SCENARIO_TEST.replace('partition="model2model", priority="avg-trajectory"',
+                                           'partition="even", priority="sequential"')
+
+YARD_BOXES = "\n".join(
+    f"  - {{name: box_{i:02d}, pose: [{-6 + (i % 10) * 1.5}, {5 + (i // 10) * 1.5}, 0.25], box: [0.5, 0.5, 0.5]}}"
+    for i in range(30)
+)
+YARD_WORLD = (
+    "format: 1\nname: yard\nscenario:\n  start: {x: 0.0, y: 0.0, yaw: 0.0}\n  goal: {x: 4.0, y: 0.0}\n"
+    "  timeout: 20\nmodels:\n" + YARD_BOXES + "\n  - {name: wall, pose: [2.0, 0, 0.5], box: [0.3, 4.0, 1.0]}\n"
+)
+
+
+def probe_records(log: Path) -> list[dict]:
+    return [json.loads(line) for line in log.read_text().splitlines() if '"event": "probe"' in line]
+
+
+@pytest.mark.parametrize("signal_number", [signal.SIGTERM, signal.SIGINT])
+def test_interrupted_reduction_keeps_everything_and_the_rerun_resumes(
+    pytester: pytest.Pytester, signal_number: int
+) -> None:
+    pytester.makefile(".yaml", wall=YARD_WORLD)
+    pytester.makepyfile(test_scenario=SLOW_SCENARIO_TEST)
+    command = [sys.executable, "-m", "pytest", "--ddenv-reduce", "--ddenv-workers", "1", "-p", "no:cacheprovider"]
+    process = subprocess.Popen(command, cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline = time.monotonic() + 120
+    logs: list[Path] = []
+    while time.monotonic() < deadline and process.poll() is None:
+        logs = list(Path(pytester.path, "ddenv-artifacts").glob("*/runs.jsonl"))
+        if logs and len(probe_records(logs[0])) >= 3:
+            break
+        time.sleep(0.05)
+    assert process.poll() is None, "the reduction ended before it could be interrupted"
+    process.send_signal(signal_number)
+    output, _ = process.communicate(timeout=60)
+    assert process.returncode == pytest.ExitCode.INTERRUPTED, output
+    assert "ReductionInterrupted: reduction interrupted after" in output  # pytest's own interrupt report
+
+    folder = logs[0].parent
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["complete"] is False and summary["incomplete_reason"] == "interrupted"
+    assert World.load(folder / "minimal.yaml").names == tuple(summary["minimal_models"])
+    assert "wall" in summary["minimal_models"]
+    first_run = probe_records(logs[0])
+    decided = {(frozenset(r["candidate"]), r["attempt"]) for r in first_run}
+
+    resumed = subprocess.run(command, cwd=pytester.path, capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == pytest.ExitCode.TESTS_FAILED, resumed.stdout
+    final = json.loads((folder / "summary.json").read_text())
+    assert final["complete"] is True and final["minimal_models"] == ["wall"]
+    new_probes = probe_records(logs[0])[len(first_run):]
+    assert not {(frozenset(r["candidate"]), r["attempt"]) for r in new_probes} & decided
+    assert final["cache_hits"] >= 1
