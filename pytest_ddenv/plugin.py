@@ -7,6 +7,7 @@ candidate world: no private re-run machinery of pytest is used.
 
 from __future__ import annotations
 
+import base64
 import inspect
 import os
 import shlex
@@ -341,8 +342,9 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     if html is not None and hasattr(html, "extras"):
         extras = list(getattr(report, "extras", []))
         for path in attachments:
-            if path.endswith(".png"):
-                extras.append(html.extras.image(path))
+            if path.endswith(".png"):  # embedded, so the picture survives --self-contained-html and moves
+                content = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+                extras.append(html.extras.png(content, name=Path(path).name))
             else:
                 extras.append(html.extras.url(path, name=Path(path).name))
         report.extras = extras

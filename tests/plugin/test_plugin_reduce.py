@@ -198,3 +198,37 @@ def test_parallel_workers_accept_exactly_what_serial_accepts(wall_project: pytes
     assert parallel["minimal_models"] == serial["minimal_models"] == ["wall"]
     assert [size for _, size in parallel["steps"]] == [size for _, size in serial["steps"]]
     assert decisions(parallel) == decisions(serial)
+
+
+def test_other_function_scoped_fixtures_are_reported_as_shared_between_probes(wall_project: pytest.Pytester) -> None:
+    wall_project.makepyfile(test_scenario=SCENARIO_TEST_WITH_FIXTURE)
+    result = wall_project.runpytest_subprocess("--ddenv-reduce", "-v")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines([
+        "*probe *: * models -> *",  # -v: each probe on its own line
+        "*PytestWarning: test_scenario.py::test_reaches_goal: function-scoped fixture(s) counter are not "
+        "re-created for each reduction probe*",
+    ])
+    assert "tmp_path" not in result.stdout.str().split("PytestWarning")[1].split("\n")[0]
+
+
+SCENARIO_TEST_WITH_FIXTURE = (
+    "import pytest\n"
+    "@pytest.fixture\n"
+    "def counter():\n"
+    "    return []\n"
+    "@pytest.mark.ddenv(world='wall.yaml')\n"
+    "@pytest.mark.robot_failure('stuck', window=2.0, min_progress=0.2)\n"
+    "def test_reaches_goal(robot_world, counter, pytestconfig):\n"
+    "    counter.append(1)\n"
+    "    assert robot_world.run().reached_goal\n"
+)
+
+
+def test_pytest_html_report_gets_the_pictures_and_files(wall_project: pytest.Pytester) -> None:
+    pytest.importorskip("pytest_html")
+    result = wall_project.runpytest_subprocess("--ddenv-reduce", "--html=report.html", "--self-contained-html")
+    result.assert_outcomes(failed=1)
+    html = (wall_project.path / "report.html").read_text()
+    assert "minimal.yaml" in html and "summary.json" in html
+    assert "data:image/png;base64" in html  # reduction.png and progress.png embedded
