@@ -36,8 +36,9 @@ def write_text_atomic(path: Path, text: str) -> None:
 
 def fingerprint(world: World, settings: dict[str, Any], test_source: str = "") -> str:
     """Identifies a reduction problem: a resumed log is only reused when this matches."""
-    import pybullet  # noqa: F401  (its version is part of the reproducibility key)
     from importlib.metadata import version
+
+    import pybullet  # noqa: F401  (its version is part of the reproducibility key)
 
     payload = json.dumps(
         {"world": world.to_yaml(), "settings": settings, "test": test_source, "pybullet": version("pybullet")},

@@ -47,7 +47,12 @@ class PredicateSpec:
 
 
 def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> ReductionSpec:
-    from pytest_ddenv.reduce import DEFLAKE_POLICIES, PARTITIONS, PRIORITIES, PRIORITY_ALIASES
+    from pytest_ddenv.reduce import (
+        DEFLAKE_POLICIES,
+        PARTITIONS,
+        PRIORITIES,
+        PRIORITY_ALIASES,
+    )
 
     if len(args) > 1:
         raise MarkerError("ddenv(...) takes at most one positional argument, the world file")

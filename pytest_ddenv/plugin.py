@@ -21,7 +21,12 @@ from typing import Any
 import pytest
 
 from pytest_ddenv.errors import DdenvError
-from pytest_ddenv.markers import MarkerError, PredicateSpec, ReductionSpec, parse_deflake
+from pytest_ddenv.markers import (
+    MarkerError,
+    PredicateSpec,
+    ReductionSpec,
+    parse_deflake,
+)
 
 FIXTURE = "robot_world"
 REPORT_KEY = "ddenv"
@@ -107,7 +112,7 @@ def _validate_options(config: pytest.Config) -> None:
             if float(max_time) <= 0:
                 raise ValueError
         except ValueError:
-            raise pytest.UsageError(f"--ddenv-max-time: expected a positive number of seconds, got {max_time!r}")
+            raise pytest.UsageError(f"--ddenv-max-time: expected a positive number of seconds, got {max_time!r}") from None
     deflake = _setting(config, "ddenv_deflake")
     if deflake not in (None, ""):
         try:

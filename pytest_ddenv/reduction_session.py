@@ -12,9 +12,8 @@ import inspect
 import signal
 import threading
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -23,7 +22,13 @@ import pytest
 
 from pytest_ddenv import artifacts
 from pytest_ddenv.markers import ReductionSpec, parse_deflake
-from pytest_ddenv.probe import FailureReference, keeps_start_support, make_probe, reference_from, trace_of
+from pytest_ddenv.probe import (
+    FailureReference,
+    keeps_start_support,
+    make_probe,
+    reference_from,
+    trace_of,
+)
 from pytest_ddenv.reduce import Outcome, Reduction, reduce
 from pytest_ddenv.reduce.types import ProgressEvent, ReductionInterrupted
 from pytest_ddenv.robot_world import RobotWorld

@@ -55,7 +55,7 @@ class Pose:
         rotation = self.rotation
         position = self.position + rotation @ child.position
         roll, pitch, yaw = geometry.rpy_from_matrix(rotation @ child.rotation)
-        return Pose(*(float(v) for v in position), roll, pitch, yaw)
+        return Pose(float(position[0]), float(position[1]), float(position[2]), roll, pitch, yaw)
 
 
 @dataclass(frozen=True)
@@ -172,7 +172,7 @@ class World:
         """Import a Gazebo SDF world or model file as Gazebo simulates it (see docs/sdf.md)."""
         from pytest_ddenv import sdf
 
-        return sdf.load_sdf(Path(path), model_paths=model_paths)
+        return sdf.load_sdf(Path(path), model_paths=[Path(folder) for folder in model_paths])
 
     def to_sdf(self) -> str:
         """An SDF 1.6 world that Gazebo loads (see docs/sdf.md)."""
@@ -388,7 +388,7 @@ def load_mesh(path: Path, scale: tuple[float, float, float]) -> object:
 def _mesh_vertices_world(placed: _PlacedShape) -> FloatArray:
     assert placed.mesh_path is not None
     mesh = load_mesh(placed.mesh_path, placed.shape.scale)
-    vertices = np.asarray(mesh.vertices, dtype=float)  # type: ignore[attr-defined]
+    vertices: FloatArray = np.asarray(mesh.vertices, dtype=np.float64)  # type: ignore[attr-defined]
     return placed.translation + vertices @ placed.rotation.T
 
 

@@ -169,6 +169,7 @@ def _parse_model(reader: _Reader, item: Any, index: int) -> Model:
         raise reader.fail("shapes", f"give either 'shapes' or a single '{inline[0]}', not both")
     if len(inline) > 1:
         raise reader.fail(inline[1], f"a model has one inline shape; use 'shapes' for {', '.join(inline)}")
+    shapes: tuple[Shape, ...]
     if inline:
         shapes = (_parse_shape(reader, {inline[0]: data[inline[0]]}, inline[0]),)
     elif "shapes" in data:

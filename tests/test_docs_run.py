@@ -57,7 +57,8 @@ class Page:
     """What a page's examples need: files to create in the working folder, checks after python blocks."""
 
     files: dict[str, str] = field(default_factory=dict)
-    """Relative path -> text; a path ending in "/" is a folder."""
+    """Relative path -> text ("" for the tiny world below); a path ending in "/" is a folder; "~/..." is in a
+    temporary home folder (HOME is set to it for that page only)."""
     checks: dict[str, tuple[str, ...]] = field(default_factory=dict)
     """A snippet of a python block -> expressions that must be true in that block's namespace afterwards."""
     slow: bool = False
@@ -108,7 +109,7 @@ PAGES: dict[str, Page] = {
         "pool.stats.probes == 1",
     )}, slow=True),
     "sdf.md": Page(
-        files={"my_models/crate/model.sdf": MODEL_SDF, "arena.world": ARENA_WORLD},
+        files={"~/my_models/crate/model.sdf": MODEL_SDF, "arena.world": ARENA_WORLD},
         checks={"load_sdf(": (
             "world.names == ('crate_1', 'crate_2', 'crate_3')",
             "load_sdf('minimal.world').names == ('crate_1', 'crate_2')",
@@ -325,7 +326,7 @@ def test_unmarked_blocks_are_refused() -> None:
         "docs/synthetic.md:5: runs 'pip install pytest-ddenv', which this test cannot execute",
         "docs/synthetic.md:9: unknown block language 'rust'",
         "marked",
-        "docs/synthetic.md:18: marked as checked by tests/test_docs_examples.py::test_no_such_test, which does",
+        "docs/synthetic.md:19: marked as checked by tests/test_docs_examples.py::test_no_such_test, which does",
         "shell",
     ]
     assert len(outcomes) == len(expected)
@@ -355,10 +356,13 @@ def _page_params() -> list:
 
 @pytest.mark.parametrize("page", _page_params())
 def test_page_examples_run(page: str, workdir: Path, request: pytest.FixtureRequest,
-                           capsys: pytest.CaptureFixture[str]) -> None:
+                           capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
     spec = PAGES.get(page, Page())
     for relative, text in spec.files.items():
         target = workdir / relative
+        if relative.startswith("~/"):
+            monkeypatch.setenv("HOME", str(workdir / "home"))
+            target = workdir / "home" / relative[2:]
         if relative.endswith("/"):
             target.mkdir(parents=True, exist_ok=True)
         else:

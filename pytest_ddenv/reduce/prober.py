@@ -21,7 +21,15 @@ from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.context import Context, Verdict
 from pytest_ddenv.reduce.deflake import DeflakePolicy
 from pytest_ddenv.reduce.log import ProbeLog
-from pytest_ddenv.reduce.types import Candidate, Decision, Observation, Outcome, Precondition, Probe, Trace
+from pytest_ddenv.reduce.types import (
+    Candidate,
+    Decision,
+    Observation,
+    Outcome,
+    Precondition,
+    Probe,
+    Trace,
+)
 
 
 class BudgetExhausted(Exception):

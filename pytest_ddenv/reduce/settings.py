@@ -14,7 +14,13 @@ from pytest_ddenv.reduce.deflake import DeflakePolicy, make_policy
 from pytest_ddenv.reduce.log import ProbeLog
 from pytest_ddenv.reduce.partition import Partitioner, make_partitioner
 from pytest_ddenv.reduce.priority import Prioritizer, make_prioritizer
-from pytest_ddenv.reduce.types import Geometry, Precondition, Probe, ProgressEvent, Trace
+from pytest_ddenv.reduce.types import (
+    Geometry,
+    Precondition,
+    Probe,
+    ProgressEvent,
+    Trace,
+)
 
 GRANULARITIES: tuple[str, ...] = ("ddmin", "paper")
 COMPLEMENT_ORDERS: tuple[str, ...] = ("reverse", "priority")

@@ -21,7 +21,16 @@ from pytest_ddenv.errors import ScenarioError, WorldError
 from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._paths import UnresolvedURI, model_search_paths, resolve_uri
 from pytest_ddenv.sdf._xml import Lines, local_name, parse_xml, read_limited
-from pytest_ddenv.world import Ground, Model, Physics, Pose, Scenario, Shape, TagValue, World
+from pytest_ddenv.world import (
+    Ground,
+    Model,
+    Physics,
+    Pose,
+    Scenario,
+    Shape,
+    TagValue,
+    World,
+)
 
 DDENV_NS = "https://github.com/pytest-ddenv/pytest-ddenv/sdf"
 """Namespace of the `ddenv:` elements that carry what SDF has no place for (scenario, tags, keep)."""
@@ -283,11 +292,11 @@ class _Loader:
     def raws(self, sources: list[_Source], world_frames: dict[str, tuple[Pose, str, ET.Element]]) -> list[_Raw]:
         names = [source.name or source.element.get("name") or "" for source in sources]
         frames = dict(world_frames)
-        for name, source in zip(names, sources):
+        for name, source in zip(names, sources, strict=True):
             frames[name] = (*self.source_pose(source, name), source.element)
         scope = _Scope(self, frames, {"", "world"}, None)
         raws = []
-        for name, source in zip(names, sources):
+        for name, source in zip(names, sources, strict=True):
             if not name:
                 raise self.error("a model needs a name attribute", source.element, field="name")
             raws.append(self.raw(source, name, scope.resolve(name, source.element)))
@@ -565,7 +574,7 @@ class _Loader:
     def model(
         self, raw: _Raw, model_pose: Pose, link_poses: list[Pose], scale: tuple[float, float, float] | None
     ) -> Model | None:
-        solid = [(link, pose) for link, pose in zip(raw.links, link_poses) if link.collisions]
+        solid = [(link, pose) for link, pose in zip(raw.links, link_poses, strict=True) if link.collisions]
         if not solid:
             return None  # nothing the robot could touch (visual-only models, lights, ...)
         anchor = solid[0][1]

@@ -12,7 +12,15 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 
 from pytest_ddenv.sdf._reader import DDENV_NS, collada_unit
-from pytest_ddenv.world import Ground, Model, Pose, Scenario, Shape, World, resolve_mesh_path
+from pytest_ddenv.world import (
+    Ground,
+    Model,
+    Pose,
+    Scenario,
+    Shape,
+    World,
+    resolve_mesh_path,
+)
 
 SDF_VERSION = "1.6"
 GAZEBO_PHYSICS = {"max_step_size": "0.001", "real_time_factor": "1", "real_time_update_rate": "1000"}
