@@ -11,7 +11,7 @@ How a fenced block in a page is treated:
   exit code must be the documented one: the output of a following `$ echo $?`, else 2 when the shown output
   has a `ddenv: error:` line, 1 when it has a `: FAILED (` line, 0 otherwise. The shown output lines must
   appear, in order, in what the command printed (stderr, then stdout); timings (`1.04 s wall`, `00:06`,
-  `errors; 10.0 s`) may differ, and a `...` line stands for omitted output.
+  `errors; 10.0 s`, pytest's `in 0.12s`) may differ, and a `...` line stands for omitted output.
 * ```text (output, pseudo-code), ```yaml and ```ini: not executed; YAML and ini blocks must parse.
 * A block right after `<!-- not executed: REASON -->` is not executed (commands that install or need a
   cluster, partial signatures); one after `<!-- checked by tests/FILE.py::TEST -->` is run by that test,
@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import ast
 import configparser
+import os
 import re
 import shlex
 import shutil
@@ -48,8 +49,8 @@ COMMANDS = {"ddenv", "pytest"}
 FENCE = re.compile(r"^(?P<indent> {0,3})(?P<fence>`{3,}|~{3,})\s*(?P<lang>[^\s`]*)[^`]*$")
 MARKER = re.compile(r"^\s*<!--\s*(?P<kind>not executed|checked by)\s*:?\s*(?P<what>.*?)\s*-->\s*$")
 PROMPT = re.compile(r"^(?:[\w.-]*)\$ (?P<command>.*)$")
-# Parts of `ddenv` output that change from run to run: wall times and elapsed clocks.
-VOLATILE = re.compile(r"\d+(?:\.\d+)? s wall|\b\d\d:\d\d\b|errors; \d+(?:\.\d+)? s")
+# Parts of the output that change from run to run: wall times and elapsed clocks (ddenv and pytest).
+VOLATILE = re.compile(r"\d+(?:\.\d+)? s wall|\b\d\d:\d\d\b|errors; \d+(?:\.\d+)? s|\bin \d+(?:\.\d+)?s\b")
 
 
 @dataclass(frozen=True)
@@ -118,7 +119,7 @@ PAGES: dict[str, Page] = {
     "simulation.md": Page(checks={
         "sim.run(": ("run.failure.predicate == 'stuck'", "run2.seed == 3"),
         "register_robot(": ("ROBOTS['rover'] is MyRover", "MyRover().mass == 20.0"),
-    }),
+    }, slow=True),
     "world-format.md": Page(checks={"world.distances(": (
         "world.distances(points).shape == (len(points), len(world))",
         "'cinder_block' not in World.load('minimal.yaml')",
@@ -223,11 +224,7 @@ def commands_of(block: Block) -> list[Command]:
             pending += line.rstrip()[:-1] + " "
             continue
         text, pending = (pending + line).strip(), ""
-        argv = shlex.split(text, comments=True)
-        if argv == ["echo", "$?"]:
-            commands.append(Command(argv, text))
-            continue
-        commands.append(Command(argv, text))
+        commands.append(Command(shlex.split(text, comments=True), text))
     # fold `echo $?` into the command before it
     folded: list[Command] = []
     for command in commands:
@@ -256,7 +253,7 @@ def plan(block: Block) -> str:
         if kind == "checked by":
             path, _, test = what.partition("::")
             file = ROOT / path
-            if not (file.is_file() and re.search(rf"^def {re.escape(test)}\(", file.read_text(), flags=re.M)):
+            if not (file.is_file() and re.search(rf"^def {re.escape(test)}\(", file.read_text(), flags=re.MULTILINE)):
                 raise AssertionError(f"{block.where}: marked as checked by {what}, which does not exist")
         return "marked"
     if block.lang in PYTHON:
@@ -334,6 +331,39 @@ def test_unmarked_blocks_are_refused() -> None:
         assert outcome.startswith(start), (outcome, start)
 
 
+def test_reference_signatures_match_the_code() -> None:
+    """Signature blocks (`name(args) -> Type`) marked as checked by this test match the real functions."""
+    import importlib
+    import inspect
+
+    targets = {"reduce": "pytest_ddenv.reduce"}
+    checked = 0
+    for page in pages():
+        for block in read_blocks(page):
+            if block.marker != ("checked by", f"tests/test_docs_run.py::{test_reference_signatures_match_the_code.__name__}"):
+                continue
+            documented = ast.parse(f"def {block.code.strip()}: ...").body[0]
+            assert isinstance(documented, ast.FunctionDef)
+            real = inspect.signature(getattr(importlib.import_module(targets[documented.name]), documented.name))
+            arguments = documented.args
+            positional = [a.arg for a in arguments.posonlyargs + arguments.args]
+            keyword = [a.arg for a in arguments.kwonlyargs]
+            kinds = {name: p.kind for name, p in real.parameters.items()}
+            assert positional + keyword == list(real.parameters), f"{block.where}: parameters differ from {real}"
+            assert all(kinds[name] is inspect.Parameter.KEYWORD_ONLY for name in keyword), block.where
+            defaults = dict(zip(positional[len(positional) - len(arguments.defaults):], arguments.defaults))
+            defaults |= {a.arg: d for a, d in zip(arguments.kwonlyargs, arguments.kw_defaults) if d is not None}
+            for name, default in defaults.items():
+                assert ast.literal_eval(default) == real.parameters[name].default, (
+                    f"{block.where}: {name}={ast.unparse(default)}, the code says {real.parameters[name].default!r}")
+            assert set(defaults) == {n for n, p in real.parameters.items() if p.default is not p.empty}, block.where
+            returns = real.return_annotation
+            assert documented.returns is not None and ast.unparse(documented.returns) == getattr(
+                returns, "__name__", returns), f"{block.where}: returns {returns}"
+            checked += 1
+    assert checked, "no signature block is marked as checked by this test"
+
+
 @pytest.fixture
 def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
     """A folder with a copy of the repository's worlds/, as the current directory; custom robots undone."""
@@ -357,8 +387,13 @@ def _page_params() -> list:
 @pytest.mark.parametrize("page", _page_params())
 def test_page_examples_run(page: str, workdir: Path, request: pytest.FixtureRequest,
                            capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
-    spec = PAGES.get(page, Page())
-    for relative, text in spec.files.items():
+    run_page(page, PAGES.get(page, Page()), workdir, request, capsys, monkeypatch)
+
+
+def run_page(page: str, spec: Page, workdir: Path, request: pytest.FixtureRequest,
+             capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, text: str | None = None) -> None:
+    """Create the page's files in `workdir` (the current folder), then run its blocks in order."""
+    for relative, content in spec.files.items():
         target = workdir / relative
         if relative.startswith("~/"):
             monkeypatch.setenv("HOME", str(workdir / "home"))
@@ -367,9 +402,9 @@ def test_page_examples_run(page: str, workdir: Path, request: pytest.FixtureRequ
             target.mkdir(parents=True, exist_ok=True)
         else:
             target.parent.mkdir(parents=True, exist_ok=True)
-            target.write_text(text or TINY_WORLD, encoding="utf-8")
+            target.write_text(content or TINY_WORLD, encoding="utf-8")
     used: set[str] = set()
-    for block in read_blocks(page):
+    for block in read_blocks(page, text):
         kind = plan(block)
         if kind == "python":
             run_python(block, spec, used)
@@ -380,9 +415,32 @@ def test_page_examples_run(page: str, workdir: Path, request: pytest.FixtureRequ
     assert not unused, f"docs/{page}: no python block contains {sorted(unused)} (update PAGES in this test)"
 
 
+def test_the_harness_compares_output_and_exit_codes(workdir: Path, request: pytest.FixtureRequest,
+                                                    capsys: pytest.CaptureFixture[str],
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """A synthetic page: shown output must be printed, exit codes must match, `pytest` runs in a subprocess."""
+    good = (
+        "```console\n$ ddenv check worlds/tiny.yaml\nworlds/tiny.yaml: 1 models (1 reducible)\n"
+        "$ ddenv check worlds/nothing.yaml\nddenv: error: worlds/nothing.yaml: no such world file\n```\n\n"
+        "```python\nfrom pytest_ddenv import World\n\nworld = World.load('worlds/tiny.yaml')\n```\n\n"
+        "```console\n$ pytest -q test_tiny.py\n...\n1 passed in 0.01s\n$ echo $?\n0\n```\n"
+    )
+    spec = Page(files={"worlds/tiny.yaml": "", "test_tiny.py": "def test_tiny():\n    assert True\n"},
+                checks={"World.load": ("world.names == ('far_box',)",)})
+    run_page("synthetic.md", spec, workdir, request, capsys, monkeypatch, good)
+    wrong_output = "```console\n$ ddenv check worlds/tiny.yaml\nworlds/tiny.yaml: 2 models (2 reducible)\n```\n"
+    with pytest.raises(AssertionError, match="the page shows the line"):
+        run_page("synthetic.md", spec, workdir, request, capsys, monkeypatch, wrong_output)
+    wrong_code = "```console\n$ ddenv check worlds/tiny.yaml\n$ echo $?\n1\n```\n"
+    with pytest.raises(AssertionError, match="exited with 0, the page says 1"):
+        run_page("synthetic.md", spec, workdir, request, capsys, monkeypatch, wrong_code)
+    wrong_check = "```python\nfrom pytest_ddenv import World\nworld = World.load('worlds/ditch.yaml')\n```\n"
+    with pytest.raises(AssertionError, match="world.names == .'far_box',. is false"):
+        run_page("synthetic.md", spec, workdir, request, capsys, monkeypatch, wrong_check)
+
+
 def run_python(block: Block, spec: Page, used: set[str]) -> None:
-    tree = ast.parse(block.code, filename=f"docs/{block.page}")
-    ast.increment_lineno(tree, block.line - 1)  # tracebacks point at the page's lines
+    tree = ast.parse("\n" * (block.line - 1) + block.code, filename=f"docs/{block.page}")  # the page's lines
     namespace: dict[str, object] = {"__name__": f"docs_{Path(block.page).stem.replace('-', '_')}"}
     exec(compile(tree, f"docs/{block.page}", "exec"), namespace)  # noqa: S102 - the docs' own examples
     for snippet, expressions in spec.checks.items():
@@ -391,7 +449,7 @@ def run_python(block: Block, spec: Page, used: set[str]) -> None:
         used.add(snippet)
         scope = {**_check_globals(), **namespace}
         for expression in expressions:
-            assert eval(expression, scope), f"{block.where}: after the example, {expression} is false"  # noqa: S307
+            assert eval(expression, scope), f"{block.where}: after the example, {expression} is false"
 
 
 def _check_globals() -> dict[str, object]:
@@ -413,11 +471,17 @@ def run_command(block: Block, command: Command, request: pytest.FixtureRequest,
         captured = capsys.readouterr()
         printed = captured.err.splitlines() + captured.out.splitlines()
     else:
+        # pytester runs in a folder of its own (and makes it the current one): link the page's files there.
+        # It is only requested here, as at its teardown it drops the modules imported since it was set up.
+        here = Path.cwd()
         pytester: pytest.Pytester = request.getfixturevalue("pytester")
-        for item in Path.cwd().iterdir():  # the page's folder, as pytester runs in its own
+        for item in here.iterdir():
             if not (pytester.path / item.name).exists():
                 (pytester.path / item.name).symlink_to(item, target_is_directory=item.is_dir())
-        result = pytester.runpytest_subprocess(*command.argv[1:])
+        try:
+            result = pytester.runpytest_subprocess(*command.argv[1:])
+        finally:
+            os.chdir(here)
         code = int(result.ret)
         printed = result.errlines + result.outlines
     shown = "\n".join(printed)
