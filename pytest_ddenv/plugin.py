@@ -193,6 +193,12 @@ def robot_world(request: pytest.FixtureRequest) -> Any:
             f"{item.nodeid}: robot_world needs a world: @pytest.mark.ddenv(world='worlds/x.yaml'), "
             "an indirect parameter, or --ddenv-world PATH"
         )
+    unknown = sorted(set(spec.keep) - set(world.names))
+    if unknown:
+        raise DdenvError(
+            f"{item.nodeid}: ddenv(keep=...) names model(s) not in {world.source or world.name}: "
+            f"{', '.join(unknown)}"
+        )
     seed = _int_setting(request.config, "ddenv_seed", 0)
     return RobotWorld(world, predicates=predicates, seed=spec.seed if seed is None else seed)
 
@@ -265,7 +271,7 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
     )
     try:
         result = session.run()
-    except (KeyboardInterrupt, pytest.UsageError):
+    except KeyboardInterrupt:
         raise
     except Exception as crash:  # noqa: BLE001 - the test's own failure must stay what the user sees
         detail = "".join(traceback.format_exception(crash))

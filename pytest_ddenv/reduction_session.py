@@ -78,10 +78,7 @@ class ReductionSession:
             test_source = ""
         problem = artifacts.fingerprint(world, settings, test_source)
         paths = artifacts.prepare(self.artifacts_root / artifacts.artifact_dir_name(self.item.nodeid), problem)
-        keep = set(self.spec.keep) | {m.name for m in world.models if m.keep}
-        unknown = keep - set(world.names)
-        if unknown:
-            raise pytest.UsageError(f"{self.item.nodeid}: ddenv(keep=...) names unknown model(s): {sorted(unknown)}")
+        keep = (set(self.spec.keep) & set(world.names)) | {m.name for m in world.models if m.keep}
         last_run: Run | None = robot_world.runs[-1] if robot_world.runs else None
         interrupted: ReductionInterrupted | None = None
         threads = _probe_threads(self.pool)

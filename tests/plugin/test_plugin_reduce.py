@@ -232,3 +232,24 @@ def test_pytest_html_report_gets_the_pictures_and_files(wall_project: pytest.Pyt
     html = (wall_project.path / "report.html").read_text()
     assert "minimal.yaml" in html and "summary.json" in html
     assert "data:image/png;base64" in html  # reduction.png and progress.png embedded
+
+
+def test_indirect_parametrization_gives_each_case_its_world_and_keep_is_honoured(
+    wall_project: pytest.Pytester,
+) -> None:
+    wall_project.makefile(".yaml", open=(
+        "format: 1\nscenario: {start: {x: 0, y: 0}, goal: {x: 3, y: 0}, timeout: 20}\n"
+        "models:\n  - {name: far, pose: [-5, 5, 0.25], box: [0.5, 0.5, 0.5]}\n"
+    ))
+    wall_project.makepyfile(test_scenario=(
+        "import pytest\n"
+        "@pytest.mark.ddenv(keep=['ball'])\n"
+        "@pytest.mark.robot_failure('stuck', window=2.0, min_progress=0.2)\n"
+        "@pytest.mark.parametrize('robot_world', ['wall.yaml', 'open.yaml'], indirect=True)\n"
+        "def test_reaches_goal(robot_world):\n"
+        "    assert robot_world.run().reached_goal\n"
+    ))
+    result = wall_project.runpytest_subprocess("--ddenv-reduce")
+    result.assert_outcomes(failed=1, errors=1)
+    result.stdout.fnmatch_lines(["*ddenv(keep=...) names model(s) not in *open.yaml: ball*"])
+    assert summary_of(wall_project)["minimal_models"] == ["wall", "ball"]  # file order; ball kept on request
