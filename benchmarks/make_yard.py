@@ -20,7 +20,8 @@ within the 0.5 m failure tolerance of the original).
 The other N - 3 models are clutter: static boxes (0.3-1.0 m) and barrels (radius 0.2-0.35 m, 0.9 m tall)
 scattered uniformly over a square yard (about 4 m^2 per object, so density does not change with N), never
 inside a 5 m wide corridor around the robot's path, so none of them can touch the robot. Positions come from
-`random.Random(seed)`: the same N and seed always give the same file.
+`random.Random(seed)`, and so does the trap's place in the file order (the order matters to ddmin's even
+split): the same N and seed always give the same file.
 """
 
 from __future__ import annotations
@@ -64,25 +65,27 @@ def yard_yaml(count: int, seed: int = 0) -> str:
         "  timeout: 30.0",
         "models:",
     ]
-    for name, (x, y, z), (sx, sy, sz) in TRAP:
-        lines.append(f"  - {{name: {name}, pose: [{x}, {y}, {z}], box: [{sx}, {sy}, {sz}], "
-                     "color: [0.9, 0.2, 0.1, 1.0], tags: {role: trap}}")
-    placed = 0
-    while placed < count - len(TRAP):
+    trap = [f"  - {{name: {name}, pose: [{x}, {y}, {z}], box: [{sx}, {sy}, {sz}], "
+            "color: [0.9, 0.2, 0.1, 1.0], tags: {role: trap}}" for name, (x, y, z), (sx, sy, sz) in TRAP]
+    clutter: list[str] = []
+    while len(clutter) < count - len(TRAP):
         x = rng.uniform(cx - half, cx + half)
         y = rng.uniform(-half, half)
         if START[0] - 3 <= x <= GOAL[0] + 3 and abs(y) < CORRIDOR:
             continue
+        index = len(clutter)
         if rng.random() < 0.5:
             sx, sy, sz = (round(rng.uniform(0.3, 1.0), 2) for _ in range(3))
             yaw = round(rng.uniform(-math.pi, math.pi), 3)
-            lines.append(f"  - {{name: box_{placed:04d}, pose: [{x:.2f}, {y:.2f}, {sz / 2:.3f}, 0, 0, {yaw}], "
-                         f"box: [{sx}, {sy}, {sz}]}}")
+            clutter.append(f"  - {{name: box_{index:04d}, pose: [{x:.2f}, {y:.2f}, {sz / 2:.3f}, 0, 0, {yaw}], "
+                           f"box: [{sx}, {sy}, {sz}]}}")
         else:
             radius = round(rng.uniform(0.2, 0.35), 2)
-            lines.append(f"  - {{name: barrel_{placed:04d}, pose: [{x:.2f}, {y:.2f}, 0.45], "
-                         f"cylinder: {{radius: {radius}, length: 0.9}}, color: [1.0, 0.5, 0.0, 1.0]}}")
-        placed += 1
+            clutter.append(f"  - {{name: barrel_{index:04d}, pose: [{x:.2f}, {y:.2f}, 0.45], "
+                           f"cylinder: {{radius: {radius}, length: 0.9}}, color: [1.0, 0.5, 0.0, 1.0]}}")
+    # the trap sits at a seeded random place in the file order (ddmin's even split depends on it)
+    at = rng.randint(0, len(clutter))
+    lines += clutter[:at] + trap + clutter[at:]
     return "\n".join(lines) + "\n"
 
 

@@ -14,7 +14,8 @@ scenario, then run on every seed).
 
 `--quick`: one seed (the first), one pairing (`learner`), picire default only.
 Per row: simulations (first runs and deflake re-runs), cache hits, % reduction, final size, 1-minimal proven,
-the minimal world's failure rate over 10 fresh seeds, wall time; and the paper's figures.
+the minimal world's failure rate over 10 fresh seeds, wall time; and the paper's figures. The original
+world's failure rate over the same 10 fresh seeds is printed first (how reproducible f itself is).
 """
 
 from __future__ import annotations
@@ -32,9 +33,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import (
     PICIRE_CONFIGS,
     SCENARIOS,
+    TOLERANCE,
     NotFailing,
     Row,
     ddenv_reduce,
+    failure_rate,
     load,
     machine,
     make_problem,
@@ -145,6 +148,10 @@ def main(argv: list[str] | None = None) -> int:
                     print(f"skipped: {error}", flush=True)
                     results["skipped"].append(str(error))
                     continue
+                original = failure_rate(problem, world.names, args.failure_rate_runs, args.workers)
+                results.setdefault("original_fails", {})[f"{name} seed {seed}"] = original
+                print(f"{name} seed {seed}: original world fails {original[0]}/{original[1]} fresh seeds with "
+                      f"{problem.failure.split(' at ')[0]} within {TOLERANCE} m", flush=True)
                 for label, partition, priority in pairings:
                     row = ddenv_reduce(problem, partition=partition, priority=priority, deflake=args.deflake,
                                        workers=args.workers, failure_rate_runs=args.failure_rate_runs,

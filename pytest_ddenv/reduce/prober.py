@@ -69,8 +69,14 @@ class _Open:
     trial: Trial
     outcomes: list[Outcome]
     trace: Trace | None = None
-    in_flight: bool = False
+    in_flight: set[int] = field(default_factory=set)
+    """Attempts running now."""
+    early: dict[int, Observation] = field(default_factory=dict)
+    """Results of speculative attempts that arrived before an earlier attempt's (applied in attempt order)."""
     decision: Decision | None = None
+
+    def next_attempt(self) -> int:
+        return max([len(self.outcomes) - 1, *self.in_flight, *self.early]) + 1
 
 
 @dataclass
@@ -236,28 +242,50 @@ class Prober:
         statuses: list[str | Decision | _Open],
         futures: dict[concurrent.futures.Future[Any], tuple[_Open, int]],
     ) -> str | None:
-        """Start the next attempt of undecided candidates, earliest first, up to the window and budget."""
+        """Start attempts of undecided candidates, earliest first, up to the window and budget.
+
+        First one attempt for each candidate with none running; then, while workers are still idle, the later
+        re-runs the fixed deflake policy may need (speculatively: results are applied in attempt order and
+        those past the verdict are dropped, so the decisions are exactly the serial ones).
+        """
         assert self.executor is not None
-        for status in statuses:
+        undecided = [s for s in statuses if isinstance(s, _Open) and s.decision is None]
+        idle = [state for state in undecided if not state.in_flight and not state.early]
+        first = [(state, state.next_attempt()) for state in idle]
+        limit = getattr(self.policy, "reruns", -1) + 1
+        speculative = [
+            (state, attempt)
+            for state in undecided
+            for attempt in range(state.next_attempt() + any(state is other for other in idle), limit)
+        ]
+        for state, attempt in first + speculative:
             if len(futures) >= self.window:
                 return None
-            if not isinstance(status, _Open) or status.decision is not None or status.in_flight:
+            if attempt in state.in_flight:
                 continue
             reason = self.budget.exhausted(self.counters.started)
             if reason is not None:
                 return reason
             self.counters.started += 1
-            status.in_flight = True
-            attempt = len(status.outcomes)
-            future = self.executor.submit(call_probe, self.probe, status.trial.candidate, attempt)
-            futures[future] = (status, attempt)
+            state.in_flight.add(attempt)
+            future = self.executor.submit(call_probe, self.probe, state.trial.candidate, attempt)
+            futures[future] = (state, attempt)
         return None
 
     def _finish(self, state: _Open, attempt: int, future: concurrent.futures.Future[Any]) -> None:
-        state.in_flight = False
-        self._take(state, attempt, checked_observation(future.result()))
-        if (verdict := self.policy.verdict(state.outcomes)) is not None:
-            self._decide(state, verdict)
+        state.in_flight.discard(attempt)
+        if state.decision is not None:  # a speculative re-run that was not needed
+            self.counters.abandoned += 1
+            return
+        state.early[attempt] = checked_observation(future.result())
+        while state.decision is None and len(state.outcomes) in state.early:
+            current = len(state.outcomes)
+            self._take(state, current, state.early.pop(current))
+            if (verdict := self.policy.verdict(state.outcomes)) is not None:
+                self._decide(state, verdict)
+        if state.decision is not None:
+            self.counters.abandoned += len(state.early)
+            state.early.clear()
 
     @staticmethod
     def _resolve(statuses: Sequence[str | Decision | _Open]) -> tuple[bool, int | None]:
