@@ -93,8 +93,9 @@ class FailureProximalPriority:
 
 
 @dataclass(frozen=True)
-class AverageTrajectoryPriority:
-    """`avg-trajectory-proximal`: smallest mean (over trace points) distance to the part."""
+class TrajectoryPriority:
+    """`avg-trajectory-proximal` (mean over trace points of the distance to the part) or
+    `min-trajectory-proximal` (smallest distance between any trace point and the part): closest part first."""
 
     name: str = "avg-trajectory-proximal"
 
@@ -104,22 +105,8 @@ class AverageTrajectoryPriority:
         if distances is None:
             return _sequential(parts, context)
         per_point = _min_per_part(distances, owners, len(parts))
-        return _by_score(parts, per_point.mean(axis=0).tolist(), context)
-
-
-@dataclass(frozen=True)
-class MinimumTrajectoryPriority:
-    """`min-trajectory-proximal`: smallest distance between any trace point and the part."""
-
-    name: str = "min-trajectory-proximal"
-
-    def __call__(self, parts: Sequence[Part], context: Context, round_index: int) -> list[Part]:
-        names, owners = _flatten(parts)
-        distances = context.trace_distances(names)
-        if distances is None:
-            return _sequential(parts, context)
-        per_point = _min_per_part(distances, owners, len(parts))
-        return _by_score(parts, per_point.min(axis=0).tolist(), context)
+        scores = per_point.min(axis=0) if self.name == "min-trajectory-proximal" else per_point.mean(axis=0)
+        return _by_score(parts, scores.tolist(), context)
 
 
 @dataclass(frozen=True)
@@ -140,8 +127,8 @@ PRIORITY_SCHEMAS: dict[str, Callable[[], Prioritizer]] = {
     "random": RandomPriority,
     "sequential": SequentialPriority,
     "failure-proximal": FailureProximalPriority,
-    "avg-trajectory-proximal": AverageTrajectoryPriority,
-    "min-trajectory-proximal": MinimumTrajectoryPriority,
+    "avg-trajectory-proximal": lambda: TrajectoryPriority("avg-trajectory-proximal"),
+    "min-trajectory-proximal": lambda: TrajectoryPriority("min-trajectory-proximal"),
     "timestep": TimestepPriority,
 }
 PRIORITIES: tuple[str, ...] = tuple(PRIORITY_SCHEMAS)

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import concurrent.futures
-import textwrap
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import pytest
+from plugin.conftest import WALL_WORLD  # the same small world as the plugin tests
 
 from pytest_ddenv.markers import PredicateSpec
 from pytest_ddenv.oracle import classify
@@ -16,23 +16,6 @@ from pytest_ddenv.reduce import Observation, Outcome, Reduction, reduce
 from pytest_ddenv.robot_world import ATTEMPT_SEED_STRIDE
 from pytest_ddenv.world import World
 
-WALL_WORLD = textwrap.dedent(
-    """\
-    format: 1
-    name: wall
-    scenario:
-      start: {x: 0.0, y: 0.0, yaw: 0.0}
-      goal: {x: 4.0, y: 0.0}
-      timeout: 20
-    models:
-      - {name: far_box_a, pose: [-4, 4, 0.25], box: [0.5, 0.5, 0.5]}
-      - {name: far_box_b, pose: [-4, -4, 0.25], box: [0.5, 0.5, 0.5]}
-      - {name: wall, pose: [2.0, 0, 0.5], box: [0.3, 4.0, 1.0]}
-      - {name: side_post, pose: [2, 5, 0.5], cylinder: {radius: 0.2, length: 1.0}}
-      - {name: far_box_c, pose: [8, 6, 0.25], box: [0.5, 0.5, 0.5]}
-      - {name: ball, pose: [-3, 0, 0.2], sphere: {radius: 0.2}}
-    """
-)
 STUCK = (PredicateSpec("stuck", {"window": 2.0, "min_progress": 0.2}),)
 SimulateFn = Callable[..., Any]
 
