@@ -104,6 +104,7 @@ def test_close_stops_busy_workers_promptly_and_reaps_them(wall_world: World) -> 
     assert not children() & set(pids)
 
 
+@pytest.mark.usefixtures("ctrl_c_raises")
 def test_ctrl_c_while_waiting_kills_only_that_worker_and_the_pool_goes_on(wall_world: World) -> None:
     with SimulationPool(2, fault_injection="hang@2") as pool:
         pool.simulate(wall_world.select(["ball"]), seed=0, timeout=0.5)
@@ -132,6 +133,7 @@ def test_workers_ignore_sigint_so_ctrl_c_in_a_terminal_does_not_kill_them(wall_w
         assert pool.stats.crashes == 0
 
 
+@pytest.mark.usefixtures("ctrl_c_raises")
 def test_ctrl_c_during_a_parallel_reduction_stops_hung_workers_promptly(wall_world: World) -> None:
     """What the plugin does on Ctrl-C: the engine raises ReductionInterrupted, then pool.close() frees the
     probe threads (their simulations raise SimulationError), then the executor shuts down."""

@@ -28,8 +28,14 @@ YARD_WORLD = (
 )
 
 
+def default_signal_handlers() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def probe_records(log: Path) -> list[dict]:
-    return [json.loads(line) for line in log.read_text().splitlines() if '"event": "probe"' in line]
+    records = [json.loads(line) for line in log.read_text().splitlines()]
+    return [r for r in records if r.get("event") == "probe" and r.get("purpose") == "reduce"]
 
 
 @pytest.mark.parametrize("signal_number", [signal.SIGTERM, signal.SIGINT])
@@ -39,7 +45,10 @@ def test_interrupted_reduction_keeps_everything_and_the_rerun_resumes(
     pytester.makefile(".yaml", wall=YARD_WORLD)
     pytester.makepyfile(test_scenario=SLOW_SCENARIO_TEST)
     command = [sys.executable, "-m", "pytest", "--ddenv-reduce", "--ddenv-workers", "1", "-p", "no:cacheprovider"]
-    process = subprocess.Popen(command, cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    process = subprocess.Popen(
+        command, cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        preexec_fn=default_signal_handlers,  # a background job (CI, nohup) inherits SIGINT ignored
+    )
     deadline = time.monotonic() + 120
     logs: list[Path] = []
     while time.monotonic() < deadline and process.poll() is None:

@@ -44,6 +44,16 @@ def test_failing_robot_test_is_reduced_to_the_wall(wall_project: pytest.Pytester
     assert f"[[ATTACHMENT|{folder / 'minimal.yaml'}]]" in system_out
 
 
+def probed(log: Path) -> list[tuple[frozenset[str], int]]:
+    """(candidate, attempt) of every reduction simulation in a run log, in log order."""
+    records = [json.loads(line) for line in log.read_text().splitlines()]
+    return [
+        (frozenset(r["candidate"]), r["attempt"])
+        for r in records
+        if r.get("event") == "probe" and r.get("purpose") == "reduce"
+    ]
+
+
 def test_replaying_the_minimal_world_fails_the_same_way(wall_project: pytest.Pytester) -> None:
     wall_project.runpytest_subprocess("--ddenv-reduce").assert_outcomes(failed=1)
     command = shlex.split(summary_of(wall_project)["replay"])  # exactly what summary.json tells the user
@@ -108,12 +118,15 @@ def test_interrupted_reduction_keeps_its_best_world_and_resumes_without_reprobin
     assert set(first["minimal_models"]) >= {"wall"}
     assert World.load(first["files"]["minimal_yaml"]).names == tuple(first["minimal_models"])
 
+    log = Path(first["files"]["log"])
+    first_probes = probed(log)
+    assert 1 <= len(first_probes) <= 2
     resumed = wall_project.runpytest_subprocess("--ddenv-reduce")
     resumed.assert_outcomes(failed=1)
     second = summary_of(wall_project)
     assert second["complete"] is True and second["minimal_models"] == ["wall"]
-    assert 1 <= first["probes"] <= 2
-    assert second["cache_hits"] >= first["probes"]  # the interrupted run's probes were not simulated again
+    new_probes = probed(log)[len(first_probes):]
+    assert not set(new_probes) & set(first_probes)  # nothing the interrupted run simulated is simulated again
 
 
 def test_a_crash_inside_the_reduction_never_replaces_the_tests_own_failure(wall_project: pytest.Pytester) -> None:
