@@ -22,6 +22,7 @@ import pytest
 
 from pytest_ddenv import artifacts
 from pytest_ddenv.markers import ReductionSpec, parse_deflake
+from pytest_ddenv.plugin import FIXTURE, replay_command
 from pytest_ddenv.probe import (
     FailureReference,
     keeps_start_support,
@@ -38,7 +39,6 @@ if TYPE_CHECKING:
     from pytest_ddenv.sim import Run
     from pytest_ddenv.world import World
 
-FIXTURE = "robot_world"
 Progress = Callable[..., None]
 
 
@@ -113,7 +113,7 @@ class ReductionSession:
         summary = artifacts.write_reduction(
             paths, world, reduction,
             test_id=self.item.nodeid,
-            replay_command=_replay_command(self.item, paths.minimal_yaml),
+            replay_command=replay_command(self.item, paths.minimal_yaml),
             problem_fingerprint=problem,
             reference=reference.to_dict(),
             extra={
@@ -232,12 +232,6 @@ def _shown_path(path: Path) -> Path:
         return path.relative_to(Path.cwd())
     except ValueError:
         return path
-
-
-def _replay_command(item: pytest.Item, minimal_yaml: Path) -> str:
-    from pytest_ddenv.plugin import replay_command
-
-    return replay_command(item, minimal_yaml)
 
 
 def _pictures(
