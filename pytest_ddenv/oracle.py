@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.reduce.types import Outcome
+from pytest_ddenv.outcome import Outcome
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.sim.run import Run

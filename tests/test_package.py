@@ -33,3 +33,19 @@ def test_console_script_version_and_help() -> None:
     assert version.returncode == 0 and version.stdout.strip() == f"ddenv {pytest_ddenv.__version__}"
     helped = subprocess.run(["ddenv", "--help"], capture_output=True, text=True)
     assert helped.returncode == 0 and "usage: ddenv" in helped.stdout
+
+
+@pytest.mark.parametrize(
+    ("module", "forbidden"),
+    [
+        ("pytest_ddenv.reduce", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.oracle", "pytest_ddenv.plugin"]),
+        ("pytest_ddenv.world", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.reduce"]),
+        ("pytest_ddenv.oracle", ["pybullet", "pytest", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
+        ("pytest_ddenv.sim", ["pytest", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
+    ],
+)
+def test_layers_import_only_what_comes_before_them(module: str, forbidden: list[str]) -> None:
+    """DESIGN.md section 3: data flows one way; each layer knows only the ones before it."""
+    code = f"import sys, {module}; print(sorted(m for m in {forbidden!r} if m in sys.modules))"
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert loaded.stdout.strip() == "[]", f"{module} imports {loaded.stdout.strip()}"

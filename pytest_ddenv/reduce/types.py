@@ -6,7 +6,6 @@ of a world only by their names; the geometry and the traces come from the caller
 
 from __future__ import annotations
 
-import enum
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -15,23 +14,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_ddenv.errors import ReductionError
+from pytest_ddenv.outcome import Outcome
 
 FloatArray = NDArray[np.float64]
 Candidate = tuple[str, ...]
 """A sub-world: element names in the original order (kept elements included)."""
-
-
-class Outcome(str, enum.Enum):
-    """What one simulation of a candidate world showed."""
-
-    FAIL = "fail"
-    """The same failure f as the original world."""
-    OTHER = "other"
-    """A different failure f' (not f)."""
-    PASS = "pass"
-    """The test passed (not f)."""
-    ERROR = "error"
-    """The simulation or the test itself broke; never counts as f."""
 
 
 @dataclass(frozen=True, eq=False)
