@@ -160,6 +160,9 @@ class _Engine:
             on_probe=lambda candidate, outcome: self.emit("probe", candidate=candidate, outcome=outcome),
         )
         self.steps: list[tuple[int, int]] = [(0, len(settings.elements))]
+        self.verifying = False
+        if settings.executor is not None:
+            self.prober.lookahead = self.lookahead
 
     # -- driver -------------------------------------------------------------------------------------------
 
@@ -182,6 +185,7 @@ class _Engine:
             self.write_end(reduction)
             return reduction
         finally:
+            self.prober.close()
             if self.log is not None:
                 self.log.close()
 
@@ -236,16 +240,42 @@ class _Engine:
     def verify(self) -> bool:
         """Try removing each single remaining element; adopt and return True if one still reproduces f."""
         self.emit("verify")
-        trials = [
-            Trial(self.full(tuple(name for name in self.current if name != removed)), "verify")
-            for removed in self.current
-        ]
-        found = self.prober.first_reproducing(trials, quiet=True)
+        trials = self.verify_trials()
+        self.verifying = True
+        try:
+            found = self.prober.first_reproducing(trials, quiet=True)
+        finally:
+            self.verifying = False
         if found is None:
             return False
         self.adopt(trials[found[0]], found[1])
         self.granularity = len(self.current)
         return True
+
+    def verify_trials(self) -> list[Trial]:
+        return [
+            Trial(self.full(tuple(name for name in self.current if name != removed)), "verify")
+            for removed in self.current
+        ]
+
+    def lookahead(self) -> list[tuple[Candidate, int]]:
+        """The probes the engine starts next if the current round (or verification pass) finds nothing:
+        prefetched on idle workers (see prefetch.py). A guess: a schema error here is left to the real round."""
+        if self.verifying or not self.current:
+            runs = self.settings.failure_rate_runs
+            return [(self.full(self.current), attempt) for attempt in range(self.minimal_runs, self.minimal_runs + runs)]
+        if self.granularity >= len(self.current):
+            return self.prober.planned(self.verify_trials())
+        granularity = self.coarser_or_finer(progress=None)
+        try:
+            parts = self.settings.partitioner(self.current, granularity, self.context)
+            ordered = list(self.settings.prioritizer(parts, self.context, self.round_index))
+        except Exception:  # noqa: BLE001 - only a guess; the real round reports the error
+            return []
+        removal = ordered[::-1] if self.settings.complement_order == "reverse" else ordered
+        plan = _Plan(ordered=ordered, removal=removal, subsets=True)
+        trials = self.trials_of(plan)
+        return self.prober.planned([trial for trial, _ in trials])
 
     def coarser_or_finer(self, progress: str | None) -> int:
         """The next granularity after a round that adopted a subset, a complement, or nothing (None)."""

@@ -21,6 +21,7 @@ from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.context import Context, Verdict
 from pytest_ddenv.reduce.deflake import DeflakePolicy
 from pytest_ddenv.reduce.log import ProbeLog
+from pytest_ddenv.reduce.prefetch import Prefetch
 from pytest_ddenv.reduce.types import (
     Candidate,
     Decision,
@@ -88,7 +89,7 @@ class Counters:
     cache_hits: int = 0
     errors: int = 0
     abandoned: int = 0
-    """Concurrent probes still running when their round was decided (results not waited for)."""
+    """Concurrent or prefetched probes whose results were not needed (still running or thrown away)."""
     skipped: set[frozenset[str]] = field(default_factory=set)
 
 
@@ -152,6 +153,10 @@ class Prober:
         self._consulted: set[frozenset[str]] = set()
         workers = getattr(executor, "_max_workers", None)
         self.window = workers if isinstance(workers, int) and workers > 0 else (os.cpu_count() or 2)
+        self.lookahead: Callable[[], list[tuple[Candidate, int]]] | None = None
+        """Set by the engine: the probes it will start next if the current round finds nothing."""
+        self.prefetch = Prefetch()
+        self._ahead: list[tuple[Candidate, int]] | None = None
 
     # -- one round ----------------------------------------------------------------------------------------
 
@@ -194,6 +199,8 @@ class Prober:
 
     def _concurrent(self, trials: Sequence[Trial], quiet: bool) -> tuple[int, Decision] | None:
         assert self.executor is not None
+        self.counters.started -= self.prefetch.cancel_except({frozenset(trial.candidate) for trial in trials})
+        self._ahead = None
         statuses: list[str | Decision | _Open] = [self._status(trial) for trial in trials]
         for status in statuses:
             if isinstance(status, _Open) and (verdict := self.policy.verdict(status.outcomes)) is not None:
@@ -215,11 +222,12 @@ class Prober:
             for future in list(futures):
                 if future.cancel():
                     futures.pop(future)
-            if finished:  # results that are already there are recorded; the running ones are abandoned
+            if finished:  # results that are already there are recorded; the running ones are kept for later
                 for future in [f for f in futures if f.done()]:
                     state, attempt = futures.pop(future)
                     self._finish(state, attempt, future)
-            self.counters.abandoned += len(futures)
+            for future, (state, attempt) in futures.items():
+                self.prefetch.adopt(state.trial.candidate, attempt, future)
         answer = resolution[1]
         last = len(statuses) - 1 if answer is None else answer
         for trial, status in zip(trials[: last + 1], statuses[: last + 1], strict=True):
@@ -244,12 +252,14 @@ class Prober:
     ) -> str | None:
         """Start attempts of undecided candidates, earliest first, up to the window and budget.
 
-        First one attempt for each candidate with none running; then, while workers are still idle, the later
-        re-runs the fixed deflake policy may need (speculatively: results are applied in attempt order and
-        those past the verdict are dropped, so the decisions are exactly the serial ones).
+        Only candidates before the first one known to reproduce f can still change the answer. First one
+        attempt for each of them with none running; then, while workers are still idle, the later re-runs
+        the fixed deflake policy may need (speculatively: results are applied in attempt order and those
+        past the verdict are dropped, so the decisions are exactly the serial ones); then, if workers are
+        still idle, the engine's next probes (prefetched, see prefetch.py).
         """
         assert self.executor is not None
-        undecided = [s for s in statuses if isinstance(s, _Open) and s.decision is None]
+        undecided = self._undecided(statuses)
         idle = [state for state in undecided if not state.in_flight and not state.early]
         first = [(state, state.next_attempt()) for state in idle]
         limit = getattr(self.policy, "reruns", -1) + 1
@@ -263,28 +273,73 @@ class Prober:
                 return None
             if attempt in state.in_flight:
                 continue
-            reason = self.budget.exhausted(self.counters.started)
-            if reason is not None:
-                return reason
-            self.counters.started += 1
+            future = self.prefetch.take(state.trial.candidate, attempt)
+            if future is None:
+                reason = self.budget.exhausted(self.counters.started)
+                if reason is not None:
+                    return reason
+                self.counters.started += 1
+                future = self.executor.submit(call_probe, self.probe, state.trial.candidate, attempt)
             state.in_flight.add(attempt)
-            future = self.executor.submit(call_probe, self.probe, state.trial.candidate, attempt)
             futures[future] = (state, attempt)
+        self._prefetch_ahead(statuses, busy=len(futures))
         return None
+
+    @staticmethod
+    def _undecided(statuses: Sequence[str | Decision | _Open]) -> list[_Open]:
+        """Open, undecided candidates before the first one known to reproduce f."""
+        undecided: list[_Open] = []
+        for status in statuses:
+            decision = status if isinstance(status, Decision) else getattr(status, "decision", None)
+            if decision is not None and decision.reproduces:
+                break
+            if isinstance(status, _Open) and status.decision is None:
+                undecided.append(status)
+        return undecided
+
+    def _prefetch_ahead(self, statuses: Sequence[str | Decision | _Open], busy: int) -> None:
+        """Start the engine's next probes on the workers this round leaves idle (never past the budget)."""
+        if self.lookahead is None or busy + self.prefetch.running() >= self.window:
+            return
+        if self._ahead is None:
+            self._ahead = self.lookahead()
+        assert self.executor is not None
+        executor, probe = self.executor, self.probe
+        in_round = {frozenset(status.trial.candidate) for status in statuses if isinstance(status, _Open)}
+        for candidate, attempt in self._ahead:
+            key = (frozenset(candidate), attempt)
+            if key in self.prefetch or key[0] in in_round:
+                continue
+            if busy + self.prefetch.running() >= self.window or self.budget.exhausted(self.counters.started):
+                return
+            self.counters.started += 1
+            self.prefetch.start(key, lambda c=candidate, a=attempt: executor.submit(call_probe, probe, c, a))
+
+    def planned(self, trials: Sequence[Trial]) -> list[tuple[Candidate, int]]:
+        """The probes deciding `trials` would start first: a first attempt of each undecided candidate, then
+        the re-runs a fixed deflake policy may need."""
+        opened = [status for status in map(self._status, trials) if isinstance(status, _Open)]
+        opened = [state for state in opened if self.policy.verdict(state.outcomes) is None]
+        limit = getattr(self.policy, "reruns", -1) + 1
+        first = [(state.trial.candidate, len(state.outcomes)) for state in opened]
+        later = [(s.trial.candidate, a) for s in opened for a in range(len(s.outcomes) + 1, limit)]
+        return first + later
+
+    def close(self) -> None:
+        """Forget the prefetched probes: cancel those not started, count the others as abandoned."""
+        self.counters.abandoned += self.prefetch.close()
 
     def _finish(self, state: _Open, attempt: int, future: concurrent.futures.Future[Any]) -> None:
         state.in_flight.discard(attempt)
-        if state.decision is not None:  # a speculative re-run that was not needed
-            self.counters.abandoned += 1
-            return
         state.early[attempt] = checked_observation(future.result())
         while state.decision is None and len(state.outcomes) in state.early:
             current = len(state.outcomes)
             self._take(state, current, state.early.pop(current))
             if (verdict := self.policy.verdict(state.outcomes)) is not None:
                 self._decide(state, verdict)
-        if state.decision is not None:
-            self.counters.abandoned += len(state.early)
+        if state.decision is not None:  # speculative re-runs past the verdict: kept for the failure-rate runs
+            for later, observation in state.early.items():
+                self.prefetch.keep(state.trial.candidate, later, observation)
             state.early.clear()
 
     @staticmethod
@@ -305,10 +360,14 @@ class Prober:
     def measure(self, candidate: Candidate, first_attempt: int, runs: int) -> tuple[int, int]:
         """(fails, runs) over attempts first_attempt .. first_attempt+runs-1; no budget applies."""
         attempts = range(first_attempt, first_attempt + runs)
-        if self.executor is None or runs <= 1:
+        if self.executor is None:
             results = [call_probe(self.probe, candidate, attempt) for attempt in attempts]
         else:
-            submitted = [self.executor.submit(call_probe, self.probe, candidate, a) for a in attempts]
+            executor = self.executor
+            submitted = [
+                self.prefetch.take(candidate, a) or executor.submit(call_probe, self.probe, candidate, a)
+                for a in attempts
+            ]
             results = [future.result() for future in submitted]
         fails = 0
         for attempt, result in zip(attempts, results, strict=True):

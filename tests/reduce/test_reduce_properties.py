@@ -144,12 +144,9 @@ def test_parallel_probing_never_changes_the_result(
         deflake=deflake,
         **scenario,
     )
-    parallel = reduce(
-        probe=synthetic.SetOracle(culprits, rate=0.7, salt=salt, trace=scenario["reference"]),
-        deflake=deflake,
-        executor=pool,
-        **scenario,
-    )
+    oracle = synthetic.SetOracle(culprits, rate=0.7, salt=salt, trace=scenario["reference"])
+    parallel = reduce(probe=oracle, deflake=deflake, executor=pool, **scenario)
+    assert len(oracle.calls) == len(set(oracle.calls)), "a (candidate, attempt) was simulated twice"
     assert parallel.minimal == serial.minimal
     assert [size for _, size in parallel.steps] == [size for _, size in serial.steps]
     assert parallel.one_minimal == serial.one_minimal

@@ -1,0 +1,51 @@
+"""Prefetching: idle workers start the engine's next probes; no (candidate, attempt) is simulated twice."""
+
+from __future__ import annotations
+
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+from pytest_ddenv.reduce import Observation, reduce
+
+from .conftest import SetOracle, names
+
+ELEMENTS = ("a", "b", "c", "d")
+NEEDS = frozenset({"a", "c"})
+"""With even parts [a, b] and [c, d], both subsets of the first round must be rejected (3 runs each)."""
+
+
+def test_an_idle_worker_starts_the_next_round_while_the_last_probe_of_a_round_runs() -> None:
+    oracle = SetOracle(NEEDS)
+    next_round_started = threading.Event()
+    waited: list[bool] = []
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        if len(candidate) == 1:  # a first-round candidate has 2 elements; the next round's have 1 or 3
+            next_round_started.set()
+        if candidate == ("c", "d") and attempt == 2:  # the last probe of the first round
+            waited.append(next_round_started.wait(timeout=10.0))
+        return oracle(candidate, attempt)
+
+    with ThreadPoolExecutor(max_workers=2) as executor:
+        result = reduce(ELEMENTS, probe, partition="even", priority="sequential", deflake=2, executor=executor)
+    assert set(result.minimal) == NEEDS and result.one_minimal
+    assert waited == [True], "the second worker stayed idle while the first round's last probe ran"
+    serial = reduce(ELEMENTS, SetOracle(NEEDS), partition="even", priority="sequential", deflake=2)
+    assert result.minimal == serial.minimal
+    assert [size for _, size in result.steps] == [size for _, size in serial.steps]
+
+
+def test_no_probe_is_simulated_twice_with_slow_flaky_probes() -> None:
+    culprits = frozenset({"m0003", "m0011", "m0020"})
+    oracle = SetOracle(culprits, rate=0.6, salt=11)
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        time.sleep(0.002 * (hash((candidate, attempt)) % 5))  # finishing order differs from starting order
+        return oracle(candidate, attempt)
+
+    serial = reduce(names(24), SetOracle(culprits, rate=0.6, salt=11), partition="even", deflake=3)
+    with ThreadPoolExecutor(max_workers=2) as executor:
+        parallel = reduce(names(24), probe, partition="even", deflake=3, executor=executor)
+    assert len(oracle.calls) == len(set(oracle.calls)), "a (candidate, attempt) was simulated twice"
+    assert parallel.minimal == serial.minimal and parallel.failure_rate == serial.failure_rate
