@@ -12,7 +12,11 @@ The picire adapter (`picire_reduce`) hands picire the *same* probe function: pic
 indices into the world's reducible models; a config is FAIL iff our deflake rule (`deflake=N`: the first run,
 then up to N re-runs, each with a fresh noise seed, FAIL as soon as one run gives our Outcome.FAIL) says
 the candidate reproduces f; a candidate the precondition refuses is PASS without a simulation, as in our
-engine. Attempt k of a candidate uses the noise seed `seed + k * 1_000_003`, in both tools.
+engine. Attempt k of a candidate uses the noise seed `seed + (k + attempt_offset) * 1_000_003`, in both
+tools: `seed` is the noise seed of the original failing run, `attempt_offset` (1000 x the reduction seed)
+gives each reduction seed its own re-run seeds while the failure being reduced stays the same.
+With `deflake="auto"` picire gets the rule our engine calibrated (e.g. 2-of-3: FAIL iff 2 of at most 3
+runs fail), and the calibration runs are added to its simulations too (the rule includes them).
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from pytest_ddenv.probe import (
     trace_of,
 )
 from pytest_ddenv.reduce import Observation, Outcome, Reduction, reduce
+from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedReruns
 from pytest_ddenv.robot_world import RobotWorld
 from pytest_ddenv.world import World
 
@@ -84,11 +89,13 @@ class Problem:
     keep: tuple[str, ...]
     reducible: tuple[str, ...]
     counter: SimCounter = field(default_factory=lambda: SimCounter())
+    attempt_offset: int = 0
+    """Added to every probe's attempt number: the reduction seed's own re-run noise (0 for the original run)."""
 
     def run_test(self, candidate: World, attempt: int) -> tuple[BaseException | None, Any]:
         """The scenario test's body (`robot_world.run()`), as a reduction probe calls it."""
-        robot_world = RobotWorld(candidate, predicates=self.predicates, seed=self.seed, attempt=attempt,
-                                 simulate=self.simulate)
+        robot_world = RobotWorld(candidate, predicates=self.predicates, seed=self.seed,
+                                 attempt=attempt + self.attempt_offset, simulate=self.simulate)
         try:
             robot_world.run()
         except Exception as error:  # noqa: BLE001 - every exception is an outcome to classify
@@ -198,7 +205,7 @@ class Row:
 
 def ddenv_reduce(problem: Problem, *, partition: str, priority: str, deflake: int | str, workers: int,
                  max_seconds: float | None = None, failure_rate_runs: int = 10,
-                 world_label: str | None = None) -> Row:
+                 world_label: str | None = None, seed: int | None = None) -> Row:
     """Reduce with our engine (the plugin's call of `reduce`), then measure the minimal world's failure rate."""
     probe = problem.probe()
     executor = concurrent.futures.ThreadPoolExecutor(workers) if workers > 1 else None
@@ -208,7 +215,7 @@ def ddenv_reduce(problem: Problem, *, partition: str, priority: str, deflake: in
         reduction: Reduction = reduce(
             problem.world.names, probe, geometry=problem.world, reference=problem.reference_trace,
             partition=partition, priority=priority, deflake=deflake, keep=problem.keep,
-            preconditions=problem.preconditions(), seed=problem.seed, executor=executor,
+            preconditions=problem.preconditions(), seed=problem.seed if seed is None else seed, executor=executor,
             max_seconds=max_seconds, failure_rate_runs=0,
         )
     finally:
@@ -218,15 +225,23 @@ def ddenv_reduce(problem: Problem, *, partition: str, priority: str, deflake: in
     started_sims = problem.counter.reset()
     rate = failure_rate(problem, reduction.minimal, failure_rate_runs, workers)
     return Row(
-        tool="ddenv", world=world_label or problem.world.name, seed=problem.seed, partition=partition,
+        tool="ddenv", world=world_label or problem.world.name, seed=problem.seed if seed is None else seed,
+        partition=partition,
         priority=priority, deflake=str(deflake), original_size=len(problem.reducible),
         final_size=len([n for n in reduction.minimal if n not in problem.keep]), minimal=list(reduction.minimal),
         simulations=reduction.probes, cache_hits=reduction.cache_hits, one_minimal=reduction.one_minimal,
         failure_rate=rate, wall_time=wall, workers=workers, failure=problem.failure,
         note=reduction.incomplete_reason or "",
         extra={"simulations_started": started_sims, "skipped": reduction.skipped, "errors": reduction.errors,
-               "steps": [list(s) for s in reduction.steps]},
+               "steps": [list(s) for s in reduction.steps], "deflake_used": reduction.deflake,
+               "calibration": reduction.calibration},
     )
+
+
+def calibrated_rule(row: Row) -> DeflakePolicy | None:
+    """The deflake rule our engine calibrated in this reduction (deflake="auto"), or None."""
+    calibration = row.extra.get("calibration")
+    return None if calibration is None else CalibratedReruns().rule_for(*calibration)
 
 
 def failure_rate(problem: Problem, candidate: Sequence[str], runs: int, workers: int) -> tuple[int, int]:
@@ -279,9 +294,14 @@ def picire_dd(test: Callable[[list[int], tuple[str, ...]], Any], config: dict[st
     return picire.DD(test, **kwargs)
 
 
-def picire_reduce(problem: Problem, *, config_name: str, deflake: int, failure_rate_runs: int = 10,
-                  world_label: str | None = None, max_simulations: int | None = None) -> Row:
-    """picire's sequential DD driven by our probe (see the module docstring for the outcome mapping)."""
+def picire_reduce(problem: Problem, *, config_name: str, deflake: int | DeflakePolicy, failure_rate_runs: int = 10,
+                  world_label: str | None = None, max_simulations: int | None = None,
+                  calibration_runs: int = 0) -> Row:
+    """picire's sequential DD driven by our probe (see the module docstring for the outcome mapping).
+
+    `deflake`: re-runs (the paper's rule) or the rule our engine calibrated (deflake="auto");
+    `calibration_runs`: simulations the calibration spent before the reduction, counted."""
+    policy = FixedReruns(deflake) if isinstance(deflake, int) else deflake
     import picire  # type: ignore[import-untyped]
 
     probe = problem.probe()
@@ -303,13 +323,13 @@ def picire_reduce(problem: Problem, *, config_name: str, deflake: int, failure_r
         if any(check(candidate) for check in precondition):
             counts["skipped"] += 1
             return picire.Outcome.PASS
-        for attempt in range(deflake + 1):
+        outcomes: list[Outcome] = []
+        while (verdict := policy.verdict(outcomes)) is None:
             if max_simulations is not None and counts["simulations"] >= max_simulations:
                 raise _Budget()
             counts["simulations"] += 1
-            if probe(candidate, attempt).outcome is Outcome.FAIL:
-                return picire.Outcome.FAIL
-        return picire.Outcome.PASS
+            outcomes.append(probe(candidate, len(outcomes)).outcome)
+        return picire.Outcome.FAIL if verdict else picire.Outcome.PASS
 
     hits = [0]
     dd = picire_dd(test, PICIRE_CONFIGS[config_name], hits)
@@ -331,11 +351,13 @@ def picire_reduce(problem: Problem, *, config_name: str, deflake: int, failure_r
     rate = failure_rate(problem, minimal, failure_rate_runs, 1) if result is not None else (0, 0)
     return Row(
         tool=f"picire {picire_version()} {config_name}", world=world_label or problem.world.name, seed=problem.seed,
-        partition="picire", priority=config_name, deflake=str(deflake), original_size=len(reducible),
+        partition="picire", priority=config_name, deflake=str(policy.label), original_size=len(reducible),
         final_size=len(result) if result is not None else len(reducible), minimal=list(minimal),
-        simulations=counts["simulations"], cache_hits=hits[0], one_minimal=one_minimal, failure_rate=rate,
+        simulations=counts["simulations"] + calibration_runs, cache_hits=hits[0], one_minimal=one_minimal,
+        failure_rate=rate,
         wall_time=wall, workers=1, failure=problem.failure, note=note,
-        extra={"tests": counts["tests"], "retests": counts["retests"], "skipped": counts["skipped"]},
+        extra={"tests": counts["tests"], "retests": counts["retests"], "skipped": counts["skipped"],
+               "calibration_runs": calibration_runs},
     )
 
 

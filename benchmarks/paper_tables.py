@@ -4,10 +4,14 @@
     python benchmarks/paper_tables.py [--seeds 0 1 2] [--workers 2] [--out results.json]   # < 60 min
 
 For each scenario (ditch, rubble, friction, with the predicates of examples/test_paper_scenarios.py) and each
-seed (the robot's noise seed of the original failing run, also the engine's seed), it reduces the world
+seed, it reduces the world. `--protocol reduction` (the default): the failure is the scenario test's own
+failing run (noise seed `--failure-seed`, 0 as in the examples) and each seed is a reduction seed (the
+engine's seed and its own re-run noise seeds). `--protocol failure`: seed s is also the noise seed of the
+original failing run, so each seed reduces a possibly different failure. It reduces
 with the paper's three schema pairings, the project's `learner` and the plain ddmin baseline
 (`even` + `sequential`), through the same probe the plugin builds (benchmarks/common.py), with
-`--deflake` (default 3: the paper's rule and the plugin's default). Then it drives picire's DD with the same
+`--deflake` (default auto: the plugin's default, re-runs calibrated on the original world; an integer N
+is the paper's rule with N re-runs). Then it drives picire's DD with the same
 probe and the same deflake rule: its default settings, and its best settings for the problem (full mode:
 the configuration of `common.PICIRE_CONFIGS` with the fewest simulations on the first seed, chosen per
 scenario, then run on every seed).
@@ -35,7 +39,9 @@ from common import (
     SCENARIOS,
     TOLERANCE,
     NotFailing,
+    Problem,
     Row,
+    calibrated_rule,
     ddenv_reduce,
     failure_rate,
     load,
@@ -48,6 +54,7 @@ from common import (
     write_json,
 )
 
+from pytest_ddenv.reduce.deflake import DeflakePolicy
 from pytest_ddenv.world import World
 
 PAIRINGS: list[tuple[str, str, str]] = [
@@ -113,7 +120,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--scenarios", nargs="+", default=list(SCENARIOS), choices=list(SCENARIOS))
     parser.add_argument("--workers", type=int, default=2, help="simulation processes for our engine (1: serial)")
-    parser.add_argument("--deflake", type=int, default=3, help="re-runs of a candidate that did not fail (both tools)")
+    parser.add_argument("--deflake", default="auto", type=lambda v: int(v) if v.isdigit() else v,
+                        help="re-runs of a candidate that did not fail, or 'auto' (both tools; default auto)")
+    parser.add_argument("--protocol", choices=["reduction", "failure"], default="reduction",
+                        help="reduction: one failing run (--failure-seed), seeds vary the reduction; "
+                             "failure: seed s is also the failing run's noise seed")
+    parser.add_argument("--failure-seed", type=int, default=0, help="noise seed of the failing run (protocol reduction)")
     parser.add_argument("--no-picire", action="store_true")
     parser.add_argument("--picire-configs", nargs="+", default=None, choices=list(PICIRE_CONFIGS),
                         help="picire configurations to try for 'best' (default: all; --quick: none)")
@@ -128,8 +140,9 @@ def main(argv: list[str] | None = None) -> int:
     info["command"] = " ".join(["python", "benchmarks/paper_tables.py", *(argv if argv is not None else sys.argv[1:])])
     print(f"{info['date']}  {info['cores']} cores, {info['cpu']}, load average {info['load_average']}")
     print(f"python {info['python']}, " + ", ".join(f"{k} {v}" for k, v in info["versions"].items()))
-    print(f"seeds {seeds}, deflake={args.deflake}, our engine with {args.workers} worker(s); picire sequential\n",
-          flush=True)
+    print(f"protocol {args.protocol}" + (f" (failing run: noise seed {args.failure_seed})" if args.protocol ==
+          "reduction" else "") + f", seeds {seeds}, deflake={args.deflake}, our engine with {args.workers} "
+          "worker(s); picire sequential\n", flush=True)
 
     results: dict[str, Any] = {"machine": info, "settings": vars(args), "rows": [], "skipped": []}
     ours: dict[tuple[str, str], list[Row]] = {}
@@ -141,25 +154,36 @@ def main(argv: list[str] | None = None) -> int:
             world = World.load(scenario.world)
             warm(pool, world)
             best_config: str | None = None
+            problems: dict[int, Problem] = {}
             for seed in seeds:
-                try:
-                    problem = make_problem(world, scenario.predicates, seed, pool)
-                except NotFailing as error:
-                    print(f"skipped: {error}", flush=True)
-                    results["skipped"].append(str(error))
-                    continue
-                original = failure_rate(problem, world.names, args.failure_rate_runs, args.workers)
-                results.setdefault("original_fails", {})[f"{name} seed {seed}"] = original
-                print(f"{name} seed {seed}: original world fails {original[0]}/{original[1]} fresh seeds with "
-                      f"{problem.failure.split(' at ')[0]} within {TOLERANCE} m", flush=True)
+                failure_seed = args.failure_seed if args.protocol == "reduction" else seed
+                if failure_seed not in problems:
+                    try:
+                        problems[failure_seed] = make_problem(world, scenario.predicates, failure_seed, pool)
+                    except NotFailing as error:
+                        print(f"skipped: {error}", flush=True)
+                        results["skipped"].append(str(error))
+                        continue
+                    original = failure_rate(problems[failure_seed], world.names, args.failure_rate_runs, args.workers)
+                    results.setdefault("original_fails", {})[f"{name} failing run seed {failure_seed}"] = original
+                    print(f"{name} failing run (noise seed {failure_seed}): {problems[failure_seed].failure}; the "
+                          f"original world fails {original[0]}/{original[1]} fresh seeds the same way (within "
+                          f"{TOLERANCE} m)", flush=True)
+                problem = problems[failure_seed]
+                problem.attempt_offset = 1000 * seed if args.protocol == "reduction" else 0
+                calibration: tuple[int, int] | None = None
+                rule: int | DeflakePolicy = args.deflake if isinstance(args.deflake, int) else 3
                 for label, partition, priority in pairings:
                     row = ddenv_reduce(problem, partition=partition, priority=priority, deflake=args.deflake,
                                        workers=args.workers, failure_rate_runs=args.failure_rate_runs,
-                                       world_label=name)
+                                       world_label=name, seed=seed)
+                    if (calibrated := calibrated_rule(row)) is not None:
+                        calibration, rule = row.extra["calibration"], calibrated
                     row.extra["pairing"] = label
                     ours.setdefault((name, label), []).append(row)
                     results["rows"].append(row.to_dict())
-                    print(f"{name} seed {seed} ({problem.failure}) {label}: {row.simulations} sims, "
+                    print(f"{name} seed {seed} ({problem.failure}, deflake {row.extra['deflake_used']}) {label}: "
+                          f"{row.simulations} sims, "
                           f"{row.original_size} -> {row.final_size}, 1-minimal {row.one_minimal}, "
                           f"fails {row.failure_rate[0]}/{row.failure_rate[1]}, {row.wall_time:.1f} s, "
                           f"load {load()}; minimal {row.minimal}", flush=True)
@@ -171,8 +195,10 @@ def main(argv: list[str] | None = None) -> int:
                     configs += alternatives if best_config is None else [best_config]
                 picked: dict[str, Row] = {}
                 for config in configs:
-                    row = picire_reduce(problem, config_name=config, deflake=args.deflake,
-                                        failure_rate_runs=args.failure_rate_runs, world_label=name)
+                    row = picire_reduce(problem, config_name=config, deflake=rule,
+                                        failure_rate_runs=args.failure_rate_runs, world_label=name,
+                                        calibration_runs=calibration[1] if calibration else 0)
+                    row.seed = seed
                     picked[config] = row
                     theirs.setdefault((name, config), []).append(row)
                     results["rows"].append(row.to_dict())

@@ -6,7 +6,7 @@
 Each yard (benchmarks/make_yard.py, generated with the yard seed = the run's seed) holds a wall pocket across
 the robot's path whose back wall is the only culprit, and N - 3 clutter objects off the path. Per size it
 reduces the yard to a 1-minimal world with our engine (the plugin's probe, `stuck(window=5.0,
-min_progress=0.2)`, deflake 3) and prints simulations, wall time, whether the result is exactly the culprit,
+min_progress=0.2)`, deflake auto by default) and prints simulations, wall time, whether the result is exactly the culprit,
 and simulations / (log2 N x culprits). `--plot PNG` (default docs/images/scale_simulations.png) draws
 simulations against world size.
 """
@@ -91,7 +91,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--pairings", nargs="+", default=list(PAIRINGS), choices=list(PAIRINGS))
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--deflake", type=int, default=3)
+    parser.add_argument("--deflake", default="auto", type=lambda v: int(v) if v.isdigit() else v,
+                        help="re-runs of a candidate that did not fail, or 'auto' (the plugin's default)")
     parser.add_argument("--failure-rate-runs", type=int, default=4)
     parser.add_argument("--max-seconds", type=float, default=1800.0, help="budget per reduction")
     parser.add_argument("--out", help="write every measurement to this JSON file")

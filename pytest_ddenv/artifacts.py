@@ -147,6 +147,10 @@ def summary_of(
         "errors": reduction.errors,
         "steps": [list(step) for step in reduction.steps],
         "failure_rate": {"fails": fails, "runs": runs},
+        "original_failure_rate": (
+            None if reduction.calibration is None
+            else {"fails": reduction.calibration[0], "runs": reduction.calibration[1]}
+        ),
         "wall_time": round(reduction.wall_time, 3),
         "schemas": {
             "partition": reduction.partition,

@@ -207,8 +207,9 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
                         help="priority schema (default avg-trajectory-proximal)")
     reduce.add_argument("--granularity", default="ddmin", choices=GRANULARITIES, help="default ddmin")
     reduce.add_argument("--n-partitions", type=_positive_int, default=2, metavar="N", help="first split (default 2)")
-    reduce.add_argument("--deflake", default="3", metavar="N|adaptive",
-                        help="re-runs of a candidate that does not fail, or 'adaptive' (default 3)")
+    reduce.add_argument("--deflake", default="auto", metavar="N|adaptive|auto",
+                        help="re-runs of a candidate that does not fail, 'adaptive', or 'auto' (the default: a rule "
+                             "calibrated on the original world's failure rate)")
     reduce.add_argument("--tolerance", type=_positive_float, default=0.5, metavar="M",
                         help="same failure: failure position within this many metres (default 0.5)")
     reduce.add_argument("--keep", action="append", default=[], metavar="MODEL", help="never remove this model")

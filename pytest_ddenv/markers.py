@@ -30,7 +30,7 @@ class ReductionSpec:
     priority: str = "avg-trajectory-proximal"
     n_partitions: int = 2
     granularity: str = "ddmin"
-    deflake: int | str = 3
+    deflake: int | str = "auto"
     tolerance: float = 0.5
     keep: tuple[str, ...] = ()
     seed: int = 0
@@ -95,8 +95,12 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
     return ReductionSpec(**{**spec.__dict__, **updates})
 
 
-def parse_deflake(value: Any, where: str, policies: Sequence[str] = ("adaptive",)) -> int | str:
-    """An integer >= 0 (re-runs of a non-reproducing candidate) or a named policy such as 'adaptive'."""
+def parse_deflake(value: Any, where: str, policies: Sequence[str] | None = None) -> int | str:
+    """An integer >= 0 (re-runs of a non-reproducing candidate) or a named policy ('adaptive', 'auto')."""
+    if policies is None:
+        from pytest_ddenv.reduce import DEFLAKE_POLICIES
+
+        policies = DEFLAKE_POLICIES
     if isinstance(value, str) and value in policies:
         return value
     if isinstance(value, str) and value.isdigit():

@@ -47,7 +47,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
          {"action": "store_true", "ini_type": "bool"}),
         ("artifacts", "folder for minimal worlds, run logs and summaries (default: ddenv-artifacts)",
          {"metavar": "DIR", "ini_default": "ddenv-artifacts"}),
-        ("deflake", "re-runs of a candidate that did not reproduce the failure: an integer or 'adaptive'",
+        ("deflake", "re-runs of a candidate that did not reproduce the failure: an integer, 'adaptive', or "
+                    "'auto' (calibrated on the original world's failure rate)",
          {"metavar": "N"}),
         ("max-probes", "stop a reduction after this many simulations (best world so far is kept)", {"metavar": "N"}),
         ("max-time", "stop a reduction after this many wall-clock seconds", {"metavar": "SECONDS"}),

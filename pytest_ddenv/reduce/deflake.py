@@ -9,6 +9,12 @@ H0: P(f) <= 0.05 ("f is not reproduced, only noise") against H1: P(f) >= 0.5 ("f
 both error probabilities 1 - confidence. It stops as soon as the evidence is conclusive, and it also
 confirms accepted candidates: at confidence 0.95 one f is not enough (two are), and five runs without f
 reject. After `max_runs` runs without a conclusion it decides on the observed rate.
+
+`CalibratedReruns` (``deflake="auto"``) measures how often the original world reproduces f before the
+first round (3 extra runs, 5 unless all 3 reproduce f) and then decides candidates by a `ConfirmedRuns`
+rule sized from that rate: a failure that reproduces at least half of the time must be confirmed by 2 f
+runs (so a world that fails only by luck is seldom accepted), with just enough runs that a candidate
+failing as often as the original is rejected with probability at most 1 - confidence.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ from typing import Protocol
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.types import Outcome
 
-DEFLAKE_POLICIES: tuple[str, ...] = ("adaptive",)
+DEFLAKE_POLICIES: tuple[str, ...] = ("adaptive", "auto")
 """Named policies; `deflake` also accepts a non-negative int (fixed re-runs)."""
 
 
@@ -43,6 +49,10 @@ class FixedReruns:
     @property
     def label(self) -> int:
         return self.reruns
+
+    @property
+    def max_runs(self) -> int:
+        return self.reruns + 1
 
     def verdict(self, outcomes: Sequence[Outcome]) -> bool | None:
         if Outcome.FAIL in outcomes:
@@ -85,8 +95,69 @@ class SequentialTest:
         return None
 
 
+@dataclass(frozen=True)
+class ConfirmedRuns:
+    """f on at least `confirm` of at most `max_runs` runs; stops as soon as the verdict is certain.
+
+    `ConfirmedRuns(n + 1, 1)` is `FixedReruns(n)`. With `confirm=2` one lucky f is not enough, so a world that
+    reproduces f only rarely is seldom accepted.
+    """
+
+    max_runs: int
+    confirm: int = 1
+
+    @property
+    def label(self) -> str:
+        return f"{self.confirm}-of-{self.max_runs}"
+
+    def verdict(self, outcomes: Sequence[Outcome]) -> bool | None:
+        fails = sum(1 for outcome in outcomes if outcome is Outcome.FAIL)
+        if fails >= self.confirm:
+            return True
+        if fails + self.max_runs - len(outcomes) < self.confirm:
+            return False
+        return None
+
+
+@dataclass(frozen=True)
+class CalibratedReruns:
+    """`deflake="auto"`: a `ConfirmedRuns` rule sized from the original world's failure rate, measured
+    before the first round (see the module docstring and docs/algorithm.md §6)."""
+
+    confidence: float = 0.95
+    runs: int = 5
+    """Extra runs of the original world (attempts 1 .. runs; attempt 0 is the reference failure)."""
+    sure_runs: int = 3
+    """Stop after this many extra runs if every one of them reproduced f."""
+    max_runs: int = 10
+
+    @property
+    def label(self) -> str:
+        return "auto"
+
+    def rule_for(self, fails: int, runs: int) -> ConfirmedRuns:
+        """The rule for a failure that reproduced `fails` times in `runs` calibration runs.
+
+        The rate is estimated as p = (fails + 0.5) / (runs + 1), never 0 or 1. A failure that reproduces at
+        least half of the time must be confirmed (2 f runs); a rarer one needs 1. The number of runs is the
+        smallest n such that a world failing at rate p shows fewer than `confirm` f in n runs with
+        probability at most 1 - confidence (capped at `max_runs`): 3/3 or 5/5 give 2-of-3, 3/5 2-of-6,
+        2/5 1-of-6, 1/5 or fewer 1-of-10.
+        """
+        rate = (fails + 0.5) / (runs + 1.0)
+        confirm = 2 if rate >= 0.5 else 1
+        for count in range(confirm, self.max_runs + 1):
+            missed = sum(math.comb(count, k) * rate**k * (1.0 - rate) ** (count - k) for k in range(confirm))
+            if missed <= 1.0 - self.confidence:
+                return ConfirmedRuns(count, confirm)
+        return ConfirmedRuns(self.max_runs, confirm)
+
+    def verdict(self, outcomes: Sequence[Outcome]) -> bool | None:
+        raise ReductionError("deflake='auto' must be calibrated on the original world before deciding candidates")
+
+
 def make_policy(deflake: int | str, confidence: float) -> DeflakePolicy:
-    """`deflake` is a non-negative int (fixed re-runs, also as a digit string) or "adaptive"."""
+    """`deflake` is a non-negative int (fixed re-runs, also as a digit string), "adaptive" or "auto"."""
     if not isinstance(confidence, (int, float)) or isinstance(confidence, bool) or not 0.5 < confidence < 1.0:
         raise ReductionError(f"confidence must be a number strictly between 0.5 and 1, got {confidence!r}")
     if isinstance(deflake, str) and deflake.strip().isdigit():
@@ -97,6 +168,8 @@ def make_policy(deflake: int | str, confidence: float) -> DeflakePolicy:
         return FixedReruns(deflake)
     if deflake == "adaptive":
         return SequentialTest(confidence=float(confidence))
+    if deflake == "auto":
+        return CalibratedReruns(confidence=float(confidence))
     raise ReductionError(
         f"deflake must be a non-negative int (fixed re-runs) or one of {', '.join(DEFLAKE_POLICIES)}, got {deflake!r}"
     )

@@ -20,6 +20,7 @@ from typing import Any
 
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.context import Context, Verdict
+from pytest_ddenv.reduce.deflake import CalibratedReruns
 from pytest_ddenv.reduce.log import LOG_FORMAT, ProbeLog
 from pytest_ddenv.reduce.partition import Partitioner
 from pytest_ddenv.reduce.priority import Prioritizer
@@ -161,6 +162,7 @@ class _Engine:
         )
         self.steps: list[tuple[int, int]] = [(0, len(settings.elements))]
         self.verifying = False
+        self.calibration: tuple[int, int] | None = None
         if settings.executor is not None:
             self.prober.lookahead = self.lookahead
 
@@ -170,6 +172,7 @@ class _Engine:
         try:
             try:
                 self.write_start()
+                self.calibrate()
                 try:
                     one_minimal, incomplete = self.reduce_to_one_minimal(), None
                 except BudgetExhausted as exhausted:
@@ -188,6 +191,29 @@ class _Engine:
             self.prober.close()
             if self.log is not None:
                 self.log.close()
+
+    def calibrate(self) -> None:
+        """deflake="auto": measure the original world's failure rate (or read it from a resumed log) and
+        size the deflake rule from it. Attempt 0 is the reference failure; these are attempts 1, 2, ..."""
+        policy = self.settings.policy
+        if not isinstance(policy, CalibratedReruns):
+            return
+        known = self.log.calibration() if self.log is not None else None
+        if known is None:
+            original = self.settings.elements
+            fails, runs = self.prober.measure(original, 1, policy.sure_runs, purpose="calibration")
+            if fails < runs:
+                more = self.prober.measure(original, 1 + runs, policy.runs - runs, purpose="calibration")
+                fails, runs = fails + more[0], runs + more[1]
+            self.prober.counters.probes += runs
+            rule = policy.rule_for(fails, runs)
+            self.write({"event": "calibration", "fails": fails, "runs": runs, "rule": rule.label})
+        else:
+            fails, runs = known
+            rule = policy.rule_for(fails, runs)
+        self.calibration = (fails, runs)
+        self.prober.policy = rule
+        self.minimal_runs = 1 + runs  # the failure-rate runs of an unreduced world continue after these
 
     def reduce_to_one_minimal(self) -> bool:
         """ddmin rounds until the finest round fails, then the verification pass; True when 1-minimal."""
@@ -383,8 +409,9 @@ class _Engine:
             partition=settings.partitioner.name,
             priority=settings.prioritizer.name,
             granularity=settings.granularity,
-            deflake=settings.policy.label,
+            deflake=settings.policy.label if self.calibration is None else f"auto:{self.prober.policy.label}",
             seed=settings.seed,
+            calibration=self.calibration,
         )
 
     def write_start(self) -> None:

@@ -2,7 +2,8 @@
 
 Events (the ``"event"`` key): ``start``, ``round``, ``probe``, ``accept`` (the candidate reproduces f),
 ``reject`` (it does not), ``skip`` (a precondition refused it), ``cache-hit`` (its verdict was already
-known), ``step`` (a smaller world was adopted), ``failure-rate``, ``end``. Candidates are lists of element
+known), ``step`` (a smaller world was adopted), ``calibration`` (deflake="auto": the original world's
+failure rate and the re-runs chosen from it), ``failure-rate``, ``end``. Candidates are lists of element
 names in original order. The fields in `VOLATILE_FIELDS` hold wall-clock measurements; everything else is
 identical for two reductions with the same inputs and seed.
 
@@ -113,6 +114,13 @@ class ProbeLog:
         for record in self.records:
             if record.get("event") == "start":
                 return tuple(record.get("elements", ())), tuple(record.get("keep", ()))
+        return None
+
+    def calibration(self) -> tuple[int, int] | None:
+        """(fails, runs) of the first deflake calibration recorded in this log, or None."""
+        for record in self.records:
+            if record.get("event") == "calibration":
+                return int(record["fails"]), int(record["runs"])
         return None
 
     def decisions(self) -> dict[frozenset[str], Decision]:

@@ -11,6 +11,7 @@ serial one; only counters and the order of log lines differ.
 from __future__ import annotations
 
 import concurrent.futures
+import functools
 import os
 import time
 from collections.abc import Callable, MutableMapping, Sequence
@@ -262,7 +263,7 @@ class Prober:
         undecided = self._undecided(statuses)
         idle = [state for state in undecided if not state.in_flight and not state.early]
         first = [(state, state.next_attempt()) for state in idle]
-        limit = getattr(self.policy, "reruns", -1) + 1
+        limit = getattr(self.policy, "max_runs", 0)  # fixed-length rules only
         speculative = [
             (state, attempt)
             for state in undecided
@@ -313,14 +314,14 @@ class Prober:
             if busy + self.prefetch.running() >= self.window or self.budget.exhausted(self.counters.started):
                 return
             self.counters.started += 1
-            self.prefetch.start(key, lambda c=candidate, a=attempt: executor.submit(call_probe, probe, c, a))
+            self.prefetch.start(key, functools.partial(executor.submit, call_probe, probe, candidate, attempt))
 
     def planned(self, trials: Sequence[Trial]) -> list[tuple[Candidate, int]]:
         """The probes deciding `trials` would start first: a first attempt of each undecided candidate, then
-        the re-runs a fixed deflake policy may need."""
+        the re-runs a fixed-length deflake rule may need."""
         opened = [status for status in map(self._status, trials) if isinstance(status, _Open)]
         opened = [state for state in opened if self.policy.verdict(state.outcomes) is None]
-        limit = getattr(self.policy, "reruns", -1) + 1
+        limit = getattr(self.policy, "max_runs", 0)  # fixed-length rules only
         first = [(state.trial.candidate, len(state.outcomes)) for state in opened]
         later = [(s.trial.candidate, a) for s in opened for a in range(len(s.outcomes) + 1, limit)]
         return first + later
@@ -357,8 +358,11 @@ class Prober:
 
     # -- extra runs of a decided world ----------------------------------------------------------------------
 
-    def measure(self, candidate: Candidate, first_attempt: int, runs: int) -> tuple[int, int]:
-        """(fails, runs) over attempts first_attempt .. first_attempt+runs-1; no budget applies."""
+    def measure(
+        self, candidate: Candidate, first_attempt: int, runs: int, purpose: str = "failure-rate"
+    ) -> tuple[int, int]:
+        """(fails, runs) over attempts first_attempt .. first_attempt+runs-1, logged with `purpose`
+        ("failure-rate" or "calibration"); no budget applies."""
         attempts = range(first_attempt, first_attempt + runs)
         if self.executor is None:
             results = [call_probe(self.probe, candidate, attempt) for attempt in attempts]
@@ -372,7 +376,7 @@ class Prober:
         fails = 0
         for attempt, result in zip(attempts, results, strict=True):
             observation = checked_observation(result)
-            self._log_probe(Trial(candidate, "failure-rate"), attempt, observation, purpose="failure-rate")
+            self._log_probe(Trial(candidate, purpose), attempt, observation, purpose=purpose)
             fails += observation.outcome is Outcome.FAIL
         return fails, runs
 

@@ -175,7 +175,10 @@ class Reduction:
     priority: str
     granularity: str
     deflake: int | str
+    """The deflake policy: re-runs, "adaptive", or "auto:K-of-N" (calibrated: f on K of at most N runs)."""
     seed: int
+    calibration: tuple[int, int] | None = None
+    """deflake="auto": (fails, runs) of the original world's calibration runs (also counted in `probes`)."""
 
     @property
     def original_size(self) -> int:

@@ -44,6 +44,19 @@ def test_failing_robot_test_is_reduced_to_the_wall(wall_project: pytest.Pytester
     assert f"[[ATTACHMENT|{folder / 'minimal.yaml'}]]" in system_out
 
 
+def test_auto_deflake_calibrates_on_the_original_world(wall_project: pytest.Pytester) -> None:
+    result = wall_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-deflake", "auto")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*reduced 6 -> 1 models*"])
+    summary = summary_of(wall_project)
+    assert summary["minimal_models"] == ["wall"] and summary["one_minimal"] is True
+    assert summary["original_failure_rate"] == {"fails": 3, "runs": 3}, "the wall stops the robot every time"
+    assert summary["schemas"]["deflake"] == "auto:2-of-3", "a solid failure: confirmed by 2 of at most 3 runs"
+    records = [json.loads(line) for line in Path(summary["files"]["log"]).read_text().splitlines()]
+    assert [r["attempt"] for r in records if r.get("purpose") == "calibration"] == [1, 2, 3]
+    assert max(r["attempt"] for r in records if r.get("purpose") == "reduce") <= 2, "3 runs at most"
+
+
 def probed(log: Path) -> list[tuple[frozenset[str], int]]:
     """(candidate, attempt) of every reduction simulation in a run log, in log order."""
     records = [json.loads(line) for line in log.read_text().splitlines()]
