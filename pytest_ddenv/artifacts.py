@@ -123,6 +123,19 @@ def write_reduction(
     return summary
 
 
+def failure_rate_line(reduction: Reduction) -> str:
+    """"minimal world fails 5/5 seeds (original world: 3/3)", with a warning when it rarely fails."""
+    fails, runs = reduction.failure_rate
+    line = f"minimal world fails {fails}/{runs} seeds"
+    if reduction.calibration is not None:
+        line += f" (original world: {reduction.calibration[0]}/{reduction.calibration[1]})"
+    if runs and fails * 2 < runs:
+        line += " (warning: it rarely reproduces the failure" + (
+            "; consider deflake='auto')" if reduction.calibration is None else ")"
+        )
+    return line
+
+
 def summary_of(
     world: World, reduction: Reduction, *, test_id: str, replay_command: str, reference: dict[str, Any]
 ) -> dict[str, Any]:

@@ -583,7 +583,8 @@ def _command_line(arguments: argparse.Namespace) -> list[str]:
 
 
 def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any]) -> str:
-    fails, runs = reduction.failure_rate
+    from pytest_ddenv import artifacts
+
     status = "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
     removed = summary["removed_models"]
     return "\n".join([
@@ -594,7 +595,7 @@ def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any]) ->
         (f"probes: {reduction.probes} simulated, {reduction.cache_hits} from cache, {reduction.skipped} skipped, "
         f"{reduction.errors} errors; {reduction.wall_time:.1f} s"),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
-        f"minimal world fails {fails}/{runs} seeds",
+        artifacts.failure_rate_line(reduction),
         f"artifacts: {Path(summary['files']['summary']).parent}",
         f"pictures: {', '.join(summary.get('pictures', [])) or '(none)'}",
         f"replay: {summary['replay']}",

@@ -180,10 +180,7 @@ class ReductionSession:
             f"probes: {reduction.probes} simulated, {reduction.cache_hits} from cache, "
             f"{reduction.skipped} skipped, {reduction.errors} errors; {reduction.wall_time:.1f} s",
             f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
-            f"minimal world fails {fails}/{runs} seeds" + (
-                " (warning: it rarely reproduces the failure; consider deflake='adaptive')"
-                if runs and fails * 2 < runs else ""
-            ),
+            artifacts.failure_rate_line(reduction),
             f"artifacts: {folder}",
             f"replay: {summary['replay']}",
         ]) + "\n"

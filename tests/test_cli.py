@@ -323,3 +323,26 @@ def test_subprocess_smoke(worlds: dict[str, Path]) -> None:
     done = subprocess.run([sys.executable, "-m", "pytest_ddenv.cli", "check", "missing.yaml"],
                           check=False, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and done.stderr.strip().startswith("ddenv: error:") and done.stdout == ""
+
+
+def test_the_failure_rate_line_compares_with_the_original_and_warns() -> None:
+    from dataclasses import replace
+
+    from pytest_ddenv.artifacts import failure_rate_line
+    from pytest_ddenv.reduce import reduce
+
+    solid = reduce(("a", "b"), lambda candidate, attempt: _observation("a" in candidate), deflake="auto",
+                   failure_rate_runs=4)
+    assert failure_rate_line(solid) == "minimal world fails 4/4 seeds (original world: 3/3)"
+    rare = replace(solid, failure_rate=(1, 5))
+    assert failure_rate_line(rare).endswith("(original world: 3/3) (warning: it rarely reproduces the failure)")
+    fixed = replace(rare, calibration=None)
+    assert failure_rate_line(fixed) == (
+        "minimal world fails 1/5 seeds (warning: it rarely reproduces the failure; consider deflake='auto')"
+    )
+
+
+def _observation(failed: bool) -> Any:
+    from pytest_ddenv.reduce import Observation, Outcome
+
+    return Observation(Outcome.FAIL if failed else Outcome.PASS)

@@ -9,7 +9,13 @@ import pytest
 
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import Observation, Outcome, reduce
-from pytest_ddenv.reduce.deflake import CalibratedReruns, ConfirmedRuns, FixedReruns, SequentialTest, make_policy
+from pytest_ddenv.reduce.deflake import (
+    CalibratedReruns,
+    ConfirmedRuns,
+    FixedReruns,
+    SequentialTest,
+    make_policy,
+)
 from pytest_ddenv.reduce.log import ProbeLog
 
 from .conftest import SetOracle, names, uniform
