@@ -114,6 +114,20 @@ def summary_rows(rows: list[Row], scenario: str, label: str) -> list[Any]:
     ]
 
 
+def results_rows(ours: dict[tuple[str, str], list[Row]], theirs: dict[tuple[str, str], list[Row]]) -> list[Row]:
+    """Every row, by scenario (in SCENARIOS order), seed, then ours before picire's."""
+    rows = [row for group in (*ours.values(), *theirs.values()) for row in group]
+    order = {name: index for index, name in enumerate(SCENARIOS)}
+    return sorted(rows, key=lambda r: (order.get(r.world, 99), r.seed, r.tool != "ddenv"))
+
+
+def per_seed_row(row: Row) -> list[Any]:
+    label = row.extra.get("pairing") or row.tool
+    return [row.world, row.seed, label, row.extra.get("deflake_used", row.deflake), row.simulations,
+            row.cache_hits, f"{row.original_size} → {row.final_size}", "yes" if row.one_minimal else "NO",
+            f"{row.failure_rate[0]}/{row.failure_rate[1]}", f"{row.wall_time:.1f}"]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one seed, one pairing (learner), picire default")
@@ -262,6 +276,9 @@ def main(argv: list[str] | None = None) -> int:
             ])
     print(table(["scenario", "pairing", ">= paper's reduction", "1-minimal", "sims < paper's best (every seed)",
                  "< 5 min (every seed)", "sims vs picire default (<= 0.6x)"], lines))
+    print("\nPer-seed rows\n")
+    print(table(["scenario", "seed", "tool / pairing", "deflake", "simulations", "cache hits", "size", "1-minimal",
+                 "minimal fails", "wall s"], [per_seed_row(row) for row in results_rows(ours, theirs)]))
     print(f"\ntotal {total / 60:.1f} min; load average at the end {load()}")
     write_json(args.out, results)
     return 0
