@@ -156,6 +156,12 @@ class CalibratedReruns:
         raise ReductionError("deflake='auto' must be calibrated on the original world before deciding candidates")
 
 
+def runs_worth_starting_ahead(policy: DeflakePolicy) -> int:
+    """How many runs of one candidate may be started before the earlier ones are back: a fixed-length rule's
+    maximum (`FixedReruns`, `ConfirmedRuns`), else 0 (the adaptive test decides one run at a time)."""
+    return policy.max_runs if isinstance(policy, (FixedReruns, ConfirmedRuns)) else 0
+
+
 def make_policy(deflake: int | str, confidence: float) -> DeflakePolicy:
     """`deflake` is a non-negative int (fixed re-runs, also as a digit string), "adaptive" or "auto"."""
     if not isinstance(confidence, (int, float)) or isinstance(confidence, bool) or not 0.5 < confidence < 1.0:

@@ -20,7 +20,7 @@ from typing import Any
 
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.context import Context, Verdict
-from pytest_ddenv.reduce.deflake import DeflakePolicy
+from pytest_ddenv.reduce.deflake import DeflakePolicy, runs_worth_starting_ahead
 from pytest_ddenv.reduce.log import ProbeLog
 from pytest_ddenv.reduce.prefetch import Prefetch
 from pytest_ddenv.reduce.types import (
@@ -263,7 +263,7 @@ class Prober:
         undecided = self._undecided(statuses)
         idle = [state for state in undecided if not state.in_flight and not state.early]
         first = [(state, state.next_attempt()) for state in idle]
-        limit = getattr(self.policy, "max_runs", 0)  # fixed-length rules only
+        limit = runs_worth_starting_ahead(self.policy)
         speculative = [
             (state, attempt)
             for state in undecided
@@ -321,7 +321,7 @@ class Prober:
         the re-runs a fixed-length deflake rule may need."""
         opened = [status for status in map(self._status, trials) if isinstance(status, _Open)]
         opened = [state for state in opened if self.policy.verdict(state.outcomes) is None]
-        limit = getattr(self.policy, "max_runs", 0)  # fixed-length rules only
+        limit = runs_worth_starting_ahead(self.policy)
         first = [(state.trial.candidate, len(state.outcomes)) for state in opened]
         later = [(s.trial.candidate, a) for s in opened for a in range(len(s.outcomes) + 1, limit)]
         return first + later

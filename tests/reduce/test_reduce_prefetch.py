@@ -49,3 +49,24 @@ def test_no_probe_is_simulated_twice_with_slow_flaky_probes() -> None:
         parallel = reduce(names(24), probe, partition="even", deflake=3, executor=executor)
     assert len(oracle.calls) == len(set(oracle.calls)), "a (candidate, attempt) was simulated twice"
     assert parallel.minimal == serial.minimal and parallel.failure_rate == serial.failure_rate
+
+
+def test_the_adaptive_policy_keeps_one_attempt_in_flight_per_candidate() -> None:
+    in_flight: dict[tuple[str, ...], int] = {}
+    most = 0
+    lock = threading.Lock()
+    oracle = SetOracle(NEEDS, rate=0.6, salt=1)
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        nonlocal most
+        with lock:
+            in_flight[candidate] = in_flight.get(candidate, 0) + 1
+            most = max(most, in_flight[candidate])
+        time.sleep(0.002)
+        with lock:
+            in_flight[candidate] -= 1
+        return oracle(candidate, attempt)
+
+    with ThreadPoolExecutor(max_workers=3) as executor:
+        reduce(names(12), probe, deflake="adaptive", partition="even", executor=executor, failure_rate_runs=0)
+    assert most == 1, "the sequential test decides one run at a time: no speculative re-runs"
