@@ -234,11 +234,7 @@ class _Engine:
         plan = self.carried if self.carried is not None and len(self.carried.ordered) == self.granularity else None
         self.carried = None
         if plan is None:
-            parts = self.settings.partitioner(self.current, self.granularity, self.context)
-            self.check_parts(parts)
-            ordered = list(self.settings.prioritizer(parts, self.context, self.round_index))
-            removal = ordered[::-1] if self.settings.complement_order == "reverse" else ordered
-            plan = _Plan(ordered=ordered, removal=removal, subsets=True)
+            plan = self.fresh_plan(self.granularity)
         trials = self.trials_of(plan)
         self.write(
             {
@@ -262,6 +258,14 @@ class _Engine:
         if trial.kind == "complement" and self.settings.granularity == "ddmin":
             self.carried = plan.without(part)
         return trial
+
+    def fresh_plan(self, granularity: int) -> _Plan:
+        """The parts of a new round of the current world (partition schema), in priority order."""
+        parts = self.settings.partitioner(self.current, granularity, self.context)
+        self.check_parts(parts)
+        ordered = list(self.settings.prioritizer(parts, self.context, self.round_index))
+        removal = ordered[::-1] if self.settings.complement_order == "reverse" else ordered
+        return _Plan(ordered=ordered, removal=removal, subsets=True)
 
     def verify(self) -> bool:
         """Try removing each single remaining element; adopt and return True if one still reproduces f."""
@@ -292,14 +296,10 @@ class _Engine:
             return [(self.full(self.current), attempt) for attempt in range(self.minimal_runs, self.minimal_runs + runs)]
         if self.granularity >= len(self.current):
             return self.prober.planned(self.verify_trials())
-        granularity = self.coarser_or_finer(progress=None)
         try:
-            parts = self.settings.partitioner(self.current, granularity, self.context)
-            ordered = list(self.settings.prioritizer(parts, self.context, self.round_index))
+            plan = self.fresh_plan(self.coarser_or_finer(progress=None))
         except Exception:  # noqa: BLE001 - only a guess; the real round reports the error
             return []
-        removal = ordered[::-1] if self.settings.complement_order == "reverse" else ordered
-        plan = _Plan(ordered=ordered, removal=removal, subsets=True)
         trials = self.trials_of(plan)
         return self.prober.planned([trial for trial, _ in trials])
 
