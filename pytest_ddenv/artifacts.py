@@ -108,7 +108,7 @@ def write_reduction(
 ) -> dict[str, Any]:
     """Write the minimal world and the summary; returns the summary (plain JSON-able dict)."""
     minimal = world.select(reduction.minimal)
-    write_text_atomic(paths.minimal_yaml, minimal.to_yaml())
+    write_text_atomic(paths.minimal_yaml, minimal.to_yaml(relative_to=paths.directory))
     files = {"minimal_yaml": str(paths.minimal_yaml), "log": str(paths.log), "summary": str(paths.summary)}
     try:
         minimal.save(paths.minimal_sdf)

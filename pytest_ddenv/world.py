@@ -96,11 +96,55 @@ class Model:
         return not self.static
 
 
+DRIVE_KINDS = ("differential", "skid-steer")
+
+
+@dataclass(frozen=True)
+class LaserMount:
+    """Where a robot's 2D laser sits: `height` (m) above the robot's base frame; rays start `min_range` (m)
+    from the robot's centre, outside its own body."""
+
+    height: float
+    min_range: float
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """A wheeled robot given as data: the mapping form of a world file's `scenario.robot`.
+
+    `urdf` is a path, absolute or relative to the world file. The wheels are continuous joints named in
+    `left_wheels` and `right_wheels`; `drive` is "differential" or "skid-steer". `wheel_radius` and `track`
+    (the distance between the left and right wheels) are read from the URDF when None. `track_factor`
+    scales the track in the kinematics (None: 1 for differential, 1.5 for skid-steer, whose wheels slip
+    sideways when turning). `laser`: True (a laser on top of the robot, mounted automatically), False (no
+    laser) or a `LaserMount`. `name` defaults to the URDF's file name without extension.
+    """
+
+    urdf: str
+    left_wheels: tuple[str, ...]
+    right_wheels: tuple[str, ...]
+    drive: str = "differential"
+    wheel_radius: float | None = None
+    track: float | None = None
+    track_factor: float | None = None
+    max_wheel_torque: float = 20.0
+    laser: bool | LaserMount = True
+    name: str = ""
+
+    @property
+    def label(self) -> str:
+        """The robot's name in runs and reports."""
+        return self.name or Path(self.urdf).stem
+
+
 @dataclass(frozen=True)
 class Scenario:
-    """What the robot does in the world: start pose, goal, time limit (simulated seconds)."""
+    """What the robot does in the world: start pose, goal, time limit (simulated seconds).
 
-    robot: str = "husky"
+    `robot` is the name of a registered robot ("husky" by default) or a `RobotDescription`.
+    """
+
+    robot: str | RobotDescription = "husky"
     start: Pose = Pose()
     start_z_given: bool = False
     goal: tuple[float, float, float | None] = (0.0, 0.0, None)
@@ -187,10 +231,12 @@ class World:
 
         return world_yaml.parse_yaml(text, source=source)
 
-    def to_yaml(self) -> str:
+    def to_yaml(self, *, relative_to: str | os.PathLike[str] | None = None) -> str:
+        """The world as YAML text. Give `relative_to` (the folder the text goes to) to keep relative mesh
+        and URDF paths working from there; `save` does this."""
         from pytest_ddenv import world_yaml
 
-        return world_yaml.dump_yaml(self)
+        return world_yaml.dump_yaml(self, None if relative_to is None else Path(relative_to))
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the world, as YAML or SDF by extension, atomically (write then rename)."""
@@ -198,7 +244,7 @@ class World:
         if path.suffix.lower() in (".world", ".sdf"):
             text = self.to_sdf()
         else:
-            text = self.to_yaml()
+            text = self.to_yaml(relative_to=path.parent)
         temporary = path.with_name(f".{path.name}.tmp{os.getpid()}")
         temporary.write_text(text, encoding="utf-8")
         os.replace(temporary, path)
@@ -365,7 +411,12 @@ def resolve_mesh_path(mesh: str | None, source: str | None) -> Path:
     """A mesh path as given, or relative to the directory of the world file that names it."""
     if mesh is None:
         raise WorldError("a mesh shape needs a 'mesh' file", source=source)
-    path = Path(mesh).expanduser()
+    return resolve_relative(mesh, source)
+
+
+def resolve_relative(file: str, source: str | None) -> Path:
+    """A file named in a world file: as given if absolute, else relative to the world file's folder."""
+    path = Path(file).expanduser()
     if not path.is_absolute() and source is not None:
         path = Path(source).parent / path
     return path

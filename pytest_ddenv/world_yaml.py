@@ -14,6 +14,7 @@ from typing import Any
 import yaml
 
 from pytest_ddenv.errors import ScenarioError, WorldError
+from pytest_ddenv.world_robot import parse_robot, rebased, robot_dict
 from pytest_ddenv.world import (
     SHAPE_KINDS,
     Ground,
@@ -270,7 +271,7 @@ def _parse_scenario(reader: _Reader, value: Any) -> Scenario:
     reader.error_type = ScenarioError
     try:
         data = reader.mapping(value, "scenario", SCENARIO_KEYS)
-        robot = reader.text(data.get("robot", "husky"), "scenario.robot")
+        robot = parse_robot(reader, data.get("robot", "husky"))
         if "start" not in data:
             raise reader.fail("scenario.start", "missing; give the robot's start as {x: .., y: .., yaw: ..}")
         start = reader.mapping(data["start"], "scenario.start", ("x", "y", "z", "yaw"))
@@ -338,7 +339,9 @@ def _parse_ground(reader: _Reader, value: Any) -> Ground | None:
 # -- writing ---------------------------------------------------------------------------------------------
 
 
-def dump_yaml(world: World) -> str:
+def dump_yaml(world: World, relative_to: Path | None = None) -> str:
+    """The world as YAML text. `relative_to`: the folder the text will be written to; relative mesh and
+    URDF paths are rebased onto it (they are relative to `world.source`'s folder)."""
     document: dict[str, Any] = {"format": FORMAT_VERSION}
     if world.name:
         document["name"] = world.name
@@ -350,8 +353,8 @@ def dump_yaml(world: World) -> str:
         }
     document["ground"] = None if world.ground is None else _ground_dict(world.ground)
     if world.scenario is not None:
-        document["scenario"] = _scenario_dict(world.scenario)
-    document["models"] = [_model_dict(model) for model in world.models]
+        document["scenario"] = _scenario_dict(world.scenario, world.source, relative_to)
+    document["models"] = [_model_dict(model, world.source, relative_to) for model in world.models]
     return yaml.dump(document, Dumper=_SafeDumper, sort_keys=False, default_flow_style=None, width=120)
 
 
@@ -359,7 +362,7 @@ def _ground_dict(ground: Ground) -> dict[str, float]:
     return {"z": ground.z, "mu": ground.mu, "mu2": ground.mu2, "restitution": ground.restitution}
 
 
-def _scenario_dict(scenario: Scenario) -> dict[str, Any]:
+def _scenario_dict(scenario: Scenario, source: str | None, relative_to: Path | None) -> dict[str, Any]:
     start: dict[str, float] = {"x": scenario.start.x, "y": scenario.start.y}
     if scenario.start_z_given:
         start["z"] = scenario.start.z
@@ -368,7 +371,7 @@ def _scenario_dict(scenario: Scenario) -> dict[str, Any]:
     if scenario.goal[2] is not None:
         goal["z"] = scenario.goal[2]
     return {
-        "robot": scenario.robot,
+        "robot": robot_dict(scenario.robot, source, relative_to),
         "start": start,
         "goal": goal,
         "goal_tolerance": scenario.goal_tolerance,
@@ -376,7 +379,7 @@ def _scenario_dict(scenario: Scenario) -> dict[str, Any]:
     }
 
 
-def _shape_dict(shape: Shape) -> dict[str, Any]:
+def _shape_dict(shape: Shape, source: str | None, relative_to: Path | None) -> dict[str, Any]:
     if shape.kind == "box":
         assert shape.size is not None
         spec: Any = list(shape.size)
@@ -385,21 +388,22 @@ def _shape_dict(shape: Shape) -> dict[str, Any]:
     elif shape.kind == "sphere":
         spec = {"radius": shape.radius}
     else:
-        spec = {"file": shape.mesh, "scale": list(shape.scale)}
+        assert shape.mesh is not None
+        spec = {"file": rebased(shape.mesh, source, relative_to), "scale": list(shape.scale)}
     result: dict[str, Any] = {shape.kind: spec}
     if shape.pose != Pose():
         result["pose"] = shape.pose.as_list()
     return result
 
 
-def _model_dict(model: Model) -> dict[str, Any]:
+def _model_dict(model: Model, source: str | None, relative_to: Path | None) -> dict[str, Any]:
     result: dict[str, Any] = {"name": model.name}
     if model.pose != Pose():
         result["pose"] = model.pose.as_list()
     if len(model.shapes) == 1 and model.shapes[0].pose == Pose():
-        result.update(_shape_dict(model.shapes[0]))
+        result.update(_shape_dict(model.shapes[0], source, relative_to))
     else:
-        result["shapes"] = [_shape_dict(shape) for shape in model.shapes]
+        result["shapes"] = [_shape_dict(shape, source, relative_to) for shape in model.shapes]
     if model.mass is not None:
         result["mass"] = model.mass
     if model.static != (model.mass is None):

@@ -22,10 +22,13 @@ from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._paths import UnresolvedURI, model_search_paths, resolve_uri
 from pytest_ddenv.sdf._xml import Lines, local_name, parse_xml, read_limited
 from pytest_ddenv.world import (
+    DRIVE_KINDS,
     Ground,
+    LaserMount,
     Model,
     Physics,
     Pose,
+    RobotDescription,
     Scenario,
     Shape,
     TagValue,
@@ -655,8 +658,9 @@ class _Loader:
         def number(owner: ET.Element, name: str, fallback: float, *, positive: bool = False) -> float:
             return self.attribute_number(owner, name, fallback, positive=positive, kind=ScenarioError)
 
+        description = element.find(f"{{{DDENV_NS}}}robot_description")
         return Scenario(
-            robot=element.get("robot", default.robot),
+            robot=element.get("robot", default.robot) if description is None else self.robot(description),
             start=Pose(x=number(start, "x", 0.0), y=number(start, "y", 0.0), z=number(start, "z", 0.0),
                        yaw=number(start, "yaw", 0.0)),
             start_z_given=start.get("z") is not None,
@@ -664,6 +668,44 @@ class _Loader:
                   number(goal, "z", 0.0) if goal.get("z") is not None else None),
             goal_tolerance=number(element, "goal_tolerance", default.goal_tolerance, positive=True),
             timeout=number(element, "timeout", default.timeout, positive=True),
+        )
+
+
+    def robot(self, element: ET.Element) -> RobotDescription:
+        """<ddenv:robot_description>, written by `dump_sdf` for a robot given as a mapping."""
+        field = "ddenv:robot_description"
+
+        def fail(message: str, name: str) -> WorldError:
+            return self.error(message, element, field=f"{field}/@{name}", kind=ScenarioError)
+
+        urdf = element.get("urdf", "")
+        if not urdf or not Path(urdf).is_file():
+            raise fail(f"URDF file not found: {urdf!r}", "urdf")
+        drive = element.get("drive", "differential")
+        if drive not in DRIVE_KINDS:
+            raise fail(f"expected one of {', '.join(DRIVE_KINDS)}, got {drive!r}", "drive")
+        wheels = {side: tuple(element.get(side, "").split()) for side in ("left_wheels", "right_wheels")}
+        for side, names in wheels.items():
+            if not names:
+                raise fail("expected the wheel joint names, separated by spaces", side)
+
+        def optional(name: str) -> float | None:
+            if element.get(name) is None:
+                return None
+            return self.attribute_number(element, name, 1.0, positive=True, kind=ScenarioError)
+
+        laser_text = element.get("laser", "true")
+        laser: bool | LaserMount = laser_text == "true"
+        if laser_text not in ("true", "false"):
+            try:
+                height, min_range = (float(v) for v in laser_text.split())
+            except ValueError:
+                raise fail(f"expected true, false or 'HEIGHT MIN_RANGE', got {laser_text!r}", "laser") from None
+            laser = LaserMount(height, min_range)
+        return RobotDescription(
+            urdf=urdf, left_wheels=wheels["left_wheels"], right_wheels=wheels["right_wheels"], drive=drive,
+            wheel_radius=optional("wheel_radius"), track=optional("track"), track_factor=optional("track_factor"),
+            max_wheel_torque=optional("max_wheel_torque") or 20.0, laser=laser, name=element.get("name", ""),
         )
 
 

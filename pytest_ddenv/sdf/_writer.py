@@ -14,12 +14,15 @@ from collections.abc import Sequence
 from pytest_ddenv.sdf._reader import DDENV_NS, collada_unit
 from pytest_ddenv.world import (
     Ground,
+    LaserMount,
     Model,
     Pose,
+    RobotDescription,
     Scenario,
     Shape,
     World,
     resolve_mesh_path,
+    resolve_relative,
 )
 
 SDF_VERSION = "1.6"
@@ -187,9 +190,13 @@ def _sun(parent: ET.Element) -> None:
     _sub(light, "direction", "-0.5 0.1 -0.9")
 
 
-def _scenario(parent: ET.Element, scenario: Scenario) -> None:
-    element = _sub(parent, _ddenv("scenario"), robot=scenario.robot, timeout=_number(scenario.timeout),
+def _scenario(parent: ET.Element, scenario: Scenario, source: str | None) -> None:
+    robot = scenario.robot
+    name = robot if isinstance(robot, str) else robot.label
+    element = _sub(parent, _ddenv("scenario"), robot=name, timeout=_number(scenario.timeout),
                    goal_tolerance=_number(scenario.goal_tolerance))
+    if isinstance(robot, RobotDescription):
+        _robot_description(element, robot, source)
     start = {"x": _number(scenario.start.x), "y": _number(scenario.start.y)}
     if scenario.start_z_given:
         start["z"] = _number(scenario.start.z)
@@ -199,6 +206,23 @@ def _scenario(parent: ET.Element, scenario: Scenario) -> None:
     if scenario.goal[2] is not None:
         goal["z"] = _number(scenario.goal[2])
     _sub(element, _ddenv("goal"), **goal)
+
+
+def _robot_description(parent: ET.Element, robot: RobotDescription, source: str | None) -> None:
+    """The robot mapping as <ddenv:robot_description> (the URDF path made absolute: SDF files move)."""
+    attributes = {"urdf": str(resolve_relative(robot.urdf, source).resolve()), "drive": robot.drive,
+                  "left_wheels": " ".join(robot.left_wheels), "right_wheels": " ".join(robot.right_wheels),
+                  "max_wheel_torque": _number(robot.max_wheel_torque)}
+    for key in ("wheel_radius", "track", "track_factor"):
+        if getattr(robot, key) is not None:
+            attributes[key] = _number(getattr(robot, key))
+    if isinstance(robot.laser, LaserMount):
+        attributes["laser"] = f"{_number(robot.laser.height)} {_number(robot.laser.min_range)}"
+    else:
+        attributes["laser"] = "true" if robot.laser else "false"
+    if robot.name:
+        attributes["name"] = robot.name
+    _sub(parent, _ddenv("robot_description"), **attributes)
 
 
 def dump_sdf(world: World) -> str:
@@ -212,7 +236,7 @@ def dump_sdf(world: World) -> str:
     _sub(element, _ddenv("physics"), timestep=_number(world.physics.timestep),
          solver_iterations=str(world.physics.solver_iterations))
     if world.scenario is not None:
-        _scenario(element, world.scenario)
+        _scenario(element, world.scenario, world.source)
     _sun(element)
     if world.ground is not None:
         _ground(element, world.ground, set(world.names))

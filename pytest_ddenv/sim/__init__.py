@@ -1,4 +1,5 @@
-"""Simulation layer: the Husky (or your robot) in PyBullet, with seeded noise, sensors and predicates.
+"""Simulation layer: the Husky (or your robot) in PyBullet, driven by a controller (the built-in go-to-goal
+law or yours), with seeded noise, sensors and predicates.
 
 `Simulator` owns one pybullet DIRECT client and runs worlds one after another; `simulate` is a one-shot
 convenience that reuses a per-process simulator. See docs/simulation.md.
@@ -9,20 +10,41 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from pytest_ddenv.oracle import Predicate
+from pytest_ddenv.sim.control import (
+    Command,
+    Controller,
+    ControllerError,
+    ControllerLike,
+    ControllerTimeout,
+    LaserScan,
+    Observation,
+    WheelCommand,
+)
 from pytest_ddenv.sim.engine import Simulator
-from pytest_ddenv.sim.robot import ROBOTS, Husky, Robot, register_robot
+from pytest_ddenv.sim.episode import Episode
+from pytest_ddenv.sim.robot import ROBOTS, Husky, Robot, WheeledRobot, register_robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import NoiseSettings, RunSettings
 from pytest_ddenv.world import World
 
 __all__ = [
     "ROBOTS",
+    "Command",
+    "Controller",
+    "ControllerError",
+    "ControllerLike",
+    "ControllerTimeout",
+    "Episode",
     "Husky",
+    "LaserScan",
     "NoiseSettings",
+    "Observation",
     "Robot",
     "Run",
     "RunSettings",
     "Simulator",
+    "WheelCommand",
+    "WheeledRobot",
     "register_robot",
     "simulate",
 ]
@@ -37,9 +59,17 @@ def simulate(
     predicates: Sequence[Predicate] = (),
     settings: RunSettings = RunSettings(),
     timeout: float | None = None,
+    controller: ControllerLike | None = None,
+    max_wall_time: float | None = None,
 ) -> Run:
     """Run `world` once with a simulator shared by this process (created on first use)."""
+    return shared_simulator().run(world, seed=seed, predicates=predicates, settings=settings, timeout=timeout,
+                                  controller=controller, max_wall_time=max_wall_time)
+
+
+def shared_simulator() -> Simulator:
+    """This process's simulator (created on first use, kept alive)."""
     global _shared
     if _shared is None or _shared.client < 0:
         _shared = Simulator()
-    return _shared.run(world, seed=seed, predicates=predicates, settings=settings, timeout=timeout)
+    return _shared

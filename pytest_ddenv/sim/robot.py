@@ -1,29 +1,34 @@
-"""The pluggable robot interface and the built-in Clearpath Husky.
+"""The pluggable robot interface, wheeled robots from a URDF, and the built-in Clearpath Husky.
 
 A robot knows how to spawn itself in a pybullet client, which of its links are wheels, how to turn a
-(linear, angular) velocity command into motor commands, and what its wheel encoders measure. The
-simulator supplies everything else: noise, localisation (dead reckoning from `measured_velocity` plus
-a noisy IMU yaw), the go-to-goal controller, sensing and the predicates. Register your own robot with
-`register_robot("name", factory)` and use `robot: name` in the world file's scenario.
+command into motor commands, and what its wheel encoders measure. The simulator supplies everything else:
+noise, localisation (dead reckoning plus a noisy IMU yaw), sensing, the controller and the predicates.
+
+Most wheeled robots need no Python: `WheeledRobot` (or the `scenario.robot` mapping of a world file) reads
+wheel radius, track, footprint and mass from the URDF. For anything else subclass `Robot` and register it
+with `register_robot("name", factory)`.
 """
 
 from __future__ import annotations
 
 import abc
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+from pytest_ddenv.errors import ScenarioError
+from pytest_ddenv.sim.control import ControllerError
 from pytest_ddenv.sim.quiet import silenced
+from pytest_ddenv.sim.urdf_geometry import UrdfGeometry, measure_urdf
+from pytest_ddenv.world import LaserMount, RobotDescription, resolve_relative
 
 
 class Robot(abc.ABC):
-    """A mobile robot driven by (v, w) commands. One instance serves one run at a time.
+    """A mobile robot driven by (linear, angular) commands. One instance serves one run.
 
-    Geometry attributes (metres, in the robot frame: x forward, y left, z up from the ground contact):
-    `footprint` (length, width) used to find the support under the start pose; `laser_height` and
-    `laser_min_range` for the 2D laser; `base_height` how far above the support surface the base frame
-    sits when the robot rests on it.
+    Geometry attributes (metres, robot frame: x forward, y left): `footprint` (length, width), used to find
+    the support under the start pose and drawn in pictures; `base_height`, how far above the support surface
+    the base frame is spawned; `laser` (a `LaserMount`, or None for a robot without a laser).
     """
 
     name: str = "robot"
@@ -31,6 +36,12 @@ class Robot(abc.ABC):
     base_height: float = 0.0
     laser_height: float = 0.3
     laser_min_range: float = 0.6
+    has_laser: bool = True
+
+    @property
+    def laser(self) -> LaserMount | None:
+        """Where the laser sits (from `laser_height` and `laser_min_range`), or None: no laser."""
+        return LaserMount(self.laser_height, self.laser_min_range) if self.has_laser else None
 
     @abc.abstractmethod
     def spawn(self, client: int, position: tuple[float, float, float], yaw: float) -> int:
@@ -59,50 +70,109 @@ class Robot(abc.ABC):
     def measured_velocity(self) -> tuple[float, float]:
         """The body velocity (linear m/s, angular rad/s) the wheel encoders imply (wrong when wheels slip)."""
 
+    def drive_wheels(self, left: float, right: float, scale_left: float = 1.0, scale_right: float = 1.0) -> None:
+        """Command each side's wheel speed (rad/s). Robots that cannot say no here (the default)."""
+        raise ControllerError(f"the robot {self.name!r} takes Command(linear, angular) only, not WheelCommand")
 
-class Husky(Robot):
-    """The Clearpath Husky from `pybullet_data` (`husky/husky.urdf`), skid-steered by wheel velocity.
+    def odometry(self) -> tuple[tuple[float, ...], float, float]:
+        """(wheel speeds in rad/s, linear, angular) from one reading of the wheel encoders."""
+        linear, angular = self.measured_velocity()
+        return (), linear, angular
 
-    Wheels are looked up by joint name. Skid steering uses an effective track 1.5 x the real 0.5708 m and
-    100 N m per wheel, as in bullet3's examples (measured facts in docs/simulation.md). By default the
-    URDF is loaded with implicit wheel cylinders and merged fixed links (about 1.5x faster); the base
-    frame is then the merged chassis's centre of mass, about 0.17 m above the ground when level.
+
+class WheeledRobot(Robot):
+    """A differential-drive or skid-steer robot from a URDF, driven by wheel velocity motors.
+
+    `left_wheels` / `right_wheels` name the wheel joints. `wheel_radius`, `track` (left-right wheel
+    distance), the footprint, the base height and the mass are read from the URDF unless given. Kinematics:
+    `left/right = (linear -/+ angular * track * track_factor / 2) / wheel_radius` rad/s, with `track_factor`
+    1 for a differential drive and 1.5 for skid steering (its wheels slip sideways in turns; bullet3's
+    Husky example uses 1.5). `laser`: True mounts a laser on top of the robot, False none, or a
+    `LaserMount`. The URDF is loaded with implicit wheel cylinders and merged fixed links (faster).
     """
 
-    name = "husky"
-    footprint = (0.99, 0.67)
-    base_height = 0.0  # spawn: the URDF root (base_footprint) is at the wheel contact plane
-    laser_height = 0.35
-    laser_min_range = 0.62
-    wheel_radius = 0.17775
-    track = 0.5708
-    track_factor = 1.5
-    max_force = 100.0
-    WHEELS = ("front_left_wheel", "front_right_wheel", "rear_left_wheel", "rear_right_wheel")
-
-    def __init__(self, urdf: str | None = None, *, implicit_cylinder: bool = True, merge_fixed_links: bool = True) -> None:
-        if urdf is None:
-            import pybullet_data
-
-            urdf = os.path.join(pybullet_data.getDataPath(), "husky", "husky.urdf")
-        self.urdf = urdf
+    def __init__(
+        self,
+        urdf: str | os.PathLike[str],
+        *,
+        left_wheels: Sequence[str],
+        right_wheels: Sequence[str],
+        drive: str = "differential",
+        wheel_radius: float | None = None,
+        track: float | None = None,
+        track_factor: float | None = None,
+        max_wheel_torque: float = 20.0,
+        laser: bool | LaserMount = True,
+        name: str = "",
+        implicit_cylinder: bool = True,
+        merge_fixed_links: bool = True,
+        footprint: tuple[float, float] | None = None,
+        base_height: float | None = None,
+        mass: float | None = None,
+        wheel_order: Sequence[str] | None = None,
+        source: str | None = None,
+    ) -> None:
+        self.urdf = str(urdf)
+        self.source = source
+        if not os.path.isfile(self.urdf):
+            raise ScenarioError(f"URDF file not found: {self.urdf}", source=source, field="scenario.robot.urdf")
+        self.left, self.right = tuple(left_wheels), tuple(right_wheels)
+        if not self.left or not self.right:
+            raise ScenarioError("a wheeled robot needs at least one left and one right wheel joint",
+                                source=source, field="scenario.robot.left_wheels" if not self.left
+                                else "scenario.robot.right_wheels")
+        self.wheel_names = tuple(wheel_order) if wheel_order is not None else self.left + self.right
+        self.name = name or os.path.splitext(os.path.basename(self.urdf))[0]
+        self.drive_kind = drive
+        self.max_force = float(max_wheel_torque)
         self.implicit_cylinder = implicit_cylinder
         self.merge_fixed_links = merge_fixed_links
+        measured: UrdfGeometry | None = None
+        if None in (wheel_radius, track, footprint, base_height) or laser is True:
+            measured = measure_urdf(self.urdf, self._flags(), self.left, self.right, source=source)
+        self.wheel_radius = float(wheel_radius if wheel_radius is not None else measured.wheel_radius)  # type: ignore[union-attr]
+        self.track = float(track if track is not None else measured.track)  # type: ignore[union-attr]
+        self.track_factor = float(track_factor if track_factor is not None else
+                                  (1.5 if drive == "skid-steer" else 1.0))
+        self.footprint = footprint if footprint is not None else measured.footprint  # type: ignore[union-attr]
+        self.base_height = float(base_height if base_height is not None else measured.base_height)  # type: ignore[union-attr]
+        mount = laser if isinstance(laser, LaserMount) else (measured.laser if laser and measured else None)
+        self.has_laser = mount is not None
+        if mount is not None:
+            self.laser_height, self.laser_min_range = mount.height, mount.min_range
+        self._known_mass = mass
         self._client = -1
         self._body = -1
         self._wheels: tuple[int, ...] = ()
+        self._sides: tuple[bool, ...] = tuple(wheel in self.left for wheel in self.wheel_names)
         self._links: dict[int, str] = {}
         self._mass = 0.0
 
-    def spawn(self, client: int, position: tuple[float, float, float], yaw: float) -> int:
+    @classmethod
+    def from_description(cls, description: RobotDescription, source: str | None = None) -> WheeledRobot:
+        """The robot a world file's `scenario.robot` mapping describes (`source`: the world file)."""
+        return cls(
+            resolve_relative(description.urdf, source), left_wheels=description.left_wheels,
+            right_wheels=description.right_wheels, drive=description.drive,
+            wheel_radius=description.wheel_radius, track=description.track, track_factor=description.track_factor,
+            max_wheel_torque=description.max_wheel_torque, laser=description.laser, name=description.label,
+            source=source,
+        )
+
+    def _flags(self) -> int:
         import pybullet as p
 
         flags = p.URDF_USE_IMPLICIT_CYLINDER if self.implicit_cylinder else 0
         if self.merge_fixed_links:
             flags |= p.URDF_MERGE_FIXED_LINKS
+        return int(flags)
+
+    def spawn(self, client: int, position: tuple[float, float, float], yaw: float) -> int:
+        import pybullet as p
+
         with silenced():
             body = p.loadURDF(self.urdf, list(position), p.getQuaternionFromEuler([0.0, 0.0, yaw]),
-                              flags=flags, physicsClientId=client)
+                              flags=self._flags(), physicsClientId=client)
         self._client, self._body = client, body
         joints: dict[str, int] = {}
         self._links = {-1: p.getBodyInfo(body, physicsClientId=client)[0].decode()}
@@ -112,14 +182,16 @@ class Husky(Robot):
             joints[info[1].decode()] = index
             self._links[index] = info[12].decode()
             mass += p.getDynamicsInfo(body, index, physicsClientId=client)[0]
-        missing = [name for name in self.WHEELS if name not in joints]
+        missing = [name for name in self.wheel_names if name not in joints]
         if missing:
-            raise RuntimeError(f"{self.urdf} has no wheel joint(s) {missing}")
-        self._wheels = tuple(joints[name] for name in self.WHEELS)
-        self._mass = mass
+            raise ScenarioError(f"{self.urdf} has no joint(s) {', '.join(missing)}; its joints: "
+                                f"{', '.join(joints) or '(none)'}", source=self.source, field="scenario.robot")
+        self._wheels = tuple(joints[name] for name in self.wheel_names)
+        self._mass = mass if self._known_mass is None else self._known_mass
         # free the wheels from the default velocity motors before commanding them
-        p.setJointMotorControlArray(body, list(self._wheels), p.VELOCITY_CONTROL, targetVelocities=[0.0] * 4,
-                                    forces=[self.max_force] * 4, physicsClientId=client)
+        count = len(self._wheels)
+        p.setJointMotorControlArray(body, list(self._wheels), p.VELOCITY_CONTROL, targetVelocities=[0.0] * count,
+                                    forces=[self.max_force] * count, physicsClientId=client)
         return body
 
     @property
@@ -135,23 +207,60 @@ class Husky(Robot):
         return self._mass
 
     def drive(self, linear: float, angular: float, scale_left: float = 1.0, scale_right: float = 1.0) -> None:
-        import pybullet as p
-
         half = angular * self.track * self.track_factor / 2.0
         left = (linear - half) / self.wheel_radius * scale_left
         right = (linear + half) / self.wheel_radius * scale_right
-        p.setJointMotorControlArray(self._body, list(self._wheels), p.VELOCITY_CONTROL,
-                                    targetVelocities=[left, right, left, right],
-                                    forces=[self.max_force] * 4, physicsClientId=self._client)
+        self._set_wheel_speeds(left, right)
 
-    def measured_velocity(self) -> tuple[float, float]:
+    def drive_wheels(self, left: float, right: float, scale_left: float = 1.0, scale_right: float = 1.0) -> None:
+        self._set_wheel_speeds(float(left) * scale_left, float(right) * scale_right)
+
+    def _set_wheel_speeds(self, left: float, right: float) -> None:
+        import pybullet as p
+
+        targets = [left if is_left else right for is_left in self._sides]
+        p.setJointMotorControlArray(self._body, list(self._wheels), p.VELOCITY_CONTROL, targetVelocities=targets,
+                                    forces=[self.max_force] * len(targets), physicsClientId=self._client)
+
+    def odometry(self) -> tuple[tuple[float, ...], float, float]:
         import pybullet as p
 
         states = p.getJointStates(self._body, list(self._wheels), physicsClientId=self._client)
-        fl, fr, rl, rr = (state[1] for state in states)
-        left = (fl + rl) / 2.0 * self.wheel_radius
-        right = (fr + rr) / 2.0 * self.wheel_radius
-        return (left + right) / 2.0, (right - left) / (self.track * self.track_factor)
+        speeds = tuple(float(state[1]) for state in states)
+        left_speeds = [s for s, is_left in zip(speeds, self._sides, strict=True) if is_left]
+        right_speeds = [s for s, is_left in zip(speeds, self._sides, strict=True) if not is_left]
+        left = sum(left_speeds, 0.0) / len(left_speeds) * self.wheel_radius
+        right = sum(right_speeds, 0.0) / len(right_speeds) * self.wheel_radius
+        return speeds, (left + right) / 2.0, (right - left) / (self.track * self.track_factor)
+
+    def measured_velocity(self) -> tuple[float, float]:
+        _, linear, angular = self.odometry()
+        return linear, angular
+
+
+class Husky(WheeledRobot):
+    """The Clearpath Husky from `pybullet_data` (`husky/husky.urdf`), skid-steered by wheel velocity.
+
+    Skid steering uses an effective track 1.5 x the real 0.5708 m and 100 N m per wheel, as in bullet3's
+    examples (measured facts in docs/simulation.md). With implicit wheel cylinders and merged fixed links
+    (about 1.5x faster), the base frame is the merged chassis's centre of mass, about 0.17 m above the
+    ground when level; the URDF root (base_footprint) is at the wheel contact plane.
+    """
+
+    WHEELS = ("front_left_wheel", "front_right_wheel", "rear_left_wheel", "rear_right_wheel")
+
+    def __init__(self, urdf: str | None = None, *, implicit_cylinder: bool = True, merge_fixed_links: bool = True) -> None:
+        if urdf is None:
+            import pybullet_data
+
+            urdf = os.path.join(pybullet_data.getDataPath(), "husky", "husky.urdf")
+        super().__init__(
+            urdf, left_wheels=("front_left_wheel", "rear_left_wheel"),
+            right_wheels=("front_right_wheel", "rear_right_wheel"), drive="skid-steer", wheel_radius=0.17775,
+            track=0.5708, track_factor=1.5, max_wheel_torque=100.0, laser=LaserMount(0.35, 0.62), name="husky",
+            implicit_cylinder=implicit_cylinder, merge_fixed_links=merge_fixed_links, footprint=(0.99, 0.67),
+            base_height=0.0, wheel_order=self.WHEELS,
+        )
 
 
 RobotFactory = Callable[[], Robot]
@@ -159,14 +268,38 @@ ROBOTS: dict[str, RobotFactory] = {"husky": Husky}
 """Registered robots by the name a world file's `scenario.robot` uses."""
 
 
-def register_robot(name: str, factory: RobotFactory, *, replace: bool = False) -> None:
-    """Make `factory()` available as `robot: name` in world files."""
+def register_robot(name: str, robot: RobotFactory | RobotDescription, *, replace: bool = False) -> None:
+    """Make a robot available as `robot: name` in world files: a factory returning a `Robot`, or a
+    `RobotDescription` (its relative URDF path is taken from the current working directory).
+
+    Registrations made in a test module, a conftest or a module the test imports reach every probe
+    worker: workers import them as pytest does.
+    """
     if not isinstance(name, str) or not name:
         raise ValueError("a robot name must be a non-empty string")
     if name in ROBOTS and not replace:
         raise ValueError(f"a robot named {name!r} is already registered (pass replace=True)")
-    ROBOTS[name] = factory
+    if isinstance(robot, RobotDescription):
+        description = robot
+        ROBOTS[name] = lambda: WheeledRobot.from_description(description)
+    elif callable(robot):
+        ROBOTS[name] = robot
+    else:
+        raise TypeError(f"register_robot({name!r}, ...): expected a factory returning a Robot or a "
+                        f"RobotDescription, got {type(robot).__name__}")
 
 
-def make_robot(name: str, **_: Any) -> Robot:
-    return ROBOTS[name]()
+def make_robot(robot: str | RobotDescription, source: str | None = None) -> Robot:
+    """The robot of a scenario: a registered name or a description (`source`: the world file)."""
+    if isinstance(robot, RobotDescription):
+        return WheeledRobot.from_description(robot, source)
+    try:
+        factory = ROBOTS[robot]
+    except KeyError:
+        raise ScenarioError(f"unknown robot {robot!r}; registered robots: {', '.join(sorted(ROBOTS))}",
+                            source=source, field="scenario.robot") from None
+    made: Any = factory()
+    if not isinstance(made, Robot):
+        raise ScenarioError(f"the factory registered as robot {robot!r} returned {type(made).__name__}, not a "
+                            "Robot", source=source, field="scenario.robot")
+    return made

@@ -21,8 +21,11 @@ class Run:
 
     Arrays are sampled at `settings.record_rate` (and always at the final tick):
     `times` (T,), `poses` (T, 6) x y z roll pitch yaw of the robot base in the world frame,
-    `velocities` (T, 6) linear xyz + angular xyz (world frame), `wheel_contacts` (T, 4) normal force on
-    each wheel (front left, front right, rear left, rear right; > 0 = touching something).
+    `velocities` (T, 6) linear xyz + angular xyz (world frame), `wheel_contacts` (T, W) normal force on
+    each of the robot's W wheels, in the robot's wheel order (the Husky's: front left, front right, rear
+    left, rear right; > 0 = touching something).
+
+    `robot` is the robot's name and `footprint` its (length, width) in metres, as drawn in pictures.
 
     `first_touch` / `last_touch`: model name -> first / last simulated time the robot touched it (checked
     every control tick). `first_sensed`: model name -> first time a laser ray hit it.
@@ -47,6 +50,7 @@ class Run:
     steps: int
     pybullet_version: str
     robot: str = "husky"
+    footprint: tuple[float, float] = (0.99, 0.67)
 
     @property
     def positions(self) -> FloatArray:
@@ -87,6 +91,7 @@ class Run:
             "world_name": self.world_name,
             "model_names": list(self.model_names),
             "robot": self.robot,
+            "footprint": list(self.footprint),
             "times": self.times.tolist(),
             "poses": self.poses.tolist(),
             "velocities": self.velocities.tolist(),
@@ -114,10 +119,11 @@ class Run:
             world_name=str(data["world_name"]),
             model_names=tuple(data["model_names"]),
             robot=str(data.get("robot", "husky")),
+            footprint=_footprint(data.get("footprint", (0.99, 0.67))),
             times=np.asarray(data["times"], dtype=np.float64).reshape(-1),
             poses=array("poses", 6),
             velocities=array("velocities", 6),
-            wheel_contacts=array("wheel_contacts", 4),
+            wheel_contacts=_wheel_contacts(data["wheel_contacts"]),
             first_touch={str(k): float(v) for k, v in data["first_touch"].items()},
             last_touch={str(k): float(v) for k, v in data["last_touch"].items()},
             first_sensed={str(k): float(v) for k, v in data["first_sensed"].items()},
@@ -129,3 +135,13 @@ class Run:
             steps=int(data["steps"]),
             pybullet_version=str(data["pybullet_version"]),
         )
+
+
+def _footprint(value: Any) -> tuple[float, float]:
+    length, width = (float(v) for v in value)
+    return length, width
+
+
+def _wheel_contacts(value: Any) -> FloatArray:
+    loads = np.asarray(value, dtype=np.float64)
+    return loads.reshape(len(loads), -1) if loads.size else np.zeros((len(loads), 0))

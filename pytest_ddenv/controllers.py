@@ -1,0 +1,97 @@
+"""Ready-made controllers. `GoToGoal` is the default one (the paper's robot: it drives blind to the goal on
+its own position estimate); `AvoidObstacles` adds a reactive laser behaviour to any controller.
+
+A controller of your own is any callable `controller(observation) -> Command` (see `pytest_ddenv.Observation`
+and docs/writing-tests.md); pass it to `robot_world.run(controller=...)`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pytest_ddenv.sim.control import (
+    AnyCommand,
+    Command,
+    ControllerLike,
+    Observation,
+    check_controller,
+    wrap_angle,
+)
+from pytest_ddenv.sim.settings import RunSettings
+
+__all__ = ["AvoidObstacles", "GoToGoal", "default_controller"]
+
+
+@dataclass(frozen=True)
+class GoToGoal:
+    """Turn toward the goal and drive to it, on the robot's own pose estimate.
+
+    `angular = clip(turn_gain * heading error, +-max_turn_rate)`,
+    `linear = min(max_speed, 0.8 * distance) * max(0, cos(heading error))**2`; it stops when its estimate is
+    within `stop_distance` m of the goal.
+    """
+
+    max_speed: float = 1.0
+    turn_gain: float = 2.0
+    max_turn_rate: float = 0.8
+    stop_distance: float = 0.05
+
+    def __call__(self, observation: Observation) -> Command:
+        x, y, yaw = observation.pose
+        goal = observation.goal
+        dx, dy = goal[0] - x, goal[1] - y
+        distance = math.hypot(dx, dy)
+        if distance < self.stop_distance:
+            return Command(0.0, 0.0)
+        error = wrap_angle(math.atan2(dy, dx) - yaw)
+        angular = max(-self.max_turn_rate, min(self.max_turn_rate, self.turn_gain * error))
+        linear = min(self.max_speed, 0.8 * distance) * max(0.0, math.cos(error)) ** 2
+        return Command(linear, angular)
+
+
+@dataclass(frozen=True)
+class AvoidObstacles:
+    """Wrap a controller: stop and turn away (at `turn_rate`) while a laser hit lies in the corridor ahead
+    (`corridor_width` wide, `corridor_depth` deep from the robot's centre); otherwise do what `inner` says.
+    Without a laser it is `inner` unchanged."""
+
+    inner: ControllerLike
+    turn_rate: float = 0.8
+    corridor_width: float = 0.8
+    corridor_depth: float = 1.4
+
+    def __post_init__(self) -> None:
+        check_controller(self.inner, "AvoidObstacles(inner=...)")
+
+    def reset(self, observation: Observation) -> None:
+        reset = getattr(self.inner, "reset", None)
+        if reset is not None:
+            reset(observation)
+
+    def __call__(self, observation: Observation) -> AnyCommand:
+        command = self.inner(observation)
+        scan = observation.scan
+        if scan is None:
+            return command
+        finite = np.isfinite(scan.ranges)
+        ranges = np.where(finite, scan.ranges, 0.0)
+        ahead = ranges * np.cos(scan.angles)
+        side = ranges * np.sin(scan.angles)
+        half_width = self.corridor_width / 2.0
+        blocking = finite & (ahead > 0.0) & (ahead < self.corridor_depth) & (np.abs(side) < half_width)
+        if not blocking.any():
+            return command
+        away = -1.0 if float(np.sum(side[blocking])) > 0 else 1.0  # turn away from the obstacle's side
+        return Command(0.0, away * self.turn_rate)
+
+
+def default_controller(settings: RunSettings) -> ControllerLike:
+    """The controller a run uses when none is given: `GoToGoal` with the settings' gains, wrapped in
+    `AvoidObstacles` when `settings.avoid_obstacles`."""
+    law = GoToGoal(settings.max_speed, settings.turn_gain, settings.max_turn_rate)
+    if settings.avoid_obstacles:
+        return AvoidObstacles(law, turn_rate=settings.max_turn_rate)
+    return law

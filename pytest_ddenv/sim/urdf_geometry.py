@@ -1,0 +1,106 @@
+"""What a wheeled robot's URDF says about its geometry: wheel radius, track, footprint, mass, a laser mount.
+
+Measured once per process and URDF in a scratch pybullet client, never in the simulation's own client (a
+body loaded and removed there would shift the body ids and, with them, the contact order of later runs).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from pytest_ddenv.errors import ScenarioError
+from pytest_ddenv.sim.quiet import silenced
+from pytest_ddenv.world import LaserMount
+
+LASER_CLEARANCE = 0.05
+"""m: the automatic laser mount sits this far above the robot's top and starts its rays this far outside it."""
+_GEOM_SPHERE, _GEOM_CYLINDER, _GEOM_CAPSULE = 2, 4, 7
+
+
+@dataclass(frozen=True)
+class UrdfGeometry:
+    wheel_radius: float
+    track: float
+    footprint: tuple[float, float]
+    base_height: float
+    mass: float
+    laser: LaserMount
+
+
+_cache: dict[tuple[str, float, int, tuple[str, ...], tuple[str, ...]], UrdfGeometry] = {}
+
+
+def measure_urdf(urdf: str, flags: int, left: Sequence[str], right: Sequence[str], *,
+                 source: str | None = None) -> UrdfGeometry:
+    """Load `urdf` at the origin (identity pose) in a scratch client and measure it (cached per file)."""
+    key = (os.path.abspath(urdf), os.path.getmtime(urdf), flags, tuple(left), tuple(right))
+    if key not in _cache:
+        _cache[key] = _measure(urdf, flags, tuple(left), tuple(right), source)
+    return _cache[key]
+
+
+def _measure(urdf: str, flags: int, left: tuple[str, ...], right: tuple[str, ...], source: str | None) -> UrdfGeometry:
+    with silenced():
+        import pybullet as p
+
+        client = p.connect(p.DIRECT)
+    try:
+        try:
+            with silenced():
+                body = p.loadURDF(urdf, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], flags=flags, physicsClientId=client)
+        except p.error as error:
+            raise ScenarioError(f"pybullet cannot load the URDF {urdf}: {error}", source=source,
+                                field="scenario.robot.urdf") from None
+        joints = {p.getJointInfo(body, j, physicsClientId=client)[1].decode(): j
+                  for j in range(p.getNumJoints(body, physicsClientId=client))}
+        for side, names in (("left_wheels", left), ("right_wheels", right)):
+            missing = [name for name in names if name not in joints]
+            if missing:
+                raise ScenarioError(f"{urdf} has no joint named {', '.join(map(repr, missing))}; its joints: "
+                                    f"{', '.join(joints) or '(none)'}", source=source, field=f"scenario.robot.{side}")
+        links = [-1, *joints.values()]
+        boxes = [p.getAABB(body, link, physicsClientId=client) for link in links]
+        low = [min(box[0][axis] for box in boxes) for axis in range(3)]
+        high = [max(box[1][axis] for box in boxes) for axis in range(3)]
+        radii = [_wheel_radius(p, client, body, joints[name], urdf, source) for name in (*left, *right)]
+
+        def mean_y(names: tuple[str, ...]) -> float:
+            return sum(p.getLinkState(body, joints[n], physicsClientId=client)[4][1] for n in names) / len(names)
+
+        track = abs(mean_y(left) - mean_y(right))
+        if track <= 1e-6:
+            raise ScenarioError(f"{urdf}: the left and right wheels are at the same lateral position, so the track "
+                                "cannot be read; give track", source=source, field="scenario.robot.track")
+        mass = sum(p.getDynamicsInfo(body, link, physicsClientId=client)[0] for link in links)
+        base_z = p.getBasePositionAndOrientation(body, physicsClientId=client)[0][2]
+        reach = math.hypot(max(abs(low[0]), abs(high[0])), max(abs(low[1]), abs(high[1])))
+        return UrdfGeometry(
+            wheel_radius=sum(radii) / len(radii),
+            track=track,
+            footprint=(high[0] - low[0], high[1] - low[1]),
+            base_height=-low[2],
+            mass=mass,
+            laser=LaserMount(height=high[2] - base_z + LASER_CLEARANCE, min_range=reach + LASER_CLEARANCE),
+        )
+    finally:
+        p.disconnect(physicsClientId=client)
+
+
+def _wheel_radius(p: object, client: int, body: int, joint: int, urdf: str, source: str | None) -> float:
+    """From the wheel link's collision shape: a cylinder's or sphere's radius, else half its height."""
+    shapes = p.getCollisionShapeData(body, joint, physicsClientId=client)  # type: ignore[attr-defined]
+    if not shapes:
+        name = p.getJointInfo(body, joint, physicsClientId=client)[1].decode()  # type: ignore[attr-defined]
+        raise ScenarioError(f"{urdf}: the link of wheel joint {name!r} has no collision shape, so it cannot roll; "
+                            "give the wheel a <collision> (or give wheel_radius if it is merged elsewhere)",
+                            source=source, field="scenario.robot.wheel_radius")
+    kind, dimensions = shapes[0][2], shapes[0][3]
+    if kind in (_GEOM_CYLINDER, _GEOM_CAPSULE):
+        return float(dimensions[1])
+    if kind == _GEOM_SPHERE:
+        return float(dimensions[0])
+    low, high = p.getAABB(body, joint, physicsClientId=client)  # type: ignore[attr-defined]
+    return float(high[2] - low[2]) / 2.0

@@ -1,0 +1,117 @@
+"""The mapping form of `scenario.robot` in a world file: a wheeled robot described by its URDF.
+
+Parsed strictly (every error names the file and the field, e.g. `scenario.robot.left_wheels`) and written
+back in the same form. No pybullet here: the URDF is only checked to exist; the simulation reads it.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Protocol
+
+from pytest_ddenv.world import DRIVE_KINDS, LaserMount, RobotDescription, resolve_relative
+
+ROBOT_KEYS = (
+    "urdf", "drive", "left_wheels", "right_wheels", "wheel_radius", "track", "track_factor", "max_wheel_torque",
+    "laser", "name",
+)
+LASER_KEYS = ("height", "min_range")
+FIELD = "scenario.robot"
+
+
+class FieldReader(Protocol):
+    """What the parser needs from the YAML reader (world_yaml._Reader)."""
+
+    source: str | None
+
+    def fail(self, field: str | None, message: str) -> Exception: ...
+
+    def mapping(self, value: Any, field: str, allowed: tuple[str, ...]) -> Mapping[str, Any]: ...
+
+    def number(self, value: Any, field: str, *, positive: bool = False, non_negative: bool = False) -> float: ...
+
+    def text(self, value: Any, field: str) -> str: ...
+
+
+def parse_robot(reader: FieldReader, value: Any) -> str | RobotDescription:
+    """A registered robot's name, or a `RobotDescription` from a mapping."""
+    if not isinstance(value, Mapping):
+        return reader.text(value, FIELD)
+    data = reader.mapping(value, FIELD, ROBOT_KEYS)
+    for key in ("urdf", "left_wheels", "right_wheels"):
+        if key not in data:
+            raise reader.fail(f"{FIELD}.{key}", "missing; a robot mapping needs urdf, left_wheels and right_wheels")
+    urdf = reader.text(data["urdf"], f"{FIELD}.urdf")
+    resolved = resolve_relative(urdf, reader.source)
+    if not resolved.is_file():
+        raise reader.fail(f"{FIELD}.urdf", f"URDF file not found: {resolved}")
+    drive = data.get("drive", "differential")
+    if drive not in DRIVE_KINDS:
+        raise reader.fail(f"{FIELD}.drive", f"expected one of {', '.join(DRIVE_KINDS)}, got {drive!r}")
+
+    def optional(key: str) -> float | None:
+        return None if data.get(key) is None else reader.number(data[key], f"{FIELD}.{key}", positive=True)
+
+    return RobotDescription(
+        urdf=urdf,
+        left_wheels=_joint_names(reader, data["left_wheels"], f"{FIELD}.left_wheels"),
+        right_wheels=_joint_names(reader, data["right_wheels"], f"{FIELD}.right_wheels"),
+        drive=drive,
+        wheel_radius=optional("wheel_radius"),
+        track=optional("track"),
+        track_factor=optional("track_factor"),
+        max_wheel_torque=reader.number(data.get("max_wheel_torque", 20.0), f"{FIELD}.max_wheel_torque",
+                                       positive=True),
+        laser=_laser(reader, data.get("laser", True)),
+        name=reader.text(data["name"], f"{FIELD}.name") if "name" in data else "",
+    )
+
+
+def _joint_names(reader: FieldReader, value: Any, field: str) -> tuple[str, ...]:
+    names = [value] if isinstance(value, str) else value
+    if not isinstance(names, list) or not names:
+        raise reader.fail(field, f"expected a joint name or a non-empty list of joint names, got {value!r}")
+    return tuple(reader.text(name, f"{field}[{index}]") for index, name in enumerate(names))
+
+
+def _laser(reader: FieldReader, value: Any) -> bool | LaserMount:
+    if isinstance(value, bool):
+        return value
+    data = reader.mapping(value, f"{FIELD}.laser", LASER_KEYS)
+    for key in LASER_KEYS:
+        if key not in data:
+            raise reader.fail(f"{FIELD}.laser.{key}", "missing; give both height and min_range (m), or true/false")
+    return LaserMount(
+        height=reader.number(data["height"], f"{FIELD}.laser.height"),
+        min_range=reader.number(data["min_range"], f"{FIELD}.laser.min_range", non_negative=True),
+    )
+
+
+def robot_dict(robot: str | RobotDescription, source: str | None, relative_to: Path | None) -> Any:
+    """`scenario.robot` as written to a world file (paths rebased onto `relative_to` when given)."""
+    if isinstance(robot, str):
+        return robot
+    data: dict[str, Any] = {"urdf": rebased(robot.urdf, source, relative_to), "drive": robot.drive,
+                            "left_wheels": list(robot.left_wheels), "right_wheels": list(robot.right_wheels)}
+    for key in ("wheel_radius", "track", "track_factor"):
+        if getattr(robot, key) is not None:
+            data[key] = getattr(robot, key)
+    data["max_wheel_torque"] = robot.max_wheel_torque
+    if isinstance(robot.laser, LaserMount):
+        data["laser"] = {"height": robot.laser.height, "min_range": robot.laser.min_range}
+    elif robot.laser is False:
+        data["laser"] = False
+    if robot.name:
+        data["name"] = robot.name
+    return data
+
+
+def rebased(file: str, source: str | None, relative_to: Path | None) -> str:
+    """A relative file path of a world read from `source`, made relative to the folder `relative_to`
+    (where the world is being written) so that the written file still finds it."""
+    if relative_to is None or source is None or Path(file).expanduser().is_absolute():
+        return file
+    target = resolve_relative(file, source).resolve()
+    return os.path.relpath(target, Path(relative_to).resolve())
