@@ -7,10 +7,13 @@ error that names the test.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.errors import DdenvError
+
+if TYPE_CHECKING:
+    from pytest_ddenv.oracle import PredicateSpec
 
 DDENV_KEYWORDS = (
     "world", "partition", "priority", "n_partitions", "granularity", "deflake", "tolerance", "keep", "seed", "budget",
@@ -36,14 +39,6 @@ class ReductionSpec:
     seed: int = 0
     max_probes: int | None = None
     max_seconds: float | None = None
-
-
-@dataclass(frozen=True)
-class PredicateSpec:
-    """One `@pytest.mark.robot_failure(name, **params)`."""
-
-    name: str
-    params: Mapping[str, Any] = field(default_factory=dict)
 
 
 def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> ReductionSpec:
@@ -111,21 +106,25 @@ def parse_deflake(value: Any, where: str, policies: Sequence[str] | None = None)
 
 
 def parse_failure_markers(markers: Sequence[tuple[Sequence[Any], Mapping[str, Any]]]) -> tuple[PredicateSpec, ...]:
-    """Validate each robot_failure marker by building its predicate (unknown names or parameters fail here)."""
-    from pytest_ddenv.oracle import PREDICATES, make_predicate
+    """Validate each robot_failure marker by building its predicate (unknown names or parameters fail here).
+
+    A marker holds a registered predicate's name with keyword parameters, a predicate object
+    (`robot_failure(OnSlope(max_pitch=0.3))`) or a plain function of the state (`robot_failure(tipped)`).
+    """
+    from pytest_ddenv.oracle import PREDICATES, predicate_spec
 
     specs = []
     for args, kwargs in markers:
-        if len(args) != 1 or not isinstance(args[0], str):
+        if len(args) != 1:
             raise MarkerError(
-                "robot_failure(...) takes the predicate name as its only positional argument, e.g. "
-                f"robot_failure('stuck', window=5.0); valid predicates: {', '.join(PREDICATES)}"
+                "robot_failure(...) takes one positional argument: a predicate name, e.g. "
+                "robot_failure('stuck', window=5.0), a predicate object, or a function of the state; "
+                f"registered predicates: {', '.join(sorted(PREDICATES))}"
             )
         try:
-            make_predicate(args[0], **kwargs)
+            specs.append(predicate_spec(args[0], kwargs))
         except DdenvError as error:
             raise MarkerError(f"robot_failure({args[0]!r}, ...): {error}") from error
-        specs.append(PredicateSpec(args[0], dict(kwargs)))
     return tuple(specs)
 
 

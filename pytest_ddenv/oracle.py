@@ -31,15 +31,21 @@ __all__ = [
     "FailureSignature",
     "Fell",
     "Flipped",
+    "FunctionPredicate",
     "HighCentered",
     "History",
     "Predicate",
+    "PredicateSpec",
     "RobotState",
     "Stuck",
     "Timeout",
+    "check_predicate",
     "classify",
     "make_predicate",
+    "predicate_spec",
+    "register_predicate",
     "same_failure",
+    "signature",
 ]
 
 GROUND = "<ground>"
@@ -360,7 +366,7 @@ class Timeout:
         return None
 
 
-PREDICATES: Mapping[str, Callable[..., Predicate]] = {
+PREDICATES: dict[str, Callable[..., Predicate]] = {
     "stuck": Stuck,
     "flipped": Flipped,
     "high_centered": HighCentered,
@@ -368,11 +374,26 @@ PREDICATES: Mapping[str, Callable[..., Predicate]] = {
     "collided": Collided,
     "timeout": Timeout,
 }
-"""The built-in predicates by name; `make_predicate` builds and validates them."""
+"""Predicates by name: the built-in ones and those added with `register_predicate`."""
+BUILT_IN = frozenset(PREDICATES)
 
 _NON_NEGATIVE = {"min_progress", "min_chassis_load", "min_force", "duration"}
 _POSITIVE = {"window", "max_tilt", "max_drop"}
 _FRACTIONS = {"max_wheel_load"}
+
+
+def register_predicate(name: str, factory: Callable[..., Predicate], *, replace: bool = False) -> None:
+    """Make `factory(**params)` available by name: `@pytest.mark.robot_failure(name, **params)`, the
+    `ddenv` command's `--predicate name:k=v` and `ddenv replay`. Register it in a module the test (or
+    `ddenv --import`) imports, so that every probe worker has it too."""
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ValueError(f"a predicate name must be an identifier, got {name!r}")
+    if name in BUILT_IN or (name in PREDICATES and not replace):
+        raise ValueError(f"a predicate named {name!r} is already registered"
+                         + ("" if name in BUILT_IN else " (pass replace=True)"))
+    if not callable(factory):
+        raise TypeError(f"register_predicate({name!r}, ...): the factory must be callable, got {factory!r}")
+    PREDICATES[name] = factory
 
 
 def make_predicate(name: str, /, **params: Any) -> Predicate:
@@ -381,36 +402,136 @@ def make_predicate(name: str, /, **params: Any) -> Predicate:
         factory = PREDICATES[name]
     except (KeyError, TypeError):
         raise ScenarioError(
-            f"unknown failure predicate {name!r}; valid predicates: {', '.join(sorted(PREDICATES))}",
+            f"unknown failure predicate {name!r}; valid predicates: {', '.join(sorted(PREDICATES))} (register "
+            "your own with pytest_ddenv.register_predicate)",
             field="predicate",
         ) from None
-    accepted = [
-        p.name for p in inspect.signature(factory).parameters.values() if p.name != "name"
-    ]
+    try:
+        signature_ = inspect.signature(factory)
+    except (TypeError, ValueError):  # a builtin or C callable: accept any keyword
+        signature_ = None
+    accepted = [] if signature_ is None else [p.name for p in signature_.parameters.values() if p.name != "name"]
+    takes_any = signature_ is None or any(p.kind is p.VAR_KEYWORD for p in signature_.parameters.values())
     for key, value in params.items():
         where = f"{name}.{key}"
-        if key not in accepted:
+        if key not in accepted and not takes_any:
             raise ScenarioError(
                 f"predicate {name!r} has no parameter {key!r}; valid parameters: {', '.join(accepted) or '(none)'}",
                 field=where,
             )
-        if key == "models":
-            if value is not None and (isinstance(value, str) or not all(isinstance(v, str) for v in value)):
-                raise ScenarioError("expected a list of model names or None", field=where)
-            continue
-        if key == "min_z" and value is None:
-            continue
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ScenarioError(f"expected a finite number, got {value!r}", field=where)
-        if key in _POSITIVE and value <= 0:
-            raise ScenarioError(f"expected a number > 0, got {value!r}", field=where)
-        if key in _NON_NEGATIVE and value < 0:
-            raise ScenarioError(f"expected a number >= 0, got {value!r}", field=where)
-        if key in _FRACTIONS and not 0 <= value <= 1:
-            raise ScenarioError(f"expected a fraction between 0 and 1, got {value!r}", field=where)
-    if "models" in params and params["models"] is not None:
+        if name in BUILT_IN:
+            _check_built_in_parameter(key, value, where)
+    if "models" in params and params["models"] is not None and name in BUILT_IN:
         params = {**params, "models": tuple(params["models"])}
-    return factory(**params)
+    try:
+        predicate = factory(**params)
+    except (TypeError, ValueError) as error:
+        raise ScenarioError(f"predicate {name!r} could not be built: {error}", field=name) from None
+    check_predicate(predicate, f"the factory of predicate {name!r} returned {predicate!r}, which")
+    return predicate
+
+
+def _check_built_in_parameter(key: str, value: Any, where: str) -> None:
+    if key == "models":
+        if value is not None and (isinstance(value, str) or not all(isinstance(v, str) for v in value)):
+            raise ScenarioError("expected a list of model names or None", field=where)
+        return
+    if key == "min_z" and value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ScenarioError(f"expected a finite number, got {value!r}", field=where)
+    if key in _POSITIVE and value <= 0:
+        raise ScenarioError(f"expected a number > 0, got {value!r}", field=where)
+    if key in _NON_NEGATIVE and value < 0:
+        raise ScenarioError(f"expected a number >= 0, got {value!r}", field=where)
+    if key in _FRACTIONS and not 0 <= value <= 1:
+        raise ScenarioError(f"expected a fraction between 0 and 1, got {value!r}", field=where)
+
+
+def check_predicate(value: Any, what: str = "") -> None:
+    """ScenarioError unless `value` follows the `Predicate` protocol (a str `name`, `reset()`, `check(state)`)."""
+    problems = []
+    if not isinstance(getattr(value, "name", None), str) or not getattr(value, "name", ""):
+        problems.append("a non-empty str attribute 'name'")
+    for method in ("reset", "check"):
+        if not callable(getattr(value, method, None)):
+            problems.append(f"a method {method}()")
+    if problems:
+        raise ScenarioError(f"{what or repr(value)} is not a failure predicate: it needs {', '.join(problems)}",
+                            field="predicate")
+
+
+@dataclass
+class FunctionPredicate:
+    """A plain function of the state as a predicate: it fails the run when it returns True (or a message, or
+    a `FailureSignature`), and passes on False or None. Named after the function."""
+
+    function: Callable[[RobotState], Any]
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        self.name = self.name or getattr(self.function, "__name__", "") or type(self.function).__name__
+
+    def reset(self) -> None:
+        pass
+
+    def check(self, state: RobotState) -> FailureSignature | None:
+        result = self.function(state)
+        if result is None or result is False or result is np.False_:
+            return None
+        if isinstance(result, FailureSignature):
+            return result
+        if result is True or result is np.True_:
+            return signature(self.name, state)
+        if isinstance(result, str):
+            return signature(self.name, state, result)
+        raise ScenarioError(f"predicate function {self.name} returned {type(result).__name__} {result!r} at "
+                            f"t = {state.time:.2f} s; expected True/False, a message, or a FailureSignature",
+                            field="predicate")
+
+
+@dataclass(frozen=True)
+class PredicateSpec:
+    """A failure predicate as a test declares it: a registered `name` with `params`, or a ready predicate
+    object or function (`instance`, used as is). Specs by name travel between processes as plain data."""
+
+    name: str
+    params: Mapping[str, Any] = field(default_factory=dict)
+    instance: Predicate | None = field(default=None, compare=False)
+
+    def build(self) -> Predicate:
+        return self.instance if self.instance is not None else make_predicate(self.name, **dict(self.params))
+
+    def to_json(self) -> dict[str, Any]:
+        """As recorded in summary.json: {"name", "params"}, plus "object" (its repr) for an instance."""
+        data: dict[str, Any] = {"name": self.name, "params": dict(self.params)}
+        if self.instance is not None:
+            data["object"] = repr(self.instance)[:300]
+        return data
+
+
+def predicate_spec(value: Any, params: Mapping[str, Any] | None = None) -> PredicateSpec:
+    """A `PredicateSpec` from what a marker or a caller gives: a registered name (with `params`), a
+    `Predicate` object, or a function of the `RobotState`. Validated now (`ScenarioError` if wrong)."""
+    params = dict(params or {})
+    if isinstance(value, str):
+        make_predicate(value, **params)
+        return PredicateSpec(value, params)
+    if params:
+        raise ScenarioError(f"parameters {', '.join(params)} are only for a predicate given by name; build "
+                            f"{value!r} with them instead", field="predicate")
+    if inspect.isclass(value):
+        raise ScenarioError(f"{value.__name__} is a class; pass an instance, e.g. {value.__name__}(...)",
+                            field="predicate")
+    if hasattr(value, "check"):
+        check_predicate(value)
+        return PredicateSpec(value.name, {}, instance=value)
+    if callable(value):
+        wrapped = FunctionPredicate(value)
+        return PredicateSpec(wrapped.name, {}, instance=wrapped)
+    raise ScenarioError(f"{value!r} is not a failure predicate: expected a registered name "
+                        f"({', '.join(sorted(PREDICATES))}), an object with name, reset() and check(state), or "
+                        "a function of the state", field="predicate")
 
 
 # -- the oracle --------------------------------------------------------------------------------------

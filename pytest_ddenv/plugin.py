@@ -1,13 +1,14 @@
 """pytest glue: options, markers, the `robot_world` fixture and reduction of failing scenario tests.
 
 Hooks stay thin; the work is done in plain modules (markers, robot_world, probe, reduce, artifacts).
-The test body is re-invoked per probe by calling the test function with `robot_world` rebound to the
-candidate world: no private re-run machinery of pytest is used.
+A probe runs the whole test again on a candidate world, in a worker process that is a pytest session of its
+own (see pytest_worker.py), or, with one worker, by calling the test function again in this process.
 """
 
 from __future__ import annotations
 
 import base64
+import dataclasses
 import inspect
 import os
 import shlex
@@ -16,24 +17,27 @@ import traceback
 import warnings
 from collections.abc import Generator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
 from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.robot_world import FIXTURE
 from pytest_ddenv.markers import (
     MarkerError,
-    PredicateSpec,
     ReductionSpec,
     parse_deflake,
 )
 
-FIXTURE = "robot_world"
+if TYPE_CHECKING:
+    from pytest_ddenv.oracle import PredicateSpec
+    from pytest_ddenv.robot_world import RobotWorld
+
 REPORT_KEY = "ddenv"
 SECTION = "ddenv reduction"
-_spec_key = pytest.StashKey[tuple[ReductionSpec, tuple[PredicateSpec, ...]]]()
+_spec_key = pytest.StashKey[tuple[ReductionSpec, "tuple[PredicateSpec, ...]"]]()
 _result_key = pytest.StashKey[dict[str, Any]]()
-_pool_key = pytest.StashKey[Any]()
+_cluster_key = pytest.StashKey[Any]()
 _STATELESS_FIXTURES = {"request", "pytestconfig", "record_property", "record_xml_attribute", "tmp_path_factory"}
 
 
@@ -61,6 +65,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
          {"metavar": "PATH"}),
         ("model-path", "extra folders (separated by ':') searched for SDF <include>s of model://NAME",
          {"metavar": "DIRS"}),
+        ("run-timeout", "wall-clock seconds one robot_world.run() may take before it fails with ControllerTimeout "
+                        "(default 300): bounds a controller that is too slow", {"metavar": "SECONDS"}),
     ]
     for name, help_text, extra in options:
         ini_name = f"ddenv_{name.replace('-', '_')}"
@@ -104,16 +110,25 @@ def pytest_configure(config: pytest.Config) -> None:
     _validate_options(config)
 
 
+def _seconds_setting(config: pytest.Config, name: str) -> float | None:
+    value = _setting(config, name)
+    if value in (None, ""):
+        return None
+    try:
+        seconds = float(value)
+    except ValueError:
+        seconds = -1.0
+    if not (seconds > 0 and seconds != float("inf")):
+        flag = "--" + name.replace("_", "-")
+        raise pytest.UsageError(f"{flag}: expected a positive number of seconds, got {value!r}")
+    return seconds
+
+
 def _validate_options(config: pytest.Config) -> None:
     _int_setting(config, "ddenv_max_probes", 1)
     _int_setting(config, "ddenv_seed", 0)
-    max_time = _setting(config, "ddenv_max_time")
-    if max_time not in (None, ""):
-        try:
-            if float(max_time) <= 0:
-                raise ValueError
-        except ValueError:
-            raise pytest.UsageError(f"--ddenv-max-time: expected a positive number of seconds, got {max_time!r}") from None
+    _seconds_setting(config, "ddenv_max_time")
+    _seconds_setting(config, "ddenv_run_timeout")
     deflake = _setting(config, "ddenv_deflake")
     if deflake not in (None, ""):
         try:
@@ -167,17 +182,25 @@ def _world_path(item: pytest.Item, raw: str | Path) -> Path:
 
 
 @pytest.fixture
-def robot_world(request: pytest.FixtureRequest) -> Any:
+def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
     """The test's world, ready to run: `robot_world.run()` simulates its scenario and returns a `Run`.
 
     The world comes from `--ddenv-world`, else an indirect parameter (a path or a `World`), else
-    `@pytest.mark.ddenv(world=...)`.
+    `@pytest.mark.ddenv(world=...)`. In a reduction's probe worker it is the candidate world.
     """
-    from pytest_ddenv.robot_world import RobotWorld
+    from pytest_ddenv.pytest_worker import PROBE_BINDING
+    from pytest_ddenv.robot_world import DEFAULT_MAX_WALL_TIME, RobotWorld
     from pytest_ddenv.world import World
 
     item = request.node
     spec, predicates = item.stash.get(_spec_key, (ReductionSpec(), ()))
+    seed = _int_setting(request.config, "ddenv_seed", 0)
+    timeout = _seconds_setting(request.config, "ddenv_run_timeout") or DEFAULT_MAX_WALL_TIME
+    binding = request.config.stash.get(PROBE_BINDING, None)
+    if binding is not None:
+        binding.robot_world = RobotWorld(binding.world, predicates=predicates, seed=spec.seed if seed is None else seed,
+                                         attempt=binding.attempt, max_wall_time=timeout)
+        return binding.robot_world
     model_paths = [p for p in str(_setting(request.config, "ddenv_model_path") or "").split(os.pathsep) if p]
     override = _setting(request.config, "ddenv_world")
     param = getattr(request, "param", None)
@@ -200,8 +223,7 @@ def robot_world(request: pytest.FixtureRequest) -> Any:
             f"{item.nodeid}: ddenv(keep=...) names model(s) not in {world.source or world.name}: "
             f"{', '.join(unknown)}"
         )
-    seed = _int_setting(request.config, "ddenv_seed", 0)
-    return RobotWorld(world, predicates=predicates, seed=spec.seed if seed is None else seed)
+    return RobotWorld(world, predicates=predicates, seed=spec.seed if seed is None else seed, max_wall_time=timeout)
 
 
 # -- reduction on failure ----------------------------------------------------------------------------------
@@ -209,12 +231,32 @@ def robot_world(request: pytest.FixtureRequest) -> Any:
 
 @pytest.hookimpl(wrapper=True)
 def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> Generator[None, object, object]:
+    from pytest_ddenv.pytest_worker import WORKER
+
+    if pyfuncitem.config.stash.get(WORKER, False):
+        _bind_probe(pyfuncitem)
+        return (yield)
     try:
         return (yield)
     except Exception as error:
         if _should_reduce(pyfuncitem, error):
             _reduce_failed_test(pyfuncitem, error)
         raise
+
+
+def _bind_probe(item: pytest.Function) -> None:
+    """In a probe worker: make sure the test gets the candidate world, even from an overridden fixture."""
+    from pytest_ddenv.pytest_worker import PROBE_BINDING
+    from pytest_ddenv.robot_world import RobotWorld
+
+    binding = item.config.stash.get(PROBE_BINDING, None)
+    given = item.funcargs.get(FIXTURE)
+    if binding is None or not isinstance(given, RobotWorld):
+        return
+    if given.world is not binding.world or given.attempt != binding.attempt:
+        given = given.rebound(binding.world, attempt=binding.attempt)
+        item.funcargs[FIXTURE] = given
+    binding.robot_world = given
 
 
 def _should_reduce(item: pytest.Function, error: BaseException) -> bool:
@@ -230,48 +272,58 @@ def _should_reduce(item: pytest.Function, error: BaseException) -> bool:
     return isinstance(item.funcargs.get(FIXTURE), RobotWorld)
 
 
-def _simulation_pool(config: pytest.Config) -> Any:
-    """The session's worker pool, started on the first reduction and closed at the end of the session."""
-    pool = config.stash.get(_pool_key, None)
-    if pool is None:
-        from pytest_ddenv.execution import PoolConfigError, make_pool
+def _probe_pool(item: pytest.Function) -> Any:
+    """A pool serving this test's probes: worker processes that run the test (or this process, with one
+    worker), or the session's dask cluster."""
+    from pytest_ddenv.execution import DaskCluster, check_executor, make_pool
+    from pytest_ddenv.pytest_worker import ItemHandler, PytestJob
 
-        default = "1" if hasattr(config, "workerinput") else "auto"  # xdist already uses every core
-        workers = _setting(config, "ddenv_workers") or default
-        try:
-            pool = make_pool(int(workers) if str(workers).isdigit() else workers,
-                             _setting(config, "ddenv_executor") or None)
-        except PoolConfigError as error:
-            raise pytest.UsageError(str(error)) from None
-        config.stash[_pool_key] = pool
-    return pool
+    config = item.config
+    default = "1" if hasattr(config, "workerinput") else "auto"  # xdist already uses every core
+    workers = _setting(config, "ddenv_workers") or default
+    count = int(workers) if str(workers).isdigit() else workers
+    executor = check_executor(_setting(config, "ddenv_executor") or None)
+    if executor is None:
+        return make_pool(PytestJob.of(item), count, in_process=ItemHandler(item))
+    cluster = config.stash.get(_cluster_key, None)
+    if cluster is None:
+        cluster = DaskCluster(None if executor == "dask" else executor,
+                              n_workers=None if count == "auto" else int(count))
+        config.stash[_cluster_key] = cluster
+    return make_pool(PytestJob.of(item, capture="sys"), count, executor, cluster=cluster)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
-    pool = config.stash.get(_pool_key, None)
-    if pool is not None:
-        pool.close()
-        del config.stash[_pool_key]
+    cluster = config.stash.get(_cluster_key, None)
+    if cluster is not None:
+        cluster.close()
+        del config.stash[_cluster_key]
 
 
 def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
     from pytest_ddenv.reduction_session import ReductionSession
 
     spec, _ = item.stash.get(_spec_key, (ReductionSpec(), ()))
-    _warn_about_shared_fixtures(item)
+    deflake = _setting(item.config, "ddenv_deflake")
+    spec = dataclasses.replace(
+        spec,
+        deflake=spec.deflake if deflake in (None, "") else parse_deflake(deflake, "--ddenv-deflake"),
+        max_probes=_int_setting(item.config, "ddenv_max_probes", 1) or spec.max_probes,
+        max_seconds=_seconds_setting(item.config, "ddenv_max_time") or spec.max_seconds,
+    )
     session = ReductionSession(
         item=item,
         error=error,
         spec=spec,
         artifacts_root=Path(str(item.config.rootpath)) / str(_setting(item.config, "ddenv_artifacts")),
-        deflake=_setting(item.config, "ddenv_deflake"),
-        max_probes=_int_setting(item.config, "ddenv_max_probes", 1),
-        max_seconds=float(_setting(item.config, "ddenv_max_time")) if _setting(item.config, "ddenv_max_time") else None,
         progress=_ProgressLine(item.config),
-        pool=_simulation_pool(item.config),
+        replay=replay_command,
     )
     try:
-        result = session.run()
+        with _probe_pool(item) as pool:
+            if getattr(pool, "in_process", False):
+                _warn_about_shared_fixtures(item)
+            result = session.run(pool)
     except KeyboardInterrupt:
         raise
     except Exception as crash:  # noqa: BLE001 - the test's own failure must stay what the user sees
@@ -301,7 +353,8 @@ def _warn_about_shared_fixtures(item: pytest.Function) -> None:
         warnings.warn(
             pytest.PytestWarning(
                 f"{item.nodeid}: function-scoped fixture(s) {', '.join(shared)} are not re-created for each "
-                "reduction probe; every probe reuses their values from the failing run"
+                "reduction probe with one worker (in this process); every probe reuses their values from the "
+                "failing run. With --ddenv-workers 2 or more each probe runs the whole test in a worker."
             ),
             stacklevel=1,
         )

@@ -1,8 +1,9 @@
 """The bridge between a scenario test and the reduction engine.
 
-A probe runs the test (or a bare simulation) on a candidate sub-world and classifies what it raised against
-the original failure: same failure, other failure, pass, or error. No pytest import: the plugin and the
-`ddenv` command both build their probes here.
+A probe runs the test on a candidate sub-world (in a worker, or in this process) and classifies what it
+raised against the original failure: same failure, other failure, pass, or error. What crosses from the
+worker is plain data (`ProbeResult`: an `ErrorInfo` and the last `Run`), never the user's exception
+object, so unpicklable exceptions and user classes travel fine. No pytest import.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pytest_ddenv.errors import DdenvError
-from pytest_ddenv.reduce import Observation, Outcome, Trace
+from pytest_ddenv.reduce import Observation as ProbeObservation
+from pytest_ddenv.reduce import Outcome, Trace
 from pytest_ddenv.robot_world import RobotFailure
 from pytest_ddenv.world import World
 
@@ -26,8 +28,62 @@ if TYPE_CHECKING:
     from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
     from pytest_ddenv.sim import Run
 
-RunTest = Callable[[World, int], "tuple[BaseException | None, Run | None]"]
-"""run_test(world, attempt) -> (what the test raised or None, the last Run it made or None)."""
+DETAIL_LIMIT = 2000
+"""Characters of an error's text kept in a probe's log line (the full traceback is in the first one)."""
+
+
+@dataclass(frozen=True)
+class ErrorInfo:
+    """What a test raised, as plain data.
+
+    `location` is file:line of the deepest frame inside the test file (else the deepest frame);
+    `signature` is set for a `RobotFailure`; `ddenv_error` for an error of pytest-ddenv itself (a world that
+    cannot be simulated, a worker that could not run the test), which is never a verdict. `phase` is
+    "call" unless the test's setup or teardown broke (an error, not a verdict either).
+    """
+
+    type_name: str
+    message: str
+    location: str
+    traceback: str = ""
+    signature: FailureSignature | None = None
+    ddenv_error: bool = False
+    phase: str = "call"
+
+    def describe(self) -> str:
+        where = f" (in the test's {self.phase})" if self.phase != "call" else ""
+        return f"{self.type_name}: {self.message} at {self.location}{where}"
+
+
+@dataclass(frozen=True)
+class ProbeResult:
+    """One run of the test: what it raised (None: it passed) and the last `Run` it made (None: no run)."""
+
+    error: ErrorInfo | None
+    run: Run | None
+
+
+def describe_error(error: BaseException, test_file: str | Path | None, *, phase: str = "call") -> ErrorInfo:
+    """`error` as plain data (see `ErrorInfo`)."""
+    return ErrorInfo(
+        type_name=type(error).__qualname__,
+        message=str(error)[:DETAIL_LIMIT],
+        location=raise_location(error, test_file),
+        traceback="".join(traceback.format_exception(error))[-20 * DETAIL_LIMIT:],
+        signature=error.signature if isinstance(error, RobotFailure) else None,
+        ddenv_error=isinstance(error, DdenvError),
+        phase=phase,
+    )
+
+
+def raise_location(error: BaseException, test_file: str | Path | None) -> str:
+    """file:line of the deepest frame of the traceback inside the test file (or the deepest frame at all)."""
+    frames = traceback.extract_tb(error.__traceback__)
+    if not frames:
+        return "?"
+    inside = [f for f in frames if test_file is not None and Path(f.filename) == Path(test_file)]
+    frame = (inside or frames)[-1]
+    return f"{Path(frame.filename).name}:{frame.lineno}"
 
 
 @dataclass(frozen=True)
@@ -42,6 +98,10 @@ class FailureReference:
     location: str
     signature: FailureSignature | None = None
 
+    @classmethod
+    def of(cls, error: ErrorInfo) -> FailureReference:
+        return cls(error.type_name, error.location, error.signature)
+
     def describe(self) -> str:
         if self.signature is not None:
             return f"{self.signature.predicate} at t={self.signature.time:.1f} s"
@@ -55,42 +115,30 @@ class FailureReference:
         }
 
 
-def reference_from(error: BaseException, test_file: str | Path | None) -> FailureReference:
-    signature = error.signature if isinstance(error, RobotFailure) else None
-    return FailureReference(type(error).__qualname__, raise_location(error, test_file), signature)
-
-
-def raise_location(error: BaseException, test_file: str | Path | None) -> str:
-    """file:line of the deepest frame of the traceback inside the test file (or the deepest frame at all)."""
-    frames = traceback.extract_tb(error.__traceback__)
-    if not frames:
-        return "?"
-    inside = [f for f in frames if test_file is not None and Path(f.filename) == Path(test_file)]
-    frame = (inside or frames)[-1]
-    return f"{Path(frame.filename).name}:{frame.lineno}"
-
-
-def classify_error(
-    error: BaseException | None,
-    reference: FailureReference,
-    tolerance: float,
-    test_file: str | Path | None,
-) -> Outcome:
+def classify_result(error: ErrorInfo | None, reference: FailureReference, tolerance: float) -> Outcome:
     """Compare what a probe raised with the original failure."""
-    from pytest_ddenv.oracle import classify
+    from pytest_ddenv.oracle import same_failure
 
     if error is None:
         return Outcome.PASS
-    if isinstance(error, RobotFailure):
+    if error.ddenv_error or error.phase != "call":
+        return Outcome.ERROR
+    if error.signature is not None:
         if reference.signature is None:
             return Outcome.OTHER
-        return classify(error.run, reference.signature, tolerance)
-    if isinstance(error, DdenvError):
-        return Outcome.ERROR  # the candidate world cannot be simulated as given (e.g. nothing under the start)
-    if reference.signature is None and type(error).__qualname__ == reference.exception_type:
-        same_line = raise_location(error, test_file) == reference.location
-        return Outcome.FAIL if same_line else Outcome.OTHER
+        return Outcome.FAIL if same_failure(error.signature, reference.signature, tolerance) else Outcome.OTHER
+    if reference.signature is None and error.type_name == reference.exception_type:
+        return Outcome.FAIL if error.location == reference.location else Outcome.OTHER
     return Outcome.OTHER
+
+
+def signature_record(error: ErrorInfo | None) -> Mapping[str, Any] | None:
+    """What the run log says about a probe's failure (JSON-able)."""
+    if error is None:
+        return None
+    if error.signature is not None:
+        return error.signature.to_dict()
+    return {"exception": error.type_name, "location": error.location}
 
 
 def trace_of(run: Run) -> Trace:
@@ -107,33 +155,37 @@ def trace_of(run: Run) -> Trace:
     )
 
 
-def make_probe(
-    world: World,
-    run_test: RunTest,
-    reference: FailureReference,
-    *,
-    tolerance: float,
-    test_file: str | Path | None = None,
-) -> Probe:
-    """A probe for the engine: run the test on `world.select(candidate)` and classify the result."""
+ProbeCall = Callable[[World, int], ProbeResult]
+"""call(world, attempt) -> ProbeResult: a pool's `call`, or a handler in this process."""
 
-    def probe(candidate: Candidate, attempt: int) -> Observation:
+
+def make_probe(world: World, call: ProbeCall, reference: FailureReference, *, tolerance: float) -> Probe:
+    """A probe for the engine: run the test on `world.select(candidate)` and classify the result.
+
+    What `call` itself raises (a worker that died twice, a test that cannot start in a worker) is an ERROR
+    observation whose detail is the exception's text, never a verdict.
+    """
+
+    def probe(candidate: Candidate, attempt: int) -> ProbeObservation:
         started = time.perf_counter()
-        error, run = run_test(world.select(candidate), attempt)
-        outcome = classify_error(error, reference, tolerance, test_file)
-        signature: Mapping[str, Any] | None = None
-        if isinstance(error, RobotFailure):
-            signature = error.signature.to_dict()
-        elif error is not None:
-            signature = {"exception": type(error).__qualname__, "location": raise_location(error, test_file)}
-        return Observation(
+        try:
+            result = call(world.select(candidate), attempt)
+        except Exception as error:  # noqa: BLE001 - the pool could not run it: an error, with its reason
+            return ProbeObservation(Outcome.ERROR, wall_time=time.perf_counter() - started,
+                                    detail=f"{type(error).__name__}: {error}"[:DETAIL_LIMIT])
+        outcome = classify_result(result.error, reference, tolerance)
+        run = result.run
+        detail = ""
+        if result.error is not None and outcome is not Outcome.FAIL:
+            detail = result.error.describe()[:DETAIL_LIMIT]
+        return ProbeObservation(
             outcome=outcome,
             trace=trace_of(run) if run is not None and outcome is Outcome.FAIL else None,
-            signature=signature,
+            signature=signature_record(result.error),
             seed=None if run is None else int(run.seed),
             sim_time=0.0 if run is None else float(run.sim_time),
             wall_time=time.perf_counter() - started,
-            detail="" if error is None or outcome is Outcome.FAIL else f"{type(error).__name__}: {error}"[:300],
+            detail=detail,
         )
 
     return probe

@@ -5,19 +5,24 @@ No pytest import: the same object serves the pytest fixture, the `ddenv` command
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
-from pytest_ddenv.markers import PredicateSpec
+import numpy as np
+
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle import FailureSignature
-    from pytest_ddenv.sim import Run, RunSettings
+    from pytest_ddenv.gym_env import RobotEnv
+    from pytest_ddenv.oracle import FailureSignature, Predicate, PredicateSpec
+    from pytest_ddenv.sim import ControllerLike, Run, RunSettings
 
-SimulateFn = Callable[..., "Run"]
+FIXTURE = "robot_world"
+"""The name of the pytest fixture that gives a test its `RobotWorld`."""
 ATTEMPT_SEED_STRIDE = 1_000_003
 """Re-run k of a probe uses seed + k * stride, so deflaking re-runs never collide with a test's own seeds."""
+DEFAULT_MAX_WALL_TIME = 300.0
+"""Wall-clock seconds one `run()` may take before it fails with `ControllerTimeout` (`--ddenv-run-timeout`)."""
 
 
 class RobotFailure(AssertionError):
@@ -32,8 +37,10 @@ class RobotFailure(AssertionError):
 class RobotWorld:
     """A world bound to a scenario test: run the robot in it, see the runs made so far.
 
-    `run()` simulates the world's scenario with the test's failure predicates; when one fires it raises
-    `RobotFailure` (an `AssertionError`), so the test fails with a one-paragraph explanation.
+    `run()` simulates the world's scenario with the test's failure predicates and a controller (the
+    built-in go-to-goal law unless you pass yours); when a predicate fires it raises `RobotFailure` (an
+    `AssertionError`), so the test fails with a one-paragraph explanation. `make_env()` gives the same
+    simulation as a gymnasium environment; `report()` records what a simulator of your own did.
     """
 
     def __init__(
@@ -43,26 +50,31 @@ class RobotWorld:
         predicates: Sequence[PredicateSpec] = (),
         seed: int = 0,
         attempt: int = 0,
-        simulate: SimulateFn | None = None,
+        max_wall_time: float | None = DEFAULT_MAX_WALL_TIME,
     ) -> None:
         self.world = world
         self.predicates = tuple(predicates)
         self.seed = seed
         self.attempt = attempt
+        self.max_wall_time = max_wall_time
         self.runs: list[Run] = []
-        self._simulate = simulate
 
     def __repr__(self) -> str:
         return f"RobotWorld({self.world.name or self.world.source!r}, {len(self.world)} models, seed={self.seed})"
 
-    def rebound(self, world: World, *, attempt: int, simulate: SimulateFn | None = None) -> RobotWorld:
-        """The same test setup on another world and attempt (what a reduction probe runs).
+    def rebound(self, world: World, *, attempt: int) -> RobotWorld:
+        """The same test setup on another world and attempt (what a reduction probe runs)."""
+        return RobotWorld(world, predicates=self.predicates, seed=self.seed, attempt=attempt,
+                          max_wall_time=self.max_wall_time)
 
-        `simulate` replaces where the simulation runs (e.g. a worker pool's `simulate`).
-        """
-        return RobotWorld(
-            world, predicates=self.predicates, seed=self.seed, attempt=attempt, simulate=simulate or self._simulate
-        )
+    @property
+    def run_seed(self) -> int:
+        """The seed `run()` uses by default: the test's seed, shifted per reduction re-run."""
+        return self.seed + self.attempt * ATTEMPT_SEED_STRIDE
+
+    def build_predicates(self) -> list[Predicate]:
+        """The test's failure predicates, ready for one run (each is reset when the run starts)."""
+        return [spec.build() for spec in self.predicates]
 
     def run(
         self,
@@ -70,25 +82,72 @@ class RobotWorld:
         seed: int | None = None,
         timeout: float | None = None,
         settings: RunSettings | None = None,
+        controller: ControllerLike | None = None,
         raise_on_failure: bool = True,
-        **predicate_overrides: Any,
+        max_wall_time: float | None = None,
     ) -> Run:
         """Simulate the scenario once; raise `RobotFailure` if a failure predicate fires.
 
-        `seed` defaults to the test's seed; `timeout` (simulated seconds) to the world file's.
+        `seed` defaults to the test's seed; `timeout` (simulated seconds) to the world file's. `controller`
+        is called every control tick with an `Observation` and returns a `Command` (default: the built-in
+        `GoToGoal`). `max_wall_time` (wall-clock seconds, default the fixture's) bounds a slow controller.
         """
-        from pytest_ddenv.oracle import make_predicate
         from pytest_ddenv.sim import RunSettings, simulate
 
-        if predicate_overrides:
-            raise TypeError(f"run() got unexpected keyword argument(s): {', '.join(sorted(predicate_overrides))}")
-        predicates = [make_predicate(spec.name, **spec.params) for spec in self.predicates]
         effective_seed = (self.seed if seed is None else seed) + self.attempt * ATTEMPT_SEED_STRIDE
-        simulate_fn = self._simulate or simulate
-        result = simulate_fn(
-            self.world, seed=effective_seed, predicates=predicates, settings=settings or RunSettings(), timeout=timeout
+        result = simulate(
+            self.world, seed=effective_seed, predicates=self.build_predicates(), settings=settings or RunSettings(),
+            timeout=timeout, controller=controller,
+            max_wall_time=self.max_wall_time if max_wall_time is None else max_wall_time,
         )
         self.runs.append(result)
-        if raise_on_failure and result.failure is not None:
-            raise RobotFailure(result.failure, result)
+        if raise_on_failure:
+            self.check(result)
         return result
+
+    def check(self, run: Run | None = None) -> None:
+        """Raise `RobotFailure` if `run` (default: the last run, an env episode or a report) failed."""
+        if run is None:
+            if not self.runs:
+                raise RuntimeError("no run yet: call run(), step an env from make_env(), or report()")
+            run = self.runs[-1]
+        if run.failure is not None:
+            raise RobotFailure(run.failure, run)
+
+    def make_env(self, **options: Any) -> RobotEnv:
+        """The scenario as a `gymnasium.Env` (needs the `gym` extra): see `pytest_ddenv.gym_env.RobotEnv`
+        for the observation and action spaces and `options`. Each finished episode is added to `runs`."""
+        from pytest_ddenv.gym_env import RobotEnv
+
+        return RobotEnv(self, **options)
+
+    def report(
+        self,
+        times: Sequence[float] | np.ndarray,
+        poses: Sequence[Sequence[float]] | np.ndarray,
+        *,
+        failure_pose: Sequence[float] | None = None,
+        failure_time: float | None = None,
+        touched: Sequence[str] | Mapping[str, float] = (),
+        sensed: Mapping[str, float] | None = None,
+        reached_goal: bool = False,
+        detail: str = "",
+        footprint: tuple[float, float] = (0.5, 0.5),
+    ) -> Run:
+        """Record what a simulator of your own did, so that the reduction's trajectory-guided schemas and the
+        pictures work for it. Returns the recorded `Run` (also appended to `runs`).
+
+        `times` (T,) simulated seconds; `poses` (T, 2) x y, (T, 3) x y yaw, or (T, 6) x y z roll pitch yaw,
+        world frame. `failure_pose` (x, y[, z]) where it failed, at `failure_time` (default: the last time);
+        then `check()` raises a `RobotFailure` ("reported" failure) matched by position like a predicate's.
+        `touched`: the models the robot touched (names, or name -> first time); `sensed`: name -> first time
+        its sensors saw it (for the "timestep" priority).
+        """
+        from pytest_ddenv.reported import reported_run
+
+        run = reported_run(
+            self.world, times, poses, seed=self.run_seed, failure_pose=failure_pose, failure_time=failure_time,
+            touched=touched, sensed=sensed or {}, reached_goal=reached_goal, detail=detail, footprint=footprint,
+        )
+        self.runs.append(run)
+        return run

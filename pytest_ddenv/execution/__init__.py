@@ -1,27 +1,46 @@
-"""Execution layer: where simulations run. Persistent local worker processes (`SimulationPool`), or a
-dask.distributed cluster (`DaskSimulationPool`); `make_pool` picks one from the command-line options.
+"""Execution layer: where probes run. A `Job` (the user's test, or a world's scenario) is served by
+persistent local worker processes (`LocalPool`), in the calling process, or on a dask.distributed cluster
+(`DaskPool`); `make_pool` picks one from the command-line options.
 
-Knows the simulation layer only (no pytest, no reduction). See docs/scaling.md.
+Knows the world model only (no pytest, no reduction): jobs are defined by the layers above. See
+docs/architecture.md and docs/scaling.md.
 """
 
 from pytest_ddenv.execution.base import Pool, PoolStats
-from pytest_ddenv.execution.dask_pool import DaskSimulationPool
-from pytest_ddenv.execution.errors import PoolConfigError, SimulationError
-from pytest_ddenv.execution.factory import make_pool
-from pytest_ddenv.execution.local import SimulationPool, cpu_count, resolve_workers
-from pytest_ddenv.execution.request import FAULT_ENV, Fault, PredicateLike
+from pytest_ddenv.execution.dask_pool import DaskCluster, DaskPool
+from pytest_ddenv.execution.errors import PoolConfigError, WorkerError, WorkerStartError
+from pytest_ddenv.execution.factory import check_executor, make_pool
+from pytest_ddenv.execution.local import LocalPool, cpu_count, resolve_workers
+from pytest_ddenv.execution.request import (
+    FAULT_ENV,
+    Channel,
+    Fault,
+    Handler,
+    Job,
+    ProbeRequest,
+    Reply,
+    serve_requests,
+)
 
 __all__ = [
     "FAULT_ENV",
-    "DaskSimulationPool",
+    "Channel",
+    "DaskCluster",
+    "DaskPool",
     "Fault",
+    "Handler",
+    "Job",
+    "LocalPool",
     "Pool",
     "PoolConfigError",
     "PoolStats",
-    "PredicateLike",
-    "SimulationError",
-    "SimulationPool",
+    "ProbeRequest",
+    "Reply",
+    "WorkerError",
+    "WorkerStartError",
+    "check_executor",
     "cpu_count",
     "make_pool",
     "resolve_workers",
+    "serve_requests",
 ]

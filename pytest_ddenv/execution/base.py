@@ -1,15 +1,13 @@
-"""The `Pool` protocol every simulation pool satisfies, and its statistics."""
+"""The `Pool` protocol every probe pool satisfies, and its statistics."""
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, Protocol, Self, runtime_checkable
 
 if TYPE_CHECKING:
-    from pytest_ddenv.execution.request import PredicateLike
-    from pytest_ddenv.sim import Run, RunSettings
+    from pytest_ddenv.execution.request import Job
     from pytest_ddenv.world import World
 
 DEFAULT_WATCHDOG_FLOOR = 60.0
@@ -22,11 +20,12 @@ DEFAULT_WATCHDOG_FACTOR = 10.0
 class PoolStats:
     """A snapshot of a pool's counters.
 
-    `probes`: simulations completed (a Run or the simulation's own exception came back); `errors`: calls
-    that raised `SimulationError` (crashed twice, hung, pool closed, cluster lost them); `crashes`: worker
-    deaths seen; `timeouts`: watchdog kills; `retries`: simulations re-run after a crash; `restarts`:
-    worker processes started to replace dead or killed ones; `mean_overhead`: seconds per completed probe
-    spent outside the simulation itself (queueing excluded: transfer, pickling, dispatch).
+    `probes`: probes completed (the test's result, or the handler's own exception, came back); `errors`:
+    calls that raised `WorkerError` (crashed twice, hung, could not start, pool closed, cluster lost them);
+    `crashes`: worker deaths seen; `timeouts`: watchdog kills; `retries`: probes re-run after a crash;
+    `restarts`: worker processes started to replace dead or killed ones; `mean_overhead`: seconds per
+    completed probe spent outside the probe itself (queueing excluded: transfer, pickling, dispatch);
+    `slowest`: the longest probe (s).
     """
 
     workers: int
@@ -85,25 +84,20 @@ class StatsBook:
 
 @runtime_checkable
 class Pool(Protocol):
-    """Runs simulations somewhere else; `simulate` is thread-safe and blocks until its Run is back."""
+    """Runs probes of one `Job` somewhere else; `call` is thread-safe and blocks until the result is back."""
+
+    @property
+    def job(self) -> Job: ...
 
     @property
     def size(self) -> int:
-        """How many simulations can run at once (use it as the probe thread count)."""
+        """How many probes can run at once (use it as the probe thread count)."""
         ...
 
     @property
     def stats(self) -> PoolStats: ...
 
-    def simulate(
-        self,
-        world: World,
-        *,
-        seed: int,
-        predicates: Sequence[PredicateLike] = (),
-        settings: RunSettings | None = None,
-        timeout: float | None = None,
-    ) -> Run: ...
+    def call(self, world: World, attempt: int) -> Any: ...
 
     def close(self) -> None: ...
 
@@ -120,14 +114,3 @@ def check_watchdog(watchdog: float | str | None) -> float | str | None:
     if isinstance(watchdog, bool) or not isinstance(watchdog, (int, float)) or not watchdog > 0:
         raise PoolConfigError(f"watchdog must be a number of seconds > 0, 'auto' or None, got {watchdog!r}")
     return float(watchdog)
-
-
-def check_preload(preload: Sequence[str]) -> tuple[str, ...]:
-    from pytest_ddenv.execution.errors import PoolConfigError
-
-    if isinstance(preload, str):
-        preload = (preload,)
-    modules = tuple(preload)
-    if not all(isinstance(m, str) and m and all(part.isidentifier() for part in m.split(".")) for m in modules):
-        raise PoolConfigError(f"preload must be a list of importable module names, got {preload!r}")
-    return modules

@@ -1,59 +1,129 @@
-"""`DaskSimulationPool`: the same `simulate` API on a dask.distributed cluster (optional extra `dask`).
+"""Probes on a dask.distributed cluster (optional extra `dask`): `DaskCluster` is the connection (a session
+may share one), `DaskPool` runs the probes of one `Job` on it with the `Pool` API.
 
-Every dask worker thread keeps one live `Simulator` (`simulate_task` below, imported by name on the
-workers: pytest-ddenv must be installed there). ``address=None`` or ``"dask"`` starts a LocalCluster of
-worker processes bound to 127.0.0.1; ``tcp://host:port`` (or ``tls://``) connects to a running scheduler.
-Dask already reschedules the tasks of a worker that dies; after `distributed.scheduler.allowed-failures`
-deaths it gives up (KilledWorker), which becomes `SimulationError`.
+Every dask worker process keeps the jobs it has served alive (`run_probe_task` below, imported by name on
+the workers: pytest-ddenv must be installed there): a job's `serve` runs in a thread of the worker process,
+started on the first probe of that job, so the test module is imported once per worker, not per probe.
+``address=None`` or ``"dask"`` starts a LocalCluster of worker processes bound to 127.0.0.1;
+``tcp://host:port`` (or ``tls://``) connects to a running scheduler. Dask reschedules the tasks of a worker
+that dies; after `distributed.scheduler.allowed-failures` deaths it gives up (KilledWorker): `WorkerError`.
 """
 
 from __future__ import annotations
 
 import contextlib
+import queue
 import threading
 import time
+import traceback
 import uuid
+from collections import OrderedDict
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, Self
+from typing import Any, Self
 
 from pytest_ddenv.execution.base import (
     DEFAULT_WATCHDOG_FACTOR,
     DEFAULT_WATCHDOG_FLOOR,
     PoolStats,
     StatsBook,
-    check_preload,
     check_watchdog,
 )
-from pytest_ddenv.execution.errors import PoolConfigError, SimulationError
+from pytest_ddenv.execution.errors import PoolConfigError, WorkerError, WorkerStartError
 from pytest_ddenv.execution.request import (
     Fault,
+    Job,
+    ProbeRequest,
     Reply,
-    SimRequest,
     describe_request,
-    execute,
     fault_for,
     parse_faults,
 )
-
-if TYPE_CHECKING:
-    from pytest_ddenv.execution.request import PredicateLike
-    from pytest_ddenv.sim import Run, RunSettings, Simulator
-    from pytest_ddenv.world import World
+from pytest_ddenv.world import World
 
 ADDRESS_SCHEMES = ("tcp://", "tls://")
 CONNECT_TIMEOUT = 30.0
-_local = threading.local()
+STARTUP_TIMEOUT = 120.0
+JOBS_KEPT = 4
+"""Jobs a dask worker process keeps started (least recently used first out)."""
 
 
-def simulate_task(request: SimRequest) -> Reply:
-    """Runs on a dask worker: one Simulator per worker thread, created on first use, kept alive."""
-    simulator: Simulator | None = getattr(_local, "simulator", None)
-    if simulator is None or simulator.client < 0:
-        from pytest_ddenv.sim import Simulator
+# -- on the dask workers -----------------------------------------------------------------------------
 
-        simulator = Simulator()
-        _local.simulator = simulator
-    return execute(simulator, request)
+
+class _ThreadChannel:
+    """A `Channel` between a job's serve thread and the dask task threads that hand it probes."""
+
+    def __init__(self) -> None:
+        self.requests: queue.Queue[ProbeRequest | None] = queue.Queue()
+        self.replies: queue.Queue[Reply] = queue.Queue()
+        self.status: queue.Queue[tuple[str, str]] = queue.Queue()
+
+    def ready(self) -> None:
+        self.status.put(("ready", ""))
+
+    def failed(self, message: str) -> None:
+        self.status.put(("failed", message))
+
+    def receive(self) -> ProbeRequest | None:
+        return self.requests.get()
+
+    def send(self, reply: Reply) -> None:
+        self.replies.put(reply)
+
+
+class _StartedJob:
+    """A job serving in a thread of this worker process."""
+
+    def __init__(self, job: Job) -> None:
+        self.job = job
+        self.channel = _ThreadChannel()
+        self.lock = threading.Lock()
+        self.thread = threading.Thread(target=self._serve, name=f"ddenv-job-{job.key[:8]}", daemon=True)
+        self.thread.start()
+        try:
+            state, message = self.channel.status.get(timeout=STARTUP_TIMEOUT)
+        except queue.Empty:
+            raise WorkerStartError(f"{job.label}: the job did not start within {STARTUP_TIMEOUT:g} s") from None
+        if state != "ready":
+            raise WorkerStartError(message)
+
+    def _serve(self) -> None:
+        try:
+            self.job.serve(self.channel)
+        except BaseException as error:  # noqa: BLE001 - reported to whoever waits for this job
+            self.channel.failed(f"{type(error).__name__}: {error}\n{''.join(traceback.format_exception(error))}")
+        finally:
+            self.channel.failed(f"{self.job.label}: the job stopped serving")
+
+    def call(self, request: ProbeRequest) -> Reply:
+        with self.lock:
+            self.channel.requests.put(request)
+            while True:
+                try:
+                    return self.channel.replies.get(timeout=1.0)
+                except queue.Empty:
+                    if not self.thread.is_alive():
+                        raise WorkerError(f"{self.job.label}: the job's thread ended during a probe") from None
+
+    def close(self) -> None:
+        self.channel.requests.put(None)
+
+
+_started: OrderedDict[str, _StartedJob] = OrderedDict()
+_started_lock = threading.Lock()
+
+
+def run_probe_task(job: Job, request: ProbeRequest) -> Reply:
+    """Runs on a dask worker: the probe, on this process's started copy of `job` (started on first use)."""
+    with _started_lock:
+        started = _started.get(job.key)
+        if started is None:
+            started = _StartedJob(job)
+            _started[job.key] = started
+            while len(_started) > JOBS_KEPT:
+                _started.popitem(last=False)[1].close()
+        _started.move_to_end(job.key)
+    return started.call(request)
 
 
 def worker_versions() -> dict[str, str]:
@@ -61,6 +131,9 @@ def worker_versions() -> dict[str, str]:
     from importlib.metadata import version
 
     return {"pytest-ddenv": version("pytest-ddenv"), "pybullet": version("pybullet"), "numpy": version("numpy")}
+
+
+# -- where pytest runs ---------------------------------------------------------------------------------
 
 
 def _import_distributed() -> Any:
@@ -73,38 +146,16 @@ def _import_distributed() -> Any:
     return distributed
 
 
-class DaskSimulationPool:
-    """Simulations on a dask.distributed cluster (see the module docstring).
+class DaskCluster:
+    """A connection to a dask cluster: a LocalCluster of `n_workers` single-threaded worker processes on
+    127.0.0.1 (`address` None or "dask"), or a running scheduler at tcp://host:port. Checks that every
+    worker has the same pytest-ddenv, pybullet and numpy (runs are bit-identical only then)."""
 
-    `n_workers` sizes a local cluster (default: one per core). `watchdog` as for `SimulationPool`, except
-    that dask cannot kill a running task: a simulation past the watchdog is cancelled and reported as
-    `SimulationError`, its worker thread finishes it in the background (the simulated time limit bounds it).
-    `fault_injection` supports only 'error' (a raising simulation) on dask. `preload`: modules every dask
-    worker imports (now and when it restarts), e.g. the one registering a custom robot.
-    """
-
-    def __init__(
-        self,
-        address: str | None = None,
-        *,
-        n_workers: int | None = None,
-        watchdog: float | str | None = "auto",
-        watchdog_floor: float = DEFAULT_WATCHDOG_FLOOR,
-        watchdog_factor: float = DEFAULT_WATCHDOG_FACTOR,
-        fault_injection: str | Sequence[Fault] | None = None,
-        connect_timeout: float = CONNECT_TIMEOUT,
-        check_versions: bool = True,
-        preload: Sequence[str] = (),
-    ) -> None:
+    def __init__(self, address: str | None = None, *, n_workers: int | None = None,
+                 connect_timeout: float = CONNECT_TIMEOUT, check_versions: bool = True) -> None:
         from pytest_ddenv.execution.local import cpu_count, resolve_workers
 
         distributed = _import_distributed()
-        self._watchdog = check_watchdog(watchdog)
-        self._floor, self._factor = float(watchdog_floor), float(watchdog_factor)
-        self._faults = parse_faults(fault_injection)
-        unsupported = sorted({f.kind for f in self._faults} - {"error"})
-        if unsupported:
-            raise PoolConfigError(f"fault(s) {', '.join(unsupported)} cannot be injected on dask (only 'error')")
         self._cluster: Any = None
         local = address in (None, "dask")
         if local:
@@ -122,98 +173,29 @@ class DaskSimulationPool:
                 )
             self.address = address
         try:
-            self._client: Any = distributed.Client(self._cluster or address, timeout=connect_timeout,
-                                                   set_as_default=False)
+            self.client: Any = distributed.Client(self._cluster or address, timeout=connect_timeout,
+                                                  set_as_default=False)
         except (OSError, TimeoutError) as error:
             self._close_cluster()
             raise PoolConfigError(f"cannot connect to the dask scheduler at {address}: {error}") from error
         try:
             if not local:
-                self._client.wait_for_workers(1, timeout=connect_timeout)
+                self.client.wait_for_workers(1, timeout=connect_timeout)
             if check_versions:
                 self._check_versions()
-            modules = check_preload(preload)
-            if modules:
-                from pytest_ddenv.execution.dask_preload import PreloadModules
-
-                self._client.register_plugin(PreloadModules(modules))
         except BaseException:
             self.close()
             raise
-        self._size = max(1, int(sum(self._client.nthreads().values())))
-        self._stats = StatsBook(self._size)
-        self._sequence = 0
-        self._lock = threading.Lock()
-        self._closed = False
-
-    # -- public API ----------------------------------------------------------------------------------
-    @property
-    def size(self) -> int:
-        return self._size
+        self.closed = False
 
     @property
-    def stats(self) -> PoolStats:
-        return self._stats.snapshot()
-
-    @property
-    def client(self) -> Any:
-        return self._client
-
-    def watchdog_seconds(self) -> float | None:
-        if self._watchdog == "auto":
-            return self._stats.watchdog(self._floor, self._factor)
-        return self._watchdog  # type: ignore[return-value]
-
-    def simulate(
-        self,
-        world: World,
-        *,
-        seed: int,
-        predicates: Sequence[PredicateLike] = (),
-        settings: RunSettings | None = None,
-        timeout: float | None = None,
-    ) -> Run:
-        """Like `SimulationPool.simulate`, on the cluster."""
-        from distributed import KilledWorker
-
-        from pytest_ddenv.sim import RunSettings
-
-        if self._closed:
-            raise SimulationError("the dask simulation pool is closed")
-        with self._lock:
-            self._sequence += 1
-            sequence = self._sequence
-        request = SimRequest(world, seed, tuple(predicates), settings or RunSettings(), timeout,
-                             fault_for(self._faults, sequence, 0))
-        what = describe_request(request)
-        watchdog = self.watchdog_seconds()
-        started = time.perf_counter()
-        future = self._client.submit(simulate_task, request, pure=False, key=f"ddenv-sim-{uuid.uuid4().hex}")
-        try:
-            reply: Reply = future.result(timeout=watchdog)
-        except KilledWorker as error:
-            self._stats.add("crashes")
-            self._stats.add("errors")
-            raise SimulationError(f"simulation of {what}: dask gave up after its workers died ({error})") from None
-        except TimeoutError:
-            future.cancel()
-            self._stats.add("timeouts")
-            self._stats.add("errors")
-            raise SimulationError(f"simulation of {what} ran past the {watchdog:g} s watchdog on dask") from None
-        except Exception as error:
-            if self._closed or type(error).__name__ in ("CancelledError", "CommClosedError"):
-                self._stats.add("errors")
-                raise SimulationError(f"simulation of {what} was lost by the dask cluster: {error!r}") from error
-            raise
-        self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds)
-        if reply.error is not None:
-            raise reply.error
-        assert reply.run is not None
-        return reply.run
+    def threads(self) -> int:
+        """Probes the cluster can run at once."""
+        return max(1, int(sum(self.client.nthreads().values())))
 
     def close(self) -> None:
-        self._closed = True
-        client = getattr(self, "_client", None)
+        self.closed = True
+        client = getattr(self, "client", None)
         if client is not None:
             with contextlib.suppress(Exception):  # best effort at shutdown
                 client.close(timeout=10)
@@ -225,10 +207,6 @@ class DaskSimulationPool:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def __repr__(self) -> str:
-        return f"DaskSimulationPool({self.address}{', closed' if self._closed else ''})"
-
-    # -- helpers -------------------------------------------------------------------------------------
     def _close_cluster(self) -> None:
         if self._cluster is not None:
             with contextlib.suppress(Exception):
@@ -237,7 +215,7 @@ class DaskSimulationPool:
 
     def _check_versions(self) -> None:
         try:
-            remote: dict[str, dict[str, str]] = self._client.run(worker_versions)
+            remote: dict[str, dict[str, str]] = self.client.run(worker_versions)
         except Exception as error:  # typically ModuleNotFoundError on the worker
             raise PoolConfigError(
                 f"the dask workers at {self.address} cannot run pytest-ddenv ({type(error).__name__}: {error}); "
@@ -251,3 +229,112 @@ class DaskSimulationPool:
                 raise PoolConfigError(
                     f"dask worker {worker} has {shown}; runs are bit-identical only with the same versions"
                 )
+
+
+class DaskPool:
+    """The probes of `job` on a `DaskCluster` (the `Pool` API).
+
+    `watchdog` as for `LocalPool`, except that dask cannot kill a running task: a probe past the watchdog
+    is cancelled and reported as `WorkerError`, its worker thread finishes it in the background (the
+    simulated time limit bounds it). `fault_injection` supports only 'error' on dask. `owns_cluster`: close
+    the cluster with the pool.
+    """
+
+    def __init__(
+        self,
+        job: Job,
+        cluster: DaskCluster,
+        *,
+        watchdog: float | str | None = "auto",
+        watchdog_floor: float = DEFAULT_WATCHDOG_FLOOR,
+        watchdog_factor: float = DEFAULT_WATCHDOG_FACTOR,
+        fault_injection: str | Sequence[Fault] | None = None,
+        owns_cluster: bool = False,
+    ) -> None:
+        self.job = job
+        self.cluster = cluster
+        self._owns_cluster = owns_cluster
+        self._watchdog = check_watchdog(watchdog)
+        self._floor, self._factor = float(watchdog_floor), float(watchdog_factor)
+        self._faults = parse_faults(fault_injection)
+        unsupported = sorted({f.kind for f in self._faults} - {"error"})
+        if unsupported:
+            raise PoolConfigError(f"fault(s) {', '.join(unsupported)} cannot be injected on dask (only 'error')")
+        self._size = cluster.threads
+        self._stats = StatsBook(self._size)
+        self._sequence = 0
+        self._lock = threading.Lock()
+        self._closed = False
+        self._start_error: WorkerStartError | None = None
+
+    @property
+    def size(self) -> int:
+        return self._size
+
+    @property
+    def stats(self) -> PoolStats:
+        return self._stats.snapshot()
+
+    def watchdog_seconds(self) -> float | None:
+        if self._watchdog == "auto":
+            return self._stats.watchdog(self._floor, self._factor)
+        return self._watchdog  # type: ignore[return-value]
+
+    def call(self, world: World, attempt: int) -> Any:
+        """Like `LocalPool.call`, on the cluster."""
+        from distributed import KilledWorker
+
+        if self._closed or self.cluster.closed:
+            raise WorkerError("the dask pool is closed")
+        if self._start_error is not None:
+            raise self._start_error
+        with self._lock:
+            self._sequence += 1
+            sequence = self._sequence
+        request = ProbeRequest(world, int(attempt), fault_for(self._faults, sequence, 0))
+        what = describe_request(self.job.label, request)
+        watchdog = self.watchdog_seconds()
+        started = time.perf_counter()
+        future = self.cluster.client.submit(run_probe_task, self.job, request, pure=False,
+                                            key=f"ddenv-probe-{uuid.uuid4().hex}")
+        try:
+            reply: Reply = future.result(timeout=watchdog)
+        except KilledWorker as error:
+            self._stats.add("crashes")
+            self._stats.add("errors")
+            raise WorkerError(f"probe of {what}: dask gave up after its workers died ({error})") from None
+        except TimeoutError:
+            future.cancel()
+            self._stats.add("timeouts")
+            self._stats.add("errors")
+            raise WorkerError(f"probe of {what} ran past the {watchdog:g} s watchdog on dask") from None
+        except WorkerStartError as error:
+            self._stats.add("errors")
+            self._start_error = WorkerStartError(f"{self.job.label}: a dask worker could not start the test: {error}")
+            raise self._start_error from None
+        except WorkerError:
+            self._stats.add("errors")
+            raise
+        except Exception as error:
+            if self._closed or type(error).__name__ in ("CancelledError", "CommClosedError"):
+                self._stats.add("errors")
+                raise WorkerError(f"probe of {what} was lost by the dask cluster: {error!r}") from error
+            raise
+        self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds)
+        if reply.error is not None:
+            raise reply.error
+        return reply.value
+
+    def close(self) -> None:
+        self._closed = True
+        if self._owns_cluster:
+            self.cluster.close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"DaskPool({self.job.label} on {self.cluster.address}{', closed' if self._closed else ''})"

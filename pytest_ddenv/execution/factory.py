@@ -5,29 +5,50 @@ from __future__ import annotations
 from typing import Any
 
 from pytest_ddenv.execution.base import Pool
-from pytest_ddenv.execution.dask_pool import ADDRESS_SCHEMES, DaskSimulationPool
+from pytest_ddenv.execution.dask_pool import ADDRESS_SCHEMES, DaskCluster, DaskPool
 from pytest_ddenv.execution.errors import PoolConfigError
-from pytest_ddenv.execution.local import SimulationPool, resolve_workers
+from pytest_ddenv.execution.local import LocalPool, resolve_workers
+from pytest_ddenv.execution.request import Handler, Job
 
 
-def make_pool(workers: int | str = "auto", executor: str | None = None, **options: Any) -> Pool:
-    """A pool for `--ddenv-workers` and `--ddenv-executor`.
+def check_executor(executor: str | None) -> str | None:
+    """None for local worker processes, else "dask" or a scheduler address (PoolConfigError if invalid)."""
+    if executor in (None, "", "local"):
+        return None
+    if isinstance(executor, str) and (executor == "dask" or executor.startswith(ADDRESS_SCHEMES)):
+        return executor
+    raise PoolConfigError(
+        f"unknown executor {executor!r}: use 'local', 'dask' (a local dask cluster) or a dask scheduler "
+        "address such as tcp://scheduler:8786"
+    )
 
-    `executor` None (or "" / "local"): local worker processes, `workers` of them (1 = in-process).
-    "dask": a local dask cluster with `workers` worker processes. "tcp://host:port" / "tls://...": a running
-    dask scheduler (`workers` is then ignored: the cluster has its own). `options` go to the pool class
-    (watchdog, fault_injection, ...). Raises PoolConfigError for invalid values.
+
+def make_pool(
+    job: Job,
+    workers: int | str = "auto",
+    executor: str | None = None,
+    *,
+    in_process: Handler | None = None,
+    cluster: DaskCluster | None = None,
+    **options: Any,
+) -> Pool:
+    """The pool for `--ddenv-workers` / `--ddenv-executor` (and the `ddenv` command's `--workers`/`--executor`).
+
+    `executor` None (or "local"): `workers` local worker processes serving `job`; with 1 worker and an
+    `in_process` handler, probes run in this process instead. "dask": a local dask cluster of `workers`
+    processes; "tcp://host:port" / "tls://...": a running dask scheduler (`workers` is then ignored). Pass
+    `cluster` to reuse a dask connection (it is then not closed with the pool). `options` go to the pool
+    class (watchdog, fault_injection, ...). Raises PoolConfigError for invalid values.
     """
     count = resolve_workers(workers)
-    if executor in (None, "", "local"):
-        return SimulationPool(count, **options)
-    if not isinstance(executor, str):
-        raise PoolConfigError(f"executor must be 'dask' or a dask scheduler address, got {executor!r}")
-    if executor == "dask":
-        return DaskSimulationPool(None, n_workers=count, **options)
-    if executor.startswith(ADDRESS_SCHEMES):
-        return DaskSimulationPool(executor, **options)
-    raise PoolConfigError(
-        f"unknown executor {executor!r}: use 'dask' (a local dask cluster) or a dask scheduler address "
-        "such as tcp://scheduler:8786"
-    )
+    kind = check_executor(executor)
+    if kind is None:
+        return LocalPool(job, count, in_process=in_process if count == 1 else None, **options)
+    if cluster is not None:
+        return DaskPool(job, cluster, **options)
+    cluster = DaskCluster(None if kind == "dask" else kind, n_workers=count)
+    try:
+        return DaskPool(job, cluster, owns_cluster=True, **options)
+    except BaseException:
+        cluster.close()
+        raise

@@ -1,9 +1,11 @@
-"""`SimulationPool`: persistent local worker processes, each with one live `Simulator`.
+"""`LocalPool`: persistent local worker processes, each serving one `Job` (the user's test, imported once).
 
-Thread-safe and blocking: each calling thread takes an idle worker, sends it one request and waits for the
-reply, the worker's death, or the watchdog. A worker that dies mid-simulation is replaced and the
-simulation retried once on the fresh worker; a second death, a watchdog kill, or closing the pool raise
-`SimulationError`. ``workers=1`` runs in the calling process (no subprocess, no fault isolation).
+Thread-safe and blocking: each calling thread takes an idle worker, sends it one probe and waits for the
+reply, the worker's death, or the watchdog. A worker that dies mid-probe is replaced and the probe retried
+once on the fresh worker; a second death, a watchdog kill, or closing the pool raise `WorkerError`. A worker
+that cannot start its job (the test does not import there) raises `WorkerStartError`, and so does every
+later call. With ``in_process=handler`` probes run in the calling process instead (no worker process, no
+fault isolation), one at a time.
 """
 
 from __future__ import annotations
@@ -27,31 +29,30 @@ from pytest_ddenv.execution.base import (
     DEFAULT_WATCHDOG_FLOOR,
     PoolStats,
     StatsBook,
-    check_preload,
     check_watchdog,
 )
-from pytest_ddenv.execution.errors import PoolConfigError, SimulationError
+from pytest_ddenv.execution.errors import PoolConfigError, WorkerError, WorkerStartError
 from pytest_ddenv.execution.request import (
     Fault,
+    Handler,
+    Job,
+    ProbeRequest,
     Reply,
-    SimRequest,
+    answer,
     describe_request,
-    execute,
     fault_for,
     parse_faults,
 )
 from pytest_ddenv.execution.worker import worker_main
 
 if TYPE_CHECKING:
-    from pytest_ddenv.execution.request import PredicateLike
-    from pytest_ddenv.sim import Run, RunSettings, Simulator
     from pytest_ddenv.world import World
 
 STARTUP_TIMEOUT = 120.0
-"""Seconds a new worker may take to import pybullet and connect its simulator."""
+"""Seconds a new worker may take to start its job (import pybullet, the test module and what it imports)."""
 CLOSE_GRACE = 1.0
 """Seconds `close()` lets workers exit on their own before terminating them."""
-_PRELOAD = ["pytest_ddenv.execution.worker", "pytest_ddenv.sim"]
+_PRELOAD = ["pytest_ddenv.execution.worker", "pytest_ddenv.sim", "pytest"]
 
 
 def cpu_count() -> int:
@@ -112,9 +113,9 @@ class _Hung(Exception):
 class _Worker:
     """One worker process and the parent's end of its pipe."""
 
-    def __init__(self, context: Any, name: str, preload: tuple[str, ...]) -> None:
+    def __init__(self, context: Any, name: str, job: Job) -> None:
         parent, child = context.Pipe(duplex=True)
-        self.process: Any = context.Process(target=worker_main, args=(child, preload), name=name, daemon=True)
+        self.process: Any = context.Process(target=worker_main, args=(child, job), name=name, daemon=True)
         with _main_module_hidden():
             self.process.start()
         child.close()
@@ -149,10 +150,10 @@ class _Worker:
         except (EOFError, OSError):
             raise _Died(f"{self.exit_description()} while starting") from None
         if message[0] == "failed":
-            raise SimulationError(f"{self} could not start a simulator: {message[1]}") from message[1]
+            raise WorkerStartError(str(message[1]))
         self.ready = True
 
-    def call(self, request: SimRequest, watchdog: float | None) -> Reply:
+    def call(self, request: ProbeRequest, watchdog: float | None) -> Reply:
         try:
             with self.send_lock:
                 self.conn.send(request)
@@ -208,55 +209,56 @@ def _shutdown(live: set[_Worker], grace: float) -> None:
         live.discard(worker)
 
 
-class SimulationPool:
-    """A pool of persistent simulation workers (see the module docstring).
+class LocalPool:
+    """A pool of persistent local workers serving `job` (see the module docstring).
 
-    `workers`: count or 'auto' (one per core); 1 = in-process. `watchdog`: wall-clock seconds a simulation
-    may take before its worker is killed, 'auto' (max(`watchdog_floor`, `watchdog_factor` x the slowest
-    simulation so far)) or None (never). `context`: multiprocessing start method ('forkserver' where
+    `workers`: count or 'auto' (one per core). `in_process`: a handler `handler(world, attempt)` that runs
+    probes in this process instead of worker processes (then `workers` must be 1). `watchdog`: wall-clock
+    seconds a probe may take before its worker is killed, 'auto' (max(`watchdog_floor`, `watchdog_factor` x
+    the slowest probe so far)) or None (never). `context`: multiprocessing start method ('forkserver' where
     available, else 'spawn'; 'fork' is refused: pybullet and fork do not mix). `fault_injection`: test-only
-    faults (see `Fault`); default from $DDENV_FAULT_INJECTION. `in_process`: force (or forbid) the
-    in-process mode regardless of `workers`. `preload`: modules every worker imports before its first
-    simulation (custom robots registered with `register_robot` must be registered in the workers too).
+    faults (see `Fault`); default from $DDENV_FAULT_INJECTION.
     """
 
     def __init__(
         self,
+        job: Job,
         workers: int | str = "auto",
         *,
+        in_process: Handler | None = None,
         watchdog: float | str | None = "auto",
         watchdog_floor: float = DEFAULT_WATCHDOG_FLOOR,
         watchdog_factor: float = DEFAULT_WATCHDOG_FACTOR,
         context: str | None = None,
         fault_injection: str | Sequence[Fault] | None = None,
-        in_process: bool | None = None,
         startup_timeout: float = STARTUP_TIMEOUT,
-        preload: Sequence[str] = (),
     ) -> None:
+        if not isinstance(job, Job):
+            raise PoolConfigError(f"a pool needs a Job (key, label, serve), got {type(job).__name__}")
+        self.job = job
         self._size = resolve_workers(workers)
-        self._preload = check_preload(preload)
         self._watchdog = check_watchdog(watchdog)
         self._floor = float(watchdog_floor)
         self._factor = float(watchdog_factor)
         self._startup_timeout = float(startup_timeout)
         self._faults = parse_faults(fault_injection)
-        self._in_process = self._size == 1 if in_process is None else bool(in_process)
+        self._handler = in_process
         self._stats = StatsBook(self._size)
         self._sequence = itertools.count(1)
         self._sequence_lock = threading.Lock()
         self._closed = False
+        self._start_error: WorkerStartError | None = None
         self._idle: queue.Queue[_Worker | None] = queue.Queue()
         self._live: set[_Worker] = set()
         self._names = itertools.count(1)
-        self._local: Simulator | None = None
         self._local_lock = threading.Lock()
-        if self._in_process:
+        if in_process is not None:
             if self._size != 1:
                 raise PoolConfigError(f"an in-process pool has exactly 1 worker, got workers={workers!r}")
             unsafe = sorted({f.kind for f in self._faults} - {"error"})
             if unsafe:
                 raise PoolConfigError(f"fault(s) {', '.join(unsafe)} would take down the calling process; "
-                                      "use worker processes (in_process=False) to inject them")
+                                      "use worker processes to inject them")
             self._context: Any = None
         else:
             method = context or default_context()
@@ -281,7 +283,7 @@ class SimulationPool:
 
     @property
     def in_process(self) -> bool:
-        return self._in_process
+        return self._handler is not None
 
     @property
     def stats(self) -> PoolStats:
@@ -293,44 +295,33 @@ class SimulationPool:
         return sorted(w.process.pid for w in list(self._live) if w.process.pid is not None)
 
     def watchdog_seconds(self) -> float | None:
-        """The watchdog the next simulation gets (None: none)."""
+        """The watchdog the next probe gets (None: none)."""
         if self._watchdog == "auto":
             return self._stats.watchdog(self._floor, self._factor)
         return self._watchdog  # type: ignore[return-value]
 
-    def simulate(
-        self,
-        world: World,
-        *,
-        seed: int,
-        predicates: Sequence[PredicateLike] = (),
-        settings: RunSettings | None = None,
-        timeout: float | None = None,
-    ) -> Run:
-        """Simulate `world` with `seed` on a worker and return its Run (same as `Simulator().run`).
+    def call(self, world: World, attempt: int) -> Any:
+        """Run the job's test on `world` as re-run `attempt` on a worker; return the handler's value.
 
-        Raises what the simulation raises (e.g. ScenarioError), or SimulationError when the pool could not
-        complete it (worker died twice, watchdog, pool closed).
+        Raises what the handler raised (re-raised here), `WorkerStartError` when the workers cannot start
+        the job, or `WorkerError` when the pool could not complete the probe (worker died twice,
+        watchdog, pool closed).
         """
-        from pytest_ddenv.sim import RunSettings
-
         if self._closed:
-            raise SimulationError("the simulation pool is closed")
-        request = SimRequest(world, seed, tuple(predicates), settings or RunSettings(), timeout)
+            raise WorkerError("the worker pool is closed")
+        if self._start_error is not None:
+            raise self._start_error
         with self._sequence_lock:
             sequence = next(self._sequence)
-        if self._in_process:
-            return self._simulate_here(replace(request, fault=fault_for(self._faults, sequence, 0)))
-        return self._simulate_on_worker(request, sequence)
+        request = ProbeRequest(world, int(attempt))
+        if self._handler is not None:
+            return self._call_here(replace(request, fault=fault_for(self._faults, sequence, 0)))
+        return self._call_on_worker(request, sequence)
 
     def close(self, grace: float = CLOSE_GRACE) -> None:
         """Stop every worker (let them exit for `grace` seconds, then terminate/kill) and reap them."""
         self._closed = True
         _shutdown(self._live, grace)
-        with self._local_lock:
-            if self._local is not None:
-                self._local.close()
-                self._local = None
         self._finalizer.detach()
 
     def __enter__(self) -> Self:
@@ -340,27 +331,20 @@ class SimulationPool:
         self.close()
 
     def __repr__(self) -> str:
-        mode = "in-process" if self._in_process else f"{self._size} workers"
-        return f"SimulationPool({mode}{', closed' if self._closed else ''})"
+        mode = "in-process" if self.in_process else f"{self._size} workers"
+        return f"LocalPool({self.job.label}, {mode}{', closed' if self._closed else ''})"
 
     # -- in-process ----------------------------------------------------------------------------------
-    def _simulate_here(self, request: SimRequest) -> Run:
+    def _call_here(self, request: ProbeRequest) -> Any:
+        assert self._handler is not None
         with self._local_lock:
             started = time.perf_counter()
-            if self._local is None:
-                import importlib
-
-                from pytest_ddenv.sim import Simulator
-
-                for module in self._preload:
-                    importlib.import_module(module)
-                self._local = Simulator()
-            reply = execute(self._local, request)
+            reply = answer(request, self._handler)
         return self._finish(reply, started)
 
     # -- worker processes ----------------------------------------------------------------------------
-    def _simulate_on_worker(self, request: SimRequest, sequence: int) -> Run:
-        what = describe_request(request)
+    def _call_on_worker(self, request: ProbeRequest, sequence: int) -> Any:
+        what = describe_request(self.job.label, request)
         worker = self._acquire()
         for try_index in (0, 1):
             attempt = replace(request, fault=fault_for(self._faults, sequence, try_index))
@@ -370,6 +354,13 @@ class SimulationPool:
                     worker.await_ready(self._startup_timeout)
                 started = time.perf_counter()
                 reply = worker.call(attempt, watchdog)
+            except WorkerStartError as error:
+                self._forget(worker)
+                self._stats.add("errors")
+                self._start_error = WorkerStartError(
+                    f"{self.job.label}: a probe worker could not start the test: {error}"
+                )
+                raise self._start_error from None
             except _Died as died:
                 retry = try_index == 0 and not self._closed
                 self._forget(worker, free_slot=not retry)
@@ -380,18 +371,14 @@ class SimulationPool:
                     worker = self._start_worker()
                     continue
                 self._stats.add("errors")
-                raise SimulationError(
-                    f"simulation of {what} failed twice: its worker died each time (last: {died.how})"
-                ) from None
+                raise WorkerError(f"probe of {what} failed twice: its worker died each time (last: {died.how})") from None
             except _Hung:
                 self._forget(worker)
                 self._raise_if_closed(what)
                 self._stats.add("timeouts")
                 self._stats.add("errors")
-                raise SimulationError(
-                    f"simulation of {what} ran past the {watchdog:g} s watchdog; its worker was killed"
-                ) from None
-            except BaseException:  # interrupted mid-call, or the worker could not start: its state is unknown
+                raise WorkerError(f"probe of {what} ran past the {watchdog:g} s watchdog; its worker was killed") from None
+            except BaseException:  # interrupted mid-call: the worker's state is unknown
                 self._forget(worker)
                 self._stats.add("errors")
                 raise
@@ -399,27 +386,26 @@ class SimulationPool:
             return self._finish(reply, started)
         raise AssertionError("unreachable")  # pragma: no cover
 
-    def _finish(self, reply: Reply, started: float) -> Run:
+    def _finish(self, reply: Reply, started: float) -> Any:
         self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds)
         if reply.error is not None:
             raise reply.error
-        assert reply.run is not None
-        return reply.run
+        return reply.value
 
     def _raise_if_closed(self, what: str) -> None:
         if self._closed:
             self._stats.add("errors")
-            raise SimulationError(f"the simulation pool was closed while simulating {what}")
+            raise WorkerError(f"the worker pool was closed while running the probe of {what}")
 
     def _start_worker(self, *, count: bool = True) -> _Worker:
         assert self._context is not None
-        worker = _Worker(self._context, f"ddenv-sim-{next(self._names)}", self._preload)
+        worker = _Worker(self._context, f"ddenv-probe-{next(self._names)}", self.job)
         self._live.add(worker)
         if count:
             self._stats.add("restarts")
         if self._closed:  # close() raced with us: do not leave it behind
             self._forget(worker, free_slot=False)
-            raise SimulationError("the simulation pool is closed")
+            raise WorkerError("the worker pool is closed")
         return worker
 
     def _forget(self, worker: _Worker, *, free_slot: bool = True) -> None:
@@ -433,7 +419,9 @@ class SimulationPool:
     def _acquire(self) -> _Worker:
         while True:
             if self._closed:
-                raise SimulationError("the simulation pool is closed")
+                raise WorkerError("the worker pool is closed")
+            if self._start_error is not None:
+                raise self._start_error
             try:
                 item = self._idle.get(timeout=0.2)
             except queue.Empty:

@@ -1,5 +1,5 @@
-"""What crosses the process boundary: a simulation request, the faults a test may inject, and the code
-that runs a request on a live `Simulator` (shared by local workers, dask tasks and the in-process pool)."""
+"""What crosses the process boundary: the `Job` a worker serves, a probe request and its reply, the faults a
+test may inject, and `serve_requests`, the loop every job's `serve` runs (local workers, dask, in-process)."""
 
 from __future__ import annotations
 
@@ -7,20 +7,15 @@ import contextlib
 import os
 import signal
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, Union
+from typing import TYPE_CHECKING, Any, Literal, Protocol, runtime_checkable
 
 from pytest_ddenv.execution.errors import PoolConfigError
-from pytest_ddenv.markers import PredicateSpec
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle import Predicate
-    from pytest_ddenv.sim import Run, RunSettings, Simulator
     from pytest_ddenv.world import World
 
-PredicateLike = Union[PredicateSpec, "Predicate"]
-"""A predicate as a spec (built on the worker: preferred) or as a picklable predicate object."""
 FaultKind = Literal["crash", "kill", "exit", "hang", "error"]
 FAULT_KINDS: tuple[FaultKind, ...] = ("crash", "kill", "exit", "hang", "error")
 FAULT_ENV = "DDENV_FAULT_INJECTION"
@@ -30,8 +25,8 @@ without an explicit ``fault_injection=``."""
 
 @dataclass(frozen=True)
 class Fault:
-    """Test-only: make the worker that runs the pool's `at`-th simulation (1-based, in submission order)
-    misbehave, on the first `tries` tries of that simulation (2 = the retry faults too).
+    """Test-only: make the worker that runs the pool's `at`-th probe (1-based, in submission order)
+    misbehave, on the first `tries` tries of that probe (2 = the retry faults too).
 
     crash: SIGSEGV; kill: SIGKILL; exit: os._exit(70); hang: sleep forever; error: raise RuntimeError.
     """
@@ -69,7 +64,7 @@ def parse_faults(value: str | Sequence[Fault] | None) -> tuple[Fault, ...]:
 
 
 def fault_for(faults: Sequence[Fault], sequence: int, try_index: int) -> FaultKind | None:
-    """The fault to inject into try `try_index` (0-based) of simulation number `sequence`, if any."""
+    """The fault to inject into try `try_index` (0-based) of probe number `sequence`, if any."""
     for fault in faults:
         if fault.at == sequence and try_index < fault.tries:
             return fault.kind
@@ -77,36 +72,82 @@ def fault_for(faults: Sequence[Fault], sequence: int, try_index: int) -> FaultKi
 
 
 @dataclass(frozen=True)
-class SimRequest:
-    """One simulation, as plain picklable data."""
+class ProbeRequest:
+    """One probe for a worker: run the job's test on `world` as re-run number `attempt` (picklable)."""
 
     world: World
-    seed: int
-    predicates: tuple[PredicateLike, ...]
-    settings: RunSettings
-    timeout: float | None
+    attempt: int
     fault: FaultKind | None = None
 
 
 @dataclass(frozen=True)
 class Reply:
-    """A worker's answer: the Run, or the exception the simulation raised; `seconds` spent on the worker."""
+    """A worker's answer: what the job's handler returned (`value`), or the exception the handler itself
+    raised (`error`: a bug or a broken setup, never an outcome of the test); `seconds` spent on the worker."""
 
-    run: Run | None
+    value: Any
     error: BaseException | None
     seconds: float
 
 
-def build_predicates(predicates: Sequence[PredicateLike]) -> list[Predicate]:
-    from pytest_ddenv.oracle import make_predicate
+class Channel(Protocol):
+    """How a job's `serve` talks to whoever sends it probes (a pipe to the parent, a queue on dask)."""
 
-    built: list[Predicate] = []
-    for item in predicates:
-        if isinstance(item, PredicateSpec):
-            built.append(make_predicate(item.name, **dict(item.params)))
-        else:
-            built.append(item)
-    return built
+    def ready(self) -> None:
+        """The job can take probes now (its test is imported)."""
+
+    def failed(self, message: str) -> None:
+        """The job cannot start: `message` says why (an import error with its traceback, ...)."""
+
+    def receive(self) -> ProbeRequest | None:
+        """The next probe, or None: stop serving."""
+
+    def send(self, reply: Reply) -> None: ...
+
+
+Handler = Callable[["World", int], Any]
+"""handler(world, attempt) -> the probe's result (a plain, picklable value)."""
+
+
+@runtime_checkable
+class Job(Protocol):
+    """What a probe does and where its code comes from; picklable, sent to every worker.
+
+    `serve(channel)` runs in the worker's main thread: it imports what the test needs, says `ready()` (or
+    `failed(...)`), then answers probes until `receive()` gives None (use `serve_requests`). `key` is
+    unique per job (workers that serve several jobs tell them apart by it); `label` names it in errors.
+    """
+
+    @property
+    def key(self) -> str: ...
+
+    @property
+    def label(self) -> str: ...
+
+    def serve(self, channel: Channel) -> None: ...
+
+
+def serve_requests(channel: Channel, handle: Handler) -> None:
+    """Say ready, then answer every probe with `handle(world, attempt)` until told to stop."""
+    channel.ready()
+    while (request := channel.receive()) is not None:
+        channel.send(answer(request, handle))
+
+
+def answer(request: ProbeRequest, handle: Handler) -> Reply:
+    """Run one probe (after its injected fault, if any), catching what the handler raises."""
+    started = time.perf_counter()
+    try:
+        inject(request.fault)
+        value = handle(request.world, request.attempt)
+    except Exception as error:  # noqa: BLE001 - sent back to the caller, which re-raises it
+        return Reply(None, error, time.perf_counter() - started)
+    return Reply(value, None, time.perf_counter() - started)
+
+
+def describe_request(label: str, request: ProbeRequest) -> str:
+    name = request.world.name or request.world.source or "world"
+    return f"{label} on {name!s} ({len(request.world)} models, attempt {request.attempt})"
 
 
 def inject(fault: FaultKind | None) -> None:
@@ -129,31 +170,4 @@ def inject(fault: FaultKind | None) -> None:
         while True:
             time.sleep(3600)
     if fault == "error":
-        raise RuntimeError("injected fault: the simulation raised on purpose")
-
-
-def run_request(simulator: Simulator, request: SimRequest) -> Run:
-    inject(request.fault)
-    return simulator.run(
-        request.world,
-        seed=request.seed,
-        predicates=build_predicates(request.predicates),
-        settings=request.settings,
-        timeout=request.timeout,
-    )
-
-
-def execute(simulator: Simulator, request: SimRequest) -> Reply:
-    """Run `request`, catching what the simulation raises (a fault that kills the process is not caught)."""
-    started = time.perf_counter()
-    try:
-        run = run_request(simulator, request)
-    except Exception as error:  # noqa: BLE001 - sent back to the caller, which re-raises it
-        return Reply(None, error, time.perf_counter() - started)
-    return Reply(run, None, time.perf_counter() - started)
-
-
-def describe_request(request: SimRequest) -> str:
-    name = request.world.name or request.world.source or "world"
-    return f"{name!s} ({len(request.world)} models, seed {request.seed})"
-
+        raise RuntimeError("injected fault: the probe raised on purpose")

@@ -1,37 +1,36 @@
-"""The main loop of one simulation worker process: one live `Simulator`, requests in, replies out.
+"""The main function of one local worker process: it serves one `Job` over a duplex pipe.
 
-Protocol over a duplex pipe: the worker sends ``("ready", pid)`` once its simulator is up (or
-``("failed", error)``), then answers each `SimRequest` with a `Reply`; ``None`` asks it to exit.
+Protocol: the worker sends ``("ready", pid)`` once the job can take probes (or ``("failed", message)``),
+then answers each `ProbeRequest` with a `Reply`; ``None`` asks it to stop.
 """
 
 from __future__ import annotations
 
-import importlib
 import os
 import pickle
 import signal
 import traceback
 from multiprocessing.connection import Connection
 
-from pytest_ddenv.execution.errors import SimulationError
-from pytest_ddenv.execution.request import Reply, SimRequest, execute
+from pytest_ddenv.execution.errors import WorkerError
+from pytest_ddenv.execution.request import Job, ProbeRequest, Reply
 
 
 def portable(error: BaseException) -> BaseException:
-    """`error` if it survives pickling, else a SimulationError carrying its type, message and traceback."""
+    """`error` if it survives pickling, else a WorkerError carrying its type, message and traceback."""
     text = "".join(traceback.format_exception(error))
     try:
         copy = pickle.loads(pickle.dumps(error))
     except Exception:  # noqa: BLE001 - any unpicklable exception
-        return SimulationError(f"the simulation raised {type(error).__qualname__}: {error}\n{text}")
+        return WorkerError(f"the probe raised {type(error).__qualname__}: {error}\n{text}")
     if isinstance(copy, BaseException):
-        copy.add_note(f"(raised in simulation worker pid {os.getpid()})\n{text}")
+        copy.add_note(f"(raised in probe worker pid {os.getpid()})\n{text}")
         return copy
-    return SimulationError(f"the simulation raised {type(error).__qualname__}: {error}")  # pragma: no cover
+    return WorkerError(f"the probe raised {type(error).__qualname__}: {error}")  # pragma: no cover
 
 
-def _quiet_stdout() -> None:
-    """pybullet prints to the C-level stdout; a worker's stdout is nobody's business (stderr stays)."""
+def quiet_stdout() -> None:
+    """pybullet and pytest print to the C-level stdout; a worker's stdout is nobody's business (stderr stays)."""
     try:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, 1)
@@ -40,38 +39,62 @@ def _quiet_stdout() -> None:
         pass
 
 
-def worker_main(conn: Connection, preload: tuple[str, ...] = ()) -> None:
-    """Entry point of a worker process (must stay importable: spawn and forkserver import it by name).
+class PipeChannel:
+    """The worker's end of the pipe to the pool (see the module docstring)."""
 
-    `preload`: modules to import first, e.g. the one that calls `register_robot` for a custom robot.
-    """
+    def __init__(self, conn: Connection) -> None:
+        self.conn = conn
+        self.said_ready = False
+        self.closed = False
+
+    def ready(self) -> None:
+        self.said_ready = True
+        self.conn.send(("ready", os.getpid()))
+
+    def failed(self, message: str) -> None:
+        self.said_ready = True
+        self.conn.send(("failed", message))
+
+    def receive(self) -> ProbeRequest | None:
+        if self.closed:
+            return None
+        try:
+            request = self.conn.recv()
+        except (EOFError, OSError):  # the parent is gone
+            request = None
+        if request is None:
+            self.closed = True
+            return None
+        assert isinstance(request, ProbeRequest)
+        return request
+
+    def send(self, reply: Reply) -> None:
+        if reply.error is not None:
+            reply = Reply(None, portable(reply.error), reply.seconds)
+        try:
+            self.conn.send(reply)
+        except (BrokenPipeError, OSError):
+            self.closed = True
+
+
+def worker_main(conn: Connection, job: Job) -> None:
+    """Entry point of a worker process (must stay importable: spawn and forkserver import it by name)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the parent decides
-    _quiet_stdout()
+    quiet_stdout()
+    channel = PipeChannel(conn)
     try:
-        for module in preload:
-            importlib.import_module(module)
-        from pytest_ddenv.sim import Simulator
-
-        simulator = Simulator()
+        job.serve(channel)
     except BaseException as error:  # noqa: BLE001 - reported to the parent, which raises it
-        conn.send(("failed", portable(error)))
-        return
-    conn.send(("ready", os.getpid()))
-    try:
-        while True:
+        if not channel.said_ready:
+            message = "".join(traceback.format_exception(error))
             try:
-                request = conn.recv()
-            except (EOFError, OSError):  # the parent is gone
-                break
-            if request is None:
-                break
-            assert isinstance(request, SimRequest)
-            reply = execute(simulator, request)
-            if reply.error is not None:
-                reply = Reply(None, portable(reply.error), reply.seconds)
-            try:
-                conn.send(reply)
+                channel.failed(f"{type(error).__name__}: {error}\n{message}")
             except (BrokenPipeError, OSError):
-                break
+                pass
+        raise
     finally:
-        simulator.close()
+        if not channel.said_ready:  # serve() returned without a word: nothing to serve
+            try:
+                channel.failed(f"{job.label}: the worker stopped before it could take probes")
+            except (BrokenPipeError, OSError):
+                pass

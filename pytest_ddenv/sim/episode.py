@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.oracle import GROUND, Contact, FailureSignature, History, Predicate, RobotState
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.control import AnyCommand, Command, LaserScan, Observation, wrap_angle
@@ -126,7 +127,7 @@ class Episode:
                     weight=self._weight, history=self.history,
                 )
                 for predicate in self.predicates:
-                    self.failure = predicate.check(state)
+                    self.failure = _checked(predicate, predicate.check(state), now)
                     if self.failure is not None:
                         break
         decided = self.reached or self.failure is not None
@@ -235,3 +236,11 @@ class Episode:
             steps=self._steps,
             pybullet_version=self.pybullet_version,
         )
+
+
+def _checked(predicate: Predicate, result: object, now: float) -> FailureSignature | None:
+    if result is None or isinstance(result, FailureSignature):
+        return result
+    raise ScenarioError(f"predicate {predicate.name!r} returned {type(result).__name__} {result!r} at t = {now:.2f} s; "
+                        "check() must return a FailureSignature (see pytest_ddenv.oracle.signature) or None",
+                        field="predicates")

@@ -1,0 +1,197 @@
+"""The user's pytest test as a probe job: every worker is a pytest session of its own that collected the
+failing test the way the pytest process did (same arguments, ini file, rootdir, conftests, import mode,
+plugins, `sys.path` and environment), and runs the *whole test* for each probe: `runtestprotocol`, with
+its function-scoped fixtures set up and torn down per probe, and `robot_world` bound to the candidate
+world. Whatever the test module, its conftests and the user's packages define (robots, controllers,
+predicates, helpers) therefore exists in every worker exactly as in the pytest process.
+
+`ItemHandler` is the in-process variant (`--ddenv-workers 1`): it calls the test function again in the
+pytest process with the fixture values of the failing call.
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+import sys
+import uuid
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pytest_ddenv.execution import Channel, serve_requests
+from pytest_ddenv.probe import ProbeResult, describe_error
+from pytest_ddenv.robot_world import FIXTURE, RobotWorld
+from pytest_ddenv.world import World
+
+OUTCOME_EXCEPTIONS: tuple[type[BaseException], ...] = (
+    Exception, pytest.fail.Exception, pytest.skip.Exception, pytest.xfail.Exception,
+)
+"""What a probe's test call may raise and still be an outcome (pytest.fail/skip are BaseExceptions)."""
+NEUTRALIZED_OPTIONS: Mapping[str, Any] = {
+    # outputs that belong to the pytest process: a worker must not overwrite them
+    "xmlpath": None, "htmlpath": None, "report_log": None, "resultlog": None,
+    # test selection and stopping rules of the pytest process
+    "lf": False, "failedfirst": False, "newfirst": False, "stepwise": False, "stepwise_skip": False,
+    "exitfirst": False, "maxfail": 0, "collectonly": False,
+    # pytest-xdist: a worker is one process
+    "numprocesses": None, "maxprocesses": None, "dist": "no", "distload": False, "looponfail": False,
+    # debugging needs a terminal a worker does not have
+    "usepdb": False, "trace": False,
+}
+
+
+@dataclass
+class ProbeBinding:
+    """The candidate world and attempt of the probe running now in this worker (read by the fixture)."""
+
+    world: World
+    attempt: int
+    robot_world: RobotWorld | None = None
+
+
+PROBE_BINDING = pytest.StashKey[ProbeBinding]()
+WORKER = pytest.StashKey[bool]()
+
+
+@dataclass(frozen=True)
+class PytestJob:
+    """The failing test `nodeid` (in `test_file`) as a probe job; `PytestJob.of(item)` builds it."""
+
+    nodeid: str
+    test_file: str
+    args: tuple[str, ...]
+    invocation_dir: str
+    sys_path: tuple[str, ...]
+    environ: Mapping[str, str]
+    basetemp: str | None = None
+    capture: str | None = None
+    key: str = field(default_factory=lambda: uuid.uuid4().hex)
+
+    @classmethod
+    def of(cls, item: pytest.Item, *, capture: str | None = None) -> PytestJob:
+        config = item.config
+        factory = getattr(config, "_tmp_path_factory", None)  # as pytest-xdist does for its workers
+        basetemp = None if factory is None else str(factory.getbasetemp() / "ddenv-probes")
+        return cls(
+            nodeid=item.nodeid, test_file=str(item.path), args=tuple(str(a) for a in config.invocation_params.args),
+            invocation_dir=str(config.invocation_params.dir), sys_path=tuple(sys.path), environ=dict(os.environ),
+            basetemp=basetemp, capture=capture,
+        )
+
+    @property
+    def label(self) -> str:
+        return self.nodeid
+
+    def serve(self, channel: Channel) -> None:
+        """Start a pytest session that collects the test and serves probes from its run-test loop."""
+        os.chdir(self.invocation_dir)
+        sys.path[:] = list(self.sys_path) + [entry for entry in sys.path if entry not in self.sys_path]
+        os.environ.update(self.environ)
+        server = ProbeServer(self, channel)
+        code = pytest.main(list(self.args), plugins=[server])
+        if not server.started:
+            channel.failed(server.failure(code))
+
+
+class ProbeServer:
+    """The pytest plugin of a worker session (see the module docstring)."""
+
+    def __init__(self, job: PytestJob, channel: Channel) -> None:
+        self.job = job
+        self.channel = channel
+        self.started = False
+        self.collect_errors: list[str] = []
+        self.raised: dict[str, BaseException] = {}
+
+    def failure(self, code: object) -> str:
+        if self.collect_errors:
+            return f"collecting {self.job.test_file} failed:\n" + "\n".join(self.collect_errors)
+        return f"pytest (exit code {code}) did not collect {self.job.nodeid} from {self.job.test_file}"
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_cmdline_main(self, config: pytest.Config) -> None:
+        config.args = [self.job.test_file]
+        for name, value in NEUTRALIZED_OPTIONS.items():
+            if hasattr(config.option, name):
+                setattr(config.option, name, value)
+        if self.job.basetemp is not None:
+            config.option.basetemp = str(Path(self.job.basetemp) / f"worker-{os.getpid()}")
+        if self.job.capture is not None:
+            config.option.capture = self.job.capture
+        config.stash[WORKER] = True
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_collection_modifyitems(self, config: pytest.Config, items: list[pytest.Item]) -> None:
+        others = [item for item in items if item.nodeid != self.job.nodeid]
+        items[:] = [item for item in items if item.nodeid == self.job.nodeid]
+        if others:
+            config.hook.pytest_deselected(items=others)
+
+    def pytest_collectreport(self, report: pytest.CollectReport) -> None:
+        if report.failed:
+            self.collect_errors.append(f"{report.nodeid or self.job.test_file}: {report.longreprtext}")
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_runtestloop(self, session: pytest.Session) -> bool:
+        found = [item for item in session.items if item.nodeid == self.job.nodeid]
+        if not found:
+            return True  # serve() reports the failure
+        item = found[0]
+        self.started = True
+        serve_requests(self.channel, lambda world, attempt: self.run_item(item, world, attempt))
+        return True
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_makereport(self, item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
+        report = yield
+        if call.excinfo is not None:
+            self.raised.setdefault(call.when, call.excinfo.value)
+        return report
+
+    def run_item(self, item: pytest.Item, world: World, attempt: int) -> ProbeResult:
+        """One probe: the test's setup, call and teardown with `robot_world` bound to `world`."""
+        from _pytest.runner import runtestprotocol
+
+        binding = ProbeBinding(world, attempt)
+        item.config.stash[PROBE_BINDING] = binding
+        self.raised.clear()
+        try:
+            # Tear down only the function's fixtures afterwards: module, class and session fixtures stay up
+            # for the next probe, as for the next test of a normal session.
+            runtestprotocol(item, log=False, nextitem=item.parent)  # type: ignore[arg-type]
+        finally:
+            del item.config.stash[PROBE_BINDING]
+        error = None
+        for phase in ("setup", "call", "teardown"):
+            if phase in self.raised:
+                error = describe_error(self.raised[phase], self.job.test_file, phase=phase)
+                break
+        robot_world = binding.robot_world
+        run = robot_world.runs[-1] if robot_world is not None and robot_world.runs else None
+        return ProbeResult(error, run)
+
+
+class ItemHandler:
+    """Probes in the pytest process: call the test function again with `robot_world` rebound to the
+    candidate world; the other arguments keep the values the failing call received."""
+
+    def __init__(self, item: pytest.Function) -> None:
+        self.item = item
+        parameters = inspect.signature(item.obj).parameters
+        self.arguments = {name: item.funcargs[name] for name in parameters if name in item.funcargs}
+        original = item.funcargs[FIXTURE]
+        assert isinstance(original, RobotWorld)
+        self.original = original
+
+    def __call__(self, world: World, attempt: int) -> ProbeResult:
+        rebound = self.original.rebound(world, attempt=attempt)
+        error = None
+        try:
+            self.item.obj(**{**self.arguments, FIXTURE: rebound})
+        except OUTCOME_EXCEPTIONS as raised:  # every exception is an outcome to classify
+            error = describe_error(raised, self.item.path)
+        return ProbeResult(error, rebound.runs[-1] if rebound.runs else None)
