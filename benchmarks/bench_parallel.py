@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from pytest_ddenv.execution import PoolStats, SimulationPool, cpu_count
-from pytest_ddenv.markers import PredicateSpec
+from pytest_ddenv.oracle import PredicateSpec
 from pytest_ddenv.probe import keeps_start_support, make_probe, reference_from, trace_of
 from pytest_ddenv.reduce import Reduction, reduce
 from pytest_ddenv.robot_world import RobotWorld

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from pytest_ddenv.execution import Pool, make_pool
-from pytest_ddenv.markers import PredicateSpec
+from pytest_ddenv.oracle import PredicateSpec
 from pytest_ddenv.probe import (
     FailureReference,
     keeps_start_support,

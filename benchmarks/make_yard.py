@@ -31,7 +31,7 @@ import math
 import random
 from pathlib import Path
 
-from pytest_ddenv.markers import PredicateSpec
+from pytest_ddenv.oracle import PredicateSpec
 
 START = (0.0, 0.0)
 GOAL = (7.0, 0.0)

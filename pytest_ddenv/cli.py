@@ -21,7 +21,7 @@ from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 from pytest_ddenv import __version__
 from pytest_ddenv.errors import DdenvError
-from pytest_ddenv.markers import PredicateSpec
+from pytest_ddenv.oracle import PredicateSpec
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.reduce import ProgressEvent, Reduction
@@ -69,6 +69,12 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _workers(text: str) -> int | str:
+    if text == "auto":
+        return text
+    return _positive_int(text)
+
+
 def _positive_float(text: str) -> float:
     try:
         value = float(text)
@@ -87,6 +93,8 @@ def parse_predicate(text: str) -> PredicateSpec:
     from pytest_ddenv.oracle import make_predicate
 
     name, _, rest = text.partition(":")
+    if not name.strip():
+        raise UsageError(f"--predicate {text!r}: expected NAME[:key=value,...]")
     params: dict[str, Any] = {}
     for item in _split_top_level(rest):
         key, equals, value = item.partition("=")
@@ -167,7 +175,19 @@ def _add_predicate_option(parser: argparse.ArgumentParser, *, required: bool) ->
     parser.add_argument("--predicate", "-p", dest="predicates", action="append", type=str, default=[],
                         required=required, metavar="NAME[:k=v,...]",
                         help="failure predicate, repeatable, e.g. stuck:window=5,min_progress=0.2 "
-                             "(stuck, flipped, high_centered, fell, collided, timeout)")
+                             "(stuck, flipped, high_centered, fell, collided, timeout, or one registered by an "
+                             "--import)")
+
+
+def _add_user_code_options(parser: argparse.ArgumentParser, *, controller: bool = True) -> None:
+    parser.add_argument("--import", dest="imports", action="append", default=[], metavar="MODULE_OR_FILE",
+                        help="import this module (or .py file) first, repeatable: the code that registers your "
+                             "robots (register_robot), predicates (register_predicate) or controllers")
+    if controller:
+        parser.add_argument("--controller", metavar="MODULE:ATTRIBUTE",
+                            help="the controller that drives the robot, e.g. my_robot.control:avoid (a function "
+                                 "or object called with an Observation, or a class instantiated without "
+                                 "arguments); default: the built-in go-to-goal law")
 
 
 def _add_run(commands: Any, common: argparse.ArgumentParser) -> None:
@@ -175,6 +195,7 @@ def _add_run(commands: Any, common: argparse.ArgumentParser) -> None:
     run.add_argument("world", help="world file (.yaml, .sdf)")
     run.add_argument("--seed", type=_non_negative_int, default=0, help="seed of the run's noise (default 0)")
     _add_predicate_option(run, required=False)
+    _add_user_code_options(run)
     run.add_argument("--timeout", type=_positive_float, help="simulated seconds (default: the world's scenario)")
     run.add_argument("-o", "--output", help="picture to write (default: WORLD-run.png in the current folder)")
     run.add_argument("--no-picture", action="store_true", help="do not write a picture")
@@ -201,6 +222,7 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     reduce = commands.add_parser("reduce", parents=[common], help="reduce a failing world to the models the failure needs")
     reduce.add_argument("world", help="world file (.yaml, .sdf)")
     _add_predicate_option(reduce, required=True)
+    _add_user_code_options(reduce)
     reduce.add_argument("--partition", default="model2model", choices=[*PARTITIONS, *PARTITION_ALIASES],
                         help="partition schema (default model2model)")
     reduce.add_argument("--priority", default="avg-trajectory-proximal", choices=[*PRIORITIES, *PRIORITY_ALIASES],
@@ -217,8 +239,12 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     reduce.add_argument("--timeout", type=_positive_float, help="simulated seconds per run (default: the world's)")
     reduce.add_argument("--max-probes", type=_positive_int, metavar="N", help="stop after N simulations")
     reduce.add_argument("--max-time", type=_positive_float, metavar="S", help="stop after S wall seconds")
-    reduce.add_argument("--workers", type=_positive_int, default=1, metavar="N",
-                        help="simulate candidates in N processes (default 1)")
+    reduce.add_argument("--workers", type=_workers, default="auto", metavar="N",
+                        help="probe worker processes: a number, or 'auto' for one per core (the default); 1 "
+                             "simulates in this process")
+    reduce.add_argument("--executor", default=None, metavar="ADDRESS",
+                        help="where probes run: 'local' worker processes (default), 'dask' (a local dask "
+                             "cluster) or tcp://HOST:PORT of a dask scheduler")
     reduce.add_argument("--out", metavar="DIR", help="artifacts folder (default ddenv-artifacts/WORLD)")
     reduce.add_argument("--quiet", "-q", action="store_true", help="no progress on stderr")
 
@@ -228,6 +254,7 @@ def _add_replay(commands: Any, common: argparse.ArgumentParser) -> None:
                                  help="re-run a reduction's minimal world and check it still fails the same way")
     replay.add_argument("artifacts", metavar="ARTIFACT_DIR", help="a folder written by ddenv reduce or pytest --ddenv-reduce")
     _add_predicate_option(replay, required=False)
+    _add_user_code_options(replay)
     replay.add_argument("--runs", type=_positive_int, default=5, metavar="N",
                         help="replay at most N recorded failing seeds (default 5)")
     replay.add_argument("--tolerance", type=_positive_float, metavar="M", help="default: the recorded one")
@@ -347,13 +374,25 @@ def _world_stem(path: str) -> str:
     return Path(path).stem or "world"
 
 
-def _cmd_run(arguments: argparse.Namespace) -> int:
-    from pytest_ddenv.replay import run_scenario
+def _user_code(arguments: argparse.Namespace) -> Any:
+    """Import the --import modules now (their registrations are needed to read the options) and load the
+    --controller; returns the controller (None: the built-in law)."""
+    from pytest_ddenv.user_code import import_user_code, load_attribute
 
+    for spec in arguments.imports:
+        import_user_code(spec)
+    reference = getattr(arguments, "controller", None)
+    return None if reference is None else load_attribute(reference)
+
+
+def _cmd_run(arguments: argparse.Namespace) -> int:
+    from pytest_ddenv.scenario_job import run_scenario
+
+    controller = _user_code(arguments)
     world = _load_world(arguments.world)
     _require_scenario(world, arguments.world)
     predicates = _predicates(arguments.predicates)
-    run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout)
+    run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout, controller=controller)
     picture = None
     if not arguments.no_picture:
         from pytest_ddenv import render
@@ -447,27 +486,49 @@ def _read_runs(path: Path) -> tuple[list[Run], list[list[float]]]:
 
 # -- reduce ------------------------------------------------------------------------------------------------
 def _cmd_reduce(arguments: argparse.Namespace) -> int:
+    from pytest_ddenv.execution import check_executor, make_pool
     from pytest_ddenv.markers import parse_deflake
     from pytest_ddenv.reduce import DEFLAKE_POLICIES, PRIORITY_ALIASES
-    from pytest_ddenv.replay import run_scenario
+    from pytest_ddenv.scenario_job import ScenarioJob
 
+    _user_code(arguments)
     world = _load_world(arguments.world)
     _require_scenario(world, arguments.world)
     predicates = _predicates(arguments.predicates)
     deflake = parse_deflake(arguments.deflake, "--deflake", DEFLAKE_POLICIES)
     keep = _keep(world, arguments.keep)
     priority = PRIORITY_ALIASES.get(arguments.priority, arguments.priority)
+    executor = check_executor(arguments.executor)
+    job = ScenarioJob(tuple(predicates), seed=arguments.seed, timeout=arguments.timeout,
+                      controller=arguments.controller, imports=tuple(arguments.imports))
     progress = _Progress(sys.stderr, quiet=arguments.quiet)
-    progress.note(f"simulating the original world ({len(world)} models, seed {arguments.seed})")
-    original = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout)
-    if original.failure is None:
-        return _does_not_fail(arguments, original)
-    progress.note(f"it fails: {original.failure.predicate} at t = {original.failure.time:.2f} s; reducing")
-    reduction, interrupted = _reduce(arguments, world, original, predicates, deflake, keep, priority, progress)
-    summary, pictures = _write_artifacts(arguments, world, reduction, original, predicates, deflake, priority)
-    summary["pictures"] = [str(p) for p in pictures]
-    _emit(arguments, _reduction_text(arguments.world, reduction, summary), {"ok": True, **summary})
+    in_process = job.handler() if executor is None and arguments.workers == 1 else None
+    with make_pool(job, arguments.workers, executor, in_process=in_process) as pool:
+        progress.note(f"simulating the original world ({len(world)} models, seed {arguments.seed}; "
+                      f"{_where(pool)})")
+        original = pool.call(world, 0)
+        if original.error is None or original.error.ddenv_error or original.error.phase != "call":
+            return _does_not_fail(arguments, original)
+        progress.note(f"it fails: {_failure_text(original)}; reducing")
+        outcome, interrupted = _reduce(arguments, world, original, predicates, deflake, keep, priority, pool,
+                                       progress)
+    assert outcome.reduction is not None and outcome.summary is not None
+    summary = {**outcome.summary, "pictures": [str(p) for p in outcome.attachments if p.suffix == ".png"]}
+    _emit(arguments, _reduction_text(arguments.world, outcome.reduction, summary, outcome.notes), {"ok": True, **summary})
     return EXIT_INTERRUPTED if interrupted else EXIT_OK
+
+
+def _where(pool: Any) -> str:
+    if getattr(pool, "in_process", False):
+        return "in this process"
+    return f"{pool.size} workers"
+
+
+def _failure_text(result: Any) -> str:
+    error = result.error
+    if error.signature is not None:
+        return f"{error.signature.predicate} at t = {error.signature.time:.2f} s"
+    return f"{error.type_name} at {error.location}"
 
 
 def _keep(world: World, names: Sequence[str]) -> tuple[str, ...]:
@@ -477,112 +538,80 @@ def _keep(world: World, names: Sequence[str]) -> tuple[str, ...]:
     return tuple(sorted(set(names) | {m.name for m in world.models if m.keep}))
 
 
-def _does_not_fail(arguments: argparse.Namespace, run: Run) -> int:
-    outcome = "reached the goal" if run.reached_goal else "no failure predicate fired"
-    message = (f"{arguments.world}: the original world does not fail with seed {arguments.seed} ({outcome} "
-               f"after {run.sim_time:.1f} s simulated); nothing to reduce. Check the --predicate options "
-               "with `ddenv run`.")
+def _does_not_fail(arguments: argparse.Namespace, result: Any) -> int:
+    if result.error is not None:  # the scenario cannot be run at all: an input error
+        raise UsageError(f"{arguments.world}: the scenario could not be run: {result.error.describe()}")
+    run = result.run
+    outcome = "reached the goal" if run is not None and run.reached_goal else "no failure predicate fired"
+    simulated = "" if run is None else f" after {run.sim_time:.1f} s simulated"
+    message = (f"{arguments.world}: the original world does not fail with seed {arguments.seed} ({outcome}"
+               f"{simulated}); nothing to reduce. Check the --predicate options with `ddenv run`.")
     print(f"ddenv: {message}", file=sys.stderr)
     if arguments.json:
-        _print_json({"ok": False, "error": message, "exit_code": EXIT_FAILED, "outcome": _run_outcome(run)})
+        _print_json({"ok": False, "error": message, "exit_code": EXIT_FAILED,
+                     "outcome": "no_run" if run is None else _run_outcome(run)})
     return EXIT_FAILED
-
-
-def _settings(arguments: argparse.Namespace, predicates: Sequence[PredicateSpec], deflake: int | str,
-              priority: str) -> dict[str, Any]:
-    from pytest_ddenv.replay import predicates_to_json
-
-    return {
-        "predicates": predicates_to_json(predicates), "partition": arguments.partition, "priority": priority,
-        "granularity": arguments.granularity, "n_partitions": arguments.n_partitions, "deflake": deflake,
-        "tolerance": arguments.tolerance, "keep": sorted(arguments.keep), "seed": arguments.seed,
-        "timeout": arguments.timeout,
-    }
 
 
 def _artifacts_folder(arguments: argparse.Namespace) -> Path:
     return Path(arguments.out) if arguments.out else Path("ddenv-artifacts") / _world_stem(arguments.world)
 
 
-def _reduce(arguments: argparse.Namespace, world: World, original: Run, predicates: Sequence[PredicateSpec],
-            deflake: int | str, keep: tuple[str, ...], priority: str,
-            progress: _Progress) -> tuple[Reduction, bool]:
-    from pytest_ddenv import artifacts
-    from pytest_ddenv.probe import keeps_start_support, trace_of
-    from pytest_ddenv.reduce import ReductionInterrupted, reduce
-    from pytest_ddenv.replay import ScenarioProbe, reference_of
+def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicates: Sequence[PredicateSpec],
+            deflake: int | str, keep: tuple[str, ...], priority: str, pool: Any,
+            progress: _Progress) -> tuple[Any, bool]:
+    import dataclasses
 
-    probe = ScenarioProbe(world, tuple(predicates), reference_of(original), arguments.tolerance,
-                          seed=arguments.seed, timeout=arguments.timeout)
-    problem = artifacts.fingerprint(world, _settings(arguments, predicates, deflake, priority))
-    paths = artifacts.prepare(_artifacts_folder(arguments), problem)
-    arguments.fingerprint = problem
-    executor = _executor(arguments.workers)
+    from pytest_ddenv.driver import ReductionPlan, run_reduction
+    from pytest_ddenv.markers import ReductionSpec
+    from pytest_ddenv.probe import FailureReference
+    from pytest_ddenv.reduce import ReductionInterrupted
+    from pytest_ddenv.replay import predicates_to_json
+
+    spec = dataclasses.replace(
+        ReductionSpec(), partition=arguments.partition, priority=priority, n_partitions=arguments.n_partitions,
+        granularity=arguments.granularity, deflake=deflake, tolerance=arguments.tolerance, keep=keep,
+        seed=arguments.seed, max_probes=arguments.max_probes, max_seconds=arguments.max_time,
+    )
+    folder = _artifacts_folder(arguments)
+    command = "ddenv " + " ".join(shlex.quote(a) for a in _command_line(arguments))
+    settings = {key: value for key, value in spec.__dict__.items() if key != "world"}
+    plan = ReductionPlan(
+        world=world, test_id=f"ddenv reduce {arguments.world}", reference=FailureReference.of(original.error),
+        reference_run=original.run, spec=spec, artifacts=folder,
+        replay_command=f"ddenv replay {shlex.quote(str(folder))}" + "".join(
+            f" --import {shlex.quote(spec_)}" for spec_ in arguments.imports) + (
+            f" --controller {shlex.quote(arguments.controller)}" if arguments.controller else ""),
+        fingerprint={**settings, "predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
+                     "controller": arguments.controller, "imports": list(arguments.imports)},
+        confirmed=True,
+        summary_extra={"predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
+                       "scenario_seed": arguments.seed, "command": command, "controller": arguments.controller,
+                       "imports": list(arguments.imports)},
+    )
     try:
-        reduction = reduce(
-            world.names, probe, geometry=world, reference=trace_of(original), partition=arguments.partition,
-            priority=priority, n_partitions=arguments.n_partitions, granularity=arguments.granularity,
-            deflake=deflake, keep=keep, preconditions=(keeps_start_support(world),),
-            max_probes=arguments.max_probes, max_seconds=arguments.max_time, seed=arguments.seed,
-            executor=executor, log=paths.log, on_progress=progress.update,
-        )
-        return reduction, False
+        return run_reduction(plan, pool, note=progress.note, on_progress=progress.update), False
     except ReductionInterrupted as stop:
-        progress.note("interrupted: writing the best world found so far")
-        return stop.reduction, True
+        progress.note("interrupted: the best world found so far is written")
+        return stop.outcome, True  # type: ignore[attr-defined]
     finally:
         progress.close()
-        if executor is not None:
-            executor.shutdown(wait=True, cancel_futures=True)
-
-
-def _executor(workers: int) -> Any:
-    if workers <= 1:
-        return None
-    import concurrent.futures
-    import multiprocessing
-
-    return concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
-
-
-def _write_artifacts(arguments: argparse.Namespace, world: World, reduction: Reduction, original: Run,
-                     predicates: Sequence[PredicateSpec], deflake: int | str,
-                     priority: str) -> tuple[dict[str, Any], list[Path]]:
-    from pytest_ddenv import artifacts, render
-    from pytest_ddenv.replay import predicates_to_json, reference_of, run_scenario
-
-    paths = artifacts.ArtifactPaths(_artifacts_folder(arguments))
-    summary = artifacts.write_reduction(
-        paths, world, reduction,
-        test_id=f"ddenv reduce {arguments.world}",
-        replay_command=f"ddenv replay {shlex.quote(str(paths.directory))}",
-        problem_fingerprint=arguments.fingerprint,
-        reference=reference_of(original).to_dict(),
-        extra={
-            "predicates": predicates_to_json(predicates),
-            "tolerance": arguments.tolerance,
-            "timeout": arguments.timeout,
-            "scenario_seed": arguments.seed,
-            "command": "ddenv " + " ".join(shlex.quote(a) for a in _command_line(arguments)),
-        },
-    )
-    minimal_run = run_scenario(world.select(reduction.minimal), predicates, seed=arguments.seed,
-                               timeout=arguments.timeout)
-    pictures = render.write_reduction_pictures(world, reduction, paths, original_run=original,
-                                               minimal_run=minimal_run)
-    return summary, pictures
 
 
 def _command_line(arguments: argparse.Namespace) -> list[str]:
     words = ["reduce", arguments.world]
     for text in arguments.predicates:
         words += ["--predicate", text]
+    for spec in arguments.imports:
+        words += ["--import", spec]
+    if arguments.controller:
+        words += ["--controller", arguments.controller]
     words += ["--partition", arguments.partition, "--priority", arguments.priority, "--deflake", arguments.deflake,
               "--seed", str(arguments.seed)]
     return words
 
 
-def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any]) -> str:
+def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any], notes: Sequence[str] = ()) -> str:
     from pytest_ddenv import artifacts
 
     status = "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
@@ -596,6 +625,7 @@ def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any]) ->
         f"{reduction.errors} errors; {reduction.wall_time:.1f} s"),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
         artifacts.failure_rate_line(reduction),
+        *(f"note: {text}" for text in notes),
         f"artifacts: {Path(summary['files']['summary']).parent}",
         f"pictures: {', '.join(summary.get('pictures', [])) or '(none)'}",
         f"replay: {summary['replay']}",
@@ -663,11 +693,16 @@ class _Progress:
 
 # -- replay ------------------------------------------------------------------------------------------------
 def _cmd_replay(arguments: argparse.Namespace) -> int:
-    from pytest_ddenv.replay import replay
+    from pytest_ddenv.replay import read_artifacts, replay
 
+    if not arguments.imports and not arguments.controller:  # what the reduction itself used, if recorded
+        summary, _ = read_artifacts(Path(arguments.artifacts))
+        arguments.imports = [str(spec) for spec in summary.get("imports") or []]
+        arguments.controller = summary.get("controller")
+    controller = _user_code(arguments)
     predicates = _predicates(arguments.predicates) or None
     result = replay(arguments.artifacts, predicates=predicates, max_runs=arguments.runs,
-                    tolerance=arguments.tolerance)
+                    tolerance=arguments.tolerance, controller=controller)
     reference = result.reference
     lines = [(f"{arguments.artifacts}: minimal world of {len(result.world)} models; reference failure: "
              f"{reference.predicate} at t = {reference.time:.2f} s at ({reference.position[0]:.2f}, "

@@ -1,28 +1,28 @@
-"""Running a world's scenario without pytest: the probe of `ddenv reduce` and the check of `ddenv replay`.
+"""`ddenv replay`: re-run the minimal world of an artifacts folder and check that it still fails the same way.
 
-A scenario run here is what the simplest scenario test does (`robot_world.run()` with failure predicates):
-the same seeds (`RobotWorld`), the same `RobotFailure`, the same oracle. No pytest import.
+A scenario run here is what the simplest scenario test does (`robot_world.run()` with failure predicates and
+a controller): the same seeds (`RobotWorld`), the same `RobotFailure`, the same oracle. No pytest import.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.errors import DdenvError
-from pytest_ddenv.markers import PredicateSpec
-from pytest_ddenv.reduce import Observation, Outcome
-from pytest_ddenv.robot_world import RobotFailure, RobotWorld
+from pytest_ddenv.oracle import PredicateSpec
+from pytest_ddenv.reduce import Outcome
+from pytest_ddenv.robot_world import RobotFailure
+from pytest_ddenv.scenario_job import run_scenario
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.oracle import FailureSignature
-    from pytest_ddenv.probe import FailureReference, RunTest
-    from pytest_ddenv.reduce.types import Candidate, Probe
-    from pytest_ddenv.sim import Run
+    from pytest_ddenv.probe import FailureReference
+    from pytest_ddenv.sim import ControllerLike, Run
 
 REFERENCE_LOCATION = "ddenv"
 """The `FailureReference.location` of a failure found by running a world's scenario (no test file)."""
@@ -34,12 +34,13 @@ class ArtifactError(DdenvError):
 
 def predicates_to_json(predicates: Sequence[PredicateSpec]) -> list[dict[str, Any]]:
     """Predicates as recorded in summary.json: [{"name": ..., "params": {...}}, ...]."""
-    return [{"name": spec.name, "params": dict(spec.params)} for spec in predicates]
+    return [spec.to_json() for spec in predicates]
 
 
 def predicates_from_json(data: Any) -> tuple[PredicateSpec, ...]:
-    """The inverse of `predicates_to_json`, validated by building each predicate."""
-    from pytest_ddenv.oracle import make_predicate
+    """The inverse of `predicates_to_json`, validated by building each predicate. A predicate the test gave
+    as an object is found by its name among the registered ones (`ddenv --import` the module registering it)."""
+    from pytest_ddenv.oracle import PREDICATES, predicate_spec
 
     if not isinstance(data, list):
         raise ArtifactError(f"'predicates' must be a list of {{name, params}}, got {data!r}")
@@ -47,31 +48,15 @@ def predicates_from_json(data: Any) -> tuple[PredicateSpec, ...]:
     for item in data:
         if not isinstance(item, Mapping) or not isinstance(item.get("name"), str):
             raise ArtifactError(f"each predicate must be {{name, params}}, got {item!r}")
-        params = dict(item.get("params") or {})
-        make_predicate(item["name"], **params)
-        specs.append(PredicateSpec(item["name"], params))
+        if item["name"] not in PREDICATES:
+            given = f" (the test gave it as {item['object']})" if "object" in item else ""
+            raise ArtifactError(
+                f"predicate {item['name']!r}{given} is not registered here: pass --import MODULE (a module that "
+                "calls pytest_ddenv.register_predicate), or --predicate, or replay with pytest (summary.json's "
+                "'replay' command)"
+            )
+        specs.append(predicate_spec(item["name"], dict(item.get("params") or {})))
     return tuple(specs)
-
-
-def run_scenario(world: World, predicates: Sequence[PredicateSpec], *, seed: int = 0, attempt: int = 0,
-                 timeout: float | None = None) -> Run:
-    """Simulate the world's scenario once (never raises for a predicate failure; see `Run.failure`)."""
-    robot_world = RobotWorld(world, predicates=predicates, seed=seed, attempt=attempt)
-    return robot_world.run(timeout=timeout, raise_on_failure=False)
-
-
-def scenario_runner(predicates: Sequence[PredicateSpec], *, seed: int = 0, timeout: float | None = None) -> RunTest:
-    """A `run_test` for `probe.make_probe`: the scenario of the candidate world, as a test would run it."""
-
-    def run_test(world: World, attempt: int) -> tuple[BaseException | None, Run | None]:
-        robot_world = RobotWorld(world, predicates=predicates, seed=seed, attempt=attempt)
-        try:
-            robot_world.run(timeout=timeout)
-        except Exception as error:  # noqa: BLE001 - every exception is an outcome to classify
-            return error, robot_world.runs[-1] if robot_world.runs else None
-        return None, robot_world.runs[-1] if robot_world.runs else None
-
-    return run_test
 
 
 def reference_of(run: Run) -> FailureReference:
@@ -81,35 +66,6 @@ def reference_of(run: Run) -> FailureReference:
     if run.failure is None:
         raise ValueError("the run did not fail")
     return FailureReference(RobotFailure.__qualname__, REFERENCE_LOCATION, run.failure)
-
-
-@dataclass
-class ScenarioProbe:
-    """A picklable probe (for process-pool workers): simulate a candidate sub-world and classify it.
-
-    Each process builds its `probe.make_probe` closure on first use; the closure is never pickled.
-    """
-
-    world: World
-    predicates: tuple[PredicateSpec, ...]
-    reference: FailureReference
-    tolerance: float
-    seed: int = 0
-    timeout: float | None = None
-    _probe: Probe | None = field(default=None, init=False, repr=False, compare=False)
-
-    def __call__(self, candidate: Candidate, attempt: int) -> Observation:
-        if self._probe is None:
-            from pytest_ddenv.probe import make_probe
-
-            runner = scenario_runner(self.predicates, seed=self.seed, timeout=self.timeout)
-            self._probe = make_probe(self.world, runner, self.reference, tolerance=self.tolerance)
-        return self._probe(candidate, attempt)
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = dict(self.__dict__)
-        state["_probe"] = None
-        return state
 
 
 # -- replay -------------------------------------------------------------------------------------------
@@ -217,7 +173,8 @@ def recorded_seeds(log: Path, minimal: Sequence[str], fallback: int) -> list[int
 
 
 def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None = None, max_runs: int = 5,
-           tolerance: float | None = None, timeout: float | None = None) -> ReplayResult:
+           tolerance: float | None = None, timeout: float | None = None,
+           controller: ControllerLike | None = None) -> ReplayResult:
     """Re-run the minimal world of an artifacts folder with its recorded failing seeds (at most `max_runs`)."""
     from pytest_ddenv.oracle import classify
 
@@ -231,6 +188,6 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
     seeds = recorded_seeds(folder / "runs.jsonl", world.names, seed)[:max_runs]
     results = []
     for run_seed in seeds:
-        run = run_scenario(world, chosen, seed=run_seed, timeout=run_timeout)
+        run = run_scenario(world, chosen, seed=run_seed, timeout=run_timeout, controller=controller)
         results.append(ReplayRun(run_seed, classify(run, reference, limit), run.failure))
     return ReplayResult(folder, world, reference, chosen, limit, tuple(results))

@@ -17,7 +17,7 @@ from typing import Any
 import pytest
 
 from pytest_ddenv import __version__, cli
-from pytest_ddenv.replay import ScenarioProbe, reference_of, run_scenario
+from pytest_ddenv.scenario_job import ScenarioJob
 from pytest_ddenv.world import World
 
 STUCK = "stuck:window=2.0,min_progress=0.2"
@@ -249,13 +249,13 @@ def test_reduce_bad_options(capsys: pytest.CaptureFixture[str], worlds: dict[str
     assert_one_line_error(err, fragment)
 
 
-def test_the_reduce_probe_can_be_sent_to_worker_processes(worlds: dict[str, Path]) -> None:
+def test_the_reduce_job_can_be_sent_to_worker_processes(worlds: dict[str, Path]) -> None:
     world = World.load(worlds["wall"])
-    predicates = (cli.parse_predicate(STUCK),)
-    probe = ScenarioProbe(world, predicates, reference_of(run_scenario(world, predicates)), 0.5)
-    copy = pickle.loads(pickle.dumps(probe))
-    assert copy(("wall",), 0).outcome.value == "fail"
-    assert copy(("crate_a",), 0).outcome.value == "pass"
+    job = ScenarioJob((cli.parse_predicate(STUCK),))
+    handle = pickle.loads(pickle.dumps(job)).handler()
+    failed = handle(world.select(["wall"]), 0).error
+    assert failed is not None and failed.signature is not None and failed.signature.predicate == "stuck"
+    assert handle(world.select(["crate_a"]), 0).error is None
 
 
 # -- replay ----------------------------------------------------------------------------------------------

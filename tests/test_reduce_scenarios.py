@@ -7,11 +7,12 @@ from pathlib import Path
 import pytest
 
 from pytest_ddenv import World
-from pytest_ddenv.markers import PredicateSpec
+from pytest_ddenv.oracle import PredicateSpec
 from pytest_ddenv.oracle import classify
 from pytest_ddenv.probe import keeps_start_support, make_probe, trace_of
 from pytest_ddenv.reduce import Outcome, reduce
-from pytest_ddenv.replay import reference_of, run_scenario, scenario_runner
+from pytest_ddenv.replay import reference_of
+from pytest_ddenv.scenario_job import ScenarioJob, run_scenario
 
 WORLDS = Path(__file__).resolve().parent.parent / "worlds"
 STUCK = (PredicateSpec("stuck", {"window": 5.0, "min_progress": 0.2}),)
@@ -28,7 +29,7 @@ def test_ditch_reduces_to_a_one_minimal_world_that_fails_the_same_way(partition:
     world = World.load(WORLDS / "ditch.yaml")
     original = run_scenario(world, STUCK, seed=0)
     reference = reference_of(original)
-    probe = make_probe(world, scenario_runner(STUCK, seed=0), reference, tolerance=0.5)
+    probe = make_probe(world, ScenarioJob(STUCK, seed=0).handler(), reference, tolerance=0.5)
     reduction = reduce(
         world.names, probe, geometry=world, reference=trace_of(original), partition=partition,
         priority=priority, deflake=2, preconditions=(keeps_start_support(world),), seed=0,

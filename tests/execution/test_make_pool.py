@@ -6,13 +6,15 @@ import pytest
 
 from pytest_ddenv.execution import (
     Fault,
+    LocalPool,
     PoolConfigError,
-    SimulationPool,
     cpu_count,
     make_pool,
     resolve_workers,
 )
 from pytest_ddenv.execution.request import fault_for, parse_faults
+
+from .conftest import stuck_job
 
 
 def test_workers_auto_is_one_per_core() -> None:
@@ -23,27 +25,33 @@ def test_workers_auto_is_one_per_core() -> None:
 @pytest.mark.parametrize("workers", [0, -1, "two", True, 1.5, None, ""])
 def test_bad_worker_counts_are_refused(workers: object) -> None:
     with pytest.raises(PoolConfigError, match="workers must be an integer >= 1 or 'auto'"):
-        make_pool(workers)  # type: ignore[arg-type]
+        make_pool(stuck_job(), workers)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize("executor", ["http://host:8786", "threads", "tcp:/host"])
 def test_bad_executors_are_refused(executor: str) -> None:
     with pytest.raises(PoolConfigError, match="unknown executor"):
-        make_pool(2, executor)
+        make_pool(stuck_job(), 2, executor)
 
 
-def test_one_worker_is_in_process() -> None:
-    with make_pool(1) as pool:
-        assert isinstance(pool, SimulationPool) and pool.in_process and pool.size == 1
+def test_one_worker_is_in_process_when_given_a_handler() -> None:
+    job = stuck_job()
+    with make_pool(job, 1, in_process=job.handler()) as pool:
+        assert isinstance(pool, LocalPool) and pool.in_process and pool.size == 1
+    with make_pool(job, 1) as pool:
+        assert isinstance(pool, LocalPool) and not pool.in_process and pool.size == 1
 
 
 def test_fork_and_bad_settings_are_refused() -> None:
     with pytest.raises(PoolConfigError, match="fork"):
-        SimulationPool(2, context="fork")
+        LocalPool(stuck_job(), 2, context="fork")
     with pytest.raises(PoolConfigError, match="watchdog"):
-        SimulationPool(2, watchdog=0)
+        LocalPool(stuck_job(), 2, watchdog=0)
+    job = stuck_job()
     with pytest.raises(PoolConfigError, match="would take down the calling process"):
-        SimulationPool(1, fault_injection="crash@1")
+        LocalPool(job, 1, in_process=job.handler(), fault_injection="crash@1")
+    with pytest.raises(PoolConfigError, match="needs a Job"):
+        LocalPool("not a job", 2)  # type: ignore[arg-type]
 
 
 def test_fault_specifications() -> None:

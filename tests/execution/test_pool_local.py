@@ -1,4 +1,5 @@
-"""SimulationPool: same Runs as a serial Simulator, concurrent callers, errors that cross the boundary."""
+"""LocalPool: the same runs as in this process, concurrent callers, errors that cross the boundary, user code
+imported by every worker."""
 
 from __future__ import annotations
 
@@ -11,19 +12,19 @@ from pathlib import Path
 
 import pytest
 
-from pytest_ddenv.errors import DdenvError, ScenarioError
-from pytest_ddenv.execution import SimulationError, SimulationPool
+from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.execution import LocalPool, WorkerError, WorkerStartError
 from pytest_ddenv.oracle import PREDICATES, make_predicate
-from pytest_ddenv.robot_world import RobotFailure, RobotWorld
+from pytest_ddenv.robot_world import ATTEMPT_SEED_STRIDE
 from pytest_ddenv.sim import Run, Simulator
 from pytest_ddenv.world import World
 
-from .conftest import STUCK, reduce_with
+from .conftest import reduce_with, run_of, stuck_job
 
 
 @pytest.fixture(scope="module")
-def pool() -> Iterator[SimulationPool]:
-    with SimulationPool(2, watchdog=120.0) as pool:
+def pool() -> Iterator[LocalPool]:
+    with LocalPool(stuck_job(), 2, watchdog=120.0) as pool:
         yield pool
 
 
@@ -38,66 +39,63 @@ def identical(a: Run, b: Run) -> bool:
     )
 
 
-def test_parallel_runs_are_bit_identical_to_serial_runs(pool: SimulationPool, wall_world: World) -> None:
+def test_parallel_runs_are_bit_identical_to_serial_runs(pool: LocalPool, wall_world: World) -> None:
     worlds = [wall_world, wall_world.without(["wall"]), wall_world.select(["wall", "ball"])]
-    jobs = [(w, seed) for w in worlds for seed in (0, 7)]
+    probes = [(w, attempt) for w in worlds for attempt in (0, 7)]
     with concurrent.futures.ThreadPoolExecutor(4) as threads:
-        parallel = list(threads.map(lambda job: pool.simulate(job[0], seed=job[1], predicates=STUCK), jobs))
+        parallel = [run_of(r) for r in threads.map(lambda probe: pool.call(*probe), probes)]
     with Simulator() as simulator:
-        serial = [simulator.run(w, seed=seed, predicates=[make_predicate("stuck", window=2.0, min_progress=0.2)])
-                  for w, seed in jobs]
+        serial = [simulator.run(w, seed=attempt * ATTEMPT_SEED_STRIDE,
+                                predicates=[make_predicate("stuck", window=2.0, min_progress=0.2)])
+                  for w, attempt in probes]
     assert all(identical(a, b) for a, b in zip(parallel, serial, strict=True))
     assert parallel[0].failure is not None and parallel[2].failure is None  # the wall blocks; without it, no
-    assert pool.stats.probes >= len(jobs) and pool.stats.errors == 0
+    assert pool.stats.probes >= len(probes) and pool.stats.errors == 0
 
 
-def test_the_reduction_on_two_workers_finds_the_wall(pool: SimulationPool, wall_world: World) -> None:
-    with SimulationPool(1) as serial_pool:
-        serial = reduce_with(serial_pool.simulate, wall_world, workers=1)
-    parallel = reduce_with(pool.simulate, wall_world, workers=2)
+def test_the_reduction_on_two_workers_finds_the_wall(pool: LocalPool, wall_world: World) -> None:
+    job = stuck_job()
+    with LocalPool(job, 1, in_process=job.handler()) as serial_pool:
+        serial = reduce_with(serial_pool, wall_world)
+    parallel = reduce_with(pool, wall_world)
     assert serial.minimal == parallel.minimal == ("wall",)
     assert parallel.one_minimal and parallel.errors == 0
 
 
-def test_workers_are_persistent_processes(pool: SimulationPool, wall_world: World) -> None:
+def test_workers_are_persistent_processes(pool: LocalPool, wall_world: World) -> None:
     pids = pool.pids
     assert len(pids) == 2 and os.getpid() not in pids
-    for seed in range(3):
-        pool.simulate(wall_world.select(["ball"]), seed=seed, timeout=0.5)
+    for attempt in range(3):
+        pool.call(wall_world.select(["ball"]), attempt)
     assert pool.pids == pids
 
 
-def test_errors_of_the_simulation_cross_the_boundary_unchanged(pool: SimulationPool, wall_world: World) -> None:
+def test_what_the_test_raises_comes_back_as_data(pool: LocalPool, wall_world: World) -> None:
     no_scenario = World(models=wall_world.models, name="no-scenario")
-    with pytest.raises(ScenarioError, match="has no scenario") as raised:
-        pool.simulate(no_scenario, seed=0)
-    assert raised.value.field == "scenario"
-    with pytest.raises(ScenarioError, match="seed"):
-        pool.simulate(wall_world, seed=-1)
-    assert pool.stats.errors == 0  # the simulation's own errors are not pool errors
-
-
-def test_robot_world_runs_on_the_pool(pool: SimulationPool, wall_world: World) -> None:
-    robot_world = RobotWorld(wall_world, predicates=STUCK, seed=0, simulate=pool.simulate)
-    with pytest.raises(RobotFailure, match="stuck"):
-        robot_world.run()
-    assert robot_world.runs[-1].failure is not None
+    result = pool.call(no_scenario, 0)
+    assert result.run is None and result.error is not None
+    assert result.error.type_name == "ScenarioError" and result.error.ddenv_error
+    assert "has no scenario" in result.error.message
+    failed = pool.call(wall_world, 0)
+    assert failed.error.type_name == "RobotFailure" and failed.error.signature.predicate == "stuck"
+    assert pool.stats.errors == 0  # the test's own errors are not pool errors
 
 
 def test_in_process_pool_has_no_worker_process(wall_world: World) -> None:
-    with SimulationPool(1) as pool:
+    job = stuck_job()
+    with LocalPool(job, 1, in_process=job.handler()) as pool:
         assert pool.in_process and pool.pids == []
-        run = pool.simulate(wall_world, seed=0, predicates=STUCK)
-    assert run.failure is not None
-    with pytest.raises(SimulationError, match="closed"):
-        pool.simulate(wall_world, seed=0)
+        result = pool.call(wall_world, 0)
+    assert result.error is not None and result.error.signature is not None
+    with pytest.raises(WorkerError, match="closed"):
+        pool.call(wall_world, 0)
 
 
-def test_simulation_error_is_a_ddenv_error() -> None:
-    assert issubclass(SimulationError, DdenvError)
+def test_worker_errors_are_ddenv_errors() -> None:
+    assert issubclass(WorkerError, DdenvError) and issubclass(WorkerStartError, WorkerError)
 
 
-def test_preloaded_modules_register_custom_robots_in_the_workers(
+def test_imported_user_code_registers_custom_robots_in_the_workers(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, wall_world: World
 ) -> None:
     (tmp_path / "ddenv_twin_robot.py").write_text(
@@ -106,14 +104,25 @@ def test_preloaded_modules_register_custom_robots_in_the_workers(
     monkeypatch.syspath_prepend(str(tmp_path))
     assert wall_world.scenario is not None
     twin = dataclasses.replace(wall_world, scenario=dataclasses.replace(wall_world.scenario, robot="husky_twin"))
-    with SimulationPool(2) as plain, pytest.raises(ScenarioError, match="unknown robot 'husky_twin'"):
-        plain.simulate(twin, seed=0)
-    with SimulationPool(2, preload=["ddenv_twin_robot"]) as pool:
-        assert pool.simulate(twin, seed=0, predicates=STUCK).failure is not None
+    with LocalPool(stuck_job(), 2) as plain:
+        error = plain.call(twin, 0).error
+        assert error is not None and "unknown robot 'husky_twin'" in error.message
+    with LocalPool(stuck_job(imports=("ddenv_twin_robot",)), 2) as pool:
+        assert run_of(pool.call(twin, 0)).failure is not None
+
+
+def test_a_worker_that_cannot_import_the_user_code_says_so(tmp_path: Path, wall_world: World) -> None:
+    broken = tmp_path / "ddenv_broken_helpers.py"
+    broken.write_text("import ddenv_module_that_does_not_exist\n")
+    with LocalPool(stuck_job(imports=(str(broken),)), 2, startup_timeout=60) as pool:
+        with pytest.raises(WorkerStartError, match="ddenv_module_that_does_not_exist"):
+            pool.call(wall_world, 0)
+        with pytest.raises(WorkerStartError):  # every later call too, without starting workers again
+            pool.call(wall_world, 1)
 
 
 @pytest.mark.parametrize("name", sorted(PREDICATES))
 def test_every_built_in_predicate_crosses_the_process_boundary(name: str) -> None:
-    """RobotWorld hands built predicate objects to `simulate`: they must pickle (specs always do)."""
+    """A predicate given as an object (not by name) travels pickled to the workers."""
     predicate = make_predicate(name)
     assert type(pickle.loads(pickle.dumps(predicate))) is type(predicate)

@@ -100,17 +100,19 @@ def test_failing_test_without_robot_world_is_not_reduced(pytester: pytest.Pytest
 
 def test_failure_that_does_not_reproduce_is_reported(wall_project: pytest.Pytester) -> None:
     wall_project.makepyfile(test_scenario=(
-        "import pytest\n"
-        "calls = []\n"
+        "import pathlib, pytest\n"
         "@pytest.mark.ddenv(world='wall.yaml', deflake=2)\n"
         "def test_flaky_outside_the_world(robot_world):\n"
-        "    calls.append(1)\n"
         "    robot_world.run(timeout=1.0)\n"
-        "    assert len(calls) > 1, 'fails only the first time'\n"
+        "    flag = pathlib.Path('ran-once')\n"
+        "    first = not flag.exists()\n"
+        "    flag.touch()\n"
+        "    assert not first, 'fails only the first time'\n"
     ))
     result = wall_project.runpytest_subprocess("--ddenv-reduce")
     result.assert_outcomes(failed=1)
-    result.stdout.fnmatch_lines(["*not reproducible: 0 of 3 re-runs failed the same way*"])
+    result.stdout.fnmatch_lines(["*not reproducible: 0 of 3 re-runs failed the same way*they gave: pass, pass, "
+                                 "pass*"])
 
 
 def test_reduction_works_under_xdist(wall_project: pytest.Pytester) -> None:
@@ -144,10 +146,10 @@ def test_interrupted_reduction_keeps_its_best_world_and_resumes_without_reprobin
 
 def test_a_crash_inside_the_reduction_never_replaces_the_tests_own_failure(wall_project: pytest.Pytester) -> None:
     wall_project.makeconftest(
-        "import pytest_ddenv.reduction_session as session\n"
+        "import pytest_ddenv.driver as driver\n"
         "def broken(*args, **kwargs):\n"
         "    raise RuntimeError('engine exploded')\n"
-        "session.reduce = broken\n"
+        "driver.reduce = broken\n"
     )
     result = wall_project.runpytest_subprocess("--ddenv-reduce")
     result.assert_outcomes(failed=1)
@@ -226,9 +228,9 @@ def test_parallel_workers_accept_exactly_what_serial_accepts(wall_project: pytes
     assert decisions(parallel) == decisions(serial)
 
 
-def test_other_function_scoped_fixtures_are_reported_as_shared_between_probes(wall_project: pytest.Pytester) -> None:
+def test_in_process_probes_warn_that_function_scoped_fixtures_are_shared(wall_project: pytest.Pytester) -> None:
     wall_project.makepyfile(test_scenario=SCENARIO_TEST_WITH_FIXTURE)
-    result = wall_project.runpytest_subprocess("--ddenv-reduce", "-v")
+    result = wall_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-workers", "1", "-v")
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines([
         "*probe *: * models -> *",  # -v: each probe on its own line
@@ -236,6 +238,15 @@ def test_other_function_scoped_fixtures_are_reported_as_shared_between_probes(wa
         "re-created for each reduction probe*",
     ])
     assert "tmp_path" not in result.stdout.str().split("PytestWarning")[1].split("\n")[0]
+
+
+def test_probe_workers_run_the_whole_test_with_fresh_function_fixtures(wall_project: pytest.Pytester) -> None:
+    wall_project.makepyfile(test_scenario=SCENARIO_TEST_WITH_FIXTURE.replace(
+        "    counter.append(1)\n", "    counter.append(1)\n    assert counter == [1], 'a fixture value was reused'\n"))
+    result = wall_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-workers", "2")
+    result.assert_outcomes(failed=1)
+    assert "PytestWarning" not in result.stdout.str()
+    assert summary_of(wall_project)["minimal_models"] == ["wall"]
 
 
 SCENARIO_TEST_WITH_FIXTURE = (
