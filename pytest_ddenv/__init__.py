@@ -1,26 +1,108 @@
-"""pytest-ddenv: reduce the simulated world of a failing robot scenario test to the objects that matter."""
+"""pytest-ddenv: reduce the simulated world of a failing robot scenario test to the objects that matter.
 
+The names a scenario test needs are exported here: the world model, the controller interface
+(`Observation` in, `Command`/`WheelCommand` out), `RobotWorld` and `RobotFailure`, robot and predicate
+registration. Simulation names are imported on first use, so that loading the pytest plugin stays cheap.
+"""
+
+from importlib import import_module
 from importlib.metadata import PackageNotFoundError, version
+from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.errors import DdenvError, ReductionError, ScenarioError, WorldError
-from pytest_ddenv.world import Ground, Model, Physics, Pose, Scenario, Shape, World
+from pytest_ddenv.world import (
+    Ground,
+    LaserMount,
+    Model,
+    Physics,
+    Pose,
+    RobotDescription,
+    Scenario,
+    Shape,
+    World,
+)
+
+if TYPE_CHECKING:
+    from pytest_ddenv.oracle import FailureSignature, Predicate, RobotState, predicate, register_predicate
+    from pytest_ddenv.robot_world import RobotFailure, RobotWorld
+    from pytest_ddenv.sim import (
+        Command,
+        ControllerError,
+        ControllerTimeout,
+        LaserScan,
+        Observation,
+        Robot,
+        Run,
+        RunSettings,
+        WheelCommand,
+        WheeledRobot,
+        register_robot,
+    )
 
 try:
     __version__ = version("pytest-ddenv")
 except PackageNotFoundError:  # running from a source tree that was not installed
     __version__ = "0.0.0"
 
+_LAZY = {
+    "Command": "pytest_ddenv.sim",
+    "ControllerError": "pytest_ddenv.sim",
+    "ControllerTimeout": "pytest_ddenv.sim",
+    "LaserScan": "pytest_ddenv.sim",
+    "Observation": "pytest_ddenv.sim",
+    "Robot": "pytest_ddenv.sim",
+    "Run": "pytest_ddenv.sim",
+    "RunSettings": "pytest_ddenv.sim",
+    "WheelCommand": "pytest_ddenv.sim",
+    "WheeledRobot": "pytest_ddenv.sim",
+    "register_robot": "pytest_ddenv.sim",
+    "FailureSignature": "pytest_ddenv.oracle",
+    "Predicate": "pytest_ddenv.oracle",
+    "RobotState": "pytest_ddenv.oracle",
+    "register_predicate": "pytest_ddenv.oracle",
+    "predicate": "pytest_ddenv.oracle",
+    "RobotFailure": "pytest_ddenv.robot_world",
+    "RobotWorld": "pytest_ddenv.robot_world",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'pytest_ddenv' has no attribute {name!r}")
+
+
 __all__ = [
+    "Command",
+    "ControllerError",
+    "ControllerTimeout",
     "DdenvError",
+    "FailureSignature",
     "Ground",
+    "LaserMount",
+    "LaserScan",
     "Model",
+    "Observation",
     "Physics",
     "Pose",
+    "Predicate",
     "ReductionError",
+    "Robot",
+    "RobotDescription",
+    "RobotFailure",
+    "RobotState",
+    "RobotWorld",
+    "Run",
+    "RunSettings",
     "Scenario",
     "ScenarioError",
     "Shape",
+    "WheelCommand",
+    "WheeledRobot",
     "World",
     "WorldError",
     "__version__",
+    "predicate",
+    "register_predicate",
+    "register_robot",
 ]

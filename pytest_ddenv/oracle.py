@@ -42,6 +42,7 @@ __all__ = [
     "check_predicate",
     "classify",
     "make_predicate",
+    "predicate",
     "predicate_spec",
     "register_predicate",
     "same_failure",
@@ -488,6 +489,18 @@ class FunctionPredicate:
         raise ScenarioError(f"predicate function {self.name} returned {type(result).__name__} {result!r} at "
                             f"t = {state.time:.2f} s; expected True/False, a message, or a FailureSignature",
                             field="predicate")
+
+
+def predicate(function: Callable[[RobotState], Any] | None = None, *, name: str = "") -> Any:
+    """Decorator: make a plain function of the `RobotState` a failure predicate (a `FunctionPredicate`).
+
+    Use it for functions given to the marker, `@pytest.mark.robot_failure(no_progress)`: pytest takes a bare
+    function passed alone to a marker for the function to decorate, so the marker needs the predicate
+    object. `@predicate(name="trapped")` names the failure (default: the function's name).
+    """
+    if function is None:
+        return lambda given: FunctionPredicate(given, name)
+    return FunctionPredicate(function, name)
 
 
 @dataclass(frozen=True)

@@ -118,7 +118,8 @@ class ProbeServer:
         for name, value in NEUTRALIZED_OPTIONS.items():
             if hasattr(config.option, name):
                 setattr(config.option, name, value)
-        if self.job.basetemp is not None:
+        if self.job.basetemp is not None:  # the pytest process's basetemp, one folder per worker
+            Path(self.job.basetemp).mkdir(parents=True, exist_ok=True)
             config.option.basetemp = str(Path(self.job.basetemp) / f"worker-{os.getpid()}")
         if self.job.capture is not None:
             config.option.capture = self.job.capture
