@@ -52,6 +52,7 @@ __all__ = [
     "plot_reduction",
     "plot_world",
     "probe_sizes_from_log",
+    "robot_outline",
     "write_reduction_pictures",
 ]
 
@@ -64,7 +65,8 @@ PROGRESS_SIZE = (900, 500)
 HIGH_FRICTION = 5.0
 LOW_FRICTION = 0.5
 ROBOT_FOOTPRINT = (0.99, 0.67)
-"""Length and width (m) of the robot outline drawn at the failure pose (a Husky)."""
+"""Length and width (m) of the robot outline drawn at a failure pose when no run says how big the robot is
+(a Husky); runs draw their own robot's `Run.footprint`."""
 TERRAIN_EXTENT = 8.0
 """Models wider than this (m) are terrain: drawn, but they do not stretch the view."""
 MAX_LABELS = 14
@@ -318,7 +320,7 @@ def _draw_run(axes: Axes, run: Run, color: str, label: str, *, underlay: bool = 
                   alpha=0.35 if underlay else 1.0, solid_capstyle="round", zorder=6.5 if underlay else 7,
                   label=_wrap(f"{label}: {_run_outcome(run)}"))
     if run.failure is not None:
-        _draw_failure_pose(axes, run.failure.pose, color, dashed=underlay)
+        _draw_failure_pose(axes, run.failure.pose, color, footprint=run.footprint, dashed=underlay)
 
 
 def _wrap(text: str, width: int = 36) -> str:
@@ -331,18 +333,27 @@ def _models(count: int) -> str:
     return f"{count} model" if count == 1 else f"{count} models"
 
 
-def _draw_failure_pose(axes: Axes, pose: Sequence[float], color: str, *, dashed: bool = False) -> None:
-    """The robot's outline at the failure pose and a cross at its centre."""
-    from matplotlib.patches import Polygon
-
+def robot_outline(pose: Sequence[float], footprint: tuple[float, float] = ROBOT_FOOTPRINT) -> FloatArray:
+    """(4, 2): the corners of a robot's `footprint` (length, width in m) at `pose` (x, y, z, roll, pitch,
+    yaw; x, y and yaw are used), front left first, counter-clockwise."""
     x, y, yaw = float(pose[0]), float(pose[1]), float(pose[5]) if len(pose) > 5 else 0.0
-    length, width = ROBOT_FOOTPRINT
+    length, width = (float(v) for v in footprint)
     corners = np.array([[length, width], [-length, width], [-length, -width], [length, -width]]) / 2.0
     rotation = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
-    outline = np.array([x, y]) + corners @ rotation.T
+    outline: FloatArray = np.array([x, y]) + corners @ rotation.T
+    return outline
+
+
+def _draw_failure_pose(axes: Axes, pose: Sequence[float], color: str, *,
+                       footprint: tuple[float, float] = ROBOT_FOOTPRINT, dashed: bool = False) -> None:
+    """The robot's outline (its `footprint`) at the failure pose, a line to its front and a cross at its centre."""
+    from matplotlib.patches import Polygon
+
+    outline = robot_outline(pose, footprint)
+    x, y = float(pose[0]), float(pose[1])
     axes.add_patch(Polygon(outline, closed=True, fill=False, edgecolor=color, linewidth=1.6, zorder=8,
                            linestyle="--" if dashed else "-"))
-    nose = np.array([x, y]) + rotation @ np.array([length / 2.0, 0.0])
+    nose = (outline[0] + outline[3]) / 2.0
     axes.plot([x, nose[0]], [y, nose[1]], color=color, linewidth=1.6, zorder=8)
     axes.plot([x], [y], marker="X", markersize=13, color=color, markeredgecolor="white", linestyle="none", zorder=9)
 
@@ -539,7 +550,8 @@ def plot_world(world: World, runs: Sequence[Run] = (), *, path: str | Path, titl
     """Write a top-down picture of `world` with `runs` (trajectories, failure poses) to `path` (PNG).
 
     `failure_poses` marks extra failure poses (x, y, z, roll, pitch, yaw) without trajectories, e.g. from
-    a probe log. Models the runs touched when they failed are labelled.
+    a probe log, drawn with the first run's robot footprint (a Husky's without runs). Models the runs
+    touched when they failed are labelled.
     """
     return _save(draw_world(world, runs, title=title, failure_poses=failure_poses), path)
 
@@ -553,8 +565,9 @@ def draw_world(world: World, runs: Sequence[Run] = (), *, title: str | None = No
     _draw_scenario(axes, world)
     for index, run in enumerate(runs):
         _draw_run(axes, run, _RUN_COLORS[index % len(_RUN_COLORS)], f"seed {run.seed}")
+    footprint = runs[0].footprint if runs else ROBOT_FOOTPRINT  # the poses' robot: the runs' if any
     for pose in failure_poses:
-        _draw_failure_pose(axes, pose, "#d62728")
+        _draw_failure_pose(axes, pose, "#d62728", footprint=footprint)
     points = [np.asarray(run.positions)[:, :2] for run in runs] + [np.asarray(p)[:2] for p in failure_poses]
     _view(axes, world, prints, points)
     touched = [name for name in world.names if any(run.failure and name in run.failure.touched for run in runs)]
@@ -570,7 +583,8 @@ def plot_reduction(world: World, minimal: Sequence[str], *, path: str | Path, or
     """Write the original world with removed models ghosted and the `minimal` models highlighted and labelled.
 
     `original_run` (wide, translucent) and `minimal_run` (thin, on top) are drawn with their failure poses;
-    without an original run, `failure_pose` (the reference failure's pose) is marked instead.
+    without an original run, `failure_pose` (the reference failure's pose) is marked instead. Each failure pose
+    is outlined with the robot's own `Run.footprint` (the minimal run's for `failure_pose`, else a Husky's).
     """
     figure = draw_reduction(world, minimal, original_run=original_run, minimal_run=minimal_run,
                             failure_pose=failure_pose, title=title)
@@ -592,7 +606,8 @@ def draw_reduction(world: World, minimal: Sequence[str], *, original_run: Run | 
         _draw_run(axes, original_run, _RUN_COLORS[0], f"original run ({_models(len(world))})", underlay=True)
         points.append(np.asarray(original_run.positions)[:, :2])
     elif failure_pose is not None:
-        _draw_failure_pose(axes, failure_pose, _RUN_COLORS[0])
+        footprint = minimal_run.footprint if minimal_run is not None else ROBOT_FOOTPRINT
+        _draw_failure_pose(axes, failure_pose, _RUN_COLORS[0], footprint=footprint)
         points.append(np.asarray(failure_pose, dtype=float)[:2])
     if minimal_run is not None:
         _draw_run(axes, minimal_run, _RUN_COLORS[1], f"minimal world run ({_models(len(kept))})")

@@ -54,10 +54,16 @@ def parse_robot(reader: FieldReader, value: Any) -> str | RobotDescription:
     def optional(key: str) -> float | None:
         return None if data.get(key) is None else reader.number(data[key], f"{FIELD}.{key}", positive=True)
 
+    left = _joint_names(reader, data["left_wheels"], f"{FIELD}.left_wheels")
+    right = _joint_names(reader, data["right_wheels"], f"{FIELD}.right_wheels")
+    both = [name for name in right if name in left]
+    if both:
+        raise reader.fail(f"{FIELD}.right_wheels", f"{', '.join(map(repr, both))} is also in left_wheels; a wheel "
+                                                   "joint drives one side")
     return RobotDescription(
         urdf=urdf,
-        left_wheels=_joint_names(reader, data["left_wheels"], f"{FIELD}.left_wheels"),
-        right_wheels=_joint_names(reader, data["right_wheels"], f"{FIELD}.right_wheels"),
+        left_wheels=left,
+        right_wheels=right,
         drive=drive,
         wheel_radius=optional("wheel_radius"),
         track=optional("track"),
@@ -79,6 +85,8 @@ def _joint_names(reader: FieldReader, value: Any, field: str) -> tuple[str, ...]
 def _laser(reader: FieldReader, value: Any) -> bool | LaserMount:
     if isinstance(value, bool):
         return value
+    if not isinstance(value, Mapping):
+        raise reader.fail(f"{FIELD}.laser", f"expected true, false or a mapping {{height, min_range}}, got {value!r}")
     data = reader.mapping(value, f"{FIELD}.laser", LASER_KEYS)
     for key in LASER_KEYS:
         if key not in data:

@@ -42,6 +42,10 @@ def test_console_script_version_and_help() -> None:
         ("pytest_ddenv.world", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.reduce"]),
         ("pytest_ddenv.oracle", ["pybullet", "pytest", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
         ("pytest_ddenv.sim", ["pytest", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
+        ("pytest_ddenv.execution", ["pybullet", "pytest", "pytest_ddenv.reduce", "pytest_ddenv.sim", "pytest_ddenv.plugin"]),
+        ("pytest_ddenv.driver", ["pytest", "pytest_ddenv.plugin"]),
+        ("pytest_ddenv.scenario_job", ["pytest", "pytest_ddenv.plugin"]),
+        ("pytest_ddenv.controllers", ["pybullet", "pytest", "pytest_ddenv.reduce"]),
     ],
 )
 def test_layers_import_only_what_comes_before_them(module: str, forbidden: list[str]) -> None:

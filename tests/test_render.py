@@ -174,6 +174,26 @@ def test_reduction_picture_with_both_runs(worlds: dict[str, World], tmp_path: Pa
     assert [png_size(path) for path in written] == [render.WORLD_SIZE, render.PROGRESS_SIZE]
 
 
+def test_failure_pose_outline_is_the_runs_own_robot_footprint() -> None:
+    import dataclasses
+
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Polygon
+
+    outline = render.robot_outline([1.0, 2.0, 0.1, 0.0, 0.0, math.pi / 2], (0.4, 0.3))
+    assert np.allclose(outline, [[0.85, 2.2], [0.85, 1.8], [1.15, 1.8], [1.15, 2.2]])
+    assert np.allclose(np.ptp(render.robot_outline([0, 0, 0], render.ROBOT_FOOTPRINT), axis=0), (0.99, 0.67))
+    small = dataclasses.replace(fake_run([(0.0, 0.0), (3.0, 0.0)]), robot="diffbot", footprint=(0.45, 0.44))
+    figure = render.draw_world(World(name="empty"), [small], failure_poses=[[1.0, 1.0, 0.0, 0.0, 0.0, 0.0]])
+    try:
+        outlines = [patch.get_xy() for patch in figure.axes[0].patches if isinstance(patch, Polygon)]
+        assert len(outlines) == 2  # the run's failure pose and the extra pose, both the diffbot's size
+        for points in outlines:
+            assert np.allclose(np.ptp(points, axis=0), (0.45, 0.44))
+    finally:
+        plt.close(figure)
+
+
 def test_progress_picture_of_a_reduction_that_removed_nothing(tmp_path: Path) -> None:
     path = render.plot_progress([(0, 1)], probes=0, path=tmp_path / "progress.png")
     assert png_size(path) == render.PROGRESS_SIZE

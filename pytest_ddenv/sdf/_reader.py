@@ -33,6 +33,7 @@ from pytest_ddenv.world import (
     Shape,
     TagValue,
     World,
+    resolve_relative,
 )
 
 DDENV_NS = "https://github.com/pytest-ddenv/pytest-ddenv/sdf"
@@ -679,7 +680,7 @@ class _Loader:
             return self.error(message, element, field=f"{field}/@{name}", kind=ScenarioError)
 
         urdf = element.get("urdf", "")
-        if not urdf or not Path(urdf).is_file():
+        if not urdf or not resolve_relative(urdf, self.source).is_file():  # relative: to the SDF file
             raise fail(f"URDF file not found: {urdf!r}", "urdf")
         drive = element.get("drive", "differential")
         if drive not in DRIVE_KINDS:

@@ -20,7 +20,7 @@ from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.sim.control import ControllerError
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.urdf_geometry import UrdfGeometry, measure_urdf
-from pytest_ddenv.world import LaserMount, RobotDescription, resolve_relative
+from pytest_ddenv.world import DRIVE_KINDS, LaserMount, RobotDescription, resolve_relative
 
 
 class Robot(abc.ABC):
@@ -121,6 +121,9 @@ class WheeledRobot(Robot):
             raise ScenarioError("a wheeled robot needs at least one left and one right wheel joint",
                                 source=source, field="scenario.robot.left_wheels" if not self.left
                                 else "scenario.robot.right_wheels")
+        if drive not in DRIVE_KINDS:
+            raise ScenarioError(f"unknown drive {drive!r}; expected one of {', '.join(DRIVE_KINDS)}",
+                                source=source, field="scenario.robot.drive")
         self.wheel_names = tuple(wheel_order) if wheel_order is not None else self.left + self.right
         self.name = name or os.path.splitext(os.path.basename(self.urdf))[0]
         self.drive_kind = drive
@@ -131,7 +134,10 @@ class WheeledRobot(Robot):
         if None in (wheel_radius, track, footprint, base_height) or laser is True:
             measured = measure_urdf(self.urdf, self._flags(), self.left, self.right, source=source)
         self.wheel_radius = float(wheel_radius if wheel_radius is not None else measured.wheel_radius)  # type: ignore[union-attr]
-        self.track = float(track if track is not None else measured.track)  # type: ignore[union-attr]
+        if track is None and measured.track is None:  # type: ignore[union-attr]
+            raise ScenarioError(f"{self.urdf}: the left and right wheels are at the same lateral position, so the "
+                                "track cannot be read; give track", source=source, field="scenario.robot.track")
+        self.track = float(track if track is not None else measured.track)  # type: ignore[union-attr, arg-type]
         self.track_factor = float(track_factor if track_factor is not None else
                                   (1.5 if drive == "skid-steer" else 1.0))
         self.footprint = footprint if footprint is not None else measured.footprint  # type: ignore[union-attr]
@@ -184,8 +190,9 @@ class WheeledRobot(Robot):
             mass += p.getDynamicsInfo(body, index, physicsClientId=client)[0]
         missing = [name for name in self.wheel_names if name not in joints]
         if missing:
-            raise ScenarioError(f"{self.urdf} has no joint(s) {', '.join(missing)}; its joints: "
-                                f"{', '.join(joints) or '(none)'}", source=self.source, field="scenario.robot")
+            side = "left_wheels" if missing[0] in self.left else "right_wheels"
+            raise ScenarioError(f"{self.urdf} has no joint named {', '.join(map(repr, missing))}; its joints: "
+                                f"{', '.join(joints) or '(none)'}", source=self.source, field=f"scenario.robot.{side}")
         self._wheels = tuple(joints[name] for name in self.wheel_names)
         self._mass = mass if self._known_mass is None else self._known_mass
         # free the wheels from the default velocity motors before commanding them

@@ -22,8 +22,10 @@ _GEOM_SPHERE, _GEOM_CYLINDER, _GEOM_CAPSULE = 2, 4, 7
 
 @dataclass(frozen=True)
 class UrdfGeometry:
+    """`track` is None when the left and right wheels are at the same lateral position (it cannot be read)."""
+
     wheel_radius: float
-    track: float
+    track: float | None
     footprint: tuple[float, float]
     base_height: float
     mass: float
@@ -65,21 +67,28 @@ def _measure(urdf: str, flags: int, left: tuple[str, ...], right: tuple[str, ...
         boxes = [p.getAABB(body, link, physicsClientId=client) for link in links]
         low = [min(box[0][axis] for box in boxes) for axis in range(3)]
         high = [max(box[1][axis] for box in boxes) for axis in range(3)]
-        radii = [_wheel_radius(p, client, body, joints[name], urdf, source) for name in (*left, *right)]
+        radii = [_wheel_radius(p, client, body, joints[name], side, urdf, source)
+                 for side, names in (("left_wheels", left), ("right_wheels", right)) for name in names]
 
         def mean_y(names: tuple[str, ...]) -> float:
-            return sum(p.getLinkState(body, joints[n], physicsClientId=client)[4][1] for n in names) / len(names)
+            """Lateral position of the wheels' centres (their collision boxes: a wheel's shape may sit off its
+            joint along the axle)."""
+            centres = [sum(p.getAABB(body, joints[n], physicsClientId=client)[k][1] for k in (0, 1)) / 2.0
+                       for n in names]
+            return sum(centres) / len(centres)
 
-        track = abs(mean_y(left) - mean_y(right))
-        if track <= 1e-6:
-            raise ScenarioError(f"{urdf}: the left and right wheels are at the same lateral position, so the track "
-                                "cannot be read; give track", source=source, field="scenario.robot.track")
+        left_y, right_y = mean_y(left), mean_y(right)
+        if left_y < right_y - 1e-6:
+            raise ScenarioError(f"{urdf}: the left wheels are on the robot's right (y = {left_y:.3f} m, the right "
+                                f"wheels at y = {right_y:.3f} m; x is forward and y left); swap left_wheels and "
+                                "right_wheels", source=source, field="scenario.robot.left_wheels")
         mass = sum(p.getDynamicsInfo(body, link, physicsClientId=client)[0] for link in links)
-        base_z = p.getBasePositionAndOrientation(body, physicsClientId=client)[0][2]
-        reach = math.hypot(max(abs(low[0]), abs(high[0])), max(abs(low[1]), abs(high[1])))
+        (base_x, base_y, base_z), _ = p.getBasePositionAndOrientation(body, physicsClientId=client)
+        reach = math.hypot(max(abs(low[0] - base_x), abs(high[0] - base_x)),
+                           max(abs(low[1] - base_y), abs(high[1] - base_y)))
         return UrdfGeometry(
             wheel_radius=sum(radii) / len(radii),
-            track=track,
+            track=left_y - right_y if left_y - right_y > 1e-6 else None,
             footprint=(high[0] - low[0], high[1] - low[1]),
             base_height=-low[2],
             mass=mass,
@@ -89,14 +98,14 @@ def _measure(urdf: str, flags: int, left: tuple[str, ...], right: tuple[str, ...
         p.disconnect(physicsClientId=client)
 
 
-def _wheel_radius(p: object, client: int, body: int, joint: int, urdf: str, source: str | None) -> float:
+def _wheel_radius(p: object, client: int, body: int, joint: int, side: str, urdf: str, source: str | None) -> float:
     """From the wheel link's collision shape: a cylinder's or sphere's radius, else half its height."""
     shapes = p.getCollisionShapeData(body, joint, physicsClientId=client)  # type: ignore[attr-defined]
     if not shapes:
-        name = p.getJointInfo(body, joint, physicsClientId=client)[1].decode()  # type: ignore[attr-defined]
-        raise ScenarioError(f"{urdf}: the link of wheel joint {name!r} has no collision shape, so it cannot roll; "
-                            "give the wheel a <collision> (or give wheel_radius if it is merged elsewhere)",
-                            source=source, field="scenario.robot.wheel_radius")
+        info = p.getJointInfo(body, joint, physicsClientId=client)  # type: ignore[attr-defined]
+        raise ScenarioError(f"{urdf}: the link {info[12].decode()!r} of wheel joint {info[1].decode()!r} has no "
+                            "collision shape, so it cannot touch the ground; give it a <collision> or name the "
+                            "joint of a wheel that has one", source=source, field=f"scenario.robot.{side}")
     kind, dimensions = shapes[0][2], shapes[0][3]
     if kind in (_GEOM_CYLINDER, _GEOM_CAPSULE):
         return float(dimensions[1])

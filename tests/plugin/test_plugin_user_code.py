@@ -1,0 +1,159 @@
+"""The user's software under test, in every worker: a controller, a predicate and a helper defined in the test
+module, a URDF robot registered by a conftest. The reduction finds the same minimal world however the probes
+run, and errors inside a worker are reported as what they are."""
+
+from __future__ import annotations
+
+import json
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from .conftest import WALL_WORLD
+
+MY_ROBOT_CONFTEST = textwrap.dedent(
+    """\
+    import os
+
+    import pybullet_data
+
+    from pytest_ddenv import RobotDescription, register_robot
+
+    register_robot("my_husky", RobotDescription(
+        urdf=os.path.join(pybullet_data.getDataPath(), "husky", "husky.urdf"), drive="skid-steer",
+        left_wheels=("front_left_wheel", "rear_left_wheel"), right_wheels=("front_right_wheel", "rear_right_wheel"),
+        max_wheel_torque=100.0,
+    ))
+    """
+)
+
+USER_CODE_TEST = textwrap.dedent(
+    """\
+    import math
+
+    import pytest
+
+    from pytest_ddenv import Command
+    from pytest_ddenv.oracle import signature
+
+
+    def heading_to_goal(observation):
+        \"\"\"A helper of the test module.\"\"\"
+        return observation.goal_bearing
+
+
+    def cautious(observation):
+        \"\"\"The controller under test: steady 0.6 m/s, gentle turns toward the goal.\"\"\"
+        return Command(linear=0.6, angular=max(-0.5, min(0.5, 1.5 * heading_to_goal(observation))))
+
+
+    class Blocked:
+        \"\"\"The test's own predicate: nearly still for 1 s (after the first second).\"\"\"
+
+        name = "blocked"
+
+        def reset(self):
+            self.since = None
+
+        def check(self, state):
+            if state.time < 1.0 or math.hypot(*state.velocity[:2]) > 0.05:
+                self.since = None
+                return None
+            self.since = state.time if self.since is None else self.since
+            return signature(self.name, state, "still for 1 s") if state.time - self.since >= 1.0 else None
+
+
+    @pytest.mark.ddenv(world="wall.yaml", deflake=1)
+    @pytest.mark.robot_failure(Blocked())
+    def test_reaches_goal(robot_world):
+        assert robot_world.run(controller=cautious).reached_goal
+    """
+)
+
+
+@pytest.fixture
+def user_project(pytester: pytest.Pytester) -> pytest.Pytester:
+    pytester.makefile(".yaml", wall=WALL_WORLD.replace("scenario:\n", "scenario:\n  robot: my_husky\n"))
+    pytester.makeconftest(MY_ROBOT_CONFTEST)
+    pytester.makepyfile(test_scenario=USER_CODE_TEST)
+    return pytester
+
+
+def summary_of(project: pytest.Pytester) -> dict:
+    (summary,) = Path(project.path, "ddenv-artifacts").glob("*/summary.json")
+    return json.loads(summary.read_text())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "how",
+    [
+        pytest.param([], id="default-workers"),
+        pytest.param(["--ddenv-workers", "1"], id="in-process"),
+        pytest.param(["-n", "2"], id="xdist"),
+        pytest.param(["--ddenv-executor", "dask", "--ddenv-workers", "2"], id="dask"),
+    ],
+)
+def test_user_code_reduces_to_the_same_minimal_world_however_probes_run(user_project: pytest.Pytester,
+                                                                        how: list[str]) -> None:
+    if "dask" in how:
+        pytest.importorskip("distributed")
+    result = user_project.runpytest_subprocess("--ddenv-reduce", *how)
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*'blocked' predicate fired*", "*reduced 6 -> 1 models*"])
+    summary = summary_of(user_project)
+    assert summary["minimal_models"] == ["wall"] and summary["one_minimal"]
+    assert summary["errors"] == 0
+    assert summary["predicates"] == [{"name": "blocked", "params": {}, "object": summary["predicates"][0]["object"]}]
+
+
+def test_user_code_that_does_not_import_in_a_worker_is_named(user_project: pytest.Pytester) -> None:
+    user_project.makeconftest(MY_ROBOT_CONFTEST + textwrap.dedent(
+        """\
+        import multiprocessing
+
+        if multiprocessing.parent_process() is not None:  # only in worker processes
+            import lab_driver_only_on_the_ci_host
+        """
+    ))
+    result = user_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-workers", "2")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines([
+        "*the test could not be run in a probe worker*",
+        "*No module named 'lab_driver_only_on_the_ci_host'*",
+    ])
+    assert "not reproducible" not in result.stdout.str()
+    assert not Path(user_project.path, "ddenv-artifacts").exists()
+
+
+def test_a_robot_registered_only_in_the_pytest_process_is_reported_as_unknown(user_project: pytest.Pytester) -> None:
+    user_project.makeconftest(
+        "import multiprocessing\n"
+        "if multiprocessing.parent_process() is None:  # the pytest process only, not its probe workers\n"
+        + textwrap.indent(MY_ROBOT_CONFTEST, "    ")
+    )
+    result = user_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-workers", "2")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*every confirmation run of the test raised an error*",
+                                 "*ScenarioError*unknown robot 'my_husky'; registered robots: husky*"])
+    assert "not reproducible" not in result.stdout.str()
+
+
+@pytest.mark.slow
+def test_a_controller_that_raises_is_another_failure_with_its_exception_logged(user_project: pytest.Pytester) -> None:
+    docstring = '    """The controller under test: steady 0.6 m/s, gentle turns toward the goal."""\n'
+    assert docstring in USER_CODE_TEST
+    user_project.makepyfile(test_scenario=USER_CODE_TEST.replace(
+        docstring,
+        docstring + "    if observation.pose[0] > 2.5:  # past the wall: only where the wall is gone\n"
+        "        raise ZeroDivisionError('lost its way')\n",
+    ))
+    result = user_project.runpytest_subprocess("--ddenv-reduce")
+    result.assert_outcomes(failed=1)
+    summary = summary_of(user_project)
+    assert summary["minimal_models"] == ["wall"] and summary["errors"] == 0
+    records = [json.loads(line) for line in Path(summary["files"]["log"]).read_text().splitlines()]
+    others = [r for r in records if r.get("event") == "probe" and r["outcome"] == "other"]
+    assert others and all("ZeroDivisionError: lost its way" in r["detail"] for r in others)
+    assert all(r["signature"]["exception"] == "ZeroDivisionError" for r in others)
