@@ -4,8 +4,17 @@
 
 Prints a markdown table (the one in docs/performance.md, "Parallel probes"). The reduction is the one the
 examples run on the ditch (stuck(window=5.0, min_progress=0.2), model2model + avg-trajectory-proximal,
-deflake 2, seed 0), driven through the same probe the plugin uses (RobotWorld -> pool.simulate). With N
-workers, N probes of a round are in flight at once (a ThreadPoolExecutor of N threads, as the plugin does).
+deflake 2, seed 0), run exactly as `ddenv reduce` runs it: the world's scenario is a `ScenarioJob` served by
+a pool from `make_pool` (1 worker: the job's handler in this process; N: N local worker processes), the
+original failing run is one `pool.call`, then `pytest_ddenv.driver.run_reduction` (the plugin's and the
+CLI's driver) reduces with `pool.size` probes in flight and writes the artifacts (minimal world, log,
+summary, pictures) to a temporary folder.
+
+Pools are started and warmed (every worker has run the world once) before the clock starts: worker start-up
+is not timed, as the plugin keeps one pool per session. "wall time" is the original run plus the engine's
+reduction (its 5 failure-rate runs of the minimal world included), as in earlier versions of this table; the
+speed-up is computed on it. "with artifacts" adds what the driver does after the engine (summary, the
+minimal world's run for the pictures, the pictures).
 """
 
 from __future__ import annotations
@@ -14,19 +23,27 @@ import argparse
 import concurrent.futures
 import os
 import statistics
+import sys
+import tempfile
 import time
 from pathlib import Path
 
-from pytest_ddenv.execution import PoolStats, SimulationPool, cpu_count
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from common import open_pool, warm
+
+from pytest_ddenv.driver import ReductionOutcome, ReductionPlan, run_reduction
+from pytest_ddenv.execution import LocalPool, Pool, PoolStats, cpu_count
+from pytest_ddenv.markers import ReductionSpec
 from pytest_ddenv.oracle import PredicateSpec
-from pytest_ddenv.probe import keeps_start_support, make_probe, reference_from, trace_of
-from pytest_ddenv.reduce import Reduction, reduce
-from pytest_ddenv.robot_world import RobotWorld
-from pytest_ddenv.sim import Run, Simulator
+from pytest_ddenv.probe import FailureReference, ProbeResult
+from pytest_ddenv.reduce import Reduction
+from pytest_ddenv.scenario_job import ScenarioJob
 from pytest_ddenv.world import World
 
 ROOT = Path(__file__).resolve().parent.parent
 PREDICATES = (PredicateSpec("stuck", {"window": 5.0, "min_progress": 0.2}),)
+SPEC = ReductionSpec(partition="model2model", priority="avg-trajectory-proximal", deflake=2, tolerance=0.5, seed=0)
 TRIVIAL = """
 format: 1
 name: trivial
@@ -53,71 +70,71 @@ def yard(count: int = 40) -> World:
     return World.from_yaml("\n".join(lines) + "\n", source="yard.yaml")
 
 
-def warm_pool(workers: int, world: World) -> SimulationPool:
-    """A pool whose workers are all up (created once per pytest session in real use: not timed)."""
-    pool = SimulationPool(workers)
-    with concurrent.futures.ThreadPoolExecutor(workers) as threads:
-        list(threads.map(lambda seed: pool.simulate(world, seed=seed, timeout=0.1), range(workers)))
+def warm_pool(workers: int, world: World, predicates: tuple[PredicateSpec, ...] = PREDICATES) -> Pool:
+    """A pool serving the scenario test (`predicates`, seed 0) whose workers are all up and have built
+    `world` once (created once per pytest session in real use: not timed)."""
+    pool = open_pool(ScenarioJob(predicates, seed=0), workers)
+    try:
+        warm(pool, world)
+    except BaseException:
+        pool.close()
+        raise
     return pool
 
 
-def reduce_on(world: World, pool: SimulationPool, predicates: tuple[PredicateSpec, ...]) -> tuple[Reduction, float]:
-    """The example's reduction of `world` with pool.size probes in flight (1 = the serial engine)."""
-    workers = pool.size
-
-    def run_test(candidate: World, attempt: int) -> tuple[BaseException | None, Run | None]:
-        robot_world = RobotWorld(candidate, predicates=predicates, seed=0, attempt=attempt, simulate=pool.simulate)
-        try:
-            robot_world.run()
-        except Exception as error:  # noqa: BLE001 - the outcome to classify
-            return error, robot_world.runs[-1] if robot_world.runs else None
-        return None, robot_world.runs[-1]
-
-    started = time.perf_counter()
-    error, first = run_test(world, 0)
-    if error is None or first is None or first.failure is None:
-        raise SystemExit(f"{world.source}: the original world does not fail with {predicates}; nothing to reduce")
-    reference = reference_from(error, None)
-    probe = make_probe(world, run_test, reference, tolerance=0.5)
-    executor = concurrent.futures.ThreadPoolExecutor(workers) if workers > 1 else None
-    try:
-        reduction = reduce(
-            world.names, probe, geometry=world, reference=trace_of(first), partition="model2model",
-            priority="avg-trajectory-proximal", deflake=2, seed=0, preconditions=(keeps_start_support(world),),
-            keep=tuple(m.name for m in world.models if m.keep), executor=executor,
+def reduce_on(world: World, pool: Pool, artifacts: Path | None = None) -> tuple[ReductionOutcome, float, float]:
+    """The example's reduction of `world` on `pool`, as `ddenv reduce` runs it: the original run, then the
+    driver. Returns (outcome, original run + engine seconds, end-to-end seconds incl. the artifacts)."""
+    with tempfile.TemporaryDirectory(prefix="ddenv-bench-") as scratch:
+        started = time.perf_counter()
+        original = pool.call(world, 0)
+        assert isinstance(original, ProbeResult)
+        original_seconds = time.perf_counter() - started
+        if original.error is None or original.error.ddenv_error or original.run is None \
+                or original.run.failure is None:
+            raise SystemExit(f"{world.source}: the original world does not fail; nothing to reduce")
+        plan = ReductionPlan(
+            world=world, test_id=f"bench_parallel {world.source}", reference=FailureReference.of(original.error),
+            reference_run=original.run, spec=SPEC, artifacts=artifacts or Path(scratch) / "artifacts",
+            replay_command="", fingerprint={"benchmark": "bench_parallel"}, confirmed=True,
         )
-    finally:
-        if executor is not None:
-            executor.shutdown(wait=True)
-    return reduction, time.perf_counter() - started
+        outcome = run_reduction(plan, pool)
+        total = time.perf_counter() - started
+    if outcome.reduction is None:
+        raise SystemExit(f"{world.source}: the reduction did not run: {outcome.status} {outcome.message}")
+    return outcome, original_seconds + outcome.reduction.wall_time, total
 
 
-def throughput(world: World, pool: SimulationPool, runs: int) -> float:
-    """Seconds for `runs` independent simulations of `world` (seeds 0..runs-1), pool.size at a time."""
+def throughput(world: World, pool: Pool, runs: int) -> float:
+    """Seconds for `runs` independent runs of the scenario test on `world` (attempts 0..runs-1: each its own
+    noise seed), pool.size at a time."""
     started = time.perf_counter()
     with concurrent.futures.ThreadPoolExecutor(pool.size) as threads:
-        list(threads.map(lambda seed: pool.simulate(world, seed=seed, predicates=PREDICATES), range(runs)))
+        list(threads.map(lambda attempt: pool.call(world, attempt), range(runs)))
     return time.perf_counter() - started
 
 
 def overhead(runs: int) -> tuple[float, float, float]:
-    """(direct ms, via a 1-process pool ms, transport ms) per simulation of a trivial world, medians."""
+    """(direct ms, via a 1-process pool ms, transport ms) per probe of a trivial world, medians. Direct: the
+    job's handler in this process (what a 1-worker in-process pool runs); via: a `LocalPool` of 1 worker
+    process serving the same job."""
     world = World.from_yaml(TRIVIAL)
-    with Simulator() as simulator:
+    job = ScenarioJob((), seed=0)
+    handler = job.handler()
+    for _ in range(3):
+        handler(world, 0)
+    direct = []
+    for attempt in range(runs):
+        started = time.perf_counter()
+        handler(world, attempt)
+        direct.append(time.perf_counter() - started)
+    with LocalPool(job, 1) as pool:
         for _ in range(3):
-            simulator.run(world, seed=0)
-        direct = []
-        for seed in range(runs):
-            started = time.perf_counter()
-            simulator.run(world, seed=seed)
-            direct.append(time.perf_counter() - started)
-    with SimulationPool(1, in_process=False) as pool:
-        for _ in range(3):
-            pool.simulate(world, seed=0)
+            pool.call(world, 0)
         through = []
-        for seed in range(runs):
+        for attempt in range(runs):
             started = time.perf_counter()
-            pool.simulate(world, seed=seed)
+            pool.call(world, attempt)
             through.append(time.perf_counter() - started)
         transport = pool.stats.mean_overhead
     return statistics.median(direct) * 1e3, statistics.median(through) * 1e3, transport * 1e3
@@ -140,47 +157,63 @@ def main(argv: list[str] | None = None) -> int:
         load = " ".join(f"{v:.1f}" for v in os.getloadavg())
     except OSError:  # pragma: no cover
         load = "?"
-    print(f"cores: {cpu_count()}, load average before: {load}; pools are started and warmed before timing\n")
-    print("| world | predicate | workers | wall time (s), median | speed-up | probes | pool errors | minimal world |")
-    print("|---|---|---:|---:|---:|---:|---:|---|")
-    with SimulationPool(1) as warm:  # imports (scikit-learn, ...) and caches must not be charged to one row
-        reduce_on(yard(8), warm, cases[-1][1])
+    print(f"cores: {cpu_count()}, load average before: {load}; pools are started and warmed before timing "
+          "(worker start-up not timed); 1 worker = the job's handler in this process\n")
+    print("| world | predicate | workers | wall time (s), median | speed-up | with artifacts (s), median | probes | "
+          "pool errors | minimal world |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---|")
+    # imports (scikit-learn, matplotlib, ...) and caches must not be charged to one row
+    small = yard(8)
+    with warm_pool(1, small, cases[-1][1]) as pool:
+        reduce_on(small, pool)
     same = True
+    speedups: list[str] = []
     for world, predicates, shown in cases:
         timings: dict[int, list[float]] = {workers: [] for workers in args.workers}
+        totals: dict[int, list[float]] = {workers: [] for workers in args.workers}
         results: dict[int, tuple[Reduction, PoolStats]] = {}
         minimals: set[tuple[str, ...]] = set()
         for repeat in range(args.repeat):  # alternate the order: a loaded machine drifts
             for workers in args.workers if repeat % 2 == 0 else list(reversed(args.workers)):
-                with warm_pool(workers, world) as pool:
-                    reduction, seconds = reduce_on(world, pool, predicates)
+                with warm_pool(workers, world, predicates) as pool:
+                    outcome, seconds, total = reduce_on(world, pool)
+                    assert outcome.reduction is not None
                     timings[workers].append(seconds)
-                    results.setdefault(workers, (reduction, pool.stats))
-                    minimals.add(reduction.minimal)
+                    totals[workers].append(total)
+                    results.setdefault(workers, (outcome.reduction, pool.stats))
+                    minimals.add(outcome.reduction.minimal)
         base = statistics.median(timings[args.workers[0]])
+        name = Path(world.source or world.name).name
         for workers in args.workers:
             reduction, stats = results[workers]
             seconds = statistics.median(timings[workers])
-            print(f"| {Path(world.source or world.name).name} ({len(world)}) | {shown} | {workers} | {seconds:.1f} | "
-                  f"{base / seconds:.2f}x | {reduction.probes} | {stats.errors} | "
+            print(f"| {name} ({len(world)}) | {shown} | {workers} | {seconds:.1f} | {base / seconds:.2f}x | "
+                  f"{statistics.median(totals[workers]):.1f} | {reduction.probes} | {stats.errors} | "
                   f"{reduction.minimal_size}: {', '.join(reduction.minimal)} |")
+        if len(args.workers) > 1:
+            last = args.workers[-1]
+            speedups.append(f"{name}: {last} workers vs {args.workers[0]}: "
+                            f"{base / statistics.median(timings[last]):.2f}x")
         same = same and len(minimals) == 1
     print(f"\nidentical minimal worlds across worker counts and repeats: {'yes' if same else 'NO'}")
+    for line in speedups:
+        print(f"parallel speed-up (medians of {args.repeat}), {line}")
 
     world = cases[0][0]
-    print(f"\nThroughput: {args.throughput_runs} independent simulations of {Path(args.world).name}\n")
+    print(f"\nThroughput: {args.throughput_runs} independent runs of the scenario test on {Path(args.world).name}\n")
     print("| workers | wall time (s) | speed-up |")
     print("|---:|---:|---:|")
     times = []
     for workers in args.workers:
         with warm_pool(workers, world) as pool:
-            throughput(world, pool, workers)  # every worker has built this world once
+            throughput(world, pool, workers)  # every worker has run this world to the end once
             times.append(throughput(world, pool, args.throughput_runs))
         print(f"| {workers} | {times[-1]:.1f} | {times[0] / times[-1]:.2f}x |")
 
     direct, through, transport = overhead(args.overhead_runs)
     print(f"\nPool overhead per probe (trivial world, 0.05 s simulated, {args.overhead_runs} runs, medians)\n")
-    print("| direct Simulator (ms) | through a 1-worker pool (ms) | difference (ms) | transport only (ms) |")
+    print("| direct: the job's handler in this process (ms) | through a 1-worker pool (ms) | difference (ms) | "
+          "transport only (ms) |")
     print("|---:|---:|---:|---:|")
     print(f"| {direct:.2f} | {through:.2f} | {through - direct:+.2f} | {transport:.2f} |")
     return 0 if same else 1

@@ -1,12 +1,21 @@
 """Shared building blocks of the reduction benchmarks (paper_tables.py, scale.py).
 
-Everything here drives the reduction exactly as the plugin does (pytest_ddenv/reduction_session.py): the
-test's body is `RobotWorld(candidate, predicates, seed, attempt).run()`, the probe is
-`pytest_ddenv.probe.make_probe` (same failure = same predicate, failure position within `tolerance` of the
-reference `FailureSignature`), the reference trace is the original failing run's, the only precondition is
-`keeps_start_support(world)`, and `keep: true` models are kept. Simulations go through a
-`pytest_ddenv.execution` pool (`make_pool(workers)`); with more than one worker the engine gets a
-ThreadPoolExecutor of as many threads, as the plugin does.
+Everything here drives the reduction through the same execution layer and probe as the plugin and `ddenv
+reduce` (pytest_ddenv/driver.py): the test is a `ScenarioJob` (the world's scenario with the test's
+predicates and noise seed: `RobotWorld(candidate, predicates, seed, attempt).run()`), served by a
+`pytest_ddenv.execution` pool (`make_pool(job, workers, in_process=job.handler())`: 1 worker = the job's
+handler in this process, as `ddenv reduce --workers 1`; N > 1 = N persistent local worker processes); the
+probe is `pytest_ddenv.probe.make_probe(world, pool.call, ...)` (same failure = same predicate, failure
+position within `tolerance` of the reference `FailureSignature`); the reference trace is the original
+failing run's; the only precondition is `keeps_start_support(world)`, and `keep: true` models are kept.
+With more than one worker the engine gets a ThreadPoolExecutor of as many threads, as the driver does.
+The engine is called directly (`reduce`, not `driver.run_reduction`) because the benchmarks need finer
+control than a whole reduction with artifacts: their own reduction seed and re-run noise seeds, no
+failure-rate runs inside the timed reduction, and the very same probe for picire.
+
+A pool serves one job, and a job has one predicate set and one noise seed: `Pools` (from `pool_of`) keeps
+one pool per (predicates, seed), started and warmed (every worker has run the world once) before any
+timing: worker start-up is never part of a measured wall time.
 
 The picire adapter (`picire_reduce`) hands picire the *same* probe function: picire's config is a list of
 indices into the world's reducible models; a config is FAIL iff our deflake rule (`deflake=N`: the first run,
@@ -23,34 +32,38 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import dataclasses
 import json
 import os
 import platform
 import subprocess
 import threading
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pytest_ddenv.execution import Pool, make_pool
+from pytest_ddenv.execution import Pool, check_executor, make_pool, resolve_workers
 from pytest_ddenv.oracle import PredicateSpec
 from pytest_ddenv.probe import (
     FailureReference,
+    ProbeResult,
     keeps_start_support,
     make_probe,
-    reference_from,
     trace_of,
 )
 from pytest_ddenv.reduce import Observation, Outcome, Reduction, reduce
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedReruns
-from pytest_ddenv.robot_world import RobotWorld
+from pytest_ddenv.scenario_job import ScenarioJob
 from pytest_ddenv.world import World
 
 ROOT = Path(__file__).resolve().parent.parent
 TOLERANCE = 0.5
 """The plugin's default `tolerance` (ReductionSpec): same failure = failure position within 0.5 m."""
+WARM_TIMEOUT = 0.1
+"""Simulated seconds of the warm-up runs (the world is built, the robot spawned, a few ticks run)."""
 
 STUCK = PredicateSpec("stuck", {"window": 5.0, "min_progress": 0.2})
 HIGH_CENTERED = PredicateSpec("high_centered", {})
@@ -71,6 +84,96 @@ SCENARIOS: dict[str, Scenario] = {
 }
 
 
+# -- pools: the execution layer ------------------------------------------------------------------------
+
+
+def open_pool(job: ScenarioJob, workers: int | str = 1, executor: str | None = None) -> Pool:
+    """The pool `ddenv reduce --workers N [--executor E]` would make for `job` (1 local worker: in process)."""
+    local_one = check_executor(executor) is None and resolve_workers(workers) == 1
+    return make_pool(job, workers, executor, in_process=job.handler() if local_one else None)
+
+
+def short_world(world: World, timeout: float = WARM_TIMEOUT) -> World:
+    """`world` with a scenario time limit of `timeout` simulated seconds (for warm-up runs)."""
+    if world.scenario is None:
+        return world
+    return dataclasses.replace(world, scenario=dataclasses.replace(world.scenario, timeout=timeout))
+
+
+def warm(pool: Pool, world: World) -> None:
+    """Make every worker start its job (imports, pybullet connect) and build `world` once, `pool.size`
+    short probes at a time, so that no measurement pays for it."""
+    short = short_world(world)
+    with concurrent.futures.ThreadPoolExecutor(pool.size) as threads:
+        list(threads.map(lambda attempt: pool.call(short, attempt), range(pool.size)))
+
+
+class Pools:
+    """Pools of `workers` workers serving `ScenarioJob`s, one per (predicates, noise seed), opened on first
+    use and warmed on the world they are asked for. At most `max_open` stay open (the least recently used
+    one is closed first; asking for it again reopens and re-warms it)."""
+
+    def __init__(self, workers: int, *, max_open: int = 2) -> None:
+        self.workers = resolve_workers(workers)
+        self.max_open = max(1, max_open)
+        self._open: OrderedDict[str, Pool] = OrderedDict()
+        self._warmed: dict[tuple[str, int], World] = {}  # the world is kept so that its id stays unique
+        self._lock = threading.Lock()  # probe threads ask for their pool concurrently
+
+    @property
+    def size(self) -> int:
+        return self.workers
+
+    @staticmethod
+    def key(predicates: Sequence[PredicateSpec], seed: int) -> str:
+        return f"{tuple(predicates)!r} seed={seed}"
+
+    def get(self, predicates: Sequence[PredicateSpec], seed: int, world: World | None = None) -> Pool:
+        """The pool whose job is the scenario test with `predicates` and noise seed `seed`, warmed on `world`."""
+        key = self.key(predicates, seed)
+        with self._lock:
+            pool = self._open.get(key)
+            if pool is None:
+                pool = open_pool(ScenarioJob(tuple(predicates), seed=seed), self.workers)
+                self._open[key] = pool
+                self._forget(key)
+                while len(self._open) > self.max_open:
+                    old_key, old = self._open.popitem(last=False)
+                    old.close()
+                    self._forget(old_key)
+            self._open.move_to_end(key)
+            if world is not None and (key, id(world)) not in self._warmed:
+                warm(pool, world)
+                self._warmed[(key, id(world))] = world
+            return pool
+
+    def _forget(self, key: str) -> None:
+        for item in [item for item in self._warmed if item[0] == key]:
+            del self._warmed[item]
+
+    def close(self) -> None:
+        with self._lock:
+            while self._open:
+                self._open.popitem()[1].close()
+            self._warmed.clear()
+
+    def __enter__(self) -> Pools:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@contextlib.contextmanager
+def pool_of(workers: int) -> Iterator[Pools]:
+    """`Pools` of `workers` workers each (1: the job's handler in this process), closed at the end."""
+    pools = Pools(workers)
+    try:
+        yield pools
+    finally:
+        pools.close()
+
+
 # -- the problem: a world, its test, its original failure ------------------------------------------------
 
 
@@ -81,7 +184,7 @@ class Problem:
     world: World
     predicates: tuple[PredicateSpec, ...]
     seed: int
-    pool: Pool
+    pools: Pools
     reference: FailureReference
     reference_trace: Any
     failure: str
@@ -92,22 +195,25 @@ class Problem:
     attempt_offset: int = 0
     """Added to every probe's attempt number: the reduction seed's own re-run noise (0 for the original run)."""
 
-    def run_test(self, candidate: World, attempt: int) -> tuple[BaseException | None, Any]:
-        """The scenario test's body (`robot_world.run()`), as a reduction probe calls it."""
-        robot_world = RobotWorld(candidate, predicates=self.predicates, seed=self.seed,
-                                 attempt=attempt + self.attempt_offset, simulate=self.simulate)
-        try:
-            robot_world.run()
-        except Exception as error:  # noqa: BLE001 - every exception is an outcome to classify
-            return error, robot_world.runs[-1] if robot_world.runs else None
-        return None, robot_world.runs[-1]
+    @property
+    def pool(self) -> Pool:
+        """The warm pool serving this problem's test (a `ScenarioJob` with its predicates and seed)."""
+        return self.pools.get(self.predicates, self.seed, self.world)
 
-    def simulate(self, world: World, **kwargs: Any) -> Any:
+    @property
+    def workers(self) -> int:
+        return self.pools.size
+
+    def call(self, candidate: World, attempt: int) -> ProbeResult:
+        """One run of the scenario test on `candidate`, on the pool (what `make_probe` calls)."""
         self.counter.add()
-        return self.pool.simulate(world, **kwargs)
+        result = self.pool.call(candidate, attempt + self.attempt_offset)
+        if not isinstance(result, ProbeResult):
+            raise TypeError(f"the pool's job returned {type(result).__name__}, not a ProbeResult")
+        return result
 
     def probe(self) -> Callable[[tuple[str, ...], int], Observation]:
-        return make_probe(self.world, self.run_test, self.reference, tolerance=TOLERANCE)
+        return make_probe(self.world, self.call, self.reference, tolerance=TOLERANCE)
 
     def preconditions(self) -> tuple[Callable[[tuple[str, ...]], str | None], ...]:
         return (keeps_start_support(self.world),)
@@ -134,37 +240,23 @@ class NotFailing(RuntimeError):
     pass
 
 
-def make_problem(world: World, predicates: Sequence[PredicateSpec], seed: int, pool: Pool) -> Problem:
-    """Run the original world once with noise seed `seed` (the failing run a user would have seen)."""
+def make_problem(world: World, predicates: Sequence[PredicateSpec], seed: int, pools: Pools) -> Problem:
+    """Run the original world once with noise seed `seed` (the failing run a user would have seen), on the
+    pool of `pools` for (predicates, seed), which is warmed on `world` first."""
     keep = tuple(m.name for m in world.models if m.keep)
-    problem = Problem(world=world, predicates=tuple(predicates), seed=seed, pool=pool,
+    problem = Problem(world=world, predicates=tuple(predicates), seed=seed, pools=pools,
                       reference=FailureReference("", ""), reference_trace=None, failure="", keep=keep,
                       reducible=tuple(n for n in world.names if n not in keep))
-    error, run = problem.run_test(world, 0)
+    result = problem.call(world, 0)
     problem.counter.reset()
-    if error is None or run is None or run.failure is None:
-        raise NotFailing(f"{world.name}: seed {seed}: the original world does not fail "
-                         f"({'passed' if error is None else type(error).__name__})")
-    problem.reference = reference_from(error, None)
+    error, run = result.error, result.run
+    if error is None or error.ddenv_error or run is None or run.failure is None:
+        what = "passed" if error is None else error.describe()
+        raise NotFailing(f"{world.name}: seed {seed}: the original world does not fail ({what})")
+    problem.reference = FailureReference.of(error)
     problem.reference_trace = trace_of(run)
     problem.failure = problem.reference.describe()
     return problem
-
-
-@contextlib.contextmanager
-def pool_of(workers: int) -> Iterator[Pool]:
-    """A pool of `workers` simulation processes (1: in this process), warmed up before any timing."""
-    pool = make_pool(workers)
-    try:
-        yield pool
-    finally:
-        pool.close()
-
-
-def warm(pool: Pool, world: World) -> None:
-    """Start every worker (imports, pybullet connect) so that no reduction pays for it."""
-    with concurrent.futures.ThreadPoolExecutor(pool.size) as threads:
-        list(threads.map(lambda seed: pool.simulate(world, seed=seed, timeout=0.1), range(pool.size)))
 
 
 # -- our engine -----------------------------------------------------------------------------------------
@@ -203,12 +295,15 @@ class Row:
         return data
 
 
-def ddenv_reduce(problem: Problem, *, partition: str, priority: str, deflake: int | str, workers: int,
-                 max_seconds: float | None = None, failure_rate_runs: int = 10,
+def ddenv_reduce(problem: Problem, *, partition: str, priority: str, deflake: int | str,
+                 workers: int | None = None, max_seconds: float | None = None, failure_rate_runs: int = 10,
                  world_label: str | None = None, seed: int | None = None) -> Row:
-    """Reduce with our engine (the plugin's call of `reduce`), then measure the minimal world's failure rate."""
+    """Reduce with our engine (the driver's call of `reduce`: `workers` probe threads, default the pool's
+    size), then measure the minimal world's failure rate. The pool is warm before the clock starts."""
+    workers = problem.pool.size if workers is None else workers
     probe = problem.probe()
-    executor = concurrent.futures.ThreadPoolExecutor(workers) if workers > 1 else None
+    executor = (concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="ddenv-probe")
+                if workers > 1 else None)
     problem.counter.reset()
     started = time.perf_counter()
     try:

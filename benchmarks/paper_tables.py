@@ -16,6 +16,10 @@ probe and the same deflake rule: its default settings, and its best settings for
 the configuration of `common.PICIRE_CONFIGS` with the fewest simulations on the first seed, chosen per
 scenario, then run on every seed).
 
+Both tools' probes run the scenario test as a `ScenarioJob` on a `pytest_ddenv.execution` pool (`--workers
+1`: in this process; N: N local worker processes), one pool per predicate set and failing run, started and
+warmed before any timing: worker start-up is not part of any wall time below.
+
 `--quick`: one seed (the first), one pairing (`learner`), picire default only.
 Per row: simulations (first runs and deflake re-runs), cache hits, % reduction, final size, 1-minimal proven,
 the minimal world's failure rate over 10 fresh seeds, wall time; and the paper's figures. The original
@@ -50,7 +54,6 @@ from common import (
     picire_reduce,
     pool_of,
     table,
-    warm,
     write_json,
 )
 
@@ -162,18 +165,17 @@ def main(argv: list[str] | None = None) -> int:
     ours: dict[tuple[str, str], list[Row]] = {}
     theirs: dict[tuple[str, str], list[Row]] = {}
     started = time.perf_counter()
-    with pool_of(args.workers) as pool:
+    with pool_of(args.workers) as pools:
         for name in args.scenarios:
             scenario = SCENARIOS[name]
             world = World.load(scenario.world)
-            warm(pool, world)
             best_config: str | None = None
             problems: dict[int, Problem] = {}
             for seed in seeds:
                 failure_seed = args.failure_seed if args.protocol == "reduction" else seed
                 if failure_seed not in problems:
                     try:
-                        problems[failure_seed] = make_problem(world, scenario.predicates, failure_seed, pool)
+                        problems[failure_seed] = make_problem(world, scenario.predicates, failure_seed, pools)
                     except NotFailing as error:
                         print(f"skipped: {error}", flush=True)
                         results["skipped"].append(str(error))

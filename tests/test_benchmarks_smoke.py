@@ -1,4 +1,4 @@
-"""Smoke test of the benchmark scripts' building blocks on a tiny yard (< 20 s).
+"""Smoke test of the benchmark scripts' building blocks on tiny worlds (< 30 s).
 
 benchmarks/ is not a package: the modules are imported from its directory, as the scripts import them.
 """
@@ -29,8 +29,20 @@ def bench():
 def problem(bench):
     common, make_yard = bench
     world = make_yard.make_yard(5, seed=0)
-    with common.pool_of(1) as pool:
-        yield common.make_problem(world, make_yard.PREDICATES, 0, pool)
+    with common.pool_of(1) as pools:
+        yield common.make_problem(world, make_yard.PREDICATES, 0, pools)
+
+
+@pytest.fixture(scope="module")
+def scripts(bench):
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import bench_controller
+        import bench_parallel
+
+        yield bench_parallel, bench_controller
+    finally:
+        sys.path.remove(str(BENCHMARKS))
 
 
 def test_yard_is_seeded_and_sized(bench):
@@ -48,14 +60,35 @@ def test_original_yard_fails_with_stuck(problem):
     assert len(problem.reducible) == 5
 
 
+def test_problem_runs_on_an_in_process_scenario_job_pool(bench, problem):
+    common, make_yard = bench
+    pool = problem.pool
+    assert pool.in_process and pool.size == 1
+    assert pool.job.predicates == make_yard.PREDICATES and pool.job.seed == 0
+    assert problem.pools.get(make_yard.PREDICATES, 0) is pool  # one pool per (predicates, seed), kept
+    before = pool.stats.probes
+    result = problem.call(problem.world.select(make_yard.CULPRITS), 0)
+    assert result.error is not None and result.error.signature is not None
+    assert pool.stats.probes == before + 1
+    assert problem.counter.reset() == 1
+
+
+def test_short_world_for_warm_up(bench):
+    common, make_yard = bench
+    world = make_yard.make_yard(5, seed=0)
+    assert common.short_world(world).scenario.timeout == common.WARM_TIMEOUT
+    assert common.short_world(world).names == world.names
+
+
 def test_our_engine_finds_the_culprit(bench, problem):
     common, make_yard = bench
-    row = common.ddenv_reduce(problem, partition="even", priority="sequential", deflake=0, workers=1,
+    row = common.ddenv_reduce(problem, partition="even", priority="sequential", deflake=0,
                               failure_rate_runs=1)
     assert tuple(row.minimal) == make_yard.CULPRITS
     assert row.one_minimal
     assert row.failure_rate == (1, 1)
     assert 0 < row.simulations < 20
+    assert row.workers == 1
     assert row.to_dict()["reduction_percent"] == pytest.approx(80.0)
 
 
@@ -74,3 +107,41 @@ def test_plain_text_table(bench):
     text = common.table(["a", "bb"], [[1, 2], ["xyz", 4]])
     assert text.splitlines()[0] == "| a   | bb |"
     assert len(text.splitlines()) == 4
+
+
+def test_bench_parallel_reduces_through_the_driver(scripts, tmp_path):
+    bench_parallel, _ = scripts
+    world = bench_parallel.yard(6)
+    predicates = (bench_parallel.PredicateSpec("stuck", {"window": 2.0, "min_progress": 0.2}),)
+    with bench_parallel.warm_pool(1, world, predicates) as pool:
+        outcome, seconds, total = bench_parallel.reduce_on(world, pool, tmp_path / "artifacts")
+    assert outcome.status == "reduced"
+    assert outcome.reduction.minimal == ("wall",)
+    assert 0 < seconds <= total
+    assert (tmp_path / "artifacts" / "summary.json").exists()
+
+
+def test_bench_controller_measures_every_variant(scripts):
+    _, bench_controller = scripts
+    world = bench_controller.World.from_yaml(TINY)
+    samples = bench_controller.measure(world, seeds=[0], repeat=1, timeout=0.25)
+    assert [s.variant for s in samples] == list(bench_controller.VARIANTS)
+    for sample in samples:
+        assert sample.sim_time == pytest.approx(0.25, abs=0.06)
+        assert sample.wall_per_sim_second > 0
+    by_variant = {s.variant: s for s in samples}
+    # the plain function computes the built-in law's command: the same trajectory, bit for bit
+    assert by_variant["function"].final_pose == by_variant["builtin"].final_pose
+    assert by_variant["scan"].final_pose == by_variant["builtin"].final_pose
+    rows = bench_controller.summarize(samples)
+    assert {row["variant"] for row in rows} == set(bench_controller.VARIANTS)
+    assert next(r for r in rows if r["variant"] == "builtin")["slowdown"] == 0.0
+
+
+TINY = """
+format: 1
+name: tiny
+scenario: {start: {x: 0, y: 0, yaw: 0}, goal: {x: 4, y: 1}, timeout: 5}
+models:
+  - {name: box, pose: [1.5, 2.5, 0.25], box: [0.5, 0.5, 0.5]}
+"""

@@ -157,3 +157,44 @@ def test_a_controller_that_raises_is_another_failure_with_its_exception_logged(u
     others = [r for r in records if r.get("event") == "probe" and r["outcome"] == "other"]
     assert others and all("ZeroDivisionError: lost its way" in r["detail"] for r in others)
     assert all(r["signature"]["exception"] == "ZeroDivisionError" for r in others)
+
+
+OWN_SIMULATOR_TEST = textwrap.dedent(
+    """\
+    import json
+    import subprocess
+    import sys
+
+    import pytest
+
+    SIMULATOR = '''
+    import sys, xml.etree.ElementTree as ET
+    names = [m.get("name") for m in ET.parse(sys.argv[1]).getroot().iter("model")]
+    print("blocked" if "wall" in names else "arrived")
+    '''
+
+
+    @pytest.mark.ddenv(world="wall.yaml", partition="timeseg", priority="avg-trajectory", deflake=0)
+    def test_rover_arrives(robot_world, tmp_path):
+        robot_world.world.save(tmp_path / "world.sdf")
+        done = subprocess.run([sys.executable, "-c", SIMULATOR, str(tmp_path / "world.sdf")],
+                              capture_output=True, text=True, check=True)
+        assert done.stdout.strip() == "arrived"
+    """
+)
+
+
+def test_a_test_with_its_own_simulator_and_no_report_is_reduced_by_model_position(pytester: pytest.Pytester) -> None:
+    pytester.makefile(".yaml", wall=WALL_WORLD)
+    pytester.makepyfile(test_rover=OWN_SIMULATOR_TEST)
+    result = pytester.runpytest_subprocess("--ddenv-reduce")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines([
+        "*reduced 6 -> 1 models*",
+        "*note: the test made no robot_world.run() and no robot_world.report(), so there is no trajectory: "
+        "partition timeseg -> model2model*",
+        "*note: *priority avg-trajectory-proximal -> sequential*",
+    ])
+    summary = summary_of(pytester)
+    assert summary["minimal_models"] == ["wall"] and summary["schemas"]["partition"] == "model2model"
+    assert len(summary["notes"]) == 2

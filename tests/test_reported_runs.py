@@ -1,0 +1,65 @@
+"""`robot_world.report(...)`: what a simulator of your own did, as a Run the reduction and the pictures use."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from pytest_ddenv import RobotWorld, World
+from pytest_ddenv.errors import ScenarioError
+from pytest_ddenv.probe import trace_of
+from pytest_ddenv.robot_world import RobotFailure
+
+WORLD = World.from_yaml("""
+format: 1
+scenario: {start: {x: 0, y: 0, yaw: 0}, goal: {x: 4, y: 0}, timeout: 8}
+models:
+  - {name: wall, pose: [2.0, 0, 0.5], box: [0.3, 4.0, 1.0]}
+  - {name: crate, pose: [-3, 3, 0.25], box: [0.5, 0.5, 0.5]}
+""", source="reported.yaml")
+
+
+def test_a_reported_trajectory_becomes_a_run() -> None:
+    robot_world = RobotWorld(WORLD, seed=4)
+    times = [0.0, 0.5, 1.0, 1.5]
+    run = robot_world.report(times, [[0, 0, 0], [0.5, 0, 0.1], [1.0, 0.05, 0.3], [1.4, 0.1, 0.3]],
+                             sensed={"wall": 0.5})
+    assert robot_world.runs == [run] and run.failure is None and not run.reached_goal
+    assert run.poses.shape == (4, 6) and run.poses[2, 5] == 0.3 and run.poses[:, 2].tolist() == [0.0] * 4
+    assert run.velocities[2, 5] == pytest.approx(0.4) and run.velocities[1, 0] == pytest.approx(1.0)
+    assert run.sim_time == 1.5 and run.seed == 4 and dict(run.first_sensed) == {"wall": 0.5}
+    trace = trace_of(run)
+    assert trace.failure_position is None and len(trace) == 4
+    robot_world.check()  # no failure reported: nothing raised
+
+
+def test_a_reported_failure_fails_the_test_like_a_predicate() -> None:
+    robot_world = RobotWorld(WORLD)
+    robot_world.report([0.0, 1.0], [[0, 0], [1.7, 0]], failure_pose=(1.7, 0.0), touched=["wall"],
+                       detail="bumper pressed")
+    with pytest.raises(RobotFailure, match=r"'reported' predicate fired at t = 1\.00 s.*touching wall.*bumper") as raised:
+        robot_world.check()
+    assert raised.value.signature.position == (1.7, 0.0, 0.0)
+    assert trace_of(raised.value.run).failure_position.tolist() == [1.7, 0.0, 0.0]
+
+
+@pytest.mark.parametrize(
+    ("times", "poses", "options", "field", "fragment"),
+    [
+        ([], [], {}, "times", "times is empty"),
+        ([0.0, 1.0, 0.5], [[0, 0]] * 3, {}, "times", "must not decrease"),
+        ([0.0, 1.0], [[0, 0], [np.nan, 0]], {}, "poses", "NaN or infinite"),
+        ([0.0, 1.0], [[0, 0, 0, 0]] * 2, {}, "poses", r"shape \(2, 2\), \(2, 3\) or \(2, 6\).*got \(2, 4\)"),
+        ([0.0, 1.0], [[0, 0]] * 2, {"touched": ["shelf"]}, "touched", "not in the world: shelf"),
+        ([0.0, 1.0], [[0, 0]] * 2, {"touched": "wall"}, "touched", "not a string"),
+        ([0.0, 1.0], [[0, 0]] * 2, {"failure_pose": [1.0]}, "failure_pose", "2, 3 or 6 numbers"),
+        ([0.0, 1.0], "fast", {}, "poses", "must be numbers"),
+    ],
+)
+def test_bad_reports_are_clear_errors(times: Any, poses: Any, options: dict[str, Any], field: str,
+                                      fragment: str) -> None:
+    with pytest.raises(ScenarioError, match=fragment) as raised:
+        RobotWorld(WORLD).report(times, poses, **options)
+    assert raised.value.field == field
