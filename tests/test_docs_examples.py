@@ -25,15 +25,25 @@ def python_blocks(page: str) -> list[str]:
     return re.findall(r"```python\n(.*?)```", (DOCS / page).read_text(), flags=re.DOTALL)
 
 
-def test_writing_tests_example_fails_and_is_reduced(pytester: pytest.Pytester) -> None:
+WRITING_TESTS_EXAMPLES = [block for block in python_blocks("writing-tests.md") if "wall.yaml" in block]
+
+
+@pytest.mark.parametrize(
+    ("index", "failure"),
+    [(0, "*RobotFailure: The 'stuck' predicate fired*touching wall*"),  # the first example
+     (1, "*RobotFailure: The 'stuck' predicate fired*touching wall*"),  # a controller of your own
+     (2, "*RobotFailure: The 'stuck' predicate fired*touching wall*"),  # a policy through gymnasium
+     (3, "*RobotFailure: The 'pressed' predicate fired*pressed against wall*")],  # predicates of your own
+)
+def test_writing_tests_examples_fail_and_are_reduced(pytester: pytest.Pytester, index: int, failure: str) -> None:
     from plugin.conftest import WALL_WORLD
 
-    (example,) = python_blocks("writing-tests.md")
+    assert len(WRITING_TESTS_EXAMPLES) == 4
     pytester.makefile(".yaml", wall=WALL_WORLD)
-    pytester.makepyfile(test_example=example)
+    pytester.makepyfile(test_example=WRITING_TESTS_EXAMPLES[index])
     result = pytester.runpytest_subprocess("--ddenv-reduce")
     result.assert_outcomes(failed=1)
-    result.stdout.fnmatch_lines(["*RobotFailure: The 'stuck' predicate fired*touching wall*", "*6 -> 1 models*"])
+    result.stdout.fnmatch_lines([failure, "*6 -> 1 models*"])
 
 
 def test_world_format_example_loads_and_round_trips() -> None:

@@ -105,10 +105,11 @@ PAGES: dict[str, Page] = {
         "simulate(World.load('worlds/tiny.yaml'), predicates=[TooFast()], timeout=1.0).failure is None",
     )}, files={"worlds/tiny.yaml": ""}),
     "pictures.md": Page(checks={"render.plot_world": ("Path('ditch.png').stat().st_size > 10_000",)}),
-    "scaling.md": Page(checks={"SimulationPool(": (
-        "run.failure is not None and run.failure.predicate == 'stuck'",
+    "scaling.md": Page(checks={"LocalPool(": (
+        "result.error.signature.predicate == 'stuck'",
         "pool.stats.probes == 1",
     )}, slow=True),
+    "architecture.md": Page(),
     "sdf.md": Page(
         files={"~/my_models/crate/model.sdf": MODEL_SDF, "arena.world": ARENA_WORLD},
         checks={"load_sdf(": (

@@ -1,0 +1,62 @@
+"""The examples that `pytest examples --ddenv-reduce` reduces, beyond the paper's three scenarios: each fails
+on purpose and is reduced to its culprits (real simulations, real subprocesses)."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = ROOT / "examples"
+
+
+def reduce_example(pytester: pytest.Pytester, *parts: str) -> dict:
+    """Copy an example (file or folder) and the shipped worlds into a fresh project, reduce it, return the
+    summary."""
+    for part in parts:
+        source = EXAMPLES / part
+        target = pytester.path / part
+        if source.is_dir():
+            shutil.copytree(source, target)
+        else:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy(source, target)
+    shutil.copytree(ROOT / "worlds", pytester.path / "worlds")
+    result = pytester.runpytest_subprocess("--ddenv-reduce", parts[0])
+    result.assert_outcomes(failed=1)
+    (summary,) = Path(pytester.path, "ddenv-artifacts").glob("*/summary.json")
+    return json.loads(summary.read_text())
+
+
+@pytest.mark.slow
+def test_own_simulator_example_is_reduced_to_its_two_culprits(pytester: pytest.Pytester) -> None:
+    summary = reduce_example(pytester, "own_simulator")
+    assert summary["minimal_models"] == ["crate_in_aisle", "pallet_stack"] and summary["one_minimal"]
+    assert summary["reference_failure"]["signature"]["predicate"] == "reported"
+    documented = re.search(r"```python\n(@pytest\.mark\.ddenv\(world=\"warehouse\.yaml\".*?)```",
+                           (ROOT / "docs" / "writing-tests.md").read_text(), flags=re.DOTALL)
+    assert documented and documented.group(1) in (EXAMPLES / "own_simulator" / "test_own_simulator.py").read_text()
+
+
+@pytest.mark.slow
+def test_controller_example_is_reduced_to_the_cul_de_sac(pytester: pytest.Pytester) -> None:
+    summary = reduce_example(pytester, "test_my_controller.py")
+    assert summary["minimal_models"] == ["back_wall", "left_wall", "right_wall"]
+    assert summary["reference_failure"]["signature"]["predicate"] == "no_progress"
+
+
+@pytest.mark.slow
+def test_gym_policy_example_is_reduced_to_the_ditch(pytester: pytest.Pytester) -> None:
+    pytest.importorskip("gymnasium")
+    summary = reduce_example(pytester, "test_policy_gym.py")
+    assert summary["minimal_models"] == ["asphalt_plane", "asphalt_plane_clone"]
+
+
+@pytest.mark.slow
+def test_urdf_robot_example_is_reduced_to_the_dock(pytester: pytest.Pytester) -> None:
+    summary = reduce_example(pytester, "robots")
+    assert summary["minimal_models"] == ["loading_dock"] and summary["one_minimal"]
