@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
-from pytest_ddenv.sim.control import LaserScan
+from pytest_ddenv.sim.control import FloatArray, LaserScan
 from pytest_ddenv.sim.settings import RunSettings
 from pytest_ddenv.world import LaserMount
 
@@ -26,9 +26,10 @@ class Laser:
         self.bodies = bodies
         fov = settings.laser_fov
         if fov >= 2 * math.pi - 1e-9:
-            self.angles = np.arange(self.rays) * (2 * math.pi / self.rays) - math.pi
+            angles = np.arange(self.rays) * (2 * math.pi / self.rays) - math.pi
         else:
-            self.angles = np.linspace(-fov / 2.0, fov / 2.0, self.rays)
+            angles = np.linspace(-fov / 2.0, fov / 2.0, self.rays)
+        self.angles: FloatArray = np.asarray(angles, dtype=np.float64)
         self.angles.flags.writeable = False
         self.ranges = np.full(self.rays, np.inf)
         self.latest = LaserScan(self._frozen_ranges(), self.angles, float(self.range), 0.0)
