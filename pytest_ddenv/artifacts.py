@@ -38,10 +38,9 @@ def fingerprint(world: World, settings: dict[str, Any], test_source: str = "") -
     """Identifies a reduction problem: a resumed log is only reused when this matches."""
     from importlib.metadata import version
 
-    import pybullet  # noqa: F401  (its version is part of the reproducibility key)
-
     payload = json.dumps(
-        {"world": world.to_yaml(), "settings": settings, "test": test_source, "pybullet": version("pybullet")},
+        {"world": world.to_yaml(), "settings": settings, "test": test_source,
+         "pybullet": version("pybullet")},  # a run is bit-identical only with the same pybullet
         sort_keys=True,
         default=str,
     )

@@ -392,7 +392,12 @@ def _cmd_run(arguments: argparse.Namespace) -> int:
     world = _load_world(arguments.world)
     _require_scenario(world, arguments.world)
     predicates = _predicates(arguments.predicates)
-    run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout, controller=controller)
+    try:
+        run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout, controller=controller)
+    except DdenvError:
+        raise
+    except Exception as error:  # the controller under test raised or misbehaved: the scenario failed
+        return _run_raised(arguments, world, error)
     picture = None
     if not arguments.no_picture:
         from pytest_ddenv import render
@@ -420,6 +425,19 @@ def _cmd_run(arguments: argparse.Namespace) -> int:
         "picture": None if picture is None else str(picture),
     })
     return EXIT_OK if passed else EXIT_FAILED
+
+
+def _run_raised(arguments: argparse.Namespace, world: World, error: Exception) -> int:
+    from pytest_ddenv.probe import describe_error
+
+    info = describe_error(error, None)
+    notes = "".join(f" {note}" for note in getattr(error, "__notes__", ()))
+    text = (f"{arguments.world}: {len(world)} models, seed {arguments.seed}: FAILED (the run raised "
+            f"{info.type_name} at {info.location}: {info.message}){notes}")
+    _emit(arguments, text, {"ok": False, "world": arguments.world, "models": len(world), "seed": arguments.seed,
+                            "outcome": "raised", "exception": info.type_name, "message": info.message,
+                            "location": info.location})
+    return EXIT_FAILED
 
 
 def _run_outcome(run: Run) -> str:
@@ -709,6 +727,7 @@ def _cmd_replay(arguments: argparse.Namespace) -> int:
              f"{reference.position[1]:.2f}, {reference.position[2]:.2f}) m")]
     for run in result.runs:
         what = "no failure" if run.failure is None else f"{run.failure.predicate} at t = {run.failure.time:.2f} s"
+        what = f"raised {run.raised}" if run.raised else what
         lines.append(f"  seed {run.seed}: {run.outcome.value} ({what})")
     verdict = "reproduced" if result.ok else "NOT reproduced"
     lines.append(f"{verdict}: {result.reproduced}/{len(result.runs)} runs failed the same way")

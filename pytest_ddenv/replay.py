@@ -74,6 +74,8 @@ class ReplayRun:
     seed: int
     outcome: Outcome
     failure: FailureSignature | None
+    raised: str = ""
+    """What the run raised instead of finishing (a controller's exception), if anything."""
 
 
 @dataclass(frozen=True)
@@ -105,7 +107,7 @@ class ReplayResult:
             "tolerance": self.tolerance,
             "runs": [
                 {"seed": run.seed, "outcome": run.outcome.value,
-                 "failure": None if run.failure is None else run.failure.to_dict()}
+                 "failure": None if run.failure is None else run.failure.to_dict(), "raised": run.raised or None}
                 for run in self.runs
             ],
             "reproduced": self.reproduced,
@@ -188,6 +190,12 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
     seeds = recorded_seeds(folder / "runs.jsonl", world.names, seed)[:max_runs]
     results = []
     for run_seed in seeds:
-        run = run_scenario(world, chosen, seed=run_seed, timeout=run_timeout, controller=controller)
+        try:
+            run = run_scenario(world, chosen, seed=run_seed, timeout=run_timeout, controller=controller)
+        except DdenvError:
+            raise
+        except Exception as error:  # the controller under test raised: another failure than the reference
+            results.append(ReplayRun(run_seed, Outcome.OTHER, None, f"{type(error).__name__}: {error}"))
+            continue
         results.append(ReplayRun(run_seed, classify(run, reference, limit), run.failure))
     return ReplayResult(folder, world, reference, chosen, limit, tuple(results))

@@ -120,3 +120,19 @@ def test_a_module_that_raises_on_import_is_named(capsys: pytest.CaptureFixture[s
     (project / "broken_lab.py").write_text("raise RuntimeError('no licence server')\n")
     code, _, err = run(capsys, "run", "world.yaml", "--import", "broken_lab", "--no-picture")
     assert code == 2 and "--import broken_lab: importing it failed: RuntimeError: no licence server" in err
+
+
+def test_a_controller_that_raises_fails_the_run_not_ddenv(capsys: pytest.CaptureFixture[str], project: Path) -> None:
+    (project / "lab_broken.py").write_text("def boom(observation):\n    raise ZeroDivisionError('no room')\n")
+    code, out, err = run(capsys, "run", "world.yaml", "--import", "lab_robots", "--controller",
+                         "lab_broken.py:boom", "--no-picture")
+    assert code == 1 and "FAILED (the run raised ZeroDivisionError at lab_broken.py:2: no room)" in out, err
+    sys.modules.pop("lab_broken", None)
+
+
+def test_quiet_parallel_reduce_prints_nothing_on_stderr(project: Path) -> None:
+    import subprocess
+
+    done = subprocess.run(["ddenv", "reduce", "world.yaml", "--import", "lab_robots", "-p", "stuck:window=2",
+                           "--workers", "2", "-q", "--out", "art"], capture_output=True, text=True, cwd=project)
+    assert done.returncode == 0 and done.stderr == "", done.stderr

@@ -100,10 +100,35 @@ PAGES: dict[str, Page] = {
         )},
         slow=True,
     ),
-    "cli.md": Page(files={"docs/images/": ""}, slow=True),
-    "oracle.md": Page(checks={"class TooFast": (
-        "simulate(World.load('worlds/tiny.yaml'), predicates=[TooFast()], timeout=1.0).failure is None",
-    )}, files={"worlds/tiny.yaml": ""}),
+    "cli.md": Page(
+        files={
+            "docs/images/": "",
+            # the user module the page shows (its block is marked "not executed": `ddenv --import` imports it)
+            "lab_control.py": re.search(r'```python\n("""Our robot\'s software.*?)```',
+                                        (DOCS / "cli.md").read_text(encoding="utf-8"), flags=re.DOTALL)[1],
+        },
+        checks={"summary.json": (
+            "recorded == (['lab_control'], 'lab_control:Avoider', [{'name': 'trapped', 'params': {'seconds': 15}}])",
+            "summary['minimal_models'] == ['back_wall', 'left_wall', 'right_wall']",
+            # the last checks also forget what lab_control registered (as a new process would)
+            "__import__('pytest_ddenv.oracle', fromlist=['PREDICATES']).PREDICATES.pop('trapped').__module__"
+            " == 'lab_control'",
+            "__import__('sys').modules.pop('lab_control').__name__ == 'lab_control'",
+        )},
+        slow=True,
+    ),
+    "oracle.md": Page(checks={
+        "class TooFast": (
+            "simulate(World.load('worlds/tiny.yaml'), predicates=[TooFast()], timeout=1.0).failure is None",
+            "isinstance(strict, TooFast) and strict.limit == 1.0",
+            # the last check also forgets the registration (as a new process would)
+            "__import__('pytest_ddenv.oracle', fromlist=['PREDICATES']).PREDICATES.pop('too_fast') is TooFast",
+        ),
+        "def tipped": (
+            "tipped.name == 'tipped'",
+            "simulate(World.load('worlds/tiny.yaml'), predicates=[tipped], timeout=1.0).failure is None",
+        ),
+    }, files={"worlds/tiny.yaml": ""}),
     "pictures.md": Page(checks={"render.plot_world": ("Path('ditch.png').stat().st_size > 10_000",)}),
     "scaling.md": Page(checks={"LocalPool(": (
         "result.error.signature.predicate == 'stuck'",
@@ -118,8 +143,16 @@ PAGES: dict[str, Page] = {
         )},
     ),
     "simulation.md": Page(checks={
-        "sim.run(": ("run.failure.predicate == 'stuck'", "run2.seed == 3"),
-        "register_robot(": ("ROBOTS['rover'] is MyRover", "MyRover().mass == 20.0"),
+        "sim.run(": ("run.failure.predicate == 'stuck'", "run2.seed == 3", "slow.seed == 3 and slow.sim_time <= 20",
+                     "slow.robot == 'husky' and slow.footprint == (0.99, 0.67) and slow.wheel_contacts.shape[1] == 4"),
+        "(0.5, 0.0)": ("message.startswith('controller <lambda> returned tuple (0.5, 0.0) at t = 0.00 s')",),
+        "sim.start(": ("episode.finished and manual.sim_time == 10.0 and manual.seed == 3",
+                       "len(observation.wheel_speeds) == 4"),
+        "RobotDescription(": ("round(measured.wheel_radius, 3) == 0.178 and round(measured.track, 3) == 0.571",
+                              "tuple(round(v, 2) for v in measured.footprint) == (1.01, 0.69)",
+                              "ROBOTS['measured_husky']().name == 'husky'"),
+        "register_robot(\"rover\"": ("ROBOTS['rover'] is MyRover", "MyRover().mass == 20.0",
+                                    "not MyRover().has_laser or MyRover().laser.min_range == 0.5"),
     }, slow=True),
     "world-format.md": Page(checks={"world.distances(": (
         "world.distances(points).shape == (len(points), len(world))",
