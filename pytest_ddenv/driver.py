@@ -87,6 +87,8 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
     Raises `ReductionInterrupted` on Ctrl-C or SIGTERM, after writing the best world so far (the
     outcome is attached as `.outcome`)."""
     spec, world = plan.spec, plan.world
+    if not getattr(pool, "in_process", False):  # this process waits for the workers: import meanwhile
+        threading.Thread(target=_import_ahead, name="ddenv-import-ahead", daemon=True).start()
     call = _checked_call(pool)
     if not plan.confirmed:
         failed = _confirm(plan, call, note)
@@ -135,6 +137,25 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
         interrupted.outcome = outcome  # type: ignore[attr-defined]
         raise interrupted
     return outcome
+
+
+HEAVY_IMPORTS = ("sklearn.cluster", "sklearn.linear_model", "matplotlib.pyplot", "matplotlib.collections")
+"""What the schemas and the pictures import on first use (about 1.5 s together): imported while the first
+probes run in the workers, so that the engine's first round does not wait for scikit-learn."""
+
+
+def _import_ahead() -> None:
+    import importlib
+
+    for module in HEAVY_IMPORTS:
+        if module.startswith("matplotlib"):
+            import matplotlib
+
+            matplotlib.use("Agg")  # as render.py does: no display
+        try:
+            importlib.import_module(module)
+        except ImportError:  # pragma: no cover - the dependencies are installed with the package
+            return
 
 
 def _checked_call(pool: Pool) -> Callable[[World, int], ProbeResult]:

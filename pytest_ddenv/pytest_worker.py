@@ -124,6 +124,9 @@ class ProbeServer:
         if self.job.capture is not None:
             config.option.capture = self.job.capture
         config.stash[WORKER] = True
+        # Nobody reads a worker's terminal: without a reporter, no header, summary or terminal-summary hooks
+        # (some plugins import heavy modules there: hypothesis's takes a second at every worker's exit).
+        config.pluginmanager.set_blocked("terminalreporter")
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_collection_modifyitems(self, config: pytest.Config, items: list[pytest.Item]) -> None:

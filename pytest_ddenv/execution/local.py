@@ -55,6 +55,16 @@ CLOSE_GRACE = 1.0
 _PRELOAD = ["pytest_ddenv.execution.worker", "pytest_ddenv.sim", "pytest"]
 
 
+def forkserver_preload() -> list[str]:
+    """Modules the forkserver imports once, so that every worker forked from it starts with them: the
+    simulation, pytest and the installed pytest plugins (a worker's pytest session loads them all; some,
+    like hypothesis's, take a second to import). Import errors are ignored by multiprocessing."""
+    from importlib.metadata import entry_points
+
+    plugins = sorted({entry.module for entry in entry_points(group="pytest11")})
+    return [*_PRELOAD, *plugins]
+
+
 def cpu_count() -> int:
     """Cores this process may use (affinity-aware)."""
     try:
@@ -271,7 +281,7 @@ class LocalPool:
                 raise PoolConfigError(f"unknown multiprocessing start method {method!r}; valid: "
                                       f"{', '.join(multiprocessing.get_all_start_methods())}") from None
             if method == "forkserver":
-                self._context.set_forkserver_preload(_PRELOAD)
+                self._context.set_forkserver_preload(forkserver_preload())
             for _ in range(self._size):
                 self._idle.put(self._start_worker(count=False))
         self._finalizer = weakref.finalize(self, _shutdown, self._live, 0.0)
