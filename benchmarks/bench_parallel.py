@@ -11,18 +11,26 @@ CLI's driver) reduces with `pool.size` probes in flight and writes the artifacts
 summary, pictures) to a temporary folder.
 
 Pools are started and warmed (every worker has run the world once) before the clock starts: worker start-up
-is not timed, as the plugin keeps one pool per session. "wall time" is the original run plus the engine's
+is not timed here. "wall time" is the original run plus the engine's
 reduction (its 5 failure-rate runs of the minimal world included), as in earlier versions of this table; the
 speed-up is computed on it. "with artifacts" adds what the driver does after the engine (summary, the
 minimal world's run for the pictures, the pictures).
+
+`--pytest N` adds the plugin's whole path, end to end: `pytest examples/test_paper_scenarios.py::
+test_husky_crosses_the_ditch --ddenv-reduce --ddenv-workers W` in a fresh process, N times per worker count
+(the whole command's wall time: pytest start-up, the failing test, probe workers that are pytest sessions
+collecting the test, confirmation, reduction, artifacts and pictures; and the engine's own time from
+summary.json).
 """
 
 from __future__ import annotations
 
 import argparse
 import concurrent.futures
+import json
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -140,6 +148,41 @@ def overhead(runs: int) -> tuple[float, float, float]:
     return statistics.median(direct) * 1e3, statistics.median(through) * 1e3, transport * 1e3
 
 
+DITCH_TEST = "examples/test_paper_scenarios.py::test_husky_crosses_the_ditch"
+
+
+def through_pytest(workers: int) -> tuple[float, float, int, tuple[str, ...]]:
+    """(whole command s, the engine's reduction s, probes, minimal world) of the ditch example under pytest."""
+    with tempfile.TemporaryDirectory() as folder:
+        started = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "pytest", DITCH_TEST, "--ddenv-reduce", "--ddenv-workers", str(workers),
+                        "-q", "-p", "no:cacheprovider", "--ddenv-artifacts", folder], cwd=ROOT, capture_output=True,
+                       check=False)
+        seconds = time.perf_counter() - started
+        (summary_file,) = Path(folder).glob("*/summary.json")
+        summary = json.loads(summary_file.read_text())
+    return seconds, float(summary["wall_time"]), int(summary["probes"]), tuple(summary["minimal_models"])
+
+
+def pytest_table(workers_list: list[int], repeat: int) -> None:
+    print(f"\nThe plugin end to end: `pytest {DITCH_TEST} --ddenv-reduce --ddenv-workers W`, median of {repeat}\n")
+    print("| workers | whole command (s) | speed-up | reduction in the engine (s) | speed-up | probes | minimal world |")
+    print("|---:|---:|---:|---:|---:|---:|---|")
+    rows: dict[int, list[tuple[float, float, int, tuple[str, ...]]]] = {w: [] for w in workers_list}
+    for index in range(repeat):
+        for workers in workers_list if index % 2 == 0 else list(reversed(workers_list)):
+            rows[workers].append(through_pytest(workers))
+    base_total = statistics.median(r[0] for r in rows[workers_list[0]])
+    base_engine = statistics.median(r[1] for r in rows[workers_list[0]])
+    for workers in workers_list:
+        total = statistics.median(r[0] for r in rows[workers])
+        engine = statistics.median(r[1] for r in rows[workers])
+        probes = sorted({r[2] for r in rows[workers]})
+        minimal = {r[3] for r in rows[workers]}
+        print(f"| {workers} | {total:.1f} | {base_total / total:.2f}x | {engine:.1f} | {base_engine / engine:.2f}x | "
+              f"{'-'.join(map(str, probes))} | {' / '.join(', '.join(m) for m in minimal)} |")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--world", default=str(ROOT / "worlds" / "ditch.yaml"))
@@ -148,6 +191,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--overhead-runs", type=int, default=100)
     parser.add_argument("--no-yard", action="store_true", help="skip the synthetic 40-object yard")
     parser.add_argument("--repeat", type=int, default=3, help="reductions per worker count (median reported)")
+    parser.add_argument("--pytest", type=int, default=0, metavar="N",
+                        help="also time the plugin end to end, N pytest runs per worker count")
     args = parser.parse_args(argv)
     cases = [(World.load(args.world), PREDICATES, "stuck(window=5.0, min_progress=0.2)")]
     if not args.no_yard:
@@ -216,6 +261,8 @@ def main(argv: list[str] | None = None) -> int:
           "transport only (ms) |")
     print("|---:|---:|---:|---:|")
     print(f"| {direct:.2f} | {through:.2f} | {through - direct:+.2f} | {transport:.2f} |")
+    if args.pytest:
+        pytest_table(args.workers, args.pytest)
     return 0 if same else 1
 
 
