@@ -66,3 +66,43 @@ def test_missing_world_is_a_clear_error(pytester: pytest.Pytester) -> None:
     result = pytester.runpytest_subprocess()
     result.assert_outcomes(errors=1)
     result.stdout.fnmatch_lines(["*robot_world needs a world: @pytest.mark.ddenv(world=*"])
+
+
+@pytest.mark.parametrize(
+    ("marker", "message"),
+    [
+        ("robot_failure.with_args(Pressed)", "*Pressed is a class; pass an instance, e.g. Pressed(...)*"),
+        ("robot_failure(3)", "*robot_failure(3, ...)*3 is not a failure predicate: expected a registered name*"),
+        ("robot_failure(Pressed(), window=2)", "*parameters window are only for a predicate given by name*"),
+    ],
+)
+def test_a_marker_that_holds_no_predicate_is_a_usage_error(wall_project: pytest.Pytester, marker: str,
+                                                          message: str) -> None:
+    wall_project.makepyfile(test_scenario=(
+        "import pytest\n"
+        "class Pressed:\n"
+        "    name = 'pressed'\n"
+        "    def reset(self): pass\n"
+        "    def check(self, state): return None\n"
+        f"@pytest.mark.ddenv(world='wall.yaml')\n@pytest.mark.{marker}\n"
+        "def test_robot(robot_world):\n"
+        "    robot_world.run()\n"
+    ))
+    result = wall_project.runpytest_subprocess()
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["ERROR: test_scenario.py::test_robot: " + message])
+
+
+def test_a_plain_function_predicate_is_given_with_with_args(wall_project: pytest.Pytester) -> None:
+    wall_project.makepyfile(test_scenario=(
+        "import pytest\n"
+        "def pressed(state):\n"
+        "    return bool(state.chassis_contacts)\n"
+        "@pytest.mark.ddenv(world='wall.yaml')\n"
+        "@pytest.mark.robot_failure.with_args(pressed)\n"
+        "def test_robot(robot_world):\n"
+        "    robot_world.run()\n"
+    ))
+    result = wall_project.runpytest_subprocess()
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*RobotFailure: The 'pressed' predicate fired*touching wall*"])
