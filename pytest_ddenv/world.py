@@ -21,8 +21,8 @@ from pytest_ddenv import geometry
 from pytest_ddenv.errors import WorldError
 from pytest_ddenv.geometry import FloatArray
 
-ShapeKind = Literal["box", "cylinder", "sphere", "mesh"]
-SHAPE_KINDS: tuple[ShapeKind, ...] = ("box", "cylinder", "sphere", "mesh")
+ShapeKind = Literal["box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap"]
+SHAPE_KINDS: tuple[ShapeKind, ...] = ("box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap")
 TagValue = str | int | float | bool
 
 
@@ -63,7 +63,12 @@ class Shape:
     """One collision shape of a model, placed at `pose` in the model's frame.
 
     box: `size` (x, y, z full lengths). cylinder: `radius` and `length` (axis along local z).
-    sphere: `radius`. mesh: `mesh` (a file path, absolute or relative to the world file) and `scale`.
+    sphere: `radius`. capsule: `radius` and `length` (of the cylinder between the two half-spheres, axis along
+    local z, as in SDF). mesh: `mesh` (a file path, absolute or relative to the world file) and `scale`.
+    polyline: `points` (the outline in the local xy plane, closed implicitly) extruded along z from 0 to
+    `height`, as Gazebo extrudes an SDF `<polyline>`. heightmap: `mesh` (a grayscale image, absolute or
+    relative to the world file; black = 0, white = the full height) stretched over `size` (x, y extent and the
+    z range), centred on the shape's pose in x and y, from z = 0 up.
     """
 
     kind: ShapeKind
@@ -73,6 +78,8 @@ class Shape:
     mesh: str | None = None
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     pose: Pose = Pose()
+    points: tuple[tuple[float, float], ...] | None = None
+    height: float | None = None
 
 
 @dataclass(frozen=True)
@@ -184,6 +191,8 @@ class World:
     ground: Ground | None = Ground()
     name: str = ""
     source: str | None = field(default=None, compare=False)
+    notes: tuple[str, ...] = field(default=(), compare=False)
+    """What the world file holds that is not simulated, and why (joints, plugins, lights, dropped models)."""
 
     def __post_init__(self) -> None:
         seen: set[str] = set()
@@ -199,24 +208,28 @@ class World:
 
     # -- files ---------------------------------------------------------------------------------------
     @classmethod
-    def load(cls, path: str | os.PathLike[str], *, model_paths: Sequence[str | os.PathLike[str]] = ()) -> World:
+    def load(cls, path: str | os.PathLike[str], *, model_paths: Sequence[str | os.PathLike[str]] = (),
+             skip_unsupported: bool = False) -> World:
         """Read a world file: YAML (`.yaml`, `.yml`) or Gazebo SDF (`.world`, `.sdf`) by extension.
 
-        `model_paths` are extra folders searched for SDF `<include>`s of `model://NAME`.
+        `model_paths` are extra folders searched for SDF `<include>`s of `model://NAME`; `skip_unsupported`
+        drops SDF models that cannot be simulated (each named in `World.notes`) instead of refusing the file.
         """
         from pytest_ddenv import world_yaml
 
         path = Path(path)
         if path.suffix.lower() in (".world", ".sdf"):
-            return cls.from_sdf(path, model_paths=model_paths)
+            return cls.from_sdf(path, model_paths=model_paths, skip_unsupported=skip_unsupported)
         return world_yaml.load_yaml(path)
 
     @classmethod
-    def from_sdf(cls, path: str | os.PathLike[str], *, model_paths: Sequence[str | os.PathLike[str]] = ()) -> World:
+    def from_sdf(cls, path: str | os.PathLike[str], *, model_paths: Sequence[str | os.PathLike[str]] = (),
+                 skip_unsupported: bool = False) -> World:
         """Import a Gazebo SDF world or model file as Gazebo simulates it (see docs/sdf.md)."""
         from pytest_ddenv import sdf
 
-        return sdf.load_sdf(Path(path), model_paths=[Path(folder) for folder in model_paths])
+        return sdf.load_sdf(Path(path), model_paths=[Path(folder) for folder in model_paths],
+                            skip_unsupported=skip_unsupported)
 
     def to_sdf(self) -> str:
         """An SDF 1.6 world that Gazebo loads (see docs/sdf.md)."""

@@ -800,11 +800,12 @@ def parse_sdf(
     return loader.load_world(root, base_dir)
 
 
-def load_sdf(path: str | Path, *, model_paths: Iterable[str | Path] = ()) -> World:
+def load_sdf(path: str | Path, *, model_paths: Iterable[str | Path] = (), skip_unsupported: bool = False) -> World:
     """Read a Gazebo `.world` or `.sdf` file (SDF 1.4-1.7), applying its first `<state>` block.
 
     `model_paths` are searched for `model://` URIs before GAZEBO_MODEL_PATH, GZ_SIM_RESOURCE_PATH,
     IGN_GAZEBO_RESOURCE_PATH and SDF_PATH.
     """
     path = Path(path)
+    del skip_unsupported  # not implemented yet (issue 15)
     return parse_sdf(read_limited(path), source=path, model_paths=model_paths)
