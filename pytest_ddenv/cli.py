@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 from pytest_ddenv import __version__
+from pytest_ddenv.cli_world import add_scenario_options, add_world_options, load_world, with_scenario
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.oracle import PredicateSpec
 
@@ -169,6 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_check(commands: Any, common: argparse.ArgumentParser) -> None:
     check = commands.add_parser("check", parents=[common], help="load a world file and report its models, or the first error")
     check.add_argument("world", help="world file (.yaml, .sdf)")
+    add_world_options(check)
 
 
 def _add_predicate_option(parser: argparse.ArgumentParser, *, required: bool) -> None:
@@ -197,6 +199,8 @@ def _add_run(commands: Any, common: argparse.ArgumentParser) -> None:
     _add_predicate_option(run, required=False)
     _add_user_code_options(run)
     run.add_argument("--timeout", type=_positive_float, help="simulated seconds (default: the world's scenario)")
+    add_scenario_options(run)
+    add_world_options(run)
     run.add_argument("-o", "--output", help="picture to write (default: WORLD-run.png in the current folder)")
     run.add_argument("--no-picture", action="store_true", help="do not write a picture")
     run.add_argument("--record", metavar="RUNS.jsonl", help="append the run (trajectory included) to this file")
@@ -208,6 +212,7 @@ def _add_show(commands: Any, common: argparse.ArgumentParser) -> None:
     show.add_argument("--runs", metavar="FILE", help="runs to draw: a `ddenv run --record` file, or a "
                                                       "reduction's runs.jsonl (failure poses)")
     show.add_argument("-o", "--output", help="picture to write (default: WORLD.png in the current folder)")
+    add_world_options(show)
 
 
 def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
@@ -237,6 +242,8 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     reduce.add_argument("--keep", action="append", default=[], metavar="MODEL", help="never remove this model")
     reduce.add_argument("--seed", type=_non_negative_int, default=0, help="seed of the runs and the schemas")
     reduce.add_argument("--timeout", type=_positive_float, help="simulated seconds per run (default: the world's)")
+    add_scenario_options(reduce)
+    add_world_options(reduce)
     reduce.add_argument("--max-probes", type=_positive_int, metavar="N", help="stop after N simulations")
     reduce.add_argument("--max-time", type=_positive_float, metavar="S", help="stop after S wall seconds")
     reduce.add_argument("--workers", type=_workers, default="auto", metavar="N",
@@ -264,6 +271,7 @@ def _add_convert(commands: Any, common: argparse.ArgumentParser) -> None:
     convert = commands.add_parser("convert", parents=[common], help="convert a world between YAML and SDF")
     convert.add_argument("input", help="world file to read (.yaml, .yml, .sdf, .world)")
     convert.add_argument("output", help="world file to write; the format follows the extension")
+    add_world_options(convert)
 
 
 # -- main -----------------------------------------------------------------------------------------------
@@ -323,22 +331,13 @@ def _emit(arguments: argparse.Namespace, text: str, data: dict[str, Any]) -> Non
 
 
 # -- check, convert ---------------------------------------------------------------------------------------
-def _load_world(path: str) -> World:
-    from pytest_ddenv.world import World
-
-    file = Path(path)
-    if not file.exists():
-        raise UsageError(f"{path}: no such world file")
-    if file.is_dir():
-        raise UsageError(f"{path}: is a folder, not a world file")
-    return World.load(file)
-
-
 def _cmd_check(arguments: argparse.Namespace) -> int:
-    world = _load_world(arguments.world)
+    world = load_world(arguments, arguments.world)
     text = f"{arguments.world}: {len(world)} models ({len(world.reducible_names)} reducible)"
+    text += "".join(f"\nnot simulated: {note}" for note in world.notes)
     _emit(arguments, text, {"ok": True, "world": arguments.world, "models": len(world),
-                            "reducible": len(world.reducible_names), "names": list(world.names)})
+                            "reducible": len(world.reducible_names), "names": list(world.names),
+                            "notes": list(world.notes)})
     return EXIT_OK
 
 
@@ -350,7 +349,7 @@ def _cmd_convert(arguments: argparse.Namespace) -> int:
                              "use .yaml/.yml (ddenv YAML) or .sdf/.world (Gazebo SDF)")
     if source.resolve() == target.resolve():
         raise UsageError(f"{target}: the output would overwrite the input")
-    world = _load_world(arguments.input)
+    world = load_world(arguments, arguments.input)
     try:
         world.save(target)
     except ImportError:
@@ -363,11 +362,6 @@ def _cmd_convert(arguments: argparse.Namespace) -> int:
 # -- run, show --------------------------------------------------------------------------------------------
 def _predicates(texts: Sequence[str]) -> tuple[PredicateSpec, ...]:
     return tuple(parse_predicate(text) for text in texts)
-
-
-def _require_scenario(world: World, path: str) -> None:
-    if world.scenario is None:
-        raise UsageError(f"{path}: the world has no 'scenario' (robot, start, goal, timeout) to simulate")
 
 
 def _world_stem(path: str) -> str:
@@ -389,8 +383,7 @@ def _cmd_run(arguments: argparse.Namespace) -> int:
     from pytest_ddenv.scenario_job import run_scenario
 
     controller = _user_code(arguments)
-    world = _load_world(arguments.world)
-    _require_scenario(world, arguments.world)
+    world = with_scenario(arguments, load_world(arguments, arguments.world), arguments.world)
     predicates = _predicates(arguments.predicates)
     try:
         run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout, controller=controller)
@@ -463,7 +456,7 @@ def _run_text(path: str, world: World, run: Run, picture: Path | None) -> str:
 def _cmd_show(arguments: argparse.Namespace) -> int:
     from pytest_ddenv import render
 
-    world = _load_world(arguments.world)
+    world = load_world(arguments, arguments.world)
     runs, poses = _read_runs(Path(arguments.runs)) if arguments.runs else ([], [])
     target = arguments.output or f"{_world_stem(arguments.world)}.png"
     picture = render.plot_world(world, runs, path=target, failure_poses=poses)
@@ -510,8 +503,7 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     from pytest_ddenv.scenario_job import ScenarioJob
 
     _user_code(arguments)
-    world = _load_world(arguments.world)
-    _require_scenario(world, arguments.world)
+    world = with_scenario(arguments, load_world(arguments, arguments.world), arguments.world)
     predicates = _predicates(arguments.predicates)
     deflake = parse_deflake(arguments.deflake, "--deflake", DEFLAKE_POLICIES)
     keep = _keep(world, arguments.keep)
@@ -624,6 +616,13 @@ def _command_line(arguments: argparse.Namespace) -> list[str]:
         words += ["--import", spec]
     if arguments.controller:
         words += ["--controller", arguments.controller]
+    for option in ("scenario", "robot", "start", "goal", "timeout"):
+        if getattr(arguments, option, None) is not None:  # --start=-4,5: a value may start with a minus
+            words.append(f"--{option}={getattr(arguments, option)}")
+    for folders in arguments.model_paths:
+        words += ["--model-path", folders]
+    if arguments.skip_unsupported:
+        words.append("--skip-unsupported")
     words += ["--partition", arguments.partition, "--priority", arguments.priority, "--deflake", arguments.deflake,
               "--seed", str(arguments.seed)]
     return words
@@ -644,6 +643,7 @@ def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any], no
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
         artifacts.failure_rate_line(reduction),
         *(f"note: {text}" for text in notes),
+        *(f"not simulated: {text}" for text in summary.get("world_notes", [])),
         f"artifacts: {Path(summary['files']['summary']).parent}",
         f"pictures: {', '.join(summary.get('pictures', [])) or '(none)'}",
         f"replay: {summary['replay']}",

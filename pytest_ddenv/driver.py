@@ -125,7 +125,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
         paths, world, reduction, test_id=plan.test_id, replay_command=plan.replay_command,
         problem_fingerprint=problem, reference=plan.reference.to_dict(),
         extra={**plan.summary_extra, "tolerance": spec.tolerance, "workers": pool.stats.to_dict(),
-               "notes": notes},
+               "notes": notes, "world_notes": list(world.notes)},
     )
     outcome = ReductionOutcome("reduced", reduction=reduction, summary=summary, notes=notes,
                                attachments=[paths.minimal_yaml, paths.log, paths.summary], interrupted=interrupted)

@@ -17,6 +17,7 @@ if TYPE_CHECKING:
 
 DDENV_KEYWORDS = (
     "world", "partition", "priority", "n_partitions", "granularity", "deflake", "tolerance", "keep", "seed", "budget",
+    "skip_unsupported",
 )
 
 
@@ -39,6 +40,7 @@ class ReductionSpec:
     seed: int = 0
     max_probes: int | None = None
     max_seconds: float | None = None
+    skip_unsupported: bool = False
 
 
 def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> ReductionSpec:
@@ -87,6 +89,10 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
         updates["seed"] = _integer(values["seed"], "seed", minimum=0)
     if "budget" in values:
         updates.update(_budget(values["budget"]))
+    if "skip_unsupported" in values:
+        if not isinstance(values["skip_unsupported"], bool):
+            raise MarkerError(f"ddenv(skip_unsupported=...): expected True or False, got {values['skip_unsupported']!r}")
+        updates["skip_unsupported"] = values["skip_unsupported"]
     return ReductionSpec(**{**spec.__dict__, **updates})
 
 

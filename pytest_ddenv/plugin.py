@@ -98,9 +98,9 @@ def _int_setting(config: pytest.Config, name: str, minimum: int) -> int | None:
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers",
-        "ddenv(world=PATH, partition=..., priority=..., n_partitions=2, granularity='ddmin', deflake=3, "
-        "tolerance=0.5, keep=(...), seed=0, budget=N): the world of a robot scenario test and how to reduce it "
-        "when the test fails under --ddenv-reduce.",
+        "ddenv(world=PATH, partition=..., priority=..., n_partitions=2, granularity='ddmin', deflake='auto', "
+        "tolerance=0.5, keep=(...), seed=0, budget=N, skip_unsupported=False): the world of a robot scenario test "
+        "and how to reduce it when the test fails under --ddenv-reduce.",
     )
     config.addinivalue_line(
         "markers",
@@ -202,16 +202,17 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
                                          attempt=binding.attempt, max_wall_time=timeout)
         return binding.robot_world
     model_paths = [p for p in str(_setting(request.config, "ddenv_model_path") or "").split(os.pathsep) if p]
+    options = {"model_paths": model_paths, "skip_unsupported": spec.skip_unsupported}
     override = _setting(request.config, "ddenv_world")
     param = getattr(request, "param", None)
     if override:
-        world = World.load(override, model_paths=model_paths)
+        world = World.load(override, **options)
     elif isinstance(param, World):
         world = param
     elif param is not None:
-        world = World.load(_world_path(item, param), model_paths=model_paths)
+        world = World.load(_world_path(item, param), **options)
     elif spec.world is not None:
-        world = World.load(_world_path(item, spec.world), model_paths=model_paths)
+        world = World.load(_world_path(item, spec.world), **options)
     else:
         raise DdenvError(
             f"{item.nodeid}: robot_world needs a world: @pytest.mark.ddenv(world='worlds/x.yaml'), "

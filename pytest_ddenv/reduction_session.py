@@ -101,6 +101,7 @@ def describe_reduction(test_id: str, reduction: Reduction, summary: dict[str, An
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
         artifacts.failure_rate_line(reduction),
         *(f"note: {text}" for text in outcome.notes),
+        *(f"not simulated: {text}" for text in summary.get("world_notes", [])),
         f"artifacts: {folder}",
         f"replay: {summary['replay']}",
     ]

@@ -1,0 +1,112 @@
+"""The `ddenv` options that say how to read a world: where `model://` includes are found (`--model-path`),
+what to do with models that cannot be simulated (`--skip-unsupported`), and a scenario given on the command
+line (`--robot`, `--start`, `--goal`, `--timeout`, `--scenario FILE.yaml`) for worlds without one, such as
+Gazebo worlds."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import os
+from pathlib import Path
+
+from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.world import Pose, RobotDescription, Scenario, World, resolve_relative
+
+NO_SCENARIO_HELP = (
+    "give one with --start X,Y[,YAW] --goal X,Y [--robot NAME] [--timeout S], or --scenario FILE.yaml (a "
+    "'scenario:' block as in a world file), or add it to the world file (a <ddenv:scenario> element in SDF: "
+    "see docs/sdf.md)"
+)
+
+
+class WorldOptionError(DdenvError):
+    """A world or scenario option of the command line is wrong; the message names the option."""
+
+
+def add_world_options(parser: argparse.ArgumentParser) -> None:
+    """--model-path and --skip-unsupported (every command that reads a world)."""
+    parser.add_argument("--model-path", dest="model_paths", action="append", default=[], metavar="DIRS",
+                        help=f"folders searched for SDF <include>s of model://NAME, separated by '{os.pathsep}' "
+                             "(repeatable; before GAZEBO_MODEL_PATH and the other environment variables)")
+    parser.add_argument("--skip-unsupported", action="store_true",
+                        help="drop the SDF models that cannot be simulated (actors, ...) with a note naming each, "
+                             "instead of refusing the world")
+
+
+def add_scenario_options(parser: argparse.ArgumentParser) -> None:
+    """--robot, --start, --goal, --scenario (commands that simulate; --timeout is theirs already)."""
+    parser.add_argument("--scenario", metavar="FILE.yaml",
+                        help="take the scenario from this YAML file's 'scenario:' block (overrides the world's)")
+    parser.add_argument("--robot", metavar="NAME", help="the scenario's robot (a registered name, default husky)")
+    parser.add_argument("--start", metavar="X,Y[,YAW]", help="the robot's start (m, m, rad)")
+    parser.add_argument("--goal", metavar="X,Y[,Z]", help="the goal (m)")
+
+
+def load_world(arguments: argparse.Namespace, path: str) -> World:
+    """The world file at `path`, read with the command's --model-path and --skip-unsupported."""
+    file = Path(path)
+    if not file.exists():
+        raise WorldOptionError(f"{path}: no such world file")
+    if file.is_dir():
+        raise WorldOptionError(f"{path}: is a folder, not a world file")
+    folders = [folder for value in getattr(arguments, "model_paths", []) for folder in value.split(os.pathsep)
+               if folder]
+    for folder in folders:
+        if not Path(folder).is_dir():
+            raise WorldOptionError(f"--model-path: no such folder: {folder}")
+    return World.load(file, model_paths=folders, skip_unsupported=getattr(arguments, "skip_unsupported", False))
+
+
+def with_scenario(arguments: argparse.Namespace, world: World, path: str) -> World:
+    """`world` with the scenario the command line gives (a --scenario file, then --robot/--start/--goal/
+    --timeout on top); WorldOptionError when it still has none."""
+    scenario = world.scenario
+    if getattr(arguments, "scenario", None):
+        scenario = _scenario_file(arguments.scenario)
+    overrides = {name: getattr(arguments, name, None) for name in ("robot", "start", "goal")}
+    if scenario is None:
+        if overrides["start"] is None or overrides["goal"] is None:
+            given = [f"--{name}" for name, value in overrides.items() if value is not None]
+            missing = "" if not given else f" ({' and '.join(given)} alone is not enough: give --start and --goal)"
+            raise WorldOptionError(f"{path}: the world has no scenario (robot, start, goal, timeout){missing}; "
+                                   f"{NO_SCENARIO_HELP}")
+        scenario = Scenario(timeout=getattr(arguments, "timeout", None) or Scenario().timeout)
+    if overrides["robot"] is not None:
+        scenario = dataclasses.replace(scenario, robot=overrides["robot"])
+    if overrides["start"] is not None:
+        x, y, *yaw = _numbers(overrides["start"], "--start", (2, 3))
+        scenario = dataclasses.replace(scenario, start=Pose(x=x, y=y, yaw=yaw[0] if yaw else 0.0), start_z_given=False)
+    if overrides["goal"] is not None:
+        x, y, *z = _numbers(overrides["goal"], "--goal", (2, 3))
+        scenario = dataclasses.replace(scenario, goal=(x, y, z[0] if z else None))
+    if getattr(arguments, "timeout", None) is not None:
+        scenario = dataclasses.replace(scenario, timeout=arguments.timeout)
+    return world if scenario is world.scenario else dataclasses.replace(world, scenario=scenario)
+
+
+def _scenario_file(path: str) -> Scenario:
+    file = Path(path)
+    if not file.is_file():
+        raise WorldOptionError(f"--scenario {path}: no such file")
+    holder = World.load(file)
+    if holder.scenario is None:
+        raise WorldOptionError(f"--scenario {path}: the file has no 'scenario:' block")
+    if len(holder):
+        raise WorldOptionError(f"--scenario {path}: the file has models; give only a 'scenario:' block")
+    robot = holder.scenario.robot
+    if isinstance(robot, RobotDescription):  # its URDF is relative to the scenario file, not to the world
+        robot = dataclasses.replace(robot, urdf=str(resolve_relative(robot.urdf, str(file)).resolve()))
+    return dataclasses.replace(holder.scenario, robot=robot)
+
+
+def _numbers(text: str, option: str, counts: tuple[int, ...]) -> list[float]:
+    try:
+        values = [float(part) for part in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in counts or not all(math.isfinite(v) for v in values):
+        form = "X,Y[,YAW]" if option == "--start" else "X,Y[,Z]"
+        raise WorldOptionError(f"{option}: expected {form} (numbers separated by commas), got {text!r}")
+    return values
