@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 from pytest_ddenv import __version__
-from pytest_ddenv.cli_world import add_scenario_options, add_world_options, load_world, with_scenario
+from pytest_ddenv.cli_world import UsageError, add_scenario_options, add_world_options, load_world, with_scenario
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.oracle import PredicateSpec
 
@@ -37,10 +37,6 @@ EXIT_INTERRUPTED = 130
 
 YAML_SUFFIXES = (".yaml", ".yml")
 SDF_SUFFIXES = (".sdf", ".world")
-
-
-class UsageError(DdenvError):
-    """The command line is wrong: a bad option value, an unknown model, a missing file."""
 
 
 class _ArgumentError(Exception):

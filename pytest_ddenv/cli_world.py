@@ -21,8 +21,8 @@ NO_SCENARIO_HELP = (
 )
 
 
-class WorldOptionError(DdenvError):
-    """A world or scenario option of the command line is wrong; the message names the option."""
+class UsageError(DdenvError):
+    """The command line is wrong: a bad option value, an unknown model, a missing file."""
 
 
 def add_world_options(parser: argparse.ArgumentParser) -> None:
@@ -48,20 +48,20 @@ def load_world(arguments: argparse.Namespace, path: str) -> World:
     """The world file at `path`, read with the command's --model-path and --skip-unsupported."""
     file = Path(path)
     if not file.exists():
-        raise WorldOptionError(f"{path}: no such world file")
+        raise UsageError(f"{path}: no such world file")
     if file.is_dir():
-        raise WorldOptionError(f"{path}: is a folder, not a world file")
+        raise UsageError(f"{path}: is a folder, not a world file")
     folders = [folder for value in getattr(arguments, "model_paths", []) for folder in value.split(os.pathsep)
                if folder]
     for folder in folders:
         if not Path(folder).is_dir():
-            raise WorldOptionError(f"--model-path: no such folder: {folder}")
+            raise UsageError(f"--model-path: no such folder: {folder}")
     return World.load(file, model_paths=folders, skip_unsupported=getattr(arguments, "skip_unsupported", False))
 
 
 def with_scenario(arguments: argparse.Namespace, world: World, path: str) -> World:
     """`world` with the scenario the command line gives (a --scenario file, then --robot/--start/--goal/
-    --timeout on top); WorldOptionError when it still has none."""
+    --timeout on top); UsageError when it still has none."""
     scenario = world.scenario
     if getattr(arguments, "scenario", None):
         scenario = _scenario_file(arguments.scenario)
@@ -70,7 +70,7 @@ def with_scenario(arguments: argparse.Namespace, world: World, path: str) -> Wor
         if overrides["start"] is None or overrides["goal"] is None:
             given = [f"--{name}" for name, value in overrides.items() if value is not None]
             missing = "" if not given else f" ({' and '.join(given)} alone is not enough: give --start and --goal)"
-            raise WorldOptionError(f"{path}: the world has no scenario (robot, start, goal, timeout){missing}; "
+            raise UsageError(f"{path}: the world has no scenario (robot, start, goal, timeout){missing}; "
                                    f"{NO_SCENARIO_HELP}")
         scenario = Scenario(timeout=getattr(arguments, "timeout", None) or Scenario().timeout)
     if overrides["robot"] is not None:
@@ -89,12 +89,12 @@ def with_scenario(arguments: argparse.Namespace, world: World, path: str) -> Wor
 def _scenario_file(path: str) -> Scenario:
     file = Path(path)
     if not file.is_file():
-        raise WorldOptionError(f"--scenario {path}: no such file")
+        raise UsageError(f"--scenario {path}: no such file")
     holder = World.load(file)
     if holder.scenario is None:
-        raise WorldOptionError(f"--scenario {path}: the file has no 'scenario:' block")
+        raise UsageError(f"--scenario {path}: the file has no 'scenario:' block")
     if len(holder):
-        raise WorldOptionError(f"--scenario {path}: the file has models; give only a 'scenario:' block")
+        raise UsageError(f"--scenario {path}: the file has models; give only a 'scenario:' block")
     robot = holder.scenario.robot
     if isinstance(robot, RobotDescription):  # its URDF is relative to the scenario file, not to the world
         robot = dataclasses.replace(robot, urdf=str(resolve_relative(robot.urdf, str(file)).resolve()))
@@ -108,5 +108,5 @@ def _numbers(text: str, option: str, counts: tuple[int, ...]) -> list[float]:
         values = []
     if len(values) not in counts or not all(math.isfinite(v) for v in values):
         form = "X,Y[,YAW]" if option == "--start" else "X,Y[,Z]"
-        raise WorldOptionError(f"{option}: expected {form} (numbers separated by commas), got {text!r}")
+        raise UsageError(f"{option}: expected {form} (numbers separated by commas), got {text!r}")
     return values

@@ -199,7 +199,7 @@ def test_run_json_and_a_passing_scenario(capsys: pytest.CaptureFixture[str], wor
 def test_run_needs_a_scenario(capsys: pytest.CaptureFixture[str], worlds: dict[str, Path]) -> None:
     code, _, err = run(capsys, "run", str(worlds["no_scenario"]))
     assert code == 2
-    assert_one_line_error(err, "no 'scenario'")
+    assert_one_line_error(err, "the world has no scenario", "--start X,Y[,YAW] --goal X,Y")
 
 
 def test_show_default_picture_and_bad_runs_files(capsys: pytest.CaptureFixture[str], worlds: dict[str, Path],
