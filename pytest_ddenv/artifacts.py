@@ -10,6 +10,7 @@ import hashlib
 import json
 import os
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -104,22 +105,69 @@ def write_reduction(
     problem_fingerprint: str,
     reference: dict[str, Any],
     extra: dict[str, Any] | None = None,
+    model_paths: Sequence[str | os.PathLike[str]] = (),
 ) -> dict[str, Any]:
-    """Write the minimal world and the summary; returns the summary (plain JSON-able dict)."""
+    """Write the minimal world and the summary; returns the summary (plain JSON-able dict).
+
+    `minimal.sdf` of a world read from an SDF file is that file with the removed models cut out (see
+    `write_minimal_sdf`); `model_paths` are those the world was read with (to name its includes again).
+    """
     minimal = world.select(reduction.minimal)
     write_text_atomic(paths.minimal_yaml, minimal.to_yaml(relative_to=paths.directory))
     files = {"minimal_yaml": str(paths.minimal_yaml), "log": str(paths.log), "summary": str(paths.summary)}
-    try:
-        minimal.save(paths.minimal_sdf)
+    how = write_minimal_sdf(paths.minimal_sdf, world, minimal, reduction.removed, model_paths)
+    if how is not None:
         files["minimal_sdf"] = str(paths.minimal_sdf)
-    except Exception:  # noqa: BLE001 - SDF export is optional; the YAML is the reference artifact
-        pass
     summary = summary_of(world, reduction, test_id=test_id, replay_command=replay_command, reference=reference)
     summary["fingerprint"] = problem_fingerprint
     summary["files"] = files
+    summary["minimal_sdf"] = how
     summary.update(extra or {})
     write_text_atomic(paths.summary, json.dumps(summary, indent=2) + "\n")
     return summary
+
+
+def write_minimal_sdf(target: Path, world: World, minimal: World, removed: Sequence[str],
+                      model_paths: Sequence[str | os.PathLike[str]]) -> str | None:
+    """Write `minimal.sdf` and say how: "cut from <file>" (the original SDF file with the removed models and
+    their `<state>` entries deleted, nothing else changed: its relative paths are the original file's), or
+    "regenerated[: why not cut]" (from the world model), or None when no SDF could be written."""
+    from pytest_ddenv.sdf import SurgeryError, cut_models
+
+    source = Path(world.source) if world.source else None
+    reason = ""
+    if source is not None and source.suffix.lower() in (".sdf", ".world") and source.is_file():
+        try:
+            text = cut_models(source, set(removed), model_paths=model_paths)
+            _check_cut(text, source, minimal, model_paths)
+        except SurgeryError as error:
+            reason = f": {error.reason}"
+        else:
+            write_text_atomic(target, text)
+            return f"cut from {source}"
+    try:
+        minimal.save(target)
+    except Exception:  # noqa: BLE001 - SDF export is optional; the YAML is the reference artifact
+        return None
+    return "regenerated" + reason
+
+
+def _check_cut(text: str, source: Path, minimal: World, model_paths: Sequence[str | os.PathLike[str]]) -> None:
+    """SurgeryError unless `text`, read as if it were `source`, gives exactly the minimal world's models (a kept
+    model may be placed relative to a removed one, for instance)."""
+    from pytest_ddenv.errors import WorldError
+    from pytest_ddenv.sdf import SurgeryError, parse_sdf
+
+    dropped = any(note.startswith("dropped ") for note in minimal.notes)
+    try:
+        reread = parse_sdf(text, source=source, model_paths=model_paths, skip_unsupported=dropped)
+    except WorldError as error:
+        raise SurgeryError(f"the cut file does not load: {error}", source=source) from None
+    if reread.models != minimal.models:
+        changed = sorted({m.name for m in reread.models} ^ {m.name for m in minimal.models}) or sorted(
+            m.name for m, n in zip(reread.models, minimal.models, strict=False) if m != n)
+        raise SurgeryError(f"the cut file does not give the minimal world ({', '.join(changed[:5])} differ)",
+                           source=source)
 
 
 def failure_rate_line(reduction: Reduction) -> str:

@@ -591,6 +591,7 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
         fingerprint={**settings, "predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
                      "controller": arguments.controller, "imports": list(arguments.imports)},
         confirmed=True,
+        model_paths=tuple(folder for value in arguments.model_paths for folder in value.split(os.pathsep) if folder),
         summary_extra={"predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
                        "scenario_seed": arguments.seed, "command": command, "controller": arguments.controller,
                        "imports": list(arguments.imports)},

@@ -60,6 +60,8 @@ class ReductionPlan:
     test_source: str = ""
     confirmed: bool = False
     summary_extra: Mapping[str, Any] = field(default_factory=dict)
+    model_paths: tuple[str, ...] = ()
+    """The folders the world's SDF `model://` includes were found in (to cut `minimal.sdf` from the file)."""
 
 
 @dataclass
@@ -123,7 +125,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
             threads.shutdown(wait=interrupted is None, cancel_futures=True)
     summary = artifacts.write_reduction(
         paths, world, reduction, test_id=plan.test_id, replay_command=plan.replay_command,
-        problem_fingerprint=problem, reference=plan.reference.to_dict(),
+        problem_fingerprint=problem, reference=plan.reference.to_dict(), model_paths=plan.model_paths,
         extra={**plan.summary_extra, "tolerance": spec.tolerance, "workers": pool.stats.to_dict(),
                "notes": notes, "world_notes": list(world.notes)},
     )

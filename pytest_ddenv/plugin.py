@@ -319,6 +319,7 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
         artifacts_root=Path(str(item.config.rootpath)) / str(_setting(item.config, "ddenv_artifacts")),
         progress=_ProgressLine(item.config),
         replay=replay_command,
+        model_paths=tuple(p for p in str(_setting(item.config, "ddenv_model_path") or "").split(os.pathsep) if p),
     )
     try:
         with _probe_pool(item) as pool:

@@ -37,6 +37,7 @@ class ReductionSession:
     artifacts_root: Path
     progress: Progress
     replay: Callable[[pytest.Item, Path], str]
+    model_paths: tuple[str, ...] = ()
 
     def run(self, pool: Pool) -> dict[str, Any]:
         robot_world: RobotWorld = self.item.funcargs[FIXTURE]  # type: ignore[assignment]
@@ -56,6 +57,7 @@ class ReductionSession:
                 "predicates": [spec.to_json() for spec in robot_world.predicates],
                 "scenario_seed": robot_world.seed,
             },
+            model_paths=self.model_paths,
         )
         try:
             outcome = run_reduction(plan, pool, note=self.progress, on_progress=self._on_progress)

@@ -1,13 +1,19 @@
 """Gazebo SDF interoperability: import SDF 1.4-1.7 worlds and models as Gazebo simulates them, export SDF 1.6.
 
-`load_sdf(path, model_paths=...)` / `parse_sdf(text)` read a world (applying its first `<state>` block) or a
-single-model file; `dump_sdf(world)` writes a world Gazebo loads. See docs/sdf.md for what is supported.
+`load_sdf(path, model_paths=..., skip_unsupported=...)` / `parse_sdf(text)` read a world (applying its first
+`<state>` block) or a single-model file; `World.notes` says what is not simulated. `dump_sdf(world)` writes a
+world Gazebo loads; `cut_models(path, removed)` is an SDF file with some of its models cut out, nothing else
+changed (the surgical export of a reduction). `collada_geometry(path)` is a Collada file without its materials, for trimesh. See
+docs/sdf.md for what is supported.
 """
 
 from __future__ import annotations
 
+from pytest_ddenv.sdf._collada import collada_geometry
 from pytest_ddenv.sdf._paths import MODEL_PATH_VARIABLES, model_search_paths
 from pytest_ddenv.sdf._reader import DDENV_NS, load_sdf, parse_sdf
+from pytest_ddenv.sdf._surgical import SurgeryError, cut_models
+from pytest_ddenv.sdf._values import UnsupportedSdfError
 from pytest_ddenv.sdf._writer import dump_sdf
 from pytest_ddenv.sdf._xml import MAX_FILE_BYTES
 
@@ -15,6 +21,10 @@ __all__ = [
     "DDENV_NS",
     "MAX_FILE_BYTES",
     "MODEL_PATH_VARIABLES",
+    "SurgeryError",
+    "UnsupportedSdfError",
+    "collada_geometry",
+    "cut_models",
     "dump_sdf",
     "load_sdf",
     "model_search_paths",

@@ -36,13 +36,17 @@ class UnresolvedURI(Exception):
         super().__init__(uri)
 
     def describe(self) -> str:
-        if not self.searched:
+        if not self.uri.startswith("model://"):
             return f"{self.uri!r}: {self.reason}"
-        places = ", ".join(str(p) for p in self.searched)
-        return (
-            f"{self.uri!r}: {self.reason}; searched {places}. Add the directory that holds the model to "
-            "GAZEBO_MODEL_PATH (or GZ_SIM_RESOURCE_PATH / SDF_PATH) or pass it with --ddenv-model-path"
-        )
+        places = ", ".join(str(p) for p in self.searched) if self.searched else "(no folders: no model path is set)"
+        return f"{self.uri!r}: {self.reason}; searched, in order: {places}. {MODEL_PATH_HINT}"
+
+
+MODEL_PATH_HINT = (
+    "Add the folder that holds the model to the model path: `ddenv ... --model-path DIRS` or pytest's "
+    f"`--ddenv-model-path DIRS` (folders separated by '{os.pathsep}'), or the environment variable "
+    f"{' / '.join(MODEL_PATH_VARIABLES)}"
+)
 
 
 def is_remote(uri: str) -> bool:
@@ -55,7 +59,8 @@ def resolve_uri(uri: str, base_dir: Path | None, search_paths: Sequence[Path]) -
     uri = uri.strip()
     if is_remote(uri):
         raise UnresolvedURI(uri, (), "remote URIs are not fetched (no network access); download the model and "
-                                     "add its directory with GAZEBO_MODEL_PATH or --ddenv-model-path")
+                                     "add its folder to the model path (--model-path, --ddenv-model-path or "
+                                     "GAZEBO_MODEL_PATH)")
     if uri.startswith("model://"):
         rest = uri[len("model://"):].strip("/")
         if not rest:

@@ -1,7 +1,14 @@
-"""Hostile-input-safe XML reading with line numbers (defusedxml: no DTDs, no entities, no network)."""
+"""Hostile-input-safe XML reading with line numbers (defusedxml: no DTDs, no entities, no network).
+
+The text is read as leniently as libsdformat (tinyxml2) reads it, by the smallest rewrite of the text that
+keeps every line where it was: `--` inside comments, a stray `&`, an XML declaration that is not at the very
+start or names an encoding expat does not know, a byte-order mark, bytes that are not UTF-8, and elements after
+the root element are accepted. DTDs, entity declarations and external references are still refused.
+"""
 
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -69,18 +76,20 @@ def read_limited(path: Path, *, what: str = "world file") -> bytes:
 
 def parse_xml(data: bytes | str, source: str | None, lines: Lines) -> ET.Element:
     """Parse XML text; DTDs, entity declarations and external references are refused (WorldError)."""
-    if isinstance(data, str):
-        data = data.encode("utf-8")
     if len(data) > MAX_FILE_BYTES:
         raise WorldError(f"XML text is larger than the {MAX_FILE_BYTES} byte limit; refusing to parse it", source=source)
+    text = lenient_text(data)
     target = _LineTarget(lines, source)
     parser = DefusedXMLParser(target=target, forbid_dtd=True, forbid_entities=True, forbid_external=True)
     target.parser = parser
     try:
-        parser.feed(data)
+        parser.feed(text)
         root = parser.close()
     except ET.ParseError as error:
         line = error.position[0] if getattr(error, "position", None) else None
+        if getattr(error, "code", None) == _JUNK_AFTER_ROOT and _markup_follows(text, error.position):
+            closed: ET.Element = target.close()  # tinyxml2 reads on; libsdformat uses the first <sdf>
+            return closed
         raise WorldError(f"malformed XML: {error}", source=source, line=line) from None
     except defusedxml.DTDForbidden:
         raise WorldError(
@@ -92,6 +101,74 @@ def parse_xml(data: bytes | str, source: str | None, lines: Lines) -> ET.Element
     except defusedxml.DefusedXmlException as error:
         raise WorldError(f"forbidden XML construct: {error}", source=source, line=_current_line(parser)) from None
     return root
+
+
+_JUNK_AFTER_ROOT = 9  # expat's XML_ERROR_JUNK_AFTER_DOC_ELEMENT
+_DECLARATION = re.compile(r"\A\s*<\?xml\s.*?\?>", re.DOTALL)
+_SPECIAL = re.compile(r"<!--|<!\[CDATA\[|<\?|&")
+_REFERENCE = re.compile(r"&(?:amp|lt|gt|quot|apos|#[0-9]+|#x[0-9a-fA-F]+);")
+
+
+def lenient_text(data: bytes | str) -> str:
+    """`data` as text expat reads the way tinyxml2 reads the bytes, every line kept where it was.
+
+    Bytes are UTF-8 (a byte-order mark is dropped); other bytes are taken one character each, as tinyxml2
+    passes them through. The XML declaration is blanked (the text is already decoded, and tinyxml2 accepts it
+    after whitespace, where expat does not). Inside comments, dashes become spaces (`--` is not allowed in XML
+    comments; tinyxml2 ends a comment at the first `-->` whatever it holds). A `&` that starts no predefined or
+    numeric character reference is escaped, so it stays literal text as in tinyxml2.
+    """
+    if isinstance(data, bytes):
+        try:
+            text = data.decode("utf-8-sig")
+        except UnicodeDecodeError:
+            text = data.decode("latin-1")
+    else:
+        text = data.removeprefix("\ufeff")
+    declaration = _DECLARATION.match(text)
+    if declaration is not None:
+        text = _blank(declaration.group()) + text[declaration.end():]
+    if "<!--" not in text and "&" not in text:
+        return text
+    parts: list[str] = []
+    position = 0
+    for match in _SPECIAL.finditer(text):
+        start = match.start()
+        if start < position:
+            continue  # inside a comment, CDATA section or processing instruction already copied
+        parts.append(text[position:start])
+        token = match.group()
+        if token == "&":
+            parts.append("&" if _REFERENCE.match(text, start) else "&amp;")
+            position = start + 1
+            continue
+        closing = {"<!--": "-->", "<?": "?>"}.get(token, "]]>")
+        end = text.find(closing, start + len(token))
+        if end < 0:
+            parts.append(text[start:])  # unterminated: let expat report it
+            position = len(text)
+            break
+        if token == "<!--":
+            parts.append("<!--" + text[start + 4:end].replace("-", " ") + "-->")
+        else:
+            parts.append(text[start:end + len(closing)])
+        position = end + len(closing)
+    parts.append(text[position:])
+    return "".join(parts)
+
+
+def _blank(text: str) -> str:
+    """`text` with everything but its line breaks replaced by spaces."""
+    return re.sub(r"[^\r\n]", " ", text)
+
+
+def _markup_follows(text: str, position: tuple[int, int] | None) -> bool:
+    """Whether what follows the root element at `position` (line, column) is markup, not text."""
+    if position is None:
+        return False
+    line, column = position
+    rest = "".join(text.splitlines(keepends=True)[line - 1:])[column:].lstrip()
+    return rest.startswith("<")  # markup (tinyxml2 reads even a stray end tag there); text is an error in both
 
 
 def _current_line(parser: DefusedXMLParser) -> int | None:

@@ -1,0 +1,158 @@
+"""The `ddenv:` elements of an SDF world: what SDF has no place for (scenario, PyBullet physics, keep, tags)."""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+
+from pytest_ddenv.errors import ScenarioError, WorldError
+from pytest_ddenv.sdf._values import Values
+from pytest_ddenv.sdf._xml import local_name
+from pytest_ddenv.world import (
+    DRIVE_KINDS,
+    LaserMount,
+    Physics,
+    Pose,
+    RobotDescription,
+    Scenario,
+    TagValue,
+    resolve_relative,
+)
+
+DDENV_NS = "https://github.com/pytest-ddenv/pytest-ddenv/sdf"
+"""Namespace of the `ddenv:` elements that carry what SDF has no place for (scenario, tags, keep)."""
+
+
+class DdenvElements:
+    """Reads the `ddenv:` elements (and the world's gravity) of a world read by `Values`."""
+
+    def __init__(self, values: Values) -> None:
+        self.values = values
+        self.source = values.source
+
+    def error(
+        self, message: str, element: ET.Element | None = None, *, model: str | None = None, field: str | None = None,
+        kind: type[WorldError] = WorldError,
+    ) -> WorldError:
+        return self.values.error(message, element, model=model, field=field, kind=kind)
+
+    def floats(self, element: ET.Element, count: tuple[int, ...], where: str, model: str | None) -> list[float]:
+        return self.values.floats(element, count, where, model)
+
+    def boolean(self, element: ET.Element, where: str, model: str | None) -> bool:
+        return self.values.boolean(element, where, model)
+
+    def tags(self, element: ET.Element, model: str) -> dict[str, TagValue]:
+        tags: dict[str, TagValue] = {}
+        for tag in element.findall(f"{{{DDENV_NS}}}tag"):
+            name = tag.get("name") or ""
+            text = tag.text or ""
+            kind = tag.get("type", "str")
+            try:
+                value: TagValue = {"str": str, "int": int, "float": float}[kind](text) if kind != "bool" else (
+                    text.strip().lower() == "true")
+            except (KeyError, ValueError):
+                raise self.error(f"unreadable tag value {text!r} of type {kind!r}", tag, model=model,
+                                 field=f"ddenv:tag '{name}'") from None
+            tags[name] = value
+        return tags
+
+
+    def physics(self, world: ET.Element) -> Physics:
+        default = Physics()
+        gravity_element = world.find("gravity")
+        if gravity_element is None:
+            gravity_element = world.find("physics/gravity")  # SDF 1.4
+        gravity = default.gravity
+        if gravity_element is not None:
+            values = self.floats(gravity_element, (3,), "gravity", None)
+            gravity = (values[0], values[1], values[2])
+        settings = world.find(f"{{{DDENV_NS}}}physics")
+        timestep, iterations = default.timestep, default.solver_iterations
+        if settings is not None:
+            timestep = self.attribute_number(settings, "timestep", timestep, positive=True)
+            iterations_value = self.attribute_number(settings, "solver_iterations", float(iterations), positive=True)
+            if iterations_value != int(iterations_value):
+                raise self.error("solver_iterations must be an integer", settings, field="ddenv:physics")
+            iterations = int(iterations_value)
+        return Physics(gravity=gravity, timestep=timestep, solver_iterations=iterations)
+
+    def attribute_number(
+        self, element: ET.Element, name: str, default: float, *, positive: bool = False,
+        kind: type[WorldError] = WorldError,
+    ) -> float:
+        text = element.get(name)
+        if text is None:
+            return default
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value) or (positive and value <= 0):
+            raise self.error(f"expected a {'positive ' if positive else ''}number, got {text!r}", element,
+                             field=f"ddenv:{local_name(element.tag)}/@{name}", kind=kind)
+        return value
+
+    def scenario(self, world: ET.Element) -> Scenario | None:
+        element = world.find(f"{{{DDENV_NS}}}scenario")
+        if element is None:
+            return None
+        start = element.find(f"{{{DDENV_NS}}}start")
+        goal = element.find(f"{{{DDENV_NS}}}goal")
+        if start is None or goal is None:
+            raise self.error("ddenv:scenario needs ddenv:start and ddenv:goal", element, field="ddenv:scenario",
+                             kind=ScenarioError)
+        default = Scenario()
+
+        def number(owner: ET.Element, name: str, fallback: float, *, positive: bool = False) -> float:
+            return self.attribute_number(owner, name, fallback, positive=positive, kind=ScenarioError)
+
+        description = element.find(f"{{{DDENV_NS}}}robot_description")
+        return Scenario(
+            robot=element.get("robot", default.robot) if description is None else self.robot(description),
+            start=Pose(x=number(start, "x", 0.0), y=number(start, "y", 0.0), z=number(start, "z", 0.0),
+                       yaw=number(start, "yaw", 0.0)),
+            start_z_given=start.get("z") is not None,
+            goal=(number(goal, "x", 0.0), number(goal, "y", 0.0),
+                  number(goal, "z", 0.0) if goal.get("z") is not None else None),
+            goal_tolerance=number(element, "goal_tolerance", default.goal_tolerance, positive=True),
+            timeout=number(element, "timeout", default.timeout, positive=True),
+        )
+
+
+    def robot(self, element: ET.Element) -> RobotDescription:
+        """<ddenv:robot_description>, written by `dump_sdf` for a robot given as a mapping."""
+        field = "ddenv:robot_description"
+
+        def fail(message: str, name: str) -> WorldError:
+            return self.error(message, element, field=f"{field}/@{name}", kind=ScenarioError)
+
+        urdf = element.get("urdf", "")
+        if not urdf or not resolve_relative(urdf, self.source).is_file():  # relative: to the SDF file
+            raise fail(f"URDF file not found: {urdf!r}", "urdf")
+        drive = element.get("drive", "differential")
+        if drive not in DRIVE_KINDS:
+            raise fail(f"expected one of {', '.join(DRIVE_KINDS)}, got {drive!r}", "drive")
+        wheels = {side: tuple(element.get(side, "").split()) for side in ("left_wheels", "right_wheels")}
+        for side, names in wheels.items():
+            if not names:
+                raise fail("expected the wheel joint names, separated by spaces", side)
+
+        def optional(name: str) -> float | None:
+            if element.get(name) is None:
+                return None
+            return self.attribute_number(element, name, 1.0, positive=True, kind=ScenarioError)
+
+        laser_text = element.get("laser", "true")
+        laser: bool | LaserMount = laser_text == "true"
+        if laser_text not in ("true", "false"):
+            try:
+                height, min_range = (float(v) for v in laser_text.split())
+            except ValueError:
+                raise fail(f"expected true, false or 'HEIGHT MIN_RANGE', got {laser_text!r}", "laser") from None
+            laser = LaserMount(height, min_range)
+        return RobotDescription(
+            urdf=urdf, left_wheels=wheels["left_wheels"], right_wheels=wheels["right_wheels"], drive=drive,
+            wheel_radius=optional("wheel_radius"), track=optional("track"), track_factor=optional("track_factor"),
+            max_wheel_torque=optional("max_wheel_torque") or 20.0, laser=laser, name=element.get("name", ""),
+        )

@@ -1,0 +1,174 @@
+"""The tree of one SDF model: its links, frames, joints, nested models and includes, as libsdformat reads it.
+
+Static, as Gazebo simulates it: a link is static when its model or any model around it is static (gz-sim:
+`isStatic = model.Static() || staticParent`); an `<include>`'s `<static>`, `<name>` and `<pose>` replace the
+included model's. A merged include (`<include merge="true">`, SDF 1.9) adds the included model's links, frames,
+joints and nested models to the model around it, placed by a proxy frame `_merged__NAME__model__`; as in
+libsdformat 12, the merged model's own `<static>` (and the include's) no longer applies: the parent's does.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pytest_ddenv.sdf import _poses
+from pytest_ddenv.sdf._frames import Frame, Frames, compose
+from pytest_ddenv.sdf._includes import Documents, IncludedLight
+from pytest_ddenv.sdf._values import Values
+from pytest_ddenv.world import Pose
+
+
+@dataclass
+class LinkSpec:
+    """A `<link>` of the tree and the frames its pose and its collisions' poses are resolved in."""
+
+    element: ET.Element
+    name: str  # scoped from the top-level model ("inner::l"), as a world `<state>` names links
+    local: str  # its name in `frames`
+    frames: Frames
+    base_dir: Path | None
+    static: bool
+    static_from: str  # the scoped name of the outermost static model around it ("" = the top-level model)
+    static_element: ET.Element | None  # where that model is (its <model> or <include>)
+
+
+@dataclass
+class ModelNode:
+    """One `<model>` (or included model) of the tree."""
+
+    name: str  # in its parent's scope
+    scoped: str  # from the top-level model, with a trailing "::" ("" for the top-level model)
+    element: ET.Element  # the <model>
+    origin: ET.Element  # the <model> or <include> that put it here
+    base_dir: Path | None
+    static: bool
+    static_from: str  # the scoped name of the outermost static model around it ("" = the top-level model)
+    static_element: ET.Element | None
+    frames: Frames
+    pose: tuple[Pose, str] = (_poses.IDENTITY, "")  # in its parent's scope
+    placement: str = ""
+    links: list[LinkSpec] = field(default_factory=list)
+    children: list[ModelNode] = field(default_factory=list)
+    joints: int = 0
+    plugins: list[str] = field(default_factory=list)
+    lights: list[str] = field(default_factory=list)
+    sensors: list[str] = field(default_factory=list)
+
+    def all_links(self, offset: Pose = _poses.IDENTITY) -> list[tuple[LinkSpec, Pose]]:
+        """Every link of the tree with its pose in this model's frame: own (and merged) links first."""
+        result = [(link, compose(offset, self.frames.resolve(link.local, link.element))) for link in self.links]
+        for child in self.children:
+            child_pose = compose(offset, self.frames.resolve(child.name, child.origin))
+            result.extend(child.all_links(child_pose))
+        return result
+
+    def walk(self) -> list[ModelNode]:
+        return [self, *(node for child in self.children for node in child.walk())]
+
+
+class TreeReader:
+    def __init__(self, values: Values, documents: Documents) -> None:
+        self.values = values
+        self.documents = documents
+
+    def model(
+        self, element: ET.Element, base_dir: Path | None, name: str, *, origin: ET.Element, top: str = "",
+        static: bool | None = None, parent: ModelNode | None = None, depth: int = 0,
+        pose: tuple[Pose, str] | None = None, placement: str = "",
+    ) -> ModelNode:
+        """The tree of a `<model>` element named `name` (`static`: an include's override)."""
+        if not name:
+            raise self.values.error("a model needs a name attribute", element, model=top or None, field="name")
+        top = top or name
+        own = static if static is not None else bool(self.values.child_boolean(element, "static", "", top))
+        scoped = f"{parent.scoped}{name}::" if parent is not None else ""
+        if parent is not None and parent.static:
+            static_from, static_element = parent.static_from, parent.static_element
+        elif own:
+            static_from, static_element = scoped.removesuffix("::"), origin
+        else:
+            static_from, static_element = "", None
+        node = ModelNode(
+            name=name, scoped=scoped, element=element, origin=origin, base_dir=base_dir,
+            static=(parent is not None and parent.static) or own, static_from=static_from, static_element=static_element,
+            frames=Frames(self.values, top, {"__model__", element.get("name") or "", name}),
+            pose=pose if pose is not None else self.values.pose(element, "", top),
+            placement=placement or (element.get("placement_frame") or "").strip(),
+        )
+        self.fill(node, element, base_dir, "", top, depth)
+        return node
+
+    def fill(self, node: ModelNode, element: ET.Element, base_dir: Path | None, proxy: str, top: str,
+             depth: int) -> None:
+        """Add the children of `element` (the node's `<model>`, or a merged include's model) to `node`."""
+        values = self.values
+
+        def relative(frame: str) -> str:
+            return proxy if proxy and frame in ("", "__model__") else frame
+
+        for child in element:
+            label = (child.get("name") or "").strip()
+            where = f"{child.tag} '{node.scoped}{label}'"
+            if child.tag in ("link", "frame", "joint") and not label:
+                raise values.error(f"a <{child.tag}> needs a name attribute", child, model=top, field="name")
+            if child.tag == "link":
+                pose, relative_to = values.pose(child, where, top)
+                node.frames.add(label, Frame(pose, relative(relative_to), child))
+                node.links.append(LinkSpec(child, f"{node.scoped}{label}", label, node.frames, base_dir,
+                                           node.static, node.static_from, node.static_element))
+                node.sensors.extend(f"{top}::{node.scoped}{label}::{s.get('name') or ''}" for s in child.iter("sensor"))
+                node.lights.extend(f"{top}::{node.scoped}{label}::{s.get('name') or ''}" for s in child.findall("light"))
+            elif child.tag == "frame":
+                pose, relative_to = values.pose(child, where, top)
+                attached = (child.get("attached_to") or "").strip()
+                node.frames.add(label, Frame(pose, relative(relative_to), child, default=relative(attached)))
+            elif child.tag == "joint":
+                node.joints += 1
+                pose, relative_to = values.pose(child, where, top)
+                node.frames.add(label, Frame(pose, relative(relative_to), child,
+                                             default=(child.findtext("child") or "").strip()))
+            elif child.tag == "model":
+                pose, relative_to = values.pose(child, where, top)
+                nested = self.model(child, base_dir, label, origin=child, top=top, parent=node, depth=depth,
+                                    pose=(pose, relative(relative_to)))
+                self.add_nested(node, nested)
+            elif child.tag == "include":
+                self.include(node, child, base_dir, top, depth, relative)
+            elif child.tag == "plugin":
+                node.plugins.append(plugin_name(child))
+
+    def include(
+        self, node: ModelNode, element: ET.Element, base_dir: Path | None, top: str, depth: int,
+        relative: Callable[[str], str],
+    ) -> None:
+        included = self.documents.include(element, base_dir, depth + 1)
+        if isinstance(included, IncludedLight):
+            node.lights.append(f"{top}::{node.scoped}{included.name}")
+            return
+        node.plugins.extend(plugin_name(plugin) for plugin in element.findall("plugin"))
+        pose, relative_to = included.pose or (self.values.pose(included.model, "", top)[0], "")
+        if included.merge:
+            if included.placement:
+                raise self.values.unsupported("placement_frame", "a placement frame of a merged include",
+                                              element.find("placement_frame"), model=top)
+            proxy = f"_merged__{included.name}__model__"
+            node.frames.add(proxy, Frame(pose, relative(relative_to), element))
+            self.fill(node, included.model, included.base_dir, proxy, top, depth + 1)
+            return
+        nested = self.model(included.model, included.base_dir, included.name, origin=element, top=top,
+                            static=included.static, parent=node, depth=depth + 1,
+                            pose=(pose, relative(relative_to)), placement=included.placement)
+        self.add_nested(node, nested)
+
+    def add_nested(self, node: ModelNode, nested: ModelNode) -> None:
+        pose, relative_to = nested.pose
+        node.frames.add(nested.name, Frame(pose, relative_to, nested.origin, placement=nested.placement),
+                        nested.frames)
+        node.children.append(nested)
+
+
+def plugin_name(element: ET.Element) -> str:
+    return (element.get("filename") or element.get("name") or "plugin").strip()
