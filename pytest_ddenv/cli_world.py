@@ -51,8 +51,8 @@ def load_world(arguments: argparse.Namespace, path: str) -> World:
         raise UsageError(f"{path}: no such world file")
     if file.is_dir():
         raise UsageError(f"{path}: is a folder, not a world file")
-    folders = [folder for value in getattr(arguments, "model_paths", []) for folder in value.split(os.pathsep)
-               if folder]
+    folders = [os.path.expanduser(folder) for value in getattr(arguments, "model_paths", [])
+               for folder in value.split(os.pathsep) if folder]
     for folder in folders:
         if not Path(folder).is_dir():
             raise UsageError(f"--model-path: no such folder: {folder}")

@@ -136,7 +136,8 @@ PAGES: dict[str, Page] = {
     )}, slow=True),
     "architecture.md": Page(),
     "sdf.md": Page(
-        files={"~/my_models/crate/model.sdf": MODEL_SDF, "arena.world": ARENA_WORLD},
+        files={"~/my_models/crate/model.sdf": MODEL_SDF, "arena.world": ARENA_WORLD,
+               "not_simulated.world": (ROOT / "tests/data/sdf/corpus/not_simulated.world").read_text()},
         checks={"load_sdf(": (
             "world.names == ('crate_1', 'crate_2', 'crate_3')",
             "load_sdf('minimal.world').names == ('crate_1', 'crate_2')",

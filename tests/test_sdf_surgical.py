@@ -101,3 +101,14 @@ def test_a_copy_of_the_minimal_world_next_to_the_original_opens_there(world: Wor
     finally:
         beside.unlink()
     assert dataclasses.replace(reloaded, source=None).models == world.without(["crate"]).models
+
+
+def test_the_documented_scenario_block_loads() -> None:
+    import re
+
+    text = (Path(__file__).resolve().parent.parent / "docs" / "sdf.md").read_text()
+    (block,) = re.findall(r"```xml\n(.*?)```", text, flags=re.DOTALL)
+    world = parse_sdf(block, source="docs/sdf.md")
+    assert world.scenario is not None and world.scenario.robot == "husky"
+    assert world.scenario.goal == (8.0, 2.0, None) and world.scenario.timeout == 60.0
+    assert world.scenario.goal_tolerance == 0.5 and len(world) == 0
