@@ -75,3 +75,73 @@ def cylinder_extent_points(radius: float, length: float, segments: int = 32) -> 
     top = np.column_stack([ring, np.full(segments, length / 2.0)])
     bottom = np.column_stack([ring, np.full(segments, -length / 2.0)])
     return np.vstack([top, bottom])
+
+
+def capsule_distance(local_points: FloatArray, radius: float, length: float) -> FloatArray:
+    """Distance from points (in the capsule frame) to a centred z-axis capsule whose cylinder part is
+    `length` long (the half-spheres add `radius` at each end); 0 inside."""
+    radial = np.hypot(local_points[:, 0], local_points[:, 1])
+    axial = np.maximum(np.abs(local_points[:, 2]) - length / 2.0, 0.0)
+    return np.maximum(np.hypot(radial, axial) - radius, 0.0)
+
+
+def capsule_bounds(translation: FloatArray, rotation: FloatArray, radius: float,
+                   length: float) -> tuple[FloatArray, FloatArray]:
+    """Exact axis-aligned bounds (low, high) of a capsule placed at (translation, rotation)."""
+    half_axis = np.abs(rotation[:, 2]) * length / 2.0
+    return translation - half_axis - radius, translation + half_axis + radius
+
+
+def prism_distance(planar_distance: FloatArray, local_z: FloatArray, height: float) -> FloatArray:
+    """Distance to a prism (a planar region extruded from z = 0 to `height`), given each point's distance to
+    the region in the xy plane (0 inside it) and its local z; 0 inside."""
+    vertical = np.maximum(np.maximum(-local_z, local_z - height), 0.0)
+    return np.hypot(planar_distance, vertical)
+
+
+def heightmap_solid(heights: FloatArray, size: tuple[float, float, float]) -> tuple[FloatArray, FloatArray]:
+    """Vertices (V, 3) and triangles (F, 3) of the solid under a heightmap.
+
+    `heights` (rows, columns) are in 0..1, row 0 at the +y edge and column 0 at the -x edge (an image seen
+    from above); the surface spans `size` x and y centred on the origin, heights scaled by `size` z, and the
+    solid reaches down to z = 0 (four side walls and a bottom). Each grid cell is split along the diagonal
+    from its (-x, +y) corner to its (+x, -y) corner, as `heightmap_height` interpolates.
+    """
+    rows, columns = heights.shape
+    size_x, size_y, size_z = size
+    xs = np.linspace(-size_x / 2.0, size_x / 2.0, columns)
+    ys = np.linspace(size_y / 2.0, -size_y / 2.0, rows)
+    grid_x, grid_y = np.meshgrid(xs, ys)
+    top = np.column_stack([grid_x.ravel(), grid_y.ravel(), heights.ravel() * size_z])
+    index = np.arange(rows * columns).reshape(rows, columns)
+    a, b = index[:-1, :-1].ravel(), index[:-1, 1:].ravel()
+    c, d = index[1:, 1:].ravel(), index[1:, :-1].ravel()
+    faces = [np.column_stack([a, c, b]), np.column_stack([a, d, c])]  # counter-clockwise seen from above
+    rim = np.concatenate([index[0, :], index[1:, -1], index[-1, -2::-1], index[-2:0:-1, 0]])  # clockwise from above
+    base = top[rim] * np.array([1.0, 1.0, 0.0])
+    count = len(top)
+    ring = np.arange(len(rim))
+    following = np.roll(ring, -1)
+    faces.append(np.column_stack([rim[ring], rim[following], count + following]))
+    faces.append(np.column_stack([rim[ring], count + following, count + ring]))
+    corners = count + np.array([0, columns - 1, columns + rows - 2, 2 * columns + rows - 3])
+    faces.append(np.array([[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]]))
+    return np.vstack([top, base]), np.vstack(faces)
+
+
+def heightmap_height(heights: FloatArray, size: tuple[float, float, float], xy: FloatArray) -> FloatArray:
+    """The surface height of `heightmap_solid` at planar points (N, 2); NaN outside its rectangle."""
+    rows, columns = heights.shape
+    size_x, size_y, size_z = size
+    column = (xy[:, 0] + size_x / 2.0) / size_x * (columns - 1)
+    row = (size_y / 2.0 - xy[:, 1]) / size_y * (rows - 1)
+    inside = (column >= 0) & (column <= columns - 1) & (row >= 0) & (row <= rows - 1)
+    j = np.clip(np.floor(column), 0, columns - 2).astype(int)
+    i = np.clip(np.floor(row), 0, rows - 2).astype(int)
+    u, v = np.clip(column - j, 0.0, 1.0), np.clip(row - i, 0.0, 1.0)
+    h_a, h_b = heights[i, j], heights[i, j + 1]
+    h_c, h_d = heights[i + 1, j + 1], heights[i + 1, j]
+    upper = h_a + u * (h_b - h_a) + v * (h_c - h_b)  # triangle a-b-c (u >= v)
+    lower = h_a + v * (h_d - h_a) + u * (h_c - h_d)  # triangle a-c-d (u < v)
+    height = np.where(u >= v, upper, lower) * size_z
+    return np.where(inside, height, np.nan)

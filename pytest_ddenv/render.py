@@ -27,7 +27,14 @@ import numpy as np
 
 from pytest_ddenv import geometry
 from pytest_ddenv.geometry import FloatArray
-from pytest_ddenv.world import Model, Shape, World, load_mesh, resolve_mesh_path
+from pytest_ddenv.world import (
+    Model,
+    Shape,
+    World,
+    load_heightmap,
+    load_mesh,
+    resolve_mesh_path,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -42,6 +49,7 @@ __all__ = [
     "PROGRESS_SIZE",
     "WORLD_SIZE",
     "Footprint",
+    "Shading",
     "category",
     "draw_progress",
     "draw_reduction",
@@ -84,13 +92,26 @@ _OUTCOME_COLORS = {"fail": "#d62728", "other": "#ff7f0e", "pass": "#2ca02c", "er
 
 # -- footprints ----------------------------------------------------------------------------------------
 @dataclass(frozen=True)
+class Shading:
+    """A heightmap's heights drawn over its footprint: `heights` (rows, columns) in 0..1, row 0 at the
+    +y edge, spanning `size` (x, y) centred on `center`, turned by `yaw`."""
+
+    heights: FloatArray
+    size: tuple[float, float]
+    center: tuple[float, float]
+    yaw: float
+
+
+@dataclass(frozen=True)
 class Footprint:
-    """The top-down outline of one model: a convex polygon per shape, in world x-y metres."""
+    """The top-down outline of one model: a polygon per shape (convex, except a polyline's own outline), in
+    world x-y metres, and the shading of its upright heightmaps."""
 
     name: str
     polygons: tuple[FloatArray, ...]
     top: float
     """Highest z of the model (m)."""
+    shading: tuple[Shading, ...] = ()
 
     @property
     def low(self) -> FloatArray:
@@ -117,6 +138,7 @@ def footprints(world: World) -> list[Footprint]:
 @functools.lru_cache(maxsize=4096)
 def _footprint(model: Model, source: str | None) -> Footprint:
     outlines: list[FloatArray] = []
+    shading: list[Shading] = []
     top = -math.inf
     model_rotation, model_position = model.pose.rotation, model.pose.position
     for shape in model.shapes:
@@ -125,7 +147,25 @@ def _footprint(model: Model, source: str | None) -> Footprint:
         outline, shape_top = _shape_outline(shape, source, rotation, position)
         outlines.append(outline)
         top = max(top, shape_top)
-    return Footprint(model.name, tuple(outlines), top)
+        if shape.kind == "heightmap" and rotation[2, 2] > 1.0 - 1e-9:
+            shading.extend(_shading(shape, source, rotation, position))
+    return Footprint(model.name, tuple(outlines), top, tuple(shading))
+
+
+_SHADING_PIXELS = 200
+"""Heightmaps are drawn with at most this many pixels a side."""
+
+
+def _shading(shape: Shape, source: str | None, rotation: FloatArray, position: FloatArray) -> list[Shading]:
+    assert shape.size is not None
+    try:
+        heights = load_heightmap(resolve_mesh_path(shape.mesh, source))
+    except Exception:  # noqa: BLE001 - an unreadable image is drawn as its plain rectangle
+        return []
+    step = max(1, math.ceil(max(heights.shape) / _SHADING_PIXELS))
+    yaw = math.atan2(rotation[1, 0], rotation[0, 0])
+    return [Shading(heights[::step, ::step], (shape.size[0], shape.size[1]), (float(position[0]), float(position[1])),
+                    yaw)]
 
 
 def _shape_outline(shape: Shape, source: str | None, rotation: FloatArray,
@@ -144,7 +184,16 @@ def _shape_outline(shape: Shape, source: str | None, rotation: FloatArray,
     if shape.kind == "sphere":
         assert shape.radius is not None
         return _circle(position[:2], shape.radius), float(position[2] + shape.radius)
+    if shape.kind == "capsule":  # a stadium: the hull of the circles around its projected end centres
+        assert shape.radius is not None and shape.length is not None
+        ends = position + np.outer([-0.5, 0.5], rotation[:, 2]) * shape.length
+        circles = np.vstack([_circle(end[:2], shape.radius) for end in ends])
+        return _convex_hull(circles), float(ends[:, 2].max() + shape.radius)
     placed = position + _shape_points(shape, source) @ rotation.T
+    if shape.kind == "polyline" and upright:  # the outline itself, concave or not
+        assert shape.points is not None
+        count = len(shape.points)
+        return placed[:count, :2], float(placed[:, 2].max())
     return _convex_hull(placed[:, :2]), float(placed[:, 2].max())
 
 
@@ -164,6 +213,19 @@ def _shape_points(shape: Shape, source: str | None) -> FloatArray:
     if shape.kind == "sphere":
         assert shape.radius is not None
         return _sphere_points(shape.radius)
+    if shape.kind == "polyline":  # the outline at z = 0, then at its height
+        assert shape.points is not None and shape.height is not None
+        outline = np.asarray(shape.points, dtype=np.float64)
+        return np.vstack([np.column_stack([outline, np.zeros(len(outline))]),
+                          np.column_stack([outline, np.full(len(outline), shape.height)])])
+    if shape.kind == "heightmap":  # its rectangle, from z = 0 to its highest point
+        assert shape.size is not None
+        size_x, size_y, size_z = shape.size
+        try:
+            top = float(load_heightmap(resolve_mesh_path(shape.mesh, source)).max()) * size_z
+        except Exception:  # noqa: BLE001 - an unreadable image is drawn as its full box
+            top = size_z
+        return geometry.box_corners(np.array([size_x, size_y, top])) + np.array([0.0, 0.0, top / 2.0])
     try:
         mesh = load_mesh(resolve_mesh_path(shape.mesh, source), shape.scale)
         return np.asarray(mesh.vertices, dtype=np.float64)  # type: ignore[attr-defined]
@@ -286,6 +348,19 @@ def _draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghost
             alpha=0.15 if ghost else 0.45 if terrain else 0.9,
             zorder=zorder,
         ))
+        for shading in footprint.shading:
+            _draw_shading(axes, shading, alpha=0.1 if ghost else 0.5, zorder=zorder + 0.0002)
+
+
+def _draw_shading(axes: Axes, shading: Shading, *, alpha: float, zorder: float) -> None:
+    """A heightmap's heights in grey (black low, white high) over its rectangle."""
+    from matplotlib.transforms import Affine2D
+
+    half_x, half_y = shading.size[0] / 2.0, shading.size[1] / 2.0
+    placement = Affine2D().rotate(shading.yaw).translate(*shading.center)
+    axes.imshow(shading.heights, cmap="gray", vmin=0.0, vmax=1.0, origin="upper", interpolation="bilinear",
+                extent=(-half_x, half_x, -half_y, half_y), alpha=alpha, zorder=zorder,
+                transform=placement + axes.transData)
 
 
 def _largest(footprint: Footprint) -> FloatArray:

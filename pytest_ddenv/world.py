@@ -10,7 +10,7 @@ import dataclasses
 import functools
 import math
 import os
-from collections.abc import Collection, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -232,7 +232,7 @@ class World:
                             skip_unsupported=skip_unsupported)
 
     def to_sdf(self) -> str:
-        """An SDF 1.6 world that Gazebo loads (see docs/sdf.md)."""
+        """An SDF 1.6 world that Gazebo loads, SDF 1.8 if it has a capsule (see docs/sdf.md)."""
         from pytest_ddenv import sdf
 
         return sdf.dump_sdf(self)
@@ -355,6 +355,7 @@ class _PlacedShape:
     translation: FloatArray
     rotation: FloatArray
     mesh_path: Path | None
+    """The mesh file of a mesh, the image of a heightmap."""
 
 
 class _ModelGeometry:
@@ -365,7 +366,7 @@ class _ModelGeometry:
         self.placed: list[_PlacedShape] = []
         for shape in model.shapes:
             pose = model.pose.compose(shape.pose)
-            mesh_path = resolve_mesh_path(shape.mesh, source) if shape.kind == "mesh" else None
+            mesh_path = resolve_mesh_path(shape.mesh, source) if shape.kind in ("mesh", "heightmap") else None
             self.placed.append(_PlacedShape(shape, pose.position, pose.rotation, mesh_path))
         self.bounds = self._bounds()
 
@@ -389,7 +390,12 @@ class _ModelGeometry:
                 assert shape.radius is not None
                 lows.append(placed.translation - shape.radius)
                 highs.append(placed.translation + shape.radius)
-            else:
+            elif shape.kind == "capsule":
+                assert shape.radius is not None and shape.length is not None
+                low, high = geometry.capsule_bounds(placed.translation, placed.rotation, shape.radius, shape.length)
+                lows.append(low)
+                highs.append(high)
+            else:  # mesh, polyline, heightmap: their vertices
                 vertices = _mesh_vertices_world(placed)
                 lows.append(vertices.min(axis=0))
                 highs.append(vertices.max(axis=0))
@@ -409,6 +415,13 @@ class _ModelGeometry:
             elif shape.kind == "sphere":
                 assert shape.radius is not None
                 d = geometry.sphere_distance(local, shape.radius)
+            elif shape.kind == "capsule":
+                assert shape.radius is not None and shape.length is not None
+                d = geometry.capsule_distance(local, shape.radius, shape.length)
+            elif shape.kind == "polyline":
+                d = _polyline_distance(shape, local)
+            elif shape.kind == "heightmap":
+                d = _heightmap_distance(placed, local)
             else:
                 d = _mesh_distance(placed, local)
             best = np.minimum(best, d)
@@ -437,11 +450,25 @@ def resolve_relative(file: str, source: str | None) -> Path:
 
 @functools.lru_cache(maxsize=256)
 def load_mesh(path: Path, scale: tuple[float, float, float]) -> object:
-    """A trimesh.Trimesh of the file with `scale` applied (loaded once per process)."""
+    """A trimesh.Trimesh of the file's geometry with `scale` applied (loaded once per process).
+
+    Only the geometry is read: materials and textures are not loaded (a texture file that is missing or
+    unreadable costs nothing and logs nothing). A Collada file goes to trimesh without its appearance
+    elements (`pytest_ddenv.sdf.collada_geometry`), since trimesh's Collada reader has no option to skip
+    materials and logs a traceback for every texture it cannot open.
+    """
+    import io
+
     import trimesh
 
     try:
-        loaded = trimesh.load(str(path), force="mesh")
+        if path.suffix.lower() == ".dae":
+            from pytest_ddenv.sdf import collada_geometry
+
+            geometry_only = io.BytesIO(collada_geometry(path))
+            loaded = trimesh.load(geometry_only, file_type="dae", force="mesh")
+        else:
+            loaded = trimesh.load(str(path), force="mesh", skip_materials=True)
     except Exception as error:  # trimesh raises many types for unreadable files
         raise WorldError(f"cannot read mesh file: {error}", source=str(path)) from error
     if math.prod(scale) != 1.0 or scale != (1.0, 1.0, 1.0):
@@ -450,10 +477,21 @@ def load_mesh(path: Path, scale: tuple[float, float, float]) -> object:
 
 
 def _mesh_vertices_world(placed: _PlacedShape) -> FloatArray:
-    assert placed.mesh_path is not None
-    mesh = load_mesh(placed.mesh_path, placed.shape.scale)
-    vertices: FloatArray = np.asarray(mesh.vertices, dtype=np.float64)  # type: ignore[attr-defined]
+    vertices: FloatArray = np.asarray(_shape_mesh(placed).vertices, dtype=np.float64)  # type: ignore[attr-defined]
     return placed.translation + vertices @ placed.rotation.T
+
+
+def _shape_mesh(placed: _PlacedShape) -> object:
+    """The trimesh of a mesh, polyline or heightmap shape (in the shape's frame), cached."""
+    shape = placed.shape
+    if shape.kind == "polyline":
+        assert shape.points is not None and shape.height is not None
+        return polyline_mesh(shape.points, shape.height)
+    assert placed.mesh_path is not None
+    if shape.kind == "heightmap":
+        assert shape.size is not None
+        return heightmap_mesh(placed.mesh_path, shape.size)
+    return load_mesh(placed.mesh_path, shape.scale)
 
 
 def _mesh_distance(placed: _PlacedShape, local: FloatArray) -> FloatArray:
@@ -467,3 +505,174 @@ def _mesh_distance(placed: _PlacedShape, local: FloatArray) -> FloatArray:
         inside = mesh.contains(local)  # type: ignore[attr-defined]
         distance = np.where(inside, 0.0, distance)
     return distance
+
+
+# -- polylines and heightmaps -------------------------------------------------------------------------------
+HEIGHTMAP_MODES_16_BIT = ("I;16", "I;16L", "I;16B", "I;16N", "I")
+
+
+@functools.lru_cache(maxsize=256)
+def polyline_polygon(points: tuple[tuple[float, float], ...]) -> object:
+    """The shapely Polygon of a polyline's outline (closed implicitly), cached."""
+    import shapely
+
+    return shapely.remove_repeated_points(shapely.Polygon(points))
+
+
+@functools.lru_cache(maxsize=256)
+def polyline_mesh(points: tuple[tuple[float, float], ...], height: float) -> object:
+    """A trimesh.Trimesh of the outline `points` extruded along z from 0 to `height` (made once per process).
+
+    A concave outline gives a concave (watertight) mesh; the outline must be a valid simple polygon.
+    """
+    import trimesh
+
+    problem = polyline_problem(points)
+    if problem is not None:
+        raise WorldError(f"cannot extrude the polyline: {problem}", field="points")
+    return trimesh.creation.extrude_polygon(polyline_polygon(points), height)
+
+
+def polyline_problem(points: Sequence[Sequence[float]]) -> str | None:
+    """What makes `points` an invalid polyline outline, or None: fewer than 3 points, non-finite numbers,
+    collinear points (no area), or an outline that crosses itself."""
+    import shapely
+
+    if len(points) < 3:
+        return f"an outline needs at least 3 points, got {len(points)}"
+    try:
+        array = np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        array = np.empty(0)
+    if array.shape != (len(points), 2) or not np.all(np.isfinite(array)):
+        return "every point must be two finite numbers [x, y]"
+    spread = np.linalg.svd(array - array.mean(axis=0), compute_uv=False)
+    if spread[1] <= 1e-9 * max(spread[0], 1e-300):
+        return "the points are collinear: the outline has no area"
+    polygon = shapely.Polygon(array)
+    if not polygon.is_valid:
+        return f"the outline crosses or touches itself ({shapely.is_valid_reason(polygon)})"
+    return None
+
+
+@functools.lru_cache(maxsize=16)
+def load_heightmap(path: Path) -> FloatArray:
+    """The heights (rows, columns) in 0..1 of a grayscale image: black 0, white 1 (8-bit: value / 255,
+    16-bit: value / 65535; colour images are converted to grey). Row 0 is the image's top row, which is
+    the +y edge of the heightmap seen from above; column 0 is its -x edge. Read once per process."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as image:
+            if image.mode in HEIGHTMAP_MODES_16_BIT:
+                heights = np.asarray(image, dtype=np.float64) / 65535.0
+            else:
+                heights = np.asarray(image.convert("L"), dtype=np.float64) / 255.0
+    except (OSError, UnidentifiedImageError, ValueError) as error:
+        raise WorldError(f"cannot read the heightmap image: {error}", source=path) from error
+    if heights.ndim != 2 or min(heights.shape) < 2:
+        raise WorldError(f"a heightmap image needs at least 2 x 2 pixels, got {heights.shape[::-1]}", source=path)
+    heights = np.clip(heights, 0.0, 1.0)
+    heights.setflags(write=False)
+    return heights
+
+
+@functools.lru_cache(maxsize=16)
+def heightmap_mesh(path: Path, size: tuple[float, float, float]) -> object:
+    """A trimesh.Trimesh of the solid under the heightmap image at `path` stretched over `size` (x, y
+    centred on the origin, z from 0 up), made once per process."""
+    import trimesh
+
+    vertices, faces = geometry.heightmap_solid(load_heightmap(path), size)
+    return trimesh.Trimesh(vertices, faces, process=False)
+
+
+def _polyline_distance(shape: Shape, local: FloatArray) -> FloatArray:
+    import shapely
+
+    assert shape.points is not None and shape.height is not None
+    polygon = polyline_polygon(shape.points)
+    planar = np.asarray(shapely.distance(polygon, shapely.points(local[:, :2])), dtype=float)
+    return geometry.prism_distance(planar, local[:, 2], shape.height)
+
+
+def _heightmap_distance(placed: _PlacedShape, local: FloatArray) -> FloatArray:
+    import trimesh
+
+    shape = placed.shape
+    assert placed.mesh_path is not None and shape.size is not None
+    surface = geometry.heightmap_height(load_heightmap(placed.mesh_path), shape.size, local[:, :2])
+    with np.errstate(invalid="ignore"):
+        inside = (local[:, 2] >= 0.0) & (local[:, 2] <= surface)  # NaN (outside the rectangle) compares False
+    distance = np.zeros(len(local))
+    outside = ~inside
+    if outside.any():
+        mesh = heightmap_mesh(placed.mesh_path, shape.size)
+        _, found, _ = trimesh.proximity.closest_point(mesh, local[outside])
+        distance[outside] = np.asarray(found, dtype=float)
+    return distance
+
+
+# -- validation of shapes made from data --------------------------------------------------------------------
+def check_shape(shape: Shape, *, source: str | None = None, model: str | None = None, field: str | None = None,
+                static: bool = True, keys: Mapping[str, str] | None = None) -> None:
+    """Raise a `WorldError` naming the file, model and field if `shape` is not a valid shape of its kind.
+
+    For readers of world files: `field` is where the shape is (e.g. "shapes[0].polyline"); the bad value is
+    named `field.KEY` with KEY one of radius, length, size, points, height, file, scale, renamed by `keys`
+    (e.g. {"points": "point", "file": "uri"} for SDF). `static`: whether the model is static (a heightmap
+    must be: it is terrain).
+    """
+
+    def fail(key: str | None, message: str) -> WorldError:
+        name = None if key is None else (keys or {}).get(key, key)
+        where = field if name is None else (name if field is None else f"{field}.{name}")
+        return WorldError(message, source=source, model=model, field=where)
+
+    def positive(key: str, value: float | None) -> None:
+        if value is None:
+            raise fail(key, f"missing; a {shape.kind} needs a {key}")
+        if not (math.isfinite(value) and value > 0):
+            raise fail(key, f"expected a positive, finite number, got {value}")
+
+    if shape.kind not in SHAPE_KINDS:
+        raise fail(None, f"unknown shape kind {shape.kind!r}; expected one of {', '.join(SHAPE_KINDS)}")
+    if shape.kind in ("box", "heightmap"):
+        if shape.size is None or len(shape.size) != 3:
+            raise fail("size", f"expected 3 sizes (x, y, z), got {shape.size}")
+        if not all(math.isfinite(v) and v > 0 for v in shape.size):
+            raise fail("size", f"expected positive, finite sizes, got {list(shape.size)}")
+    if shape.kind in ("cylinder", "capsule", "sphere"):
+        positive("radius", shape.radius)
+    if shape.kind in ("cylinder", "capsule"):
+        positive("length", shape.length)
+    if shape.kind == "polyline":
+        problem = polyline_problem(shape.points or ())
+        if problem is not None:
+            raise fail("points", problem)
+        positive("height", shape.height)
+    if shape.kind in ("mesh", "heightmap"):
+        if not shape.mesh:
+            raise fail("file", f"missing; a {shape.kind} needs a file")
+        path = resolve_relative(shape.mesh, source)
+        what = "mesh" if shape.kind == "mesh" else "heightmap image"
+        if not path.is_file():
+            raise fail("file", f"{what} file not found: {path}")
+    if shape.kind == "heightmap":
+        if not static:
+            raise fail(None, "a heightmap is terrain and must be static; remove the model's mass or "
+                             "'static: false'")
+        _check_image(path, fail)
+
+
+def _check_image(path: Path, fail: Callable[[str | None, str], WorldError]) -> None:
+    """The heightmap image opens (header only) and has at least 2 x 2 pixels."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as image:
+            width, height = image.size
+    except (OSError, UnidentifiedImageError) as error:
+        raise fail("file", f"cannot read the heightmap image {path}: {error}") from error
+    if min(width, height) < 2:
+        raise fail("file", f"a heightmap image needs at least 2 x 2 pixels, {path} has {width} x {height}")

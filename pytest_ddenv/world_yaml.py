@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +25,7 @@ from pytest_ddenv.world import (
     Shape,
     TagValue,
     World,
+    check_shape,
     resolve_mesh_path,
 )
 
@@ -184,6 +185,9 @@ def _parse_model(reader: _Reader, item: Any, index: int) -> Model:
     static = reader.boolean(data["static"], "static") if "static" in data else mass is None
     if not static and (mass is None or mass <= 0):
         raise reader.fail("mass", f"a dynamic model needs a positive mass (kg), got {mass}")
+    if not static and any(shape.kind == "heightmap" for shape in shapes):
+        raise reader.fail("static" if "static" in data else "mass",
+                          "a heightmap is terrain and must be static; remove the mass or 'static: false'")
     mu = reader.number(data.get("mu", 1.0), "mu", non_negative=True)
     color = reader.numbers(data.get("color", [0.6, 0.6, 0.6, 1.0]), "color", (3, 4))
     if any(not 0.0 <= c <= 1.0 for c in color):
@@ -240,6 +244,8 @@ def _parse_shape(reader: _Reader, raw: Any, field: str) -> Shape:
         if "radius" not in spec:
             raise reader.fail(f"{where}.radius", "missing; a sphere needs a radius (m)")
         return Shape("sphere", radius=reader.number(spec["radius"], f"{where}.radius", positive=True), pose=pose)
+    if kind in _SHAPE_PARSERS:
+        return _SHAPE_PARSERS[kind](reader, value, where, pose)
     spec = reader.mapping(value, where, ("file", "scale"))
     if "file" not in spec:
         raise reader.fail(f"{where}.file", "missing; a mesh needs a file (.stl, .obj, .dae)")
@@ -254,6 +260,57 @@ def _parse_shape(reader: _Reader, raw: Any, field: str) -> Shape:
     else:
         scale = [reader.number(scale_value, f"{where}.scale", positive=True)] * 3
     return Shape("mesh", mesh=mesh_file, scale=(scale[0], scale[1], scale[2]), pose=pose)
+
+
+def _required(reader: _Reader, spec: Mapping[str, Any], where: str, keys: tuple[str, ...], what: str) -> None:
+    for key in keys:
+        if key not in spec:
+            raise reader.fail(f"{where}.{key}", f"missing; {what}")
+
+
+def _parse_capsule(reader: _Reader, value: Any, where: str, pose: Pose) -> Shape:
+    spec = reader.mapping(value, where, ("radius", "length"))
+    _required(reader, spec, where, ("radius", "length"),
+              "a capsule needs radius and length (m, the cylinder part between the half-spheres)")
+    return Shape(
+        "capsule",
+        radius=reader.number(spec["radius"], f"{where}.radius", positive=True),
+        length=reader.number(spec["length"], f"{where}.length", positive=True),
+        pose=pose,
+    )
+
+
+def _parse_polyline(reader: _Reader, value: Any, where: str, pose: Pose) -> Shape:
+    spec = reader.mapping(value, where, ("points", "height"))
+    _required(reader, spec, where, ("points", "height"),
+              "a polyline needs points (the outline [[x, y], ...]) and height (m)")
+    raw = spec["points"]
+    if not isinstance(raw, list):
+        raise reader.fail(f"{where}.points", f"expected a list of [x, y] points, got {_describe(raw)}")
+    points = []
+    for index, point in enumerate(raw):
+        x, y = reader.numbers(point, f"{where}.points[{index}]", (2,))
+        points.append((x, y))
+    shape = Shape("polyline", points=tuple(points),
+                  height=reader.number(spec["height"], f"{where}.height", positive=True), pose=pose)
+    check_shape(shape, source=reader.source, model=reader.model, field=where)
+    return shape
+
+
+def _parse_heightmap(reader: _Reader, value: Any, where: str, pose: Pose) -> Shape:
+    spec = reader.mapping(value, where, ("file", "size"))
+    _required(reader, spec, where, ("file", "size"),
+              "a heightmap needs file (a grayscale image) and size [x, y, z] (m)")
+    image = reader.text(spec["file"], f"{where}.file")
+    size = reader.numbers(spec["size"], f"{where}.size", (3,), positive=True)
+    shape = Shape("heightmap", mesh=image, size=(size[0], size[1], size[2]), pose=pose)
+    check_shape(shape, source=reader.source, model=reader.model, field=where)
+    return shape
+
+
+_SHAPE_PARSERS: dict[str, Callable[[_Reader, Any, str, Pose], Shape]] = {
+    "capsule": _parse_capsule, "polyline": _parse_polyline, "heightmap": _parse_heightmap,
+}
 
 
 def _parse_tags(reader: _Reader, value: Any) -> dict[str, TagValue]:
@@ -387,6 +444,14 @@ def _shape_dict(shape: Shape, source: str | None, relative_to: Path | None) -> d
         spec = {"radius": shape.radius, "length": shape.length}
     elif shape.kind == "sphere":
         spec = {"radius": shape.radius}
+    elif shape.kind == "capsule":
+        spec = {"radius": shape.radius, "length": shape.length}
+    elif shape.kind == "polyline":
+        assert shape.points is not None
+        spec = {"points": [[x, y] for x, y in shape.points], "height": shape.height}
+    elif shape.kind == "heightmap":
+        assert shape.mesh is not None and shape.size is not None
+        spec = {"file": rebased(shape.mesh, source, relative_to), "size": list(shape.size)}
     else:
         assert shape.mesh is not None
         spec = {"file": rebased(shape.mesh, source, relative_to), "scale": list(shape.scale)}

@@ -21,7 +21,21 @@ poses = st.builds(Pose, finite, finite, finite, angle, angle, angle)
 boxes = st.builds(lambda size, pose: Shape("box", size=size, pose=pose), st.tuples(positive, positive, positive), poses)
 cylinders = st.builds(lambda r, h, pose: Shape("cylinder", radius=r, length=h, pose=pose), positive, positive, poses)
 spheres = st.builds(lambda r, pose: Shape("sphere", radius=r, pose=pose), positive, poses)
-shapes = st.one_of(boxes, cylinders, spheres)
+capsules = st.builds(lambda r, h, pose: Shape("capsule", radius=r, length=h, pose=pose), positive, positive, poses)
+
+
+@st.composite
+def polylines(draw: st.DrawFn) -> Shape:
+    """A star-shaped outline around the local origin (every fan triangle from the origin is inside it)."""
+    count = draw(st.integers(3, 8))
+    jitter = st.floats(-0.4, 0.4, allow_nan=False)
+    angles = [2 * math.pi * (k + draw(jitter)) / count for k in range(count)]
+    radii = [draw(st.floats(0.05, 3.0, allow_nan=False)) for _ in range(count)]
+    points = tuple((r * math.cos(a), r * math.sin(a)) for r, a in zip(radii, angles, strict=True))
+    return Shape("polyline", points=points, height=draw(positive), pose=draw(poses))
+
+
+shapes = st.one_of(boxes, cylinders, spheres, capsules, polylines())
 
 
 @st.composite
@@ -86,16 +100,40 @@ def brute_force_distance(shape: Shape, local_points: np.ndarray) -> np.ndarray:
     u = np.linspace(-0.5, 0.5, 41)
     if shape.kind == "box":
         grid = np.stack(np.meshgrid(u, u, u, indexing="ij"), axis=-1).reshape(-1, 3) * np.array(shape.size)
-    elif shape.kind == "cylinder":
+    elif shape.kind == "capsule":
+        cylinder = brute_force_grid(Shape("cylinder", radius=shape.radius, length=shape.length))
+        ball = brute_force_grid(Shape("sphere", radius=shape.radius))
+        ends = [ball + [0.0, 0.0, sign * shape.length / 2] for sign in (-1, 1)]
+        grid = np.vstack([cylinder, *ends])
+    elif shape.kind == "polyline":
+        grid = polyline_grid(shape)
+    else:
+        grid = brute_force_grid(shape)
+    return np.min(np.linalg.norm(local_points[:, None, :] - grid[None, :, :], axis=2), axis=1)
+
+
+def brute_force_grid(shape: Shape) -> np.ndarray:
+    """Points filling a centred sphere or cylinder."""
+    if shape.kind == "cylinder":
         theta = np.linspace(0, 2 * np.pi, 120, endpoint=False)
         rings = [np.column_stack([r * np.cos(theta), r * np.sin(theta)]) for r in np.linspace(0, shape.radius, 12)]
         disk = np.vstack(rings)
-        grid = np.vstack([np.column_stack([disk, np.full(len(disk), z * shape.length)]) for z in u])
-    else:
-        phi, theta = np.meshgrid(np.linspace(0, np.pi, 60), np.linspace(0, 2 * np.pi, 120), indexing="ij")
-        unit = np.stack([np.sin(phi) * np.cos(theta), np.sin(phi) * np.sin(theta), np.cos(phi)], -1).reshape(-1, 3)
-        grid = np.vstack([unit * r for r in np.linspace(0, shape.radius, 10)])
-    return np.min(np.linalg.norm(local_points[:, None, :] - grid[None, :, :], axis=2), axis=1)
+        return np.vstack([np.column_stack([disk, np.full(len(disk), z * shape.length)])
+                          for z in np.linspace(-0.5, 0.5, 41)])
+    phi, theta = np.meshgrid(np.linspace(0, np.pi, 60), np.linspace(0, 2 * np.pi, 120), indexing="ij")
+    unit = np.stack([np.sin(phi) * np.cos(theta), np.sin(phi) * np.sin(theta), np.cos(phi)], -1).reshape(-1, 3)
+    return np.vstack([unit * r for r in np.linspace(0, shape.radius, 20)])  # shells r/19 apart: error < 0.06 r
+
+
+def polyline_grid(shape: Shape) -> np.ndarray:
+    """Points filling a star-shaped polyline prism: its fan triangles from the origin, at heights 0..height."""
+    outline = np.array(shape.points)
+    a, b = np.meshgrid(np.linspace(0, 1, 61), np.linspace(0, 1, 61), indexing="ij")
+    keep = a + b <= 1
+    a, b = a[keep], b[keep]
+    flat = np.vstack([np.outer(a, outline[k]) + np.outer(b, outline[(k + 1) % len(outline)])
+                      for k in range(len(outline))])
+    return np.vstack([np.column_stack([flat, np.full(len(flat), z)]) for z in np.linspace(0, shape.height, 21)])
 
 
 @given(shapes, poses, st.lists(st.tuples(finite, finite, finite), min_size=1, max_size=5))
@@ -106,7 +144,12 @@ def test_distances_match_a_brute_force_reference(shape: Shape, pose: Pose, raw_p
     points = pose.position + (np.array(raw_points) / 10.0)  # near the shape, so the tolerance is meaningful
     computed = world.distances(points)[:, 0]
     reference = brute_force_distance(model.shapes[0], to_local(points, pose.position, pose.rotation))
-    largest = max(shape.size or (0,)) if shape.kind == "box" else max(shape.radius or 0, shape.length or 0)
+    if shape.kind == "box":
+        largest = max(shape.size or (0,))
+    elif shape.kind == "polyline":
+        largest = max(float(np.max(np.abs(shape.points))), shape.height or 0)
+    else:
+        largest = max(shape.radius or 0, shape.length or 0)
     assert np.all(computed >= 0)
     assert np.all(computed <= reference + 1e-9)  # the sampled solid is inside the true one
     assert np.allclose(computed, reference, atol=0.06 * largest + 1e-9)
@@ -119,8 +162,16 @@ def test_points_inside_a_shape_are_at_distance_zero(shape: Shape, pose: Pose, fr
     f = np.array(fractions)
     if shape.kind == "box":
         local = f * np.array(shape.size)
-    elif shape.kind == "cylinder":
+    elif shape.kind in ("cylinder", "capsule"):
         local = np.column_stack([f[:, 0] * shape.radius, f[:, 1] * shape.radius, f[:, 2] * shape.length])
+    elif shape.kind == "polyline":  # in each fan triangle from the origin, between 1 % and 99 % of the height
+        outline = np.array(shape.points)
+        a, b = f[:, 0] + 0.5, f[:, 1] + 0.5
+        flip = a + b > 1
+        a, b = np.where(flip, 1 - a, a), np.where(flip, 1 - b, b)
+        z = (f[:, 2] + 0.5) * shape.height
+        local = np.vstack([np.column_stack([np.outer(a, outline[k]) + np.outer(b, outline[(k + 1) % len(outline)]),
+                                            z]) for k in range(len(outline))])
     else:
         local = f * shape.radius
     placed = pose.compose(shape.pose)

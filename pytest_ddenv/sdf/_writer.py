@@ -1,4 +1,5 @@
-"""Export a `World` as an SDF 1.6 world that Gazebo loads: no `<state>` block, nothing left of removed models.
+"""Export a `World` as an SDF world that Gazebo loads (1.6, or 1.8 with capsules): no `<state>` block, nothing
+left of removed models.
 
 Every model becomes one static or dynamic model with one link whose collisions and visuals are the model's
 shapes. What SDF has no element for (the scenario, PyBullet's step and solver settings, `keep`, tags) is
@@ -26,6 +27,8 @@ from pytest_ddenv.world import (
 )
 
 SDF_VERSION = "1.6"
+CAPSULE_SDF_VERSION = "1.8"
+"""The first SDF version with `<capsule>` (libsdformat 11+); written only for worlds that have one."""
 GAZEBO_PHYSICS = {"max_step_size": "0.001", "real_time_factor": "1", "real_time_update_rate": "1000"}
 GROUND_COLOR = (0.8, 0.8, 0.8, 1.0)
 ET.register_namespace("ddenv", DDENV_NS)
@@ -66,6 +69,21 @@ def _geometry(parent: ET.Element, shape: Shape, source: str | None) -> None:
         _sub(cylinder, "length", _number(shape.length or 0.0))
     elif shape.kind == "sphere":
         _sub(_sub(geometry, "sphere"), "radius", _number(shape.radius or 0.0))
+    elif shape.kind == "capsule":  # SDF 1.8+: `dump_sdf` writes that version when a capsule is present
+        capsule = _sub(geometry, "capsule")
+        _sub(capsule, "radius", _number(shape.radius or 0.0))
+        _sub(capsule, "length", _number(shape.length or 0.0))
+    elif shape.kind == "polyline":
+        assert shape.points is not None
+        polyline = _sub(geometry, "polyline")
+        for point in shape.points:
+            _sub(polyline, "point", _numbers(point))
+        _sub(polyline, "height", _number(shape.height or 0.0))
+    elif shape.kind == "heightmap":
+        assert shape.size is not None
+        heightmap = _sub(geometry, "heightmap")
+        _sub(heightmap, "uri", resolve_mesh_path(shape.mesh, source).resolve().as_uri())
+        _sub(heightmap, "size", _numbers(shape.size))
     else:
         path = resolve_mesh_path(shape.mesh, source).resolve()
         unit = collada_unit(path) if path.suffix.lower() == ".dae" else 1.0
@@ -226,8 +244,10 @@ def _robot_description(parent: ET.Element, robot: RobotDescription, source: str 
 
 
 def dump_sdf(world: World) -> str:
-    """The world as SDF 1.6 text (a `<world>` with a sun, Gazebo physics, the ground plane and the models)."""
-    root = ET.Element("sdf", version=SDF_VERSION)
+    """The world as SDF text (a `<world>` with a sun, Gazebo physics, the ground plane and the models): version
+    1.6, or 1.8 when a model has a capsule (1.6 has no `<capsule>`)."""
+    capsules = any(shape.kind == "capsule" for model in world.models for shape in model.shapes)
+    root = ET.Element("sdf", version=CAPSULE_SDF_VERSION if capsules else SDF_VERSION)
     element = _sub(root, "world", name=world.name or "default")
     _sub(element, "gravity", _numbers(world.physics.gravity))
     physics = _sub(element, "physics", name="default_physics", default="0", type="ode")

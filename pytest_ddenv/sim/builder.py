@@ -2,16 +2,30 @@
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from pytest_ddenv.errors import WorldError
-from pytest_ddenv.world import Model, Shape, World, load_mesh, resolve_mesh_path
+from pytest_ddenv.world import (
+    Model,
+    Pose,
+    Shape,
+    World,
+    load_heightmap,
+    load_mesh,
+    polyline_mesh,
+    polyline_polygon,
+    resolve_mesh_path,
+)
 
 GROUND_BODY_NAME = "<ground>"
 _NATIVE_MESH_SUFFIXES = (".obj", ".stl")
+_OWN_LINK_KINDS = ("mesh", "polyline", "heightmap")
+"""Shapes that `createCollisionShapeArray` cannot hold: a compound with one of them has a link per shape."""
 
 
 WHEEL_MU = 1.0
@@ -44,19 +58,32 @@ def _quaternion(p: Any, roll: float, pitch: float, yaw: float) -> list[float]:
 
 def _build_model(p: Any, client: int, model: Model, source: str | None, friction: str = "min") -> int:
     shapes = model.shapes
-    if len(shapes) == 1 or not any(s.kind == "mesh" for s in shapes):
-        collision = _collision_shape(p, client, model, source)
+    if not model.static and any(s.kind == "heightmap" for s in shapes):
+        raise WorldError("a heightmap is terrain and must be static", source=source, model=model.name,
+                         field="static")
+    if len(shapes) == 1 or not any(s.kind in _OWN_LINK_KINDS for s in shapes):
+        pose = model.pose
+        if len(shapes) == 1 and shapes[0].kind == "heightmap":  # a heightfield ignores its collision frame
+            pose = model.pose.compose(_heightfield_frame(shapes[0], source))
+        if len(shapes) == 1 and shapes[0].kind == "polyline" and not model.static:
+            # the body's frame is its centre of mass (pybullet's rayTest misses parts of bodies whose inertial
+            # frame is offset with baseInertialFramePosition)
+            centre = _polyline_centre(shapes[0])
+            pose = model.pose.compose(centre)
+            collision = _single_shape(p, client, _moved(shapes[0], centre), model, source)
+        else:
+            collision = _collision_shape(p, client, model, source)
         mass = 0.0 if model.static else float(model.mass if model.mass is not None else 1.0)
         body = p.createMultiBody(
             baseMass=mass,
             baseCollisionShapeIndex=collision,
             baseVisualShapeIndex=-1,
-            basePosition=[model.pose.x, model.pose.y, model.pose.z],
-            baseOrientation=_quaternion(p, model.pose.roll, model.pose.pitch, model.pose.yaw),
+            basePosition=[pose.x, pose.y, pose.z],
+            baseOrientation=_quaternion(p, pose.roll, pose.pitch, pose.yaw),
             physicsClientId=client,
         )
         links: list[int] = [-1]
-    else:  # compounds with meshes: one fixed link per shape (createCollisionShapeArray has no vertices)
+    else:  # compounds with meshes, polylines or heightmaps: one fixed link per shape
         body, links = _build_linked(p, client, model, source)
     for link in links:
         p.changeDynamics(
@@ -92,6 +119,11 @@ def _collision_shape(p: Any, client: int, model: Model, source: str | None) -> i
             half_extents.append([0.0, 0.0, 0.0])
             radii.append(float(shape.radius or 0.0))
             lengths.append(float(shape.length or 0.0))
+        elif shape.kind == "capsule":  # `lengths`: the cylinder part, as SDF's <length>
+            kinds.append(p.GEOM_CAPSULE)
+            half_extents.append([0.0, 0.0, 0.0])
+            radii.append(float(shape.radius or 0.0))
+            lengths.append(float(shape.length or 0.0))
         else:  # sphere
             kinds.append(p.GEOM_SPHERE)
             half_extents.append([0.0, 0.0, 0.0])
@@ -119,7 +151,76 @@ def _single_shape(p: Any, client: int, shape: Shape, model: Model, source: str |
         return p.createCollisionShape(p.GEOM_CYLINDER, radius=shape.radius, height=shape.length, **frame)
     if shape.kind == "sphere":
         return p.createCollisionShape(p.GEOM_SPHERE, radius=shape.radius, **frame)
+    if shape.kind == "capsule":  # pybullet's height is the cylinder part, as SDF's <length>
+        return p.createCollisionShape(p.GEOM_CAPSULE, radius=shape.radius, height=shape.length, **frame)
+    if shape.kind == "polyline":
+        return _polyline_shape(p, shape, model, source, frame)
+    if shape.kind == "heightmap":
+        return _heightfield_shape(p, client, shape, model, source)
     return _mesh_shape(p, client, shape, model, source, frame)
+
+
+def _polyline_shape(p: Any, shape: Shape, model: Model, source: str | None, frame: dict[str, Any]) -> int:
+    """The extruded outline: a concave triangle mesh when static, its convex hull when dynamic."""
+    assert shape.points is not None and shape.height is not None
+    mesh = polyline_mesh(shape.points, shape.height)
+    vertices = np.asarray(mesh.vertices, dtype=float).tolist()  # type: ignore[attr-defined,type-var]
+    if model.static:
+        indices = np.asarray(mesh.faces, dtype=int).reshape(-1).tolist()  # type: ignore[attr-defined,type-var]
+        index = p.createCollisionShape(p.GEOM_MESH, vertices=vertices, indices=indices,
+                                       flags=p.GEOM_FORCE_CONCAVE_TRIMESH, **frame)
+    else:
+        index = p.createCollisionShape(p.GEOM_MESH, vertices=vertices, **frame)
+    if index < 0:
+        raise WorldError("pybullet could not build the polyline", source=source, model=model.name, field="points")
+    return int(index)
+
+
+def _polyline_centre(shape: Shape) -> Pose:
+    """The centre of mass of a uniform polyline prism in its model's frame (unrotated)."""
+    assert shape.points is not None and shape.height is not None
+    centroid = polyline_polygon(shape.points).centroid  # type: ignore[attr-defined]
+    centre = shape.pose.compose(Pose(float(centroid.x), float(centroid.y), shape.height / 2.0))
+    return Pose(centre.x, centre.y, centre.z)
+
+
+def _moved(shape: Shape, origin: Pose) -> Shape:
+    """`shape` in the frame of `origin`, a translation of its model's frame."""
+    pose = dataclasses.replace(shape.pose, x=shape.pose.x - origin.x, y=shape.pose.y - origin.y,
+                               z=shape.pose.z - origin.z)
+    return dataclasses.replace(shape, pose=pose)
+
+
+def _heightfield_shape(p: Any, client: int, shape: Shape, model: Model, source: str | None) -> int:
+    """A GEOM_HEIGHTFIELD of the image: pybullet centres it on the middle of its height range and ignores a
+    collision frame, so the body (or link) is placed at `_heightfield_frame`."""
+    assert shape.size is not None
+    rows, columns, data = _heightfield_data(resolve_mesh_path(shape.mesh, source))
+    size_x, size_y, size_z = shape.size
+    index = p.createCollisionShape(
+        p.GEOM_HEIGHTFIELD, meshScale=[size_x / (columns - 1), size_y / (rows - 1), size_z],
+        heightfieldData=data, numHeightfieldRows=columns, numHeightfieldColumns=rows, physicsClientId=client,
+    )
+    if index < 0:
+        raise WorldError("pybullet could not build the heightmap", source=source, model=model.name, field="file")
+    return int(index)
+
+
+def _heightfield_frame(shape: Shape, source: str | None) -> Pose:
+    """Where a heightfield goes in its model's frame: the shape's pose, raised by the middle of the heights."""
+    assert shape.size is not None
+    heights = load_heightmap(resolve_mesh_path(shape.mesh, source))
+    middle = (float(heights.min()) + float(heights.max())) / 2.0 * shape.size[2]
+    return shape.pose.compose(Pose(z=middle))
+
+
+@functools.lru_cache(maxsize=4)  # a 1025 x 1025 image is a list of a million floats
+def _heightfield_data(path: Path) -> tuple[int, int, list[float]]:
+    """(rows, columns, samples) for pybullet: sample i + j * columns is column i (along +x) of row j (along
+    +y, from the image's bottom row)."""
+    heights = load_heightmap(path)
+    rows, columns = heights.shape
+    return rows, columns, heights[::-1, :].ravel().tolist()
 
 
 def _mesh_shape(p: Any, client: int, shape: Shape, model: Model, source: str | None, frame: dict[str, Any]) -> int:
@@ -144,9 +245,14 @@ def _mesh_shape(p: Any, client: int, shape: Shape, model: Model, source: str | N
 
 
 def _build_linked(p: Any, client: int, model: Model, source: str | None) -> tuple[int, list[int]]:
-    first, rest = model.shapes[0], model.shapes[1:]
-    base_shape = _single_shape(p, client, first, model, source)
-    shape_ids = [_single_shape(p, client, shape, model, source) for shape in rest]
+    """The base holds the first shape and each other shape is a fixed link; with a heightmap (whose pose is its
+    link's, see `_heightfield_frame`) the base holds nothing and every shape is a link."""
+    if any(shape.kind == "heightmap" for shape in model.shapes):
+        base_shape, linked = -1, model.shapes
+    else:
+        base_shape, linked = _single_shape(p, client, model.shapes[0], model, source), model.shapes[1:]
+    shape_ids = [_single_shape(p, client, shape, model, source) for shape in linked]
+    frames = [_heightfield_frame(shape, source) if shape.kind == "heightmap" else None for shape in linked]
     total = 0.0 if model.static else float(model.mass if model.mass is not None else 1.0)
     each = total / len(model.shapes)
     count = len(shape_ids)
@@ -159,8 +265,9 @@ def _build_linked(p: Any, client: int, model: Model, source: str | None) -> tupl
         linkMasses=[each] * count,
         linkCollisionShapeIndices=shape_ids,
         linkVisualShapeIndices=[-1] * count,
-        linkPositions=[[0.0, 0.0, 0.0]] * count,
-        linkOrientations=[[0.0, 0.0, 0.0, 1.0]] * count,
+        linkPositions=[[0.0, 0.0, 0.0] if f is None else [f.x, f.y, f.z] for f in frames],
+        linkOrientations=[[0.0, 0.0, 0.0, 1.0] if f is None else _quaternion(p, f.roll, f.pitch, f.yaw)
+                          for f in frames],
         linkInertialFramePositions=[[0.0, 0.0, 0.0]] * count,
         linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * count,
         linkParentIndices=[0] * count,
