@@ -36,6 +36,8 @@ if TYPE_CHECKING:
 
 TRAJECTORY_PARTITIONS = ("timeseg", "trajectoryseg")
 TRAJECTORY_PRIORITIES = ("failure-proximal", "avg-trajectory-proximal", "min-trajectory-proximal", "timestep")
+BUDGETS = ("max_probes", "max_seconds")
+"""Settings that do not change the problem: a run with another budget resumes the same log."""
 AUTO_CONFIRMATIONS = 4
 """Runs that may confirm the failure with deflake="auto"/"adaptive" (1 + the paper's default 3 re-runs)."""
 
@@ -99,7 +101,8 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
     partition, priority, notes = _schemas(spec, plan.reference_run)
     for text in notes:
         note(text)
-    problem = artifacts.fingerprint(world, {**plan.fingerprint, "partition": partition, "priority": priority},
+    settings = {key: value for key, value in plan.fingerprint.items() if key not in BUDGETS}
+    problem = artifacts.fingerprint(world, {**settings, "partition": partition, "priority": priority},
                                     plan.test_source)
     paths = artifacts.prepare(plan.artifacts, problem)
     keep = (set(spec.keep) & set(world.names)) | {m.name for m in world.models if m.keep}

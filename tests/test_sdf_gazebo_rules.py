@@ -486,3 +486,26 @@ def test_collada_geometry_refuses_entities(tmp_path: Path) -> None:
     (tmp_path / "evil.dae").write_text('<?xml version="1.0"?>\n<!DOCTYPE C [<!ENTITY a "aa">]>\n<COLLADA>&a;</COLLADA>')
     with pytest.raises(WorldError, match="not allowed"):
         sdf.collada_geometry(tmp_path / "evil.dae")
+
+
+def test_a_capsule_without_a_cylinder_part_is_a_sphere() -> None:
+    from pytest_ddenv.sdf import parse_sdf
+
+    world = parse_sdf('<sdf version="1.9"><world name="w"><model name="ball"><static>true</static><link name="l">'
+                      '<collision name="c"><geometry><capsule><radius>0.3</radius><length>0</length></capsule>'
+                      '</geometry></collision></link></model></world></sdf>')
+    (shape,) = world.model("ball").shapes
+    assert shape.kind == "sphere" and shape.radius == 0.3
+
+
+def test_a_self_intersecting_polyline_is_refused_with_its_line() -> None:
+    from pytest_ddenv.errors import WorldError
+    from pytest_ddenv.sdf import parse_sdf
+
+    bowtie = "".join(f"<point>{x} {y}</point>" for x, y in ((0, 0), (1, 1), (1, 0), (0, 1)))
+    text = ('<sdf version="1.9"><world name="w">\n<model name="tie"><static>true</static><link name="l">'
+            f'<collision name="c"><geometry>\n<polyline>{bowtie}<height>1</height></polyline>'
+            '</geometry></collision></link></model></world></sdf>')
+    with pytest.raises(WorldError, match=r"w.sdf:3, model tie, field .*polyline.*point") as raised:
+        parse_sdf(text, source="w.sdf")
+    assert "self" in str(raised.value).lower() or "intersect" in str(raised.value).lower()

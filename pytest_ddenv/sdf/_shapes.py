@@ -17,7 +17,8 @@ from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._collada import collada_unit
 from pytest_ddenv.sdf._paths import UnresolvedURI, is_remote, resolve_uri
 from pytest_ddenv.sdf._values import Values
-from pytest_ddenv.world import Pose, Shape
+from pytest_ddenv.errors import WorldError
+from pytest_ddenv.world import Pose, Shape, check_shape
 
 MESH_SUFFIXES = (".stl", ".obj", ".dae")
 HEIGHTMAP_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
@@ -100,6 +101,8 @@ class GeometryReader:
         if length < 0 or (length == 0 and element.tag == "cylinder"):
             raise values.error(f"expected a {'positive' if element.tag == 'cylinder' else 'non-negative'} length, "
                                f"got {length}", element.find("length"), model=model, field=f"{where}/length")
+        if length == 0:  # a capsule without a cylinder part: what Gazebo draws is a sphere
+            return Shape("sphere", radius=radius)
         return Shape("cylinder" if element.tag == "cylinder" else "capsule", radius=radius, length=length)
 
     def polylines(self, elements: list[ET.Element], where: str, model: str) -> Geometry:
@@ -113,7 +116,12 @@ class GeometryReader:
                 raise self.values.error(f"a polyline needs at least 3 points, got {len(points)}", element,
                                         model=model, field=f"{where}/point")
             height = self.values.child_number(element, "height", where, model, positive=True, default=1.0)
-            shapes.append(Shape("polyline", points=tuple((p[0], p[1]) for p in points), height=height))
+            shape = Shape("polyline", points=tuple((p[0], p[1]) for p in points), height=height)
+            try:  # the world model's own rules (a simple outline: no self-intersection, not all on a line)
+                check_shape(shape, model=model, field=where, keys={"points": "point"})
+            except WorldError as error:
+                raise self.values.error(error.reason, element, model=model, field=error.field) from None
+            shapes.append(shape)
         holes = sum(
             1 for index, inner in enumerate(shapes)
             if any(_inside(inner, outer) for other, outer in enumerate(shapes) if other != index)

@@ -135,9 +135,11 @@ def test_interrupted_reduction_keeps_its_best_world_and_resumes_without_reprobin
 
     log = Path(first["files"]["log"])
     first_probes = probed(log)
+    first_log = log.read_text()
     assert 1 <= len(first_probes) <= 2
-    resumed = wall_project.runpytest_subprocess("--ddenv-reduce")
+    resumed = wall_project.runpytest_subprocess("--ddenv-reduce")  # without the budget: the same problem
     resumed.assert_outcomes(failed=1)
+    assert log.read_text().startswith(first_log), "the resumed run continues the log, it does not start over"
     second = summary_of(wall_project)
     assert second["complete"] is True and second["minimal_models"] == ["wall"]
     new_probes = probed(log)[len(first_probes):]
