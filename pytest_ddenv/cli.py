@@ -289,17 +289,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return handler(arguments)
     except (DdenvError, OSError) as error:
-        if arguments.debug:
-            raise
+        _traceback_if(arguments.debug)
         return _fail(_describe_error(error), as_json=arguments.json)
     except KeyboardInterrupt:
         print("ddenv: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except Exception as error:
-        if arguments.debug:
-            raise
-        message = f"internal error: {type(error).__name__}: {error} (run with --debug for the traceback)"
+        _traceback_if(arguments.debug)
+        hint = "" if arguments.debug else " (run with --debug for the traceback)"
+        message = f"internal error: {type(error).__name__}: {error}{hint}"
         return _fail(message, as_json=arguments.json, code=EXIT_INTERNAL)
+
+
+def _traceback_if(debug: bool) -> None:
+    """--debug: the traceback of the error being handled, on stderr (the exit code stays the same)."""
+    if debug:
+        import traceback
+
+        traceback.print_exc(file=sys.stderr)
 
 
 def _describe_error(error: BaseException) -> str:

@@ -112,9 +112,11 @@ def test_usage_errors_are_one_line_and_exit_2(capsys: pytest.CaptureFixture[str]
     assert_one_line_error(err, fragment)
 
 
-def test_debug_shows_the_traceback(worlds: dict[str, Path]) -> None:
-    with pytest.raises(cli.UsageError, match="no such world file"):
-        cli.main(["--debug", "check", "missing.yaml"])
+def test_debug_shows_the_traceback_and_keeps_the_exit_code(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(capsys, "--debug", "--json", "check", "missing.yaml")
+    assert code == 2 and "Traceback (most recent call last)" in err and "UsageError" in err
+    assert err.strip().splitlines()[-1] == "ddenv: error: missing.yaml: no such world file"
+    assert json.loads(out) == {"ok": False, "error": "missing.yaml: no such world file", "exit_code": 2}
 
 
 def test_internal_errors_exit_3(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:

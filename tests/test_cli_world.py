@@ -94,3 +94,16 @@ def test_a_gazebo_world_is_reduced_with_a_command_line_scenario(capsys: pytest.C
     assert "--start=-4,5 --goal=4,5 --timeout=15.0" in summary["command"]  # pastes back into a shell
     minimal = (gazebo / "art" / "minimal.yaml").read_text()
     assert "goal: {x: 4.0, y: 5.0}" in minimal and "timeout: 15.0" in minimal  # replayable as it is
+
+
+def test_an_unsupported_element_is_one_line_or_skipped_with_a_note(capsys: pytest.CaptureFixture[str]) -> None:
+    world = str(DATA / "corpus" / "actor.world")
+    code, out, err = run(capsys, "check", world, "--json")
+    assert code == 2 and json.loads(out)["exit_code"] == 2
+    line = err.strip().splitlines()[-1]
+    assert line.startswith(f"ddenv: error: {world}:") and "unsupported <actor>" in line and "--skip-unsupported" in line
+    code, out, err = run(capsys, "check", world, "--skip-unsupported", "--json")
+    data = json.loads(out)
+    assert code == 0 and any(note.startswith("dropped ") and "<actor>" in note for note in data["notes"]), err
+    code, _, err = run(capsys, "--debug", "check", world)
+    assert code == 2 and "Traceback" in err and "unsupported <actor>" in err.strip().splitlines()[-1]

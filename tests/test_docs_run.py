@@ -90,6 +90,23 @@ ARENA_WORLD = """\
 </sdf>
 """
 
+YARD_WORLD = """\
+<?xml version="1.0"?>
+<sdf version="1.7">
+  <world name="yard">
+    <include><uri>model://sun</uri></include>
+    <include><uri>model://ground_plane</uri></include>
+    <plugin filename="libgazebo_ros_state.so" name="state"/>
+    <model name="wall"><static>true</static><pose>2 0 0.5 0 0 0</pose>
+      <link name="l"><collision name="c"><geometry><box><size>0.3 4 1</size></box></geometry></collision></link>
+    </model>
+    <model name="crate"><static>true</static><pose>-3 3 0.25 0 0 0</pose>
+      <link name="l"><collision name="c"><geometry><box><size>0.5 0.5 0.5</size></box></geometry></collision></link>
+    </model>
+  </world>
+</sdf>
+"""
+
 PAGES: dict[str, Page] = {
     "algorithm.md": Page(
         checks={"result = reduce(": (
@@ -106,6 +123,7 @@ PAGES: dict[str, Page] = {
             # the user module the page shows (its block is marked "not executed": `ddenv --import` imports it)
             "lab_control.py": re.search(r'```python\n("""Our robot\'s software.*?)```',
                                         (DOCS / "cli.md").read_text(encoding="utf-8"), flags=re.DOTALL)[1],
+            "yard.world": YARD_WORLD,
         },
         checks={"summary.json": (
             "recorded == (['lab_control'], 'lab_control:Avoider', [{'name': 'trapped', 'params': {'seconds': 15}}])",
