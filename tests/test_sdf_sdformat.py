@@ -239,3 +239,24 @@ def test_a_surgical_export_loads_in_libsdformat_as_the_minimal_world(
         compare(world.without(["block_right", "crate"]), theirs, cut)
     finally:
         cut.unlink()
+
+
+def test_an_export_with_the_new_shapes_loads_in_libsdformat(sdformat_check: Path, tmp_path: Path) -> None:
+    shutil.copy(CORPUS / "media" / "hill.png", tmp_path / "hill.png")
+    world = World.from_yaml(
+        "format: 1\nmodels:\n"
+        "  - {name: pill, pose: [1, 0, 0.5], capsule: {radius: 0.2, length: 0.6}, mass: 2}\n"
+        "  - {name: ell, pose: [3, 0, 0], polyline: {points: [[0, 0], [2, 0], [2, 0.3], [0.3, 0.3], [0.3, 1], "
+        "[0, 1]], height: 0.5}}\n"
+        "  - {name: hill, pose: [0, 6, 0], heightmap: {file: hill.png, size: [4, 4, 0.5]}}\n",
+        source=str(tmp_path / "shapes.yaml"),
+    )
+    exported = tmp_path / "shapes.world"
+    world.save(exported)
+    result = subprocess.run([str(sdformat_check), str(exported)], capture_output=True, text=True, check=False)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "ok, 4 models" in result.stdout  # + the ground plane model
+    reread = load_sdf(exported)
+    assert [m.shapes[0].kind for m in reread.models] == ["capsule", "polyline", "heightmap"]
+    assert reread.models[:2] == world.models[:2]
+    assert Path(reread.model("hill").shapes[0].mesh or "") == tmp_path / "hill.png"  # written as an absolute URI
