@@ -105,7 +105,7 @@ def write_reduction(
     problem_fingerprint: str,
     reference: dict[str, Any],
     extra: dict[str, Any] | None = None,
-    model_paths: Sequence[str | os.PathLike[str]] = (),
+    model_paths: Sequence[str | Path] = (),
 ) -> dict[str, Any]:
     """Write the minimal world and the summary; returns the summary (plain JSON-able dict).
 
@@ -128,7 +128,7 @@ def write_reduction(
 
 
 def write_minimal_sdf(target: Path, world: World, minimal: World, removed: Sequence[str],
-                      model_paths: Sequence[str | os.PathLike[str]]) -> str | None:
+                      model_paths: Sequence[str | Path]) -> str | None:
     """Write `minimal.sdf` and say how: "cut from <file>" (the original SDF file with the removed models and
     their `<state>` entries deleted, nothing else changed: its relative paths are the original file's), or
     "regenerated[: why not cut]" (from the world model), or None when no SDF could be written."""
@@ -152,7 +152,7 @@ def write_minimal_sdf(target: Path, world: World, minimal: World, removed: Seque
     return "regenerated" + reason
 
 
-def _check_cut(text: str, source: Path, minimal: World, model_paths: Sequence[str | os.PathLike[str]]) -> None:
+def _check_cut(text: str, source: Path, minimal: World, model_paths: Sequence[str | Path]) -> None:
     """SurgeryError unless `text`, read as if it were `source`, gives exactly the minimal world's models (a kept
     model may be placed relative to a removed one, for instance)."""
     from pytest_ddenv.errors import WorldError
