@@ -78,9 +78,15 @@ class ReplayRun:
     """What the run raised instead of finishing (a controller's exception), if anything."""
 
 
+FRESH_FIRST_ATTEMPT = 1000
+"""Fresh replay runs use attempts 1000, 1001, ...: seeds no reduction probe used (its attempts are small)."""
+CONFIDENCE = 0.95
+
+
 @dataclass(frozen=True)
 class ReplayResult:
-    """What re-running a minimal world showed."""
+    """What re-running a minimal world showed: `runs` on fresh seeds (or the recorded failing ones), and the
+    original world's failure rate as the reduction measured it (None if it did not)."""
 
     directory: Path
     world: World
@@ -88,29 +94,60 @@ class ReplayResult:
     predicates: tuple[PredicateSpec, ...]
     tolerance: float
     runs: tuple[ReplayRun, ...]
+    fresh: bool = True
+    original_rate: tuple[int, int] | None = None
 
     @property
     def reproduced(self) -> int:
         return sum(1 for run in self.runs if run.outcome is Outcome.FAIL)
 
     @property
+    def interval(self) -> tuple[float, float]:
+        """The failure rate's 95 % confidence interval (Wilson score), from the replayed runs."""
+        from scipy.stats import binomtest
+
+        if not self.runs:
+            return 0.0, 1.0
+        low, high = binomtest(self.reproduced, len(self.runs)).proportion_ci(CONFIDENCE, method="wilson")
+        return float(low), float(high)
+
+    @property
     def ok(self) -> bool:
-        """Every replayed seed failed the same way."""
-        return bool(self.runs) and self.reproduced == len(self.runs)
+        """The failure reproduced: in at least one fresh run, or in every recorded failing seed."""
+        if not self.runs:
+            return False
+        return self.reproduced > 0 if self.fresh else self.reproduced == len(self.runs)
+
+    def describe(self) -> str:
+        """"reproduced 7/10 fresh seeds (70 %, 95 % interval 40-89 %); the original world failed 3/3"."""
+        total = len(self.runs)
+        kind = "fresh seeds" if self.fresh else "recorded failing seeds"
+        low, high = self.interval
+        text = (f"{'reproduced' if self.ok else 'NOT reproduced'}: {self.reproduced}/{total} {kind} failed the same "
+                f"way ({100 * self.reproduced / max(total, 1):.0f} %, {CONFIDENCE:.0%} interval "
+                f"{100 * low:.0f}-{100 * high:.0f} %)")
+        if self.original_rate is not None:
+            text += f"; the original world failed {self.original_rate[0]}/{self.original_rate[1]} in the reduction"
+        return text
 
     def to_dict(self) -> dict[str, Any]:
+        low, high = self.interval
         return {
             "artifacts": str(self.directory),
             "models": list(self.world.names),
             "reference_failure": self.reference.to_dict(),
             "predicates": predicates_to_json(self.predicates),
             "tolerance": self.tolerance,
+            "fresh": self.fresh,
             "runs": [
                 {"seed": run.seed, "outcome": run.outcome.value,
                  "failure": None if run.failure is None else run.failure.to_dict(), "raised": run.raised or None}
                 for run in self.runs
             ],
             "reproduced": self.reproduced,
+            "rate": self.reproduced / len(self.runs) if self.runs else None,
+            "interval": [low, high],
+            "original_rate": None if self.original_rate is None else list(self.original_rate),
             "ok": self.ok,
         }
 
@@ -174,11 +211,14 @@ def recorded_seeds(log: Path, minimal: Sequence[str], fallback: int) -> list[int
     return seeds or [fallback]
 
 
-def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None = None, max_runs: int = 5,
+def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None = None, max_runs: int = 10,
            tolerance: float | None = None, timeout: float | None = None,
-           controller: ControllerLike | None = None) -> ReplayResult:
-    """Re-run the minimal world of an artifacts folder with its recorded failing seeds (at most `max_runs`)."""
+           controller: ControllerLike | None = None, recorded: bool = False) -> ReplayResult:
+    """Re-run the minimal world of an artifacts folder `max_runs` times on fresh seeds, which no probe of the
+    reduction used, and measure how often it fails the same way; with `recorded`, re-run instead the seeds
+    on which the reduction saw it fail (exact reproduction: each should fail again)."""
     from pytest_ddenv.oracle import classify
+    from pytest_ddenv.robot_world import ATTEMPT_SEED_STRIDE
 
     folder = Path(directory)
     summary, world = read_artifacts(folder)
@@ -187,7 +227,10 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
     limit = float(summary.get("tolerance", 0.5)) if tolerance is None else tolerance
     run_timeout = timeout if timeout is not None else summary.get("timeout")
     seed = int(summary.get("scenario_seed", summary.get("seed", 0)))
-    seeds = recorded_seeds(folder / "runs.jsonl", world.names, seed)[:max_runs]
+    if recorded:
+        seeds = recorded_seeds(folder / "runs.jsonl", world.names, seed)[:max_runs]
+    else:
+        seeds = [seed + (FRESH_FIRST_ATTEMPT + index) * ATTEMPT_SEED_STRIDE for index in range(max_runs)]
     results = []
     for run_seed in seeds:
         try:
@@ -198,4 +241,7 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
             results.append(ReplayRun(run_seed, Outcome.OTHER, None, f"{type(error).__name__}: {error}"))
             continue
         results.append(ReplayRun(run_seed, classify(run, reference, limit), run.failure))
-    return ReplayResult(folder, world, reference, chosen, limit, tuple(results))
+    original = summary.get("original_failure_rate") or None
+    original_rate = (int(original["fails"]), int(original["runs"])) if isinstance(original, Mapping) else None
+    return ReplayResult(folder, world, reference, chosen, limit, tuple(results), fresh=not recorded,
+                        original_rate=original_rate)
