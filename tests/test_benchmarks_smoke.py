@@ -45,6 +45,17 @@ def scripts(bench):
         sys.path.remove(str(BENCHMARKS))
 
 
+@pytest.fixture(scope="module")
+def failure_rates(bench):
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import bench_failure_rates
+
+        yield bench_failure_rates
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+
+
 def test_yard_is_seeded_and_sized(bench):
     _, make_yard = bench
     text = make_yard.yard_yaml(50, seed=3)
@@ -100,6 +111,42 @@ def test_picire_adapter_finds_the_culprit(bench, problem):
     assert row.one_minimal and not row.note
     assert row.simulations == row.extra["tests"] - row.extra["skipped"]
     assert row.extra["retests"] >= 1
+
+
+@pytest.mark.parametrize("rule", [0, "auto"])
+def test_failure_rates_of_a_minimal_world_on_fresh_seeds(bench, failure_rates, problem, rule):
+    _, make_yard = bench
+    fresh = failure_rates.FRESH_FIRST_ATTEMPT
+    original = failure_rates.fresh_rate(problem, problem.world.names, 2, fresh, 1)
+    assert (original["fails"], original["runs"]) == (2, 2)
+    row = failure_rates.measure(problem, scenario="yard", partition="even", priority="sequential", rule=rule,
+                                seed=1, workers=1, original=original, fresh_runs=2)
+    assert problem.attempt_offset == 0  # the reduction seed's offset is not left behind
+    assert tuple(row["minimal"]) == make_yard.CULPRITS
+    assert row["one_minimal"] and row["minimal_size"] == 1 and row["original_size"] == 5
+    assert row["minimal_fresh"]["runs"] == 2 and row["original_fresh"] == {"fails": 2, "runs": 2}
+    assert row["below_half"] is (2 * row["minimal_fresh"]["fails"] < 2)
+    assert row["fresh_attempts"] == [fresh, fresh + 1]
+    # one worker: no speculation; every simulation is a probe (calibration included) or a failure-rate run
+    assert row["speculative_unused"] == 0
+    assert row["simulations"] == row["probes"] + row["engine_failure_rate"][1] > 0
+    if rule == 0:
+        assert row["rule_used"] == "0" and row["calibration_runs"] == 0
+    else:
+        assert row["rule_used"].startswith("auto:") and row["calibration_runs"] >= 3
+    cells = failure_rates.table_row(row)
+    assert len(cells) == len(failure_rates.HEADERS) and cells[3] == "5 → 1"
+    (line,) = failure_rates.summary_lines([row], [rule])
+    assert line.startswith(f"rule {rule}: {int(row['below_half'])} of 1 minimal worlds")
+
+
+def test_failure_rates_fresh_seeds_are_never_a_reductions(failure_rates):
+    failure_rates.check_fresh([0, 1, 2], failure_rates.FRESH_FIRST_ATTEMPT)
+    with pytest.raises(ValueError, match="reduction seed 1"):
+        failure_rates.check_fresh([0, 1, 2], 1000)  # attempt 1000 + k is reduction seed 1's attempt k
+    assert failure_rates.parse_rule("3") == 3 and failure_rates.parse_rule("auto") == "auto"
+    with pytest.raises(Exception, match="deflake"):
+        failure_rates.parse_rule("maybe")
 
 
 def test_plain_text_table(bench):
