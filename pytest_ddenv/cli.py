@@ -14,18 +14,24 @@ import math
 import os
 import shlex
 import sys
-import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from pytest_ddenv import __version__
-from pytest_ddenv.cli_world import UsageError, add_scenario_options, add_world_options, load_world, with_scenario
-from pytest_ddenv.errors import DdenvError
-from pytest_ddenv.oracle import PredicateSpec
+from pytest_ddenv.cli_world import (
+    UsageError,
+    add_scenario_options,
+    add_world_options,
+    load_world,
+    with_scenario,
+)
+from pytest_ddenv.errors import DdenvError, shown
+from pytest_ddenv.oracle import PredicateSpec, check_predicate_models
+from pytest_ddenv.progress import ProgressLine
 
 if TYPE_CHECKING:  # pragma: no cover
-    from pytest_ddenv.reduce import ProgressEvent, Reduction
+    from pytest_ddenv.reduce import Reduction
     from pytest_ddenv.sim import Run
     from pytest_ddenv.world import World
 
@@ -53,16 +59,16 @@ def _non_negative_int(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {shown(text)}") from None
     if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {shown(text)}")
     return value
 
 
 def _positive_int(text: str) -> int:
     value = _non_negative_int(text)
     if value < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {shown(text)}")
     return value
 
 
@@ -76,10 +82,55 @@ def _positive_float(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {shown(text)}") from None
     if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {shown(text)}")
     return value
+
+
+def _executor(text: str) -> str:
+    problem = executor_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return text
+
+
+def executor_problem(executor: str) -> str | None:
+    """Why `executor` is not 'local', 'dask' or a dask scheduler address tcp://HOST:PORT (tls://...), or None.
+    Only the form is checked: whether the scheduler answers is known when a reduction connects to it."""
+    from urllib.parse import urlsplit
+
+    if executor in ("local", "dask"):
+        return None
+    expected = "expected 'local', 'dask' or a dask scheduler address tcp://HOST:PORT (or tls://HOST:PORT)"
+    try:
+        parts = urlsplit(executor)
+        port = parts.port
+    except ValueError:  # a port that is not a number from 0 to 65535
+        return f"{expected}, got {shown(executor)}"
+    if parts.scheme not in ("tcp", "tls") or not parts.hostname or not port or parts.path not in ("", "/") or (
+            parts.query or parts.fragment or parts.username):
+        return f"{expected}, got {shown(executor)}"
+    return None
+
+
+def folder_problem(folder: Path) -> str | None:
+    """Why reductions cannot write into `folder` (made when missing), or None: a file in its place, or the
+    folder (or its nearest existing parent) not writable. Checked before any probe runs."""
+    try:
+        if folder.exists() and not folder.is_dir():
+            return f"{folder} is a file, not a folder"
+        existing = folder
+        while not existing.exists() and existing.parent != existing:
+            existing = existing.parent
+        if not existing.is_dir():
+            return f"{existing} is a file, so the folder {folder} cannot be made"
+        if not os.access(existing, os.W_OK | os.X_OK):
+            made = "" if existing == folder else f" (to make {folder} in it)"
+            return f"the folder {existing} is not writable{made}"
+    except OSError as error:  # a loop of symbolic links, a name too long, ...
+        return f"{folder} cannot be used: {error.strerror or error}"
+    return None
 
 
 def parse_predicate(text: str) -> PredicateSpec:
@@ -91,18 +142,18 @@ def parse_predicate(text: str) -> PredicateSpec:
 
     name, _, rest = text.partition(":")
     if not name.strip():
-        raise UsageError(f"--predicate {text!r}: expected NAME[:key=value,...]")
+        raise UsageError(f"--predicate {shown(text)}: expected NAME[:key=value,...]")
     params: dict[str, Any] = {}
     for item in _split_top_level(rest):
         key, equals, value = item.partition("=")
         if not equals or not key.strip():
-            raise UsageError(f"--predicate {text!r}: expected key=value, got {item!r} "
+            raise UsageError(f"--predicate {shown(text)}: expected key=value, got {shown(item)} "
                              "(form: NAME[:key=value,...], e.g. stuck:window=5,min_progress=0.2)")
         params[key.strip()] = _predicate_value(value.strip())
     try:
         make_predicate(name.strip(), **params)
     except DdenvError as error:
-        raise UsageError(f"--predicate {text!r}: {error}") from None
+        raise UsageError(f"--predicate {shown(text)}: {error}") from None
     return PredicateSpec(name.strip(), params)
 
 
@@ -245,7 +296,7 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     reduce.add_argument("--workers", type=_workers, default="auto", metavar="N",
                         help="probe worker processes: a number, or 'auto' for one per core (the default); 1 "
                              "simulates in this process")
-    reduce.add_argument("--executor", default=None, metavar="ADDRESS",
+    reduce.add_argument("--executor", default=None, metavar="ADDRESS", type=_executor,
                         help="where probes run: 'local' worker processes (default), 'dask' (a local dask "
                              "cluster) or tcp://HOST:PORT of a dask scheduler")
     reduce.add_argument("--out", metavar="DIR", help="artifacts folder (default ddenv-artifacts/WORLD)")
@@ -258,8 +309,12 @@ def _add_replay(commands: Any, common: argparse.ArgumentParser) -> None:
     replay.add_argument("artifacts", metavar="ARTIFACT_DIR", help="a folder written by ddenv reduce or pytest --ddenv-reduce")
     _add_predicate_option(replay, required=False)
     _add_user_code_options(replay)
-    replay.add_argument("--runs", type=_positive_int, default=5, metavar="N",
-                        help="replay at most N recorded failing seeds (default 5)")
+    replay.add_argument("--runs", type=_positive_int, default=10, metavar="N",
+                        help="run N fresh seeds, none a reduction probe used (default 10); with --recorded, at "
+                             "most N of the seeds the reduction saw fail")
+    replay.add_argument("--recorded", action="store_true",
+                        help="re-run the seeds on which the reduction saw the minimal world fail (each should "
+                             "fail again) instead of fresh ones")
     replay.add_argument("--tolerance", type=_positive_float, metavar="M", help="default: the recorded one")
 
 
@@ -367,6 +422,13 @@ def _predicates(texts: Sequence[str]) -> tuple[PredicateSpec, ...]:
     return tuple(parse_predicate(text) for text in texts)
 
 
+def _check_predicate_models(predicates: Sequence[PredicateSpec], world: World) -> None:
+    try:
+        check_predicate_models(predicates, world.names, world.source or world.name)
+    except DdenvError as error:
+        raise UsageError(f"--predicate: {error}") from None
+
+
 def _world_stem(path: str) -> str:
     return Path(path).stem or "world"
 
@@ -388,6 +450,7 @@ def _cmd_run(arguments: argparse.Namespace) -> int:
     controller = _user_code(arguments)
     world = with_scenario(arguments, load_world(arguments, arguments.world), arguments.world)
     predicates = _predicates(arguments.predicates)
+    _check_predicate_models(predicates, world)
     try:
         run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout, controller=controller)
     except DdenvError:
@@ -508,23 +571,30 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     _user_code(arguments)
     world = with_scenario(arguments, load_world(arguments, arguments.world), arguments.world)
     predicates = _predicates(arguments.predicates)
+    _check_predicate_models(predicates, world)
     deflake = parse_deflake(arguments.deflake, "--deflake", DEFLAKE_POLICIES)
     keep = _keep(world, arguments.keep)
     priority = PRIORITY_ALIASES.get(arguments.priority, arguments.priority)
     executor = check_executor(arguments.executor)
+    problem = folder_problem(_artifacts_folder(arguments))
+    if problem is not None:
+        raise UsageError(f"{'--out' if arguments.out else 'the artifacts folder'}: {problem}")
     job = ScenarioJob(tuple(predicates), seed=arguments.seed, timeout=arguments.timeout,
                       controller=arguments.controller, imports=tuple(arguments.imports))
-    progress = _Progress(sys.stderr, quiet=arguments.quiet)
+    progress = ProgressLine(sys.stderr, quiet=arguments.quiet)
     in_process = job.handler() if executor is None and arguments.workers == 1 else None
-    with make_pool(job, arguments.workers, executor, in_process=in_process) as pool:
-        progress.note(f"simulating the original world ({len(world)} models, seed {arguments.seed}; "
-                      f"{_where(pool)})")
-        original = pool.call(world, 0)
-        if original.error is None or original.error.ddenv_error or original.error.phase != "call":
-            return _does_not_fail(arguments, original)
-        progress.note(f"it fails: {_failure_text(original)}; reducing")
-        outcome, interrupted = _reduce(arguments, world, original, predicates, deflake, keep, priority, pool,
-                                       progress)
+    try:
+        with make_pool(job, arguments.workers, executor, in_process=in_process) as pool:
+            progress.note(f"simulating the original world ({len(world)} models, seed {arguments.seed}; "
+                          f"{_where(pool)})")
+            original = pool.call(world, 0)
+            if original.error is None or original.error.ddenv_error or original.error.phase != "call":
+                return _does_not_fail(arguments, original)
+            progress.note(f"it fails: {_failure_text(original)}; reducing")
+            outcome, interrupted = _reduce(arguments, world, original, predicates, deflake, keep, priority, pool,
+                                           progress)
+    finally:
+        progress.close()
     assert outcome.reduction is not None and outcome.summary is not None
     summary = {**outcome.summary, "pictures": [str(p) for p in outcome.attachments if p.suffix == ".png"]}
     _emit(arguments, _reduction_text(arguments.world, outcome.reduction, summary, outcome.notes), {"ok": True, **summary})
@@ -572,7 +642,7 @@ def _artifacts_folder(arguments: argparse.Namespace) -> Path:
 
 def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicates: Sequence[PredicateSpec],
             deflake: int | str, keep: tuple[str, ...], priority: str, pool: Any,
-            progress: _Progress) -> tuple[Any, bool]:
+            progress: ProgressLine) -> tuple[Any, bool]:
     import dataclasses
 
     from pytest_ddenv.driver import ReductionPlan, run_reduction
@@ -661,58 +731,6 @@ def _shorten(names: Sequence[str], limit: int = 8) -> str:
     return shown if len(names) <= limit else f"{shown}, ... (+{len(names) - limit} more, see summary.json)"
 
 
-class _Progress:
-    """A one-line progress bar on a terminal (probes, current size, elapsed); a line per step otherwise."""
-
-    WIDTH = 24
-
-    def __init__(self, stream: IO[str], *, quiet: bool = False) -> None:
-        self.stream = stream
-        self.quiet = quiet
-        self.live = not quiet and stream.isatty() and os.environ.get("TERM") != "dumb"
-        self.original: int | None = None
-        self.started = time.perf_counter()
-        self._width = 0
-
-    def note(self, text: str) -> None:
-        if not self.quiet:
-            self._clear()
-            print(f"ddenv: {text}", file=self.stream, flush=True)
-
-    def update(self, event: ProgressEvent) -> None:
-        if self.quiet:
-            return
-        if self.original is None:
-            self.original = event.size
-        line = self._line(event)
-        if self.live:
-            self.stream.write("\r" + line.ljust(self._width))
-            self.stream.flush()
-            self._width = len(line)
-        elif event.kind in ("start", "step", "verify", "end"):
-            print(line, file=self.stream, flush=True)
-
-    def _line(self, event: ProgressEvent) -> str:
-        original = max(self.original or event.size, 1)
-        done = (original - event.size) / max(original - 1, 1)
-        filled = round(self.WIDTH * min(max(done, 0.0), 1.0))
-        minutes, seconds = divmod(int(event.elapsed), 60)
-        bar = "#" * filled + "-" * (self.WIDTH - filled)
-        return (f"[{bar}] {original} -> {event.size} models | {event.probes} probes | "
-                f"{minutes:02d}:{seconds:02d} | {event.kind}")
-
-    def _clear(self) -> None:
-        if self.live and self._width:
-            self.stream.write("\r" + " " * self._width + "\r")
-            self._width = 0
-
-    def close(self) -> None:
-        if self.live and self._width:
-            self.stream.write("\n")
-            self.stream.flush()
-            self._width = 0
-
-
 # -- replay ------------------------------------------------------------------------------------------------
 def _cmd_replay(arguments: argparse.Namespace) -> int:
     from pytest_ddenv.replay import read_artifacts, replay
@@ -724,7 +742,7 @@ def _cmd_replay(arguments: argparse.Namespace) -> int:
     controller = _user_code(arguments)
     predicates = _predicates(arguments.predicates) or None
     result = replay(arguments.artifacts, predicates=predicates, max_runs=arguments.runs,
-                    tolerance=arguments.tolerance, controller=controller)
+                    tolerance=arguments.tolerance, controller=controller, recorded=arguments.recorded)
     reference = result.reference
     lines = [(f"{arguments.artifacts}: minimal world of {len(result.world)} models; reference failure: "
              f"{reference.predicate} at t = {reference.time:.2f} s at ({reference.position[0]:.2f}, "
@@ -733,8 +751,7 @@ def _cmd_replay(arguments: argparse.Namespace) -> int:
         what = "no failure" if run.failure is None else f"{run.failure.predicate} at t = {run.failure.time:.2f} s"
         what = f"raised {run.raised}" if run.raised else what
         lines.append(f"  seed {run.seed}: {run.outcome.value} ({what})")
-    verdict = "reproduced" if result.ok else "NOT reproduced"
-    lines.append(f"{verdict}: {result.reproduced}/{len(result.runs)} runs failed the same way")
+    lines.append(result.describe())
     _emit(arguments, "\n".join(lines), result.to_dict())
     return EXIT_OK if result.ok else EXIT_FAILED
 

@@ -11,7 +11,7 @@ import math
 import os
 from pathlib import Path
 
-from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.world import Pose, RobotDescription, Scenario, World, resolve_relative
 
 NO_SCENARIO_HELP = (
@@ -108,5 +108,5 @@ def _numbers(text: str, option: str, counts: tuple[int, ...]) -> list[float]:
         values = []
     if len(values) not in counts or not all(math.isfinite(v) for v in values):
         form = "X,Y[,YAW]" if option == "--start" else "X,Y[,Z]"
-        raise UsageError(f"{option}: expected {form} (numbers separated by commas), got {text!r}")
+        raise UsageError(f"{option}: expected {form} (numbers separated by commas), got {shown(text)}")
     return values

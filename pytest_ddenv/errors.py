@@ -2,11 +2,22 @@
 
 from __future__ import annotations
 
+import reprlib
 from pathlib import Path
+from typing import Any
+
+SHOWN_CHARACTERS = 60
+"""The most characters of user data (a value, a key, a line of a foreign file) an error message shows."""
+PATH_CHARACTERS = 240
+"""The most characters of a path or URI an error message shows."""
 
 
 class DdenvError(Exception):
     """Base class of every error pytest-ddenv raises on purpose."""
+
+    def shown_from(self, folder: Path) -> str:
+        """The message, with the file it names relative to `folder` when it is inside it (shorter lines)."""
+        return str(self)
 
 
 class WorldError(DdenvError):
@@ -28,6 +39,19 @@ class WorldError(DdenvError):
         self.line = line
         super().__init__(self._render())
 
+    def shown_from(self, folder: Path) -> str:
+        if self.source is None or not Path(self.source).is_absolute():
+            return str(self)
+        try:
+            relative = Path(self.source).relative_to(folder)
+        except ValueError:
+            return str(self)
+        full, self.source = self.source, str(relative)
+        try:
+            return self._render()
+        finally:
+            self.source = full
+
     def _render(self) -> str:
         where: list[str] = []
         if self.source is not None:
@@ -47,3 +71,50 @@ class ScenarioError(WorldError):
 
 class ReductionError(DdenvError):
     """The reduction engine was called with invalid arguments or cannot proceed."""
+
+
+class _ShortRepr(reprlib.Repr):
+    """reprlib with small limits, safe for any value: huge integers, bytes, nested or recursive containers."""
+
+    def __init__(self, limit: int) -> None:
+        super().__init__()
+        self.limit = limit
+        self.maxlevel, self.maxlist, self.maxtuple, self.maxdict, self.maxset = 2, 4, 4, 4, 4
+        self.maxstring = self.maxother = self.maxlong = limit
+
+    def repr_int(self, x: int, level: int) -> str:
+        if x.bit_length() > 128:  # repr() of an int of more than 4300 digits raises ValueError
+            return f"<an integer of about {int(x.bit_length() * 0.30103) + 1} digits>"
+        return super().repr_int(x, level)
+
+    def repr_bytes(self, x: bytes, level: int) -> str:
+        head = repr(x[:self.limit])
+        return head if len(x) <= self.limit else f"{head[:-1]}...{head[-1]} ({len(x)} bytes)"
+
+    def repr_instance(self, x: Any, level: int) -> str:
+        try:
+            text = object.__repr__(x) if isinstance(x, BaseException) else repr(x)
+        except Exception:  # noqa: BLE001 - a broken __repr__ must not hide the error being reported
+            text = f"<{type(x).__name__} object>"
+        return text if len(text) <= self.limit else f"{text[:self.limit - 3]}..."
+
+
+_SHORT_REPR = _ShortRepr(SHOWN_CHARACTERS)
+
+
+def shown(value: object, limit: int = SHOWN_CHARACTERS) -> str:
+    """The repr of user data for an error message, at most about `limit` characters whatever the value's size
+    (a whole file read as one string, a billion-element alias structure, a 5000-digit integer): long strings
+    keep their start and end, containers their first items, with `...` for what is left out. Give a larger
+    `limit` for paths and URIs."""
+    text = (_SHORT_REPR if limit == SHOWN_CHARACTERS else _ShortRepr(limit)).repr(value)
+    return text if len(text) <= 2 * limit else f"{text[:2 * limit - 3]}..."
+
+
+def shown_path(path: object) -> str:
+    """A path (or URI) for an error message, as it is, clipped to about PATH_CHARACTERS characters."""
+    text = str(path)
+    if len(text) <= PATH_CHARACTERS:
+        return text
+    half = PATH_CHARACTERS // 2
+    return f"{text[:half]}...{text[-half:]}"

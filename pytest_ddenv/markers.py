@@ -6,11 +6,12 @@ error that names the test.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.errors import DdenvError, shown
 
 if TYPE_CHECKING:
     from pytest_ddenv.oracle import PredicateSpec
@@ -69,7 +70,7 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
         updates["partition"] = _choice(values["partition"], "partition", PARTITIONS)
     if "priority" in values:
         priority = PRIORITY_ALIASES.get(values["priority"], values["priority"])
-        updates["priority"] = _choice(priority, "priority", PRIORITIES, shown=values["priority"])
+        updates["priority"] = _choice(priority, "priority", PRIORITIES, given=values["priority"])
     if "granularity" in values:
         updates["granularity"] = _choice(values["granularity"], "granularity", ("ddmin", "paper"))
     if "n_partitions" in values:
@@ -83,7 +84,7 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
         if isinstance(keep, str):
             keep = (keep,)
         if not isinstance(keep, (list, tuple, set, frozenset)) or not all(isinstance(k, str) for k in keep):
-            raise MarkerError(f"ddenv(keep=...): expected a list of model names, got {keep!r}")
+            raise MarkerError(f"ddenv(keep=...): expected a list of model names, got {shown(keep)}")
         updates["keep"] = tuple(keep)
     if "seed" in values:
         updates["seed"] = _integer(values["seed"], "seed", minimum=0)
@@ -91,7 +92,8 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
         updates.update(_budget(values["budget"]))
     if "skip_unsupported" in values:
         if not isinstance(values["skip_unsupported"], bool):
-            raise MarkerError(f"ddenv(skip_unsupported=...): expected True or False, got {values['skip_unsupported']!r}")
+            raise MarkerError("ddenv(skip_unsupported=...): expected True or False, got "
+                              f"{shown(values['skip_unsupported'])}")
         updates["skip_unsupported"] = values["skip_unsupported"]
     return ReductionSpec(**{**spec.__dict__, **updates})
 
@@ -102,12 +104,18 @@ def parse_deflake(value: Any, where: str, policies: Sequence[str] | None = None)
         from pytest_ddenv.reduce import DEFLAKE_POLICIES
 
         policies = DEFLAKE_POLICIES
+    from pytest_ddenv.reduce import deflake as deflake_module
+
+    most: int | None = getattr(deflake_module, "MAX_DEFLAKE", None)
     if isinstance(value, str) and value in policies:
         return value
-    if isinstance(value, str) and value.isdigit():
+    given = value
+    if isinstance(value, str) and value.isdigit() and len(value) <= 20:
         value = int(value)
-    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-        raise MarkerError(f"{where}: expected an integer >= 0 or one of {', '.join(policies)}, got {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0 or (most is not None and value > most):
+        bound = "" if most is None else f" and <= {most}"
+        raise MarkerError(f"{where}: expected an integer >= 0{bound} or one of {', '.join(policies)}, got "
+                          f"{shown(given)}")
     return value
 
 
@@ -130,20 +138,20 @@ def parse_failure_markers(markers: Sequence[tuple[Sequence[Any], Mapping[str, An
         try:
             specs.append(predicate_spec(args[0], kwargs))
         except DdenvError as error:
-            raise MarkerError(f"robot_failure({args[0]!r}, ...): {error}") from error
+            raise MarkerError(f"robot_failure({shown(args[0])}, ...): {error}") from error
     return tuple(specs)
 
 
 def _string(value: Any, name: str) -> str:
     if not isinstance(value, str) or not value:
-        raise MarkerError(f"ddenv({name}=...): expected a non-empty string, got {value!r}")
+        raise MarkerError(f"ddenv({name}=...): expected a non-empty string, got {shown(value)}")
     return value
 
 
-def _choice(value: Any, name: str, choices: Sequence[str], *, shown: Any = None) -> str:
+def _choice(value: Any, name: str, choices: Sequence[str], *, given: Any = None) -> str:
     if value not in choices:
         raise MarkerError(
-            f"ddenv({name}=...): unknown {name} {shown if shown is not None else value!r}; "
+            f"ddenv({name}=...): unknown {name} {shown(given if given is not None else value)}; "
             f"valid choices: {', '.join(choices)}"
         )
     return str(value)
@@ -151,14 +159,17 @@ def _choice(value: Any, name: str, choices: Sequence[str], *, shown: Any = None)
 
 def _integer(value: Any, name: str, *, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise MarkerError(f"ddenv({name}=...): expected an integer >= {minimum}, got {value!r}")
+        raise MarkerError(f"ddenv({name}=...): expected an integer >= {minimum}, got {shown(value)}")
     return value
 
 
 def _positive(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-        raise MarkerError(f"ddenv({name}=...): expected a positive number, got {value!r}")
-    return float(value)
+    number = math.nan
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        number = float(value) if isinstance(value, float) or value.bit_length() < 1000 else math.inf
+    if not 0 < number < math.inf:
+        raise MarkerError(f"ddenv({name}=...): expected a positive, finite number, got {shown(value)}")
+    return number
 
 
 def _budget(value: Any) -> dict[str, Any]:
@@ -171,4 +182,5 @@ def _budget(value: Any) -> dict[str, Any]:
         if "seconds" in value:
             budget["max_seconds"] = _positive(value["seconds"], "budget")
         return budget
-    raise MarkerError(f"ddenv(budget=...): expected a probe count or {{'probes': N, 'seconds': S}}, got {value!r}")
+    raise MarkerError("ddenv(budget=...): expected a probe count or {'probes': N, 'seconds': S}, got "
+                      f"{shown(value)}")

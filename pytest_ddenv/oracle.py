@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from pytest_ddenv.errors import ScenarioError
+from pytest_ddenv.errors import ScenarioError, shown
 from pytest_ddenv.outcome import Outcome
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -40,6 +40,7 @@ __all__ = [
     "Stuck",
     "Timeout",
     "check_predicate",
+    "check_predicate_models",
     "classify",
     "make_predicate",
     "predicate",
@@ -388,12 +389,12 @@ def register_predicate(name: str, factory: Callable[..., Predicate], *, replace:
     `ddenv` command's `--predicate name:k=v` and `ddenv replay`. Register it in a module the test (or
     `ddenv --import`) imports, so that every probe worker has it too."""
     if not isinstance(name, str) or not name.isidentifier():
-        raise ValueError(f"a predicate name must be an identifier, got {name!r}")
+        raise ValueError(f"a predicate name must be an identifier, got {shown(name)}")
     if name in BUILT_IN or (name in PREDICATES and not replace):
-        raise ValueError(f"a predicate named {name!r} is already registered"
+        raise ValueError(f"a predicate named {shown(name)} is already registered"
                          + ("" if name in BUILT_IN else " (pass replace=True)"))
     if not callable(factory):
-        raise TypeError(f"register_predicate({name!r}, ...): the factory must be callable, got {factory!r}")
+        raise TypeError(f"register_predicate({shown(name)}, ...): the factory must be callable, got {shown(factory)}")
     PREDICATES[name] = factory
 
 
@@ -403,7 +404,7 @@ def make_predicate(name: str, /, **params: Any) -> Predicate:
         factory = PREDICATES[name]
     except (KeyError, TypeError):
         raise ScenarioError(
-            f"unknown failure predicate {name!r}; valid predicates: {', '.join(sorted(PREDICATES))} (register "
+            f"unknown failure predicate {shown(name)}; valid predicates: {', '.join(sorted(PREDICATES))} (register "
             "your own with pytest_ddenv.register_predicate)",
             field="predicate",
         ) from None
@@ -417,7 +418,8 @@ def make_predicate(name: str, /, **params: Any) -> Predicate:
         where = f"{name}.{key}"
         if key not in accepted and not takes_any:
             raise ScenarioError(
-                f"predicate {name!r} has no parameter {key!r}; valid parameters: {', '.join(accepted) or '(none)'}",
+                f"predicate {shown(name)} has no parameter {shown(key)}; valid parameters: "
+                f"{', '.join(accepted) or '(none)'}",
                 field=where,
             )
         if name in BUILT_IN:
@@ -427,8 +429,8 @@ def make_predicate(name: str, /, **params: Any) -> Predicate:
     try:
         predicate = factory(**params)
     except (TypeError, ValueError) as error:
-        raise ScenarioError(f"predicate {name!r} could not be built: {error}", field=name) from None
-    check_predicate(predicate, f"the factory of predicate {name!r} returned {predicate!r}, which")
+        raise ScenarioError(f"predicate {shown(name)} could not be built: {error}", field=name) from None
+    check_predicate(predicate, f"the factory of predicate {shown(name)} returned {shown(predicate)}, which")
     return predicate
 
 
@@ -440,13 +442,13 @@ def _check_built_in_parameter(key: str, value: Any, where: str) -> None:
     if key == "min_z" and value is None:
         return
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ScenarioError(f"expected a finite number, got {value!r}", field=where)
+        raise ScenarioError(f"expected a finite number, got {shown(value)}", field=where)
     if key in _POSITIVE and value <= 0:
-        raise ScenarioError(f"expected a number > 0, got {value!r}", field=where)
+        raise ScenarioError(f"expected a number > 0, got {shown(value)}", field=where)
     if key in _NON_NEGATIVE and value < 0:
-        raise ScenarioError(f"expected a number >= 0, got {value!r}", field=where)
+        raise ScenarioError(f"expected a number >= 0, got {shown(value)}", field=where)
     if key in _FRACTIONS and not 0 <= value <= 1:
-        raise ScenarioError(f"expected a fraction between 0 and 1, got {value!r}", field=where)
+        raise ScenarioError(f"expected a fraction between 0 and 1, got {shown(value)}", field=where)
 
 
 def check_predicate(value: Any, what: str = "") -> None:
@@ -458,7 +460,7 @@ def check_predicate(value: Any, what: str = "") -> None:
         if not callable(getattr(value, method, None)):
             problems.append(f"a method {method}()")
     if problems:
-        raise ScenarioError(f"{what or repr(value)} is not a failure predicate: it needs {', '.join(problems)}",
+        raise ScenarioError(f"{what or shown(value)} is not a failure predicate: it needs {', '.join(problems)}",
                             field="predicate")
 
 
@@ -486,7 +488,7 @@ class FunctionPredicate:
             return signature(self.name, state)
         if isinstance(result, str):
             return signature(self.name, state, result)
-        raise ScenarioError(f"predicate function {self.name} returned {type(result).__name__} {result!r} at "
+        raise ScenarioError(f"predicate function {self.name} returned {type(result).__name__} {shown(result)} at "
                             f"t = {state.time:.2f} s; expected True/False, a message, or a FailureSignature",
                             field="predicate")
 
@@ -532,7 +534,7 @@ def predicate_spec(value: Any, params: Mapping[str, Any] | None = None) -> Predi
         return PredicateSpec(value, params)
     if params:
         raise ScenarioError(f"parameters {', '.join(params)} are only for a predicate given by name; build "
-                            f"{value!r} with them instead", field="predicate")
+                            f"{shown(value)} with them instead", field="predicate")
     if inspect.isclass(value):
         raise ScenarioError(f"{value.__name__} is a class; pass an instance, e.g. {value.__name__}(...)",
                             field="predicate")
@@ -542,9 +544,28 @@ def predicate_spec(value: Any, params: Mapping[str, Any] | None = None) -> Predi
     if callable(value):
         wrapped = FunctionPredicate(value)
         return PredicateSpec(wrapped.name, {}, instance=wrapped)
-    raise ScenarioError(f"{value!r} is not a failure predicate: expected a registered name "
+    raise ScenarioError(f"{shown(value)} is not a failure predicate: expected a registered name "
                         f"({', '.join(sorted(PREDICATES))}), an object with name, reset() and check(state), or "
                         "a function of the state", field="predicate")
+
+
+def check_predicate_models(predicates: Sequence[PredicateSpec], names: Sequence[str], where: str) -> None:
+    """ScenarioError when a `collided(models=[...])` predicate names a model that `names` (the world's models,
+    `where` its file) does not hold: a typo would otherwise make the predicate silently never fire."""
+    known = set(names)
+    for spec in predicates:
+        if isinstance(spec.instance, Collided):
+            models = spec.instance.models
+        else:
+            models = spec.params.get("models") if spec.instance is None and spec.name == "collided" else None
+        unknown = [name for name in models or () if name not in known]
+        if unknown:
+            listing = ", ".join(list(names)[:12]) + (", ..." if len(names) > 12 else "")
+            what = "is not a model" if len(unknown) == 1 else "are not models"
+            raise ScenarioError(
+                f"the '{spec.name}' predicate names {', '.join(shown(n) for n in unknown[:5])}, which {what} of "
+                f"{where} (its models: {listing or 'none'})"
+            )
 
 
 # -- the oracle --------------------------------------------------------------------------------------
@@ -579,7 +600,7 @@ def classify(
     - OTHER: any other failure.
     """
     if tolerance < 0 or not math.isfinite(tolerance):
-        raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
+        raise ValueError(f"tolerance must be a finite number >= 0, got {shown(tolerance)}")
     if error is not None or run is None:
         return Outcome.ERROR
     failure = run.failure

@@ -10,6 +10,7 @@ from __future__ import annotations
 import base64
 import dataclasses
 import inspect
+import math
 import os
 import shlex
 import time
@@ -21,23 +22,31 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from pytest_ddenv.errors import DdenvError
-from pytest_ddenv.robot_world import FIXTURE
+from pytest_ddenv.cli import executor_problem, folder_problem
+from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.markers import (
     MarkerError,
     ReductionSpec,
     parse_deflake,
 )
+from pytest_ddenv.robot_world import FIXTURE
+from pytest_ddenv.world import is_file
 
 if TYPE_CHECKING:
     from pytest_ddenv.oracle import PredicateSpec
+    from pytest_ddenv.reduce import ProgressEvent
     from pytest_ddenv.robot_world import RobotWorld
+    from pytest_ddenv.world import World
 
 REPORT_KEY = "ddenv"
 SECTION = "ddenv reduction"
 _spec_key = pytest.StashKey[tuple[ReductionSpec, "tuple[PredicateSpec, ...]"]]()
 _result_key = pytest.StashKey[dict[str, Any]]()
 _cluster_key = pytest.StashKey[Any]()
+_artifacts_key = pytest.StashKey[Path]()
+_log_key = pytest.StashKey[Any]()
+"""A text stream on the terminal pytest writes to, past output capture (for progress in CI logs)."""
+DEFAULT_ARTIFACTS = "ddenv-artifacts"
 _STATELESS_FIXTURES = {"request", "pytestconfig", "record_property", "record_xml_attribute", "tmp_path_factory"}
 
 
@@ -49,8 +58,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     options: list[tuple[str, str, dict[str, Any]]] = [
         ("reduce", "when a robot scenario test fails, reduce its world to the models the failure needs",
          {"action": "store_true", "ini_type": "bool"}),
-        ("artifacts", "folder for minimal worlds, run logs and summaries (default: ddenv-artifacts)",
-         {"metavar": "DIR", "ini_default": "ddenv-artifacts"}),
+        ("artifacts", "folder for minimal worlds, run logs and summaries (default: ddenv-artifacts); a relative "
+                      "path is relative to the folder pytest runs in (in an ini file: to that file's folder)",
+         {"metavar": "DIR"}),
         ("deflake", "re-runs of a candidate that did not reproduce the failure: an integer, 'adaptive', or "
                     "'auto' (calibrated on the original world's failure rate)",
          {"metavar": "N"}),
@@ -71,14 +81,22 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     for name, help_text, extra in options:
         ini_name = f"ddenv_{name.replace('-', '_')}"
         ini_type = extra.pop("ini_type", "string")
-        ini_default = extra.pop("ini_default", None)
         group.addoption(f"--ddenv-{name}", dest=ini_name, default=None, help=help_text, **extra)
-        parser.addini(ini_name, help_text, type=ini_type, default=ini_default if ini_type != "bool" else False)
+        parser.addini(ini_name, help_text, type=ini_type, default=False if ini_type == "bool" else "")
 
 
 def _setting(config: pytest.Config, name: str) -> Any:
+    """The command-line value of a setting, else its ini value (validated by `_validate_options`)."""
     value = config.getoption(name)
     return config.getini(name) if value in (None, False) else value
+
+
+def _where(config: pytest.Config, name: str) -> str:
+    """How the user gave a setting: `--ddenv-max-probes` on the command line, else `ddenv_max_probes in
+    pytest.ini` (or wherever the ini value came from)."""
+    if config.getoption(name) not in (None, False):
+        return "--" + name.replace("_", "-")
+    return f"{name} in {config.inipath.name}" if config.inipath is not None else f"ini option {name}"
 
 
 def _int_setting(config: pytest.Config, name: str, minimum: int) -> int | None:
@@ -90,9 +108,22 @@ def _int_setting(config: pytest.Config, name: str, minimum: int) -> int | None:
     except (TypeError, ValueError):
         number = minimum - 1
     if number < minimum:
-        flag = "--" + name.replace("_", "-")
-        raise pytest.UsageError(f"{flag}: expected an integer >= {minimum}, got {value!r}")
+        raise pytest.UsageError(f"{_where(config, name)}: expected an integer >= {minimum}, got {shown(value)}")
     return number
+
+
+def _seconds_setting(config: pytest.Config, name: str) -> float | None:
+    value = _setting(config, name)
+    if value in (None, ""):
+        return None
+    try:
+        seconds = float(value)
+    except ValueError:
+        seconds = -1.0
+    if not (math.isfinite(seconds) and seconds > 0):  # nan, inf, 0 and negative numbers are refused
+        raise pytest.UsageError(f"{_where(config, name)}: expected a positive, finite number of seconds, got "
+                                f"{shown(value)}")
+    return seconds
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -110,21 +141,14 @@ def pytest_configure(config: pytest.Config) -> None:
     _validate_options(config)
 
 
-def _seconds_setting(config: pytest.Config, name: str) -> float | None:
-    value = _setting(config, name)
-    if value in (None, ""):
-        return None
-    try:
-        seconds = float(value)
-    except ValueError:
-        seconds = -1.0
-    if not (seconds > 0 and seconds != float("inf")):
-        flag = "--" + name.replace("_", "-")
-        raise pytest.UsageError(f"{flag}: expected a positive number of seconds, got {value!r}")
-    return seconds
-
-
 def _validate_options(config: pytest.Config) -> None:
+    """Every ddenv setting, checked now: a bad value is a usage error before any test runs, never an error
+    in place of a test's own failure at the end."""
+    try:
+        reduce = bool(_setting(config, "ddenv_reduce"))
+    except pytest.UsageError as error:
+        raise pytest.UsageError(f"{_where(config, 'ddenv_reduce')}: expected true or false (or 1/0, yes/no, "
+                                f"on/off): {error}") from None
     _int_setting(config, "ddenv_max_probes", 1)
     _int_setting(config, "ddenv_seed", 0)
     _seconds_setting(config, "ddenv_max_time")
@@ -132,21 +156,64 @@ def _validate_options(config: pytest.Config) -> None:
     deflake = _setting(config, "ddenv_deflake")
     if deflake not in (None, ""):
         try:
-            parse_deflake(deflake, "--ddenv-deflake")
+            parse_deflake(deflake, _where(config, "ddenv_deflake"))
         except MarkerError as error:
             raise pytest.UsageError(str(error)) from None
     workers = _setting(config, "ddenv_workers")
     if workers not in (None, "", "auto"):
         _int_setting(config, "ddenv_workers", 1)
     executor = _setting(config, "ddenv_executor")
-    if executor not in (None, "", "local", "dask") and not str(executor).startswith(("tcp://", "tls://")):
-        raise pytest.UsageError(
-            f"--ddenv-executor: expected 'local', 'dask' or a dask scheduler address such as "
-            f"tcp://scheduler:8786, got {executor!r}"
-        )
+    problem = executor_problem(str(executor)) if executor not in (None, "") else None
+    if problem is not None:
+        raise pytest.UsageError(f"{_where(config, 'ddenv_executor')}: {problem}")
     world = _setting(config, "ddenv_world")
     if world not in (None, "") and not Path(world).is_file():
-        raise pytest.UsageError(f"--ddenv-world: no such file: {world}")
+        raise pytest.UsageError(f"{_where(config, 'ddenv_world')}: no such file: {world}")
+    for folder in _model_paths(config):
+        if not Path(folder).expanduser().is_dir():
+            raise pytest.UsageError(f"{_where(config, 'ddenv_model_path')}: no such folder: {folder}")
+    root, given = _artifacts_root(config)
+    problem = folder_problem(root) if given or reduce else None
+    if problem is not None:
+        raise pytest.UsageError(f"{_where(config, 'ddenv_artifacts')}: {problem}")
+    config.stash[_artifacts_key] = root
+    if reduce:
+        _open_log(config)
+
+
+def _open_log(config: pytest.Config) -> None:
+    """When pytest's output is not a terminal (a CI log): a stream on it that output capture does not
+    redirect, for the reduction's progress lines (made now, while capture is suspended)."""
+    import sys
+
+    if hasattr(config, "workerinput"):
+        return
+    try:
+        if sys.stdout.isatty():
+            return
+        descriptor = os.dup(sys.stdout.fileno())
+    except (AttributeError, OSError, ValueError):  # no file descriptor (an in-process pytester run, ...)
+        return
+    config.stash[_log_key] = os.fdopen(descriptor, "w", encoding=sys.stdout.encoding or "utf-8",
+                                       errors="replace")
+
+
+def _artifacts_root(config: pytest.Config) -> tuple[Path, bool]:
+    """Where reductions write (and whether the user chose it): a relative --ddenv-artifacts is relative to
+    the folder pytest was started in, a relative ini value to the ini file's folder."""
+    option = config.getoption("ddenv_artifacts")
+    invocation = Path(config.invocation_params.dir)
+    if option not in (None, ""):
+        return invocation / Path(str(option)).expanduser(), True
+    ini = str(config.getini("ddenv_artifacts") or "")
+    if ini:
+        base = config.inipath.parent if config.inipath is not None else invocation
+        return base / Path(ini).expanduser(), True
+    return invocation / DEFAULT_ARTIFACTS, False
+
+
+def _model_paths(config: pytest.Config) -> tuple[str, ...]:
+    return tuple(p for p in str(_setting(config, "ddenv_model_path") or "").split(os.pathsep) if p)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -176,9 +243,10 @@ def _world_path(item: pytest.Item, raw: str | Path) -> Path:
         return path
     candidates = [Path(str(item.path)).parent / path, Path(str(item.config.rootpath)) / path]
     for candidate in candidates:
-        if candidate.is_file():
+        if is_file(candidate):
             return candidate
-    raise DdenvError(f"world file not found: {raw} (looked in {', '.join(str(c.parent) for c in candidates)})")
+    folders = dict.fromkeys(str(candidate.parent) for candidate in candidates)
+    raise DdenvError(f"world file not found: {raw} (looked in {', '.join(folders)})")
 
 
 @pytest.fixture
@@ -190,7 +258,6 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
     """
     from pytest_ddenv.pytest_worker import PROBE_BINDING
     from pytest_ddenv.robot_world import DEFAULT_MAX_WALL_TIME, RobotWorld
-    from pytest_ddenv.world import World
 
     item = request.node
     spec, predicates = item.stash.get(_spec_key, (ReductionSpec(), ()))
@@ -201,8 +268,24 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
         binding.robot_world = RobotWorld(binding.world, predicates=predicates, seed=spec.seed if seed is None else seed,
                                          attempt=binding.attempt, max_wall_time=timeout)
         return binding.robot_world
-    model_paths = [p for p in str(_setting(request.config, "ddenv_model_path") or "").split(os.pathsep) if p]
-    options = {"model_paths": model_paths, "skip_unsupported": spec.skip_unsupported}
+    problem: str | None = None
+    try:
+        world = _test_world(request, spec, predicates)
+    except DdenvError as error:  # a broken world file or marker: one clear line at setup, no plugin traceback
+        problem = error.shown_from(Path(request.config.invocation_params.dir))
+    if problem is not None:
+        pytest.fail(f"{item.nodeid}: {problem}", pytrace=False)
+    return RobotWorld(world, predicates=predicates, seed=spec.seed if seed is None else seed, max_wall_time=timeout)
+
+
+def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates: tuple[PredicateSpec, ...]) -> World:
+    """The world a test runs in, checked against its markers (DdenvError naming the file and field)."""
+    from pytest_ddenv.oracle import check_predicate_models
+    from pytest_ddenv.world import World
+
+    item = request.node
+    options: dict[str, Any] = {"model_paths": list(_model_paths(request.config)),
+                               "skip_unsupported": spec.skip_unsupported}
     override = _setting(request.config, "ddenv_world")
     param = getattr(request, "param", None)
     if override:
@@ -215,16 +298,18 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
         world = World.load(_world_path(item, spec.world), **options)
     else:
         raise DdenvError(
-            f"{item.nodeid}: robot_world needs a world: @pytest.mark.ddenv(world='worlds/x.yaml'), "
-            "an indirect parameter, or --ddenv-world PATH"
+            "robot_world needs a world: @pytest.mark.ddenv(world='worlds/x.yaml'), an indirect parameter, or "
+            "--ddenv-world PATH"
         )
+    where = world.source or world.name or "the world"
+    if world.source is not None and Path(world.source).is_relative_to(request.config.invocation_params.dir):
+        where = str(Path(world.source).relative_to(request.config.invocation_params.dir))
     unknown = sorted(set(spec.keep) - set(world.names))
     if unknown:
-        raise DdenvError(
-            f"{item.nodeid}: ddenv(keep=...) names model(s) not in {world.source or world.name}: "
-            f"{', '.join(unknown)}"
-        )
-    return RobotWorld(world, predicates=predicates, seed=spec.seed if seed is None else seed, max_wall_time=timeout)
+        raise DdenvError(f"ddenv(keep=...) names model(s) not in {where}: {', '.join(map(shown, unknown))}")
+    if not override:  # a reduced world (--ddenv-world minimal.yaml) may lack models the predicates name
+        check_predicate_models(predicates, world.names, where)
+    return world
 
 
 # -- reduction on failure ----------------------------------------------------------------------------------
@@ -295,6 +380,10 @@ def _probe_pool(item: pytest.Function) -> Any:
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
+    log = config.stash.get(_log_key, None)
+    if log is not None:
+        log.close()
+        del config.stash[_log_key]
     cluster = config.stash.get(_cluster_key, None)
     if cluster is not None:
         cluster.close()
@@ -304,6 +393,16 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
     from pytest_ddenv.reduction_session import ReductionSession
 
+    class Session(ReductionSession):
+        """Hands each engine event to the progress line too (a CI log needs to know which are steps)."""
+
+        def _on_progress(self, event: ProgressEvent) -> None:
+            progress.event = event
+            try:
+                super()._on_progress(event)
+            finally:
+                progress.event = None
+
     spec, _ = item.stash.get(_spec_key, (ReductionSpec(), ()))
     deflake = _setting(item.config, "ddenv_deflake")
     spec = dataclasses.replace(
@@ -312,14 +411,15 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
         max_probes=_int_setting(item.config, "ddenv_max_probes", 1) or spec.max_probes,
         max_seconds=_seconds_setting(item.config, "ddenv_max_time") or spec.max_seconds,
     )
-    session = ReductionSession(
+    progress = _ProgressLine(item.config)
+    session = Session(
         item=item,
         error=error,
         spec=spec,
-        artifacts_root=Path(str(item.config.rootpath)) / str(_setting(item.config, "ddenv_artifacts")),
-        progress=_ProgressLine(item.config),
+        artifacts_root=item.config.stash.get(_artifacts_key, None) or _artifacts_root(item.config)[0],
+        progress=progress,
         replay=replay_command,
-        model_paths=tuple(p for p in str(_setting(item.config, "ddenv_model_path") or "").split(os.pathsep) if p),
+        model_paths=_model_paths(item.config),
     )
     try:
         with _probe_pool(item) as pool:
@@ -328,6 +428,12 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
             result = session.run(pool)
     except KeyboardInterrupt:
         raise
+    except DdenvError as problem:  # the pool could not start (a dask scheduler that does not answer, ...)
+        result = {
+            "text": f"no reduction: {problem}\nThe test's failure above is unchanged.\n",
+            "line": f"{item.nodeid}: no reduction: {problem}",
+            "attachments": [],
+        }
     except Exception as crash:  # noqa: BLE001 - the test's own failure must stay what the user sees
         detail = "".join(traceback.format_exception(crash))
         result = {
@@ -335,6 +441,8 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
             "line": f"{item.nodeid}: reduction crashed: {type(crash).__name__}: {crash}",
             "attachments": [],
         }
+    finally:
+        progress.close()
     item.stash[_result_key] = result
     attachments = "".join(f"[[ATTACHMENT|{path}]]\n" for path in result.get("attachments", []))
     if attachments:  # a stdout section reaches JUnit's <system-out> (with junit_logging = system-out)
@@ -363,26 +471,70 @@ def _warn_about_shared_fixtures(item: pytest.Function) -> None:
 
 
 class _ProgressLine:
-    """One updating terminal line while reducing (a line per probe with -v); silent when not a terminal."""
+    """The reduction's progress. On a terminal: one updating line (a line per probe with -v). Otherwise (a CI
+    log): a line for each note, at the start, at each accepted step, at verification and at the end, and at
+    least one line every HEARTBEAT_SECONDS, written to the terminal past pytest's output capture."""
 
     def __init__(self, config: pytest.Config) -> None:
+        from pytest_ddenv.progress import Heartbeat
+
         self.config = config
         self.reporter = config.pluginmanager.getplugin("terminalreporter")
         self.capture = config.pluginmanager.getplugin("capturemanager")
         self.verbose = config.get_verbosity() > 0
         self.started = time.monotonic()
+        self.event: ProgressEvent | None = None
+        """The engine event the next call words (set around each call by the plugin's session)."""
+        self.silent = self.reporter is None or hasattr(config, "workerinput")
+        self.live = not self.silent and bool(self.reporter.isatty)
+        self.log = None if self.silent or self.live else config.stash.get(_log_key, None)
+        self.heartbeat = Heartbeat(self._beat)
+        self._text = ""
+        if self.log is not None:  # lines go past pytest, after what pytest has written so far
+            with self._suspended():
+                self.reporter.ensure_newline()
+                self.reporter.flush()
+            self.heartbeat.start()
 
     def __call__(self, text: str, *, final: bool = False, probe_line: str | None = None) -> None:
-        if self.reporter is None or hasattr(self.config, "workerinput"):
+        if self.silent:
             return
+        event, self.event = self.event, None
         elapsed = time.monotonic() - self.started
         line = f"ddenv: {text}" if final else f"ddenv: {text}, {elapsed:.0f} s"
-        suspend = self.capture.global_and_fixture_disabled() if self.capture is not None else _nullcontext()
-        with suspend:
+        with self.heartbeat.lock:
+            self._text = text
             if self.verbose and probe_line:
-                self.reporter.write_line(f"    {probe_line}")
-            elif final or self.reporter.isatty:
-                self.reporter.rewrite(line, erase=True) if not final else self.reporter.write_line(line)
+                self._write(f"    {probe_line}")
+            elif final:
+                self._write(line)
+            elif self.live:
+                self._rewrite(line)
+            elif event is None or event.kind in ("start", "step", "verify", "end") or self.heartbeat.due():
+                self._write(line if event is None else f"{line} ({event.kind})")
+
+    def _beat(self) -> None:
+        """The heartbeat's line: the latest progress with the time now."""
+        self._write(f"ddenv: {self._text or 'reducing'}, {time.monotonic() - self.started:.0f} s (running)")
+
+    def _write(self, line: str) -> None:
+        if self.log is not None:
+            self.log.write(line + "\n")
+            self.log.flush()
+        else:
+            with self._suspended():
+                self.reporter.write_line(line)
+        self.heartbeat.wrote()
+
+    def _rewrite(self, line: str) -> None:
+        with self._suspended():
+            self.reporter.rewrite(line, erase=True)
+
+    def _suspended(self) -> Any:
+        return self.capture.global_and_fixture_disabled() if self.capture is not None else _nullcontext()
+
+    def close(self) -> None:
+        self.heartbeat.close()
 
 
 class _nullcontext:

@@ -10,6 +10,7 @@ import dataclasses
 import functools
 import math
 import os
+import re
 from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,12 +19,20 @@ from typing import Literal
 import numpy as np
 
 from pytest_ddenv import geometry
-from pytest_ddenv.errors import WorldError
+from pytest_ddenv.errors import WorldError, shown_path
 from pytest_ddenv.geometry import FloatArray
 
 ShapeKind = Literal["box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap"]
 SHAPE_KINDS: tuple[ShapeKind, ...] = ("box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap")
 TagValue = str | int | float | bool
+MAX_NAME_LENGTH = 256
+"""Longest model (or world, robot, joint) name."""
+MAX_SOLVER_ITERATIONS = 10_000
+TIMESTEP_RANGE = (1e-6, 1.0)
+"""Smallest and largest simulation timestep (s)."""
+MAX_MESH_BYTES = 256 * 1024 * 1024
+"""Largest mesh file read."""
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\ud800-\udfff\ufffe\uffff]")
 
 
 @dataclass(frozen=True)
@@ -440,6 +449,22 @@ def resolve_mesh_path(mesh: str | None, source: str | None) -> Path:
     return resolve_relative(mesh, source)
 
 
+def is_file(path: Path) -> bool:
+    """Whether `path` is a file; False, not OSError, for names the system refuses (too long, ...)."""
+    try:
+        return path.is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def exists(path: Path) -> bool:
+    """Whether `path` exists; False, not OSError, for names the system refuses (too long, ...)."""
+    try:
+        return path.exists()
+    except (OSError, ValueError):
+        return False
+
+
 def resolve_relative(file: str, source: str | None) -> Path:
     """A file named in a world file: as given if absolute, else relative to the world file's folder."""
     path = Path(file).expanduser()
@@ -656,8 +681,8 @@ def check_shape(shape: Shape, *, source: str | None = None, model: str | None = 
             raise fail("file", f"missing; a {shape.kind} needs a file")
         path = resolve_relative(shape.mesh, source)
         what = "mesh" if shape.kind == "mesh" else "heightmap image"
-        if not path.is_file():
-            raise fail("file", f"{what} file not found: {path}")
+        if not is_file(path):
+            raise fail("file", f"{what} file not found: {shown_path(path)}")
     if shape.kind == "heightmap":
         if not static:
             raise fail(None, "a heightmap is terrain and must be static; remove the model's mass or "
@@ -676,3 +701,96 @@ def _check_image(path: Path, fail: Callable[[str | None, str], WorldError]) -> N
         raise fail("file", f"cannot read the heightmap image {path}: {error}") from error
     if min(width, height) < 2:
         raise fail("file", f"a heightmap image needs at least 2 x 2 pixels, {path} has {width} x {height}")
+
+
+# -- validation of names, physics and mesh files (shared by the YAML and SDF readers) ---------------------
+def read_bounded(path: Path, limit: int, what: str = "world file") -> bytes:
+    """The bytes of `path`, refusing more than `limit` bytes (read in chunks: memory stays near the file's
+    size) and devices such as /dev/zero (WorldError naming the file)."""
+    import stat
+
+    try:
+        with path.open("rb") as handle:
+            mode = os.fstat(handle.fileno()).st_mode
+            if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+                raise WorldError(f"not a {what}: a device, not a file", source=path)
+            chunks: list[bytes] = []
+            total = 0
+            while total <= limit:
+                chunk = handle.read(min(1 << 20, limit + 1 - total))
+                if not chunk:
+                    break
+                chunks.append(chunk)
+                total += len(chunk)
+    except OSError as error:
+        raise WorldError(f"cannot read {what}: {error.strerror or error}", source=path) from error
+    if total > limit:
+        raise WorldError(f"{what} is larger than the {limit} byte limit; refusing to read it", source=path)
+    return b"".join(chunks)
+
+
+def text_problem(text: str, *, allowed: str = "") -> str | None:
+    """Why `text` cannot be a value of a world file (written to SDF as XML and read back), or None: a
+    control character (tab and newline included, unless `allowed`) or a lone surrogate."""
+    for found in _CONTROL.finditer(text):
+        if found.group() not in allowed:
+            return f"the control character {found.group()!r} (at position {found.start()}) is not allowed"
+    return None
+
+
+def name_problem(name: str) -> str | None:
+    """Why `name` cannot name a model, a world or a robot, or None. Names are written to SDF and read back
+    unchanged: no control characters, no blanks at either end, at most MAX_NAME_LENGTH characters."""
+    if not name or not name.strip():
+        return "a name must not be empty"
+    problem = text_problem(name)
+    if problem is not None:
+        return problem
+    if name != name.strip():
+        return "a name must not start or end with a blank (SDF readers strip them)"
+    if len(name) > MAX_NAME_LENGTH:
+        return f"a name is at most {MAX_NAME_LENGTH} characters, this one has {len(name)}"
+    return None
+
+
+def solver_iterations_problem(value: object) -> str | None:
+    """Why `value` is not a solver iteration count, or None (a whole number from 1 to MAX_SOLVER_ITERATIONS;
+    a float such as 1e3 counts when it is whole)."""
+    from pytest_ddenv.errors import shown
+
+    whole = isinstance(value, int) or (isinstance(value, float) and math.isfinite(value) and value.is_integer())
+    if isinstance(value, bool) or not whole or not 1 <= value <= MAX_SOLVER_ITERATIONS:  # type: ignore[operator]
+        return f"expected a whole number from 1 to {MAX_SOLVER_ITERATIONS}, got {shown(value)}"
+    return None
+
+
+def timestep_problem(value: float) -> str | None:
+    """Why `value` (s) is not a simulation timestep, or None."""
+    low, high = TIMESTEP_RANGE
+    if not low <= value <= high:
+        return f"expected a timestep from {low:g} to {high:g} s, got {value:g}"
+    return None
+
+
+def check_mesh_file(path: Path, scale: tuple[float, float, float], fail: Callable[[str], WorldError]) -> None:
+    """Raise `fail(reason)` unless `path` is a mesh file with triangles and finite vertices (read now, once per
+    process, so that a garbage or non-mesh file is refused when the world is loaded, not in the simulator)."""
+    try:
+        size = path.stat().st_size
+    except OSError as error:
+        raise fail(f"cannot read the mesh file {shown_path(path)}: {error.strerror or error}") from None
+    if size > MAX_MESH_BYTES:
+        raise fail(f"the mesh file {shown_path(path)} is larger than the {MAX_MESH_BYTES} byte limit")
+    try:
+        mesh = load_mesh(path, scale)
+    except WorldError as error:
+        cause = error.__cause__
+        detail = "" if cause is None or isinstance(cause, ImportError) else f" ({str(cause).splitlines()[0][:120]})"
+        raise fail(f"not a mesh file: {shown_path(path)} cannot be read as {path.suffix or 'a mesh'}{detail}"
+                   ) from None
+    vertices = np.asarray(getattr(mesh, "vertices", ()), dtype=float)
+    faces = np.asarray(getattr(mesh, "faces", ()))
+    if len(faces) == 0 or len(vertices) == 0:
+        raise fail(f"not a mesh file: {shown_path(path)} holds no triangles (supported: .stl, .obj, .dae)")
+    if not np.all(np.isfinite(vertices)):
+        raise fail(f"the mesh file {shown_path(path)} has vertices that are not finite numbers")

@@ -11,7 +11,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Protocol
 
-from pytest_ddenv.world import DRIVE_KINDS, LaserMount, RobotDescription, resolve_relative
+from pytest_ddenv.errors import shown_path
+from pytest_ddenv.world import DRIVE_KINDS, LaserMount, RobotDescription, is_file, resolve_relative
 
 ROBOT_KEYS = (
     "urdf", "drive", "left_wheels", "right_wheels", "wheel_radius", "track", "track_factor", "max_wheel_torque",
@@ -45,8 +46,8 @@ def parse_robot(reader: FieldReader, value: Any) -> str | RobotDescription:
             raise reader.fail(f"{FIELD}.{key}", "missing; a robot mapping needs urdf, left_wheels and right_wheels")
     urdf = reader.text(data["urdf"], f"{FIELD}.urdf")
     resolved = resolve_relative(urdf, reader.source)
-    if not resolved.is_file():
-        raise reader.fail(f"{FIELD}.urdf", f"URDF file not found: {resolved}")
+    if not is_file(resolved):
+        raise reader.fail(f"{FIELD}.urdf", f"URDF file not found: {shown_path(resolved)}")
     drive = data.get("drive", "differential")
     if drive not in DRIVE_KINDS:
         raise reader.fail(f"{FIELD}.drive", f"expected one of {', '.join(DRIVE_KINDS)}, got {drive!r}")

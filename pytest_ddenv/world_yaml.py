@@ -1,6 +1,8 @@
 """The YAML world format (`format: 1`): strict parsing with errors that name file, model and field.
 
-The format is documented field by field in docs/world-format.md.
+The format is documented field by field in docs/world-format.md. Reading is bounded for hostile files (see
+docs/reliability.md): at most MAX_FILE_BYTES, then the limits of `bounded_yaml`; every value shown in a
+message is clipped (`errors.shown`).
 """
 
 from __future__ import annotations
@@ -13,8 +15,14 @@ from typing import Any
 
 import yaml
 
-from pytest_ddenv.errors import ScenarioError, WorldError
-from pytest_ddenv.world_robot import parse_robot, rebased, robot_dict
+from pytest_ddenv.bounded_yaml import Dumper, load_document
+from pytest_ddenv.errors import (
+    SHOWN_CHARACTERS,
+    ScenarioError,
+    WorldError,
+    shown,
+    shown_path,
+)
 from pytest_ddenv.world import (
     SHAPE_KINDS,
     Ground,
@@ -25,9 +33,17 @@ from pytest_ddenv.world import (
     Shape,
     TagValue,
     World,
+    check_mesh_file,
     check_shape,
+    is_file,
+    name_problem,
+    read_bounded,
     resolve_mesh_path,
+    solver_iterations_problem,
+    text_problem,
+    timestep_problem,
 )
+from pytest_ddenv.world_robot import parse_robot, rebased, robot_dict
 
 FORMAT_VERSION = 1
 TOP_LEVEL_KEYS = ("format", "name", "physics", "ground", "scenario", "models")
@@ -39,10 +55,6 @@ SCENARIO_KEYS = ("robot", "start", "goal", "goal_tolerance", "timeout")
 PHYSICS_KEYS = ("gravity", "timestep", "solver_iterations")
 GROUND_KEYS = ("z", "mu", "mu2", "restitution")
 MAX_FILE_BYTES = 50 * 1024 * 1024
-_SafeLoader: type[yaml.SafeLoader] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-_SafeDumper: type[yaml.SafeDumper] = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
-
-
 class _Reader:
     """Validates one document; knows where it is (file, model) to build precise errors."""
 
@@ -59,18 +71,23 @@ class _Reader:
             raise self.fail(field, f"expected a mapping of {', '.join(allowed)}, got {_describe(value)}")
         for key in value:
             if key not in allowed:
+                name = key if isinstance(key, str) and not text_problem(key) else shown(key)
+                path = f"{field}.{name}" if field else str(name)
                 raise self.fail(
-                    f"{field}.{key}" if field else str(key),
-                    f"unknown key '{key}'; expected one of: {', '.join(allowed)}",
+                    path if len(path) <= SHOWN_CHARACTERS else f"{path[:SHOWN_CHARACTERS - 3]}...",
+                    f"unknown key {shown(key)}; expected one of: {', '.join(allowed)}",
                 )
         return value
 
     def number(self, value: Any, field: str, *, positive: bool = False, non_negative: bool = False) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(field, f"expected a number, got {_describe(value)}")
-        number = float(value)
+            raise self.fail(field, f"expected a number, got {_describe(value)}{_number_hint(value)}")
+        try:
+            number = float(value)
+        except OverflowError:  # an integer of hundreds of digits
+            number = math.inf
         if not math.isfinite(number):
-            raise self.fail(field, f"expected a finite number, got {number}")
+            raise self.fail(field, f"expected a finite number, got {shown(value)}")
         if positive and number <= 0:
             raise self.fail(field, f"expected a positive number, got {number}")
         if non_negative and number < 0:
@@ -93,47 +110,72 @@ class _Reader:
 
     def text(self, value: Any, field: str) -> str:
         if not isinstance(value, str) or not value.strip():
-            raise self.fail(field, f"expected a non-empty string, got {_describe(value)}")
+            hint = (" (text that reads as a number or true/false must be quoted, e.g. '1e5')"
+                    if isinstance(value, (int, float)) else "")
+            raise self.fail(field, f"expected a non-empty string, got {_describe(value)}{hint}")
+        problem = text_problem(value)
+        if problem is not None:
+            raise self.fail(field, f"{problem}, got {shown(value)}")
         return value
+
+    def name(self, value: Any, field: str) -> str:
+        """A name that is written to SDF and read back unchanged (see `world.name_problem`)."""
+        text = self.text(value, field)
+        problem = name_problem(text)
+        if problem is not None:
+            raise self.fail(field, f"{problem}, got {shown(text)}")
+        return text
 
 
 def _describe(value: Any) -> str:
     if isinstance(value, str):
-        return f"the string {value!r}"
+        return f"the string {shown(value)}"
     if value is None:
         return "nothing (null)"
-    return f"{type(value).__name__} {value!r}"
+    if isinstance(value, (list, tuple, Mapping)):
+        return f"a {'mapping' if isinstance(value, Mapping) else 'list'} of {len(value)} items: {shown(value)}"
+    return f"{type(value).__name__} {shown(value)}"
+
+
+def _number_hint(value: Any) -> str:
+    """Why a string that looks like a number is not one."""
+    if isinstance(value, str) and value.strip() != value and _is_float(value.strip()):
+        return " (quoted or padded: write the number alone)"
+    if isinstance(value, str) and _is_float(value):
+        return " (a number in quotes is a string: remove the quotes)"
+    return ""
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def load_yaml(path: str | os.PathLike[str]) -> World:
     path = Path(path)
+    data = read_bounded(path, MAX_FILE_BYTES)
     try:
-        size = path.stat().st_size
-    except OSError as error:
-        raise WorldError(f"cannot read world file: {error.strerror}", source=path) from error
-    if size > MAX_FILE_BYTES:
-        raise WorldError(f"file is {size} bytes, more than the {MAX_FILE_BYTES} byte limit", source=path)
-    return parse_yaml(path.read_text(encoding="utf-8"), source=path)
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        raise WorldError(
+            f"not a world file: byte {error.object[error.start]:#04x} at offset {error.start} is not UTF-8 text "
+            "(a world file is YAML, or SDF named .sdf or .world)", source=path,
+        ) from None
+    return parse_yaml(text, source=path)
 
 
 def parse_yaml(text: str, *, source: str | os.PathLike[str] | None = None) -> World:
     source_name = str(source) if source is not None else None
-    try:
-        document = yaml.load(text, Loader=_SafeLoader)  # noqa: S506 - a safe loader (C when available)
-    except yaml.MarkedYAMLError as error:
-        mark = error.problem_mark or error.context_mark
-        line = mark.line + 1 if mark is not None else None
-        problem = error.problem or "invalid YAML"
-        raise WorldError(f"YAML syntax error: {problem}", source=source_name, line=line) from error
-    except yaml.YAMLError as error:
-        raise WorldError(f"YAML error: {error}", source=source_name) from error
+    document = load_document(text, source_name)
     reader = _Reader(source_name)
-    root = reader.mapping(document, "", TOP_LEVEL_KEYS)
-    if "format" not in root:
-        raise reader.fail("format", f"missing; this reader expects 'format: {FORMAT_VERSION}'")
+    root = _root(reader, document)
     if root["format"] != FORMAT_VERSION or isinstance(root["format"], bool):
-        raise reader.fail("format", f"unknown format version {root['format']!r}; this reader supports {FORMAT_VERSION}")
-    name = reader.text(root["name"], "name") if "name" in root else (Path(source_name).stem if source_name else "")
+        raise reader.fail("format", f"unknown format version {shown(root['format'])}; this reader supports "
+                                    f"{FORMAT_VERSION}")
+    name = reader.name(root["name"], "name") if "name" in root else (Path(source_name).stem if source_name else "")
     models_value = root.get("models") or []
     if not isinstance(models_value, list):
         raise reader.fail("models", f"expected a list of models, got {_describe(models_value)}")
@@ -143,7 +185,7 @@ def parse_yaml(text: str, *, source: str | os.PathLike[str] | None = None) -> Wo
         model = _parse_model(reader, item, index)
         if model.name in seen:
             raise WorldError(
-                f"duplicate model name '{model.name}' (also model #{seen[model.name]}); names must be unique",
+                f"duplicate model name {shown(model.name)} (also model #{seen[model.name]}); names must be unique",
                 source=source_name, model=f"#{index}", field="name",
             )
         seen[model.name] = index
@@ -159,12 +201,29 @@ def parse_yaml(text: str, *, source: str | os.PathLike[str] | None = None) -> Wo
     )
 
 
+def _root(reader: _Reader, document: Any) -> Mapping[str, Any]:
+    """The top-level mapping, or a WorldError that says when the file is no world file at all."""
+    expected = f"a world file is a YAML mapping that starts with 'format: {FORMAT_VERSION}'"
+    if document is None:
+        raise reader.fail(None, f"the file is empty (or only comments); {expected}")
+    if not isinstance(document, Mapping):
+        raise reader.fail(None, f"not a world file: {expected}; this file holds {_describe(document)}")
+    unknown = [key for key in document if key not in TOP_LEVEL_KEYS]
+    if "format" not in document and unknown:
+        keys = ", ".join(shown(key) for key in unknown[:5]) + (", ..." if len(unknown) > 5 else "")
+        raise reader.fail(None, f"not a world file: no 'format' key and unknown keys {keys}; {expected}")
+    root = reader.mapping(document, "", TOP_LEVEL_KEYS)
+    if "format" not in root:
+        raise reader.fail("format", f"missing; this reader expects 'format: {FORMAT_VERSION}'")
+    return root
+
+
 def _parse_model(reader: _Reader, item: Any, index: int) -> Model:
     reader.model = f"#{index}"
     data = reader.mapping(item, "", MODEL_KEYS)
     if "name" not in data:
         raise reader.fail("name", "missing; every model needs a unique name")
-    name = reader.text(data["name"], "name")
+    name = reader.name(data["name"], "name")
     reader.model = f"'{name}' (#{index})"
     inline = [kind for kind in SHAPE_KINDS if kind in data]
     if "shapes" in data and inline:
@@ -250,16 +309,17 @@ def _parse_shape(reader: _Reader, raw: Any, field: str) -> Shape:
     if "file" not in spec:
         raise reader.fail(f"{where}.file", "missing; a mesh needs a file (.stl, .obj, .dae)")
     mesh_file = reader.text(spec["file"], f"{where}.file")
-    if not resolve_mesh_path(mesh_file, reader.source).is_file():
-        raise reader.fail(
-            f"{where}.file", f"mesh file not found: {resolve_mesh_path(mesh_file, reader.source)}"
-        )
+    path = resolve_mesh_path(mesh_file, reader.source)
+    if not is_file(path):
+        raise reader.fail(f"{where}.file", f"mesh file not found: {shown_path(path)}")
     scale_value = spec.get("scale", 1.0)
     if isinstance(scale_value, (list, tuple)):
         scale = reader.numbers(scale_value, f"{where}.scale", (3,), positive=True)
     else:
         scale = [reader.number(scale_value, f"{where}.scale", positive=True)] * 3
-    return Shape("mesh", mesh=mesh_file, scale=(scale[0], scale[1], scale[2]), pose=pose)
+    shape = Shape("mesh", mesh=mesh_file, scale=(scale[0], scale[1], scale[2]), pose=pose)
+    check_mesh_file(path, shape.scale, lambda reason: reader.fail(f"{where}.file", reason))
+    return shape
 
 
 def _required(reader: _Reader, spec: Mapping[str, Any], where: str, keys: tuple[str, ...], what: str) -> None:
@@ -319,7 +379,11 @@ def _parse_tags(reader: _Reader, value: Any) -> dict[str, TagValue]:
     tags: dict[str, TagValue] = {}
     for key, tag in value.items():
         if not isinstance(key, str) or not isinstance(tag, (str, int, float, bool)):
-            raise reader.fail(f"tags.{key}", f"expected a string key and a scalar value, got {_describe(tag)}")
+            raise reader.fail(f"tags.{shown(key)}", f"expected a string key and a scalar value, got {_describe(tag)}")
+        reader.name(key, f"tags.{shown(key)}")
+        problem = text_problem(tag, allowed="\t\n") if isinstance(tag, str) else None
+        if problem is not None:
+            raise reader.fail(f"tags.{key}", f"{problem}, got {shown(tag)}")
         tags[key] = tag
     return tags
 
@@ -371,13 +435,14 @@ def _parse_physics(reader: _Reader, value: Any) -> Physics:
     default = Physics()
     gravity = reader.numbers(data.get("gravity", list(default.gravity)), "physics.gravity", (3,))
     iterations = data.get("solver_iterations", default.solver_iterations)
-    if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
-        raise reader.fail("physics.solver_iterations", f"expected a positive integer, got {_describe(iterations)}")
-    return Physics(
-        gravity=(gravity[0], gravity[1], gravity[2]),
-        timestep=reader.number(data.get("timestep", default.timestep), "physics.timestep", positive=True),
-        solver_iterations=iterations,
-    )
+    problem = solver_iterations_problem(iterations)
+    if problem is not None:
+        raise reader.fail("physics.solver_iterations", problem + _number_hint(iterations))
+    timestep = reader.number(data.get("timestep", default.timestep), "physics.timestep", positive=True)
+    problem = timestep_problem(timestep)
+    if problem is not None:
+        raise reader.fail("physics.timestep", problem)
+    return Physics(gravity=(gravity[0], gravity[1], gravity[2]), timestep=timestep, solver_iterations=int(iterations))
 
 
 def _parse_ground(reader: _Reader, value: Any) -> Ground | None:
@@ -412,7 +477,7 @@ def dump_yaml(world: World, relative_to: Path | None = None) -> str:
     if world.scenario is not None:
         document["scenario"] = _scenario_dict(world.scenario, world.source, relative_to)
     document["models"] = [_model_dict(model, world.source, relative_to) for model in world.models]
-    return yaml.dump(document, Dumper=_SafeDumper, sort_keys=False, default_flow_style=None, width=120)
+    return yaml.dump(document, Dumper=Dumper, sort_keys=False, default_flow_style=None, width=120)
 
 
 def _ground_dict(ground: Ground) -> dict[str, float]:

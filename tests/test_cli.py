@@ -17,6 +17,7 @@ from typing import Any
 import pytest
 
 from pytest_ddenv import __version__, cli
+from pytest_ddenv.progress import Heartbeat, ProgressLine
 from pytest_ddenv.scenario_job import ScenarioJob
 from pytest_ddenv.world import World
 
@@ -241,7 +242,7 @@ def test_reduce_a_world_that_does_not_fail(capsys: pytest.CaptureFixture[str], w
 
 @pytest.mark.parametrize(
     ("extra", "fragment"),
-    [(["--deflake", "often"], "--deflake: expected an integer >= 0 or one of adaptive"),
+    [(["--deflake", "often"], "--deflake: expected an integer >= 0 and <= 100 or one of adaptive"),
      (["--keep", "walll"], "--keep: no model named 'walll'")],
 )
 def test_reduce_bad_options(capsys: pytest.CaptureFixture[str], worlds: dict[str, Path], extra: list[str],
@@ -263,7 +264,9 @@ def test_the_reduce_job_can_be_sent_to_worker_processes(worlds: dict[str, Path])
 # -- replay ----------------------------------------------------------------------------------------------
 def test_replay_reproduces(capsys: pytest.CaptureFixture[str], reduced: dict[str, Any]) -> None:
     code, out, _ = run(capsys, "replay", str(reduced["out"]), "--runs", "2")
-    assert code == 0 and "reproduced: 2/2 runs failed the same way" in out
+    assert code == 0 and "reproduced: 2/2 fresh seeds failed the same way (100 %, 95% interval 34-100 %)" in out
+    code, out, _ = run(capsys, "replay", str(reduced["out"]), "--runs", "2", "--recorded")
+    assert code == 0 and "recorded failing seeds" in out
     code, out, _ = run(capsys, "replay", str(reduced["out"]), "--runs", "1", "--json")
     data = json.loads(out)
     assert code == 0 and data["ok"] and data["models"] == ["wall"] and data["runs"][0]["outcome"] == "fail"
@@ -275,7 +278,7 @@ def test_replay_that_does_not_reproduce(capsys: pytest.CaptureFixture[str], redu
     shutil.copytree(reduced["out"], copy)
     shutil.copy(worlds["open"], copy / "minimal.yaml")  # the wall is gone: the robot reaches the goal
     code, out, _ = run(capsys, "replay", str(copy), "--runs", "1")
-    assert code == 1 and "NOT reproduced: 0/1" in out
+    assert code == 1 and "NOT reproduced: 0/1 fresh seeds" in out
 
 
 def test_replay_bad_folders(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -348,3 +351,62 @@ def _observation(failed: bool) -> Any:
     from pytest_ddenv.reduce import Observation, Outcome
 
     return Observation(Outcome.FAIL if failed else Outcome.PASS)
+
+
+# -- progress in CI logs ---------------------------------------------------------------------------------
+class _Clock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def _event(kind: str, size: int, probes: int, elapsed: float) -> Any:
+    from pytest_ddenv.reduce import ProgressEvent
+
+    return ProgressEvent(kind=kind, size=size, probes=probes, granularity=2, elapsed=elapsed)
+
+
+def test_progress_without_a_terminal_prints_each_step_and_a_line_when_silent_too_long() -> None:
+    import io
+
+    stream = io.StringIO()  # not a terminal
+    progress = ProgressLine(stream, heartbeat=3600.0)
+    clock = _Clock()
+    progress.heartbeat.close()  # driven by hand below: no thread
+    progress.heartbeat = Heartbeat(progress._beat, 30.0, clock=clock)
+    progress.update(_event("start", 6, 0, 0.0))
+    for probes in range(1, 4):
+        progress.update(_event("probe", 6, probes, probes))
+    clock.now = 3.0
+    progress.update(_event("step", 3, 3, 3.0))
+    clock.now = 31.0  # 28 s after the step's line: not yet
+    progress.update(_event("probe", 3, 4, 31.0))
+    clock.now = 34.0  # 31 s: this probe's line is the heartbeat
+    progress.update(_event("probe", 3, 5, 34.0))
+    progress.update(_event("end", 2, 6, 35.0))
+    progress.close()
+    lines = stream.getvalue().splitlines()
+    assert [line.rsplit("| ", 1)[1] for line in lines] == ["start", "step", "probe", "end"]
+    assert "6 -> 3 models | 3 probes" in lines[1] and "| 5 probes | 00:34" in lines[2]
+
+
+def test_the_heartbeat_writes_while_nothing_else_does() -> None:
+    import threading
+
+    beats = threading.Event()
+    heartbeat = Heartbeat(beats.set, interval=0.01)
+    heartbeat.start()
+    try:
+        assert beats.wait(timeout=60.0)  # a hang guard, not a timing assertion
+    finally:
+        heartbeat.close()
+
+
+def test_a_quiet_or_terminal_progress_has_no_heartbeat_thread() -> None:
+    import io
+
+    quiet = ProgressLine(io.StringIO(), quiet=True)
+    assert quiet.heartbeat._thread is None
+    quiet.close()

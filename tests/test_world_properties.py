@@ -13,6 +13,9 @@ from hypothesis import strategies as st
 from pytest_ddenv import Ground, Model, Pose, Scenario, Shape, World
 from pytest_ddenv.geometry import to_local
 
+# Tag values may hold any character but control characters other than tab and newline (docs/reliability.md).
+TAG_CHARACTERS = st.characters(blacklist_categories=("Cc", "Cs")) | st.sampled_from("\t\n")
+
 finite = st.floats(min_value=-50, max_value=50, allow_nan=False, allow_infinity=False)
 angle = st.floats(min_value=-math.pi, max_value=math.pi, allow_nan=False)
 positive = st.floats(min_value=0.01, max_value=5, allow_nan=False)
@@ -53,7 +56,7 @@ def models(draw: st.DrawFn, name: str) -> Model:
         restitution=draw(st.floats(min_value=0, max_value=1, allow_nan=False)),
         color=draw(st.tuples(*[st.floats(min_value=0, max_value=1, allow_nan=False)] * 4)),
         keep=draw(st.booleans()),
-        tags=draw(st.dictionaries(st.sampled_from(["kind", "note"]), st.one_of(st.text(max_size=5), st.integers()))),
+        tags=draw(st.dictionaries(st.sampled_from(["kind", "note"]), st.one_of(st.text(TAG_CHARACTERS, max_size=5), st.integers()))),
     )
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 
-from pytest_ddenv.errors import ScenarioError, WorldError
+from pytest_ddenv.errors import ScenarioError, WorldError, shown
 from pytest_ddenv.sdf._values import Values
 from pytest_ddenv.sdf._xml import local_name
 from pytest_ddenv.world import (
@@ -16,7 +16,10 @@ from pytest_ddenv.world import (
     RobotDescription,
     Scenario,
     TagValue,
+    is_file,
     resolve_relative,
+    solver_iterations_problem,
+    timestep_problem,
 )
 
 DDENV_NS = "https://github.com/pytest-ddenv/pytest-ddenv/sdf"
@@ -52,7 +55,7 @@ class DdenvElements:
                 value: TagValue = {"str": str, "int": int, "float": float}[kind](text) if kind != "bool" else (
                     text.strip().lower() == "true")
             except (KeyError, ValueError):
-                raise self.error(f"unreadable tag value {text!r} of type {kind!r}", tag, model=model,
+                raise self.error(f"unreadable tag value {shown(text)} of type {shown(kind)}", tag, model=model,
                                  field=f"ddenv:tag '{name}'") from None
             tags[name] = value
         return tags
@@ -71,9 +74,13 @@ class DdenvElements:
         timestep, iterations = default.timestep, default.solver_iterations
         if settings is not None:
             timestep = self.attribute_number(settings, "timestep", timestep, positive=True)
+            problem = timestep_problem(timestep)
+            if problem is not None:
+                raise self.error(problem, settings, field="ddenv:physics/@timestep")
             iterations_value = self.attribute_number(settings, "solver_iterations", float(iterations), positive=True)
-            if iterations_value != int(iterations_value):
-                raise self.error("solver_iterations must be an integer", settings, field="ddenv:physics")
+            problem = solver_iterations_problem(iterations_value)
+            if problem is not None:
+                raise self.error(problem, settings, field="ddenv:physics/@solver_iterations")
             iterations = int(iterations_value)
         return Physics(gravity=gravity, timestep=timestep, solver_iterations=iterations)
 
@@ -89,7 +96,7 @@ class DdenvElements:
         except ValueError:
             value = math.nan
         if not math.isfinite(value) or (positive and value <= 0):
-            raise self.error(f"expected a {'positive ' if positive else ''}number, got {text!r}", element,
+            raise self.error(f"expected a {'positive ' if positive else ''}number, got {shown(text)}", element,
                              field=f"ddenv:{local_name(element.tag)}/@{name}", kind=kind)
         return value
 
@@ -128,11 +135,11 @@ class DdenvElements:
             return self.error(message, element, field=f"{field}/@{name}", kind=ScenarioError)
 
         urdf = element.get("urdf", "")
-        if not urdf or not resolve_relative(urdf, self.source).is_file():  # relative: to the SDF file
-            raise fail(f"URDF file not found: {urdf!r}", "urdf")
+        if not urdf or not is_file(resolve_relative(urdf, self.source)):  # relative: to the SDF file
+            raise fail(f"URDF file not found: {shown(urdf)}", "urdf")
         drive = element.get("drive", "differential")
         if drive not in DRIVE_KINDS:
-            raise fail(f"expected one of {', '.join(DRIVE_KINDS)}, got {drive!r}", "drive")
+            raise fail(f"expected one of {', '.join(DRIVE_KINDS)}, got {shown(drive)}", "drive")
         wheels = {side: tuple(element.get(side, "").split()) for side in ("left_wheels", "right_wheels")}
         for side, names in wheels.items():
             if not names:
@@ -149,7 +156,7 @@ class DdenvElements:
             try:
                 height, min_range = (float(v) for v in laser_text.split())
             except ValueError:
-                raise fail(f"expected true, false or 'HEIGHT MIN_RANGE', got {laser_text!r}", "laser") from None
+                raise fail(f"expected true, false or 'HEIGHT MIN_RANGE', got {shown(laser_text)}", "laser") from None
             laser = LaserMount(height, min_range)
         return RobotDescription(
             urdf=urdf, left_wheels=wheels["left_wheels"], right_wheels=wheels["right_wheels"], drive=drive,

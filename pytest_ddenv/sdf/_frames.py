@@ -12,9 +12,13 @@ import xml.etree.ElementTree as ET
 from collections.abc import Collection
 from dataclasses import dataclass
 
+from pytest_ddenv.errors import shown
 from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._values import Values
 from pytest_ddenv.world import Pose
+
+MAX_CHAIN = 100
+"""Longest chain of frames, each relative to the next, that is resolved (longer: an error, not a RecursionError)."""
 
 
 @dataclass
@@ -62,7 +66,8 @@ class Frames:
             result = compose(self.resolve(head, element, visiting), inner)
         else:
             known = ", ".join(sorted(n for n in self.entries if n and not n.startswith("_merged__"))) or "none"
-            raise self.values.error(f"unknown frame {name!r} in relative_to/frame (known frames: {known})", element,
+            raise self.values.error(f"unknown frame {shown(name)} in relative_to/frame (known frames: {known})",
+                                    element,
                                     model=self.model, field="pose/@relative_to")
         self._cache[name] = result
         return result
@@ -73,13 +78,16 @@ class Frames:
             raise self.values.error(f"pose frames form a cycle: {chain}", self.entries[name].element,
                                     model=self.model, field="pose/@relative_to")
         frame = self.entries[name]
+        if len(visiting) >= MAX_CHAIN:
+            raise self.values.error(f"pose frames chained more than {MAX_CHAIN} deep (each relative to the next)",
+                                    frame.element, model=self.model, field="pose/@relative_to")
         parent_name = frame.relative_to or frame.default
         parent = self.resolve(parent_name, frame.element, (*visiting, name)) if parent_name else _poses.IDENTITY
         result = compose(parent, frame.pose)
         if frame.placement:
             scope = self.scopes.get(name)
             if scope is None:  # pragma: no cover - placement frames are only set on models
-                raise self.values.error(f"placement frame {frame.placement!r} of a frame that is not a model",
+                raise self.values.error(f"placement frame {shown(frame.placement)} of a frame that is not a model",
                                         frame.element, model=self.model, field="placement_frame")
             placed = scope.resolve(frame.placement, frame.element)
             result = compose(result, _poses.inverse(placed))

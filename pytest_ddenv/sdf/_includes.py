@@ -7,10 +7,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from pytest_ddenv.errors import PATH_CHARACTERS, shown
 from pytest_ddenv.sdf._paths import UnresolvedURI, is_remote, resolve_uri
 from pytest_ddenv.sdf._values import Values
 from pytest_ddenv.sdf._xml import Lines, parse_xml, read_limited
-from pytest_ddenv.world import Pose
+from pytest_ddenv.world import Pose, is_file
 
 MIN_VERSION = (1, 2)
 """Oldest SDF read: libsdformat converts 1.2 and 1.3 to 1.4 without changing models (physics elements only)."""
@@ -62,7 +63,7 @@ class Documents:
             raise self.values.error("the <sdf> element has no version attribute", root, field="version")
         numbers = version_numbers(version)
         if numbers is None:
-            raise self.values.error(f"unreadable SDF version {version!r}", root, field="version")
+            raise self.values.error(f"unreadable SDF version {shown(version)}", root, field="version")
         if numbers < MIN_VERSION:
             raise self.values.error(
                 f"SDF version {version.strip()} is not supported; convert it to 1.4 or newer (gz sdf -p)", root,
@@ -79,11 +80,12 @@ class Documents:
             raise values.error("an <include> needs a <uri>", element, field="include/uri")
         name = (element.findtext("name") or "").strip()
         label = name or uri.rstrip("/").rsplit("/", 1)[-1]
+        shown_uri = shown(uri, PATH_CHARACTERS)
         if depth > MAX_INCLUDE_DEPTH:
-            raise values.error(f"includes nested more than {MAX_INCLUDE_DEPTH} deep (a cycle?) at {uri!r}", element,
+            raise values.error(f"includes nested more than {MAX_INCLUDE_DEPTH} deep (a cycle?) at {shown_uri}", element,
                                model=label)
         if is_remote(uri):
-            raise values.unsupported("include", f"remote URI {uri!r} (Gazebo Fuel models are never fetched: "
+            raise values.unsupported("include", f"remote URI {shown_uri} (Gazebo Fuel models are never fetched: "
                                      "download the model and add its folder to the model path)", uri_element,
                                      model=label, field="include/uri")
         try:
@@ -92,7 +94,7 @@ class Documents:
             return self.builtin(uri, unresolved, element, name, label)
         model_file = self.model_file(path, element, label)
         root = self.read_root(read_limited(model_file, what="included model file"), str(model_file))
-        return self.included(root, model_file.parent, element, name, label, f"{uri!r} ({model_file})")
+        return self.included(root, model_file.parent, element, name, label, f"{shown_uri} ({model_file})")
 
     def included(
         self, root: ET.Element, base_dir: Path | None, element: ET.Element, name: str, label: str, what: str
@@ -131,23 +133,23 @@ class Documents:
 
     def model_file(self, path: Path, element: ET.Element, label: str) -> Path:
         """The model file of a model folder (model.config's <sdf>, else model.sdf), or `path` itself."""
-        if path.is_file():
+        if is_file(path):
             return path
         config = path / "model.config"
-        if config.is_file():
+        if is_file(config):
             root = parse_xml(read_limited(config, what="model.config"), str(config), self.lines)
             choices = [(child.get("version") or "0", (child.text or "").strip()) for child in root.findall("sdf")]
             choices = [(version, name) for version, name in choices if name]
             if choices:
                 supported = [c for c in choices if (version_numbers(c[0]) or (0,)) <= MAX_CONFIG_VERSION] or choices
                 ordered = sorted(supported, key=lambda c: version_numbers(c[0]) or (0,), reverse=True)
-                existing = [name for _, name in ordered if (path / name).is_file()]
+                existing = [name for _, name in ordered if is_file(path / name)]
                 if existing:  # the newest one there (libsdformat takes the newest even when it is missing)
                     return path / existing[0]
                 chosen = ordered[0][1]
-                raise self.values.error(f"{config} names {chosen!r}, which does not exist", element, model=label,
-                                        field="include/uri")
-        if (path / "model.sdf").is_file():
+                raise self.values.error(f"{config} names {shown(chosen, PATH_CHARACTERS)}, which does not exist",
+                                        element, model=label, field="include/uri")
+        if is_file(path / "model.sdf"):
             return path / "model.sdf"
         raise self.values.error(f"model folder {path} has no model.config or model.sdf", element, model=label,
                                 field="include/uri")

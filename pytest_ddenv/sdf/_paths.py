@@ -7,6 +7,9 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from urllib.parse import unquote, urlparse
 
+from pytest_ddenv.errors import PATH_CHARACTERS, shown, shown_path
+from pytest_ddenv.world import exists
+
 MODEL_PATH_VARIABLES = ("GAZEBO_MODEL_PATH", "GZ_SIM_RESOURCE_PATH", "IGN_GAZEBO_RESOURCE_PATH", "SDF_PATH")
 """Environment variables searched for `model://` URIs, in this order, after the explicit paths."""
 
@@ -37,9 +40,9 @@ class UnresolvedURI(Exception):
 
     def describe(self) -> str:
         if not self.uri.startswith("model://"):
-            return f"{self.uri!r}: {self.reason}"
+            return f"{shown(self.uri, PATH_CHARACTERS)}: {self.reason}"
         places = ", ".join(str(p) for p in self.searched) if self.searched else "(no folders: no model path is set)"
-        return f"{self.uri!r}: {self.reason}; searched, in order: {places}. {MODEL_PATH_HINT}"
+        return f"{shown(self.uri, PATH_CHARACTERS)}: {self.reason}; searched, in order: {places}. {MODEL_PATH_HINT}"
 
 
 MODEL_PATH_HINT = (
@@ -67,7 +70,7 @@ def resolve_uri(uri: str, base_dir: Path | None, search_paths: Sequence[Path]) -
             raise UnresolvedURI(uri, (), "a model:// URI needs a model name")
         candidates = [directory / rest for directory in search_paths]
         for candidate in candidates:
-            if candidate.exists():
+            if exists(candidate):
                 return candidate
         raise UnresolvedURI(uri, tuple(search_paths), "model not found")
     if uri.startswith("file://"):
@@ -76,6 +79,6 @@ def resolve_uri(uri: str, base_dir: Path | None, search_paths: Sequence[Path]) -
         path = Path(uri).expanduser()
     if not path.is_absolute() and base_dir is not None:
         path = base_dir / path
-    if not path.exists():
-        raise UnresolvedURI(uri, (), f"file not found: {path}")
+    if not exists(path):
+        raise UnresolvedURI(uri, (), f"file not found: {shown_path(path)}")
     return path

@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TypeVar
 
+from pytest_ddenv.errors import shown
 from pytest_ddenv.sdf._bodies import BodyReader, Raw, State
 from pytest_ddenv.sdf._collada import collada_unit
 from pytest_ddenv.sdf._ddenv import DDENV_NS, DdenvElements
@@ -27,7 +28,7 @@ from pytest_ddenv.sdf._shapes import GeometryReader
 from pytest_ddenv.sdf._tree import ModelNode, TreeReader, plugin_name
 from pytest_ddenv.sdf._values import UnsupportedSdfError, Values
 from pytest_ddenv.sdf._xml import Lines, read_limited
-from pytest_ddenv.world import Ground, Model, World
+from pytest_ddenv.world import Ground, Model, World, name_problem
 
 __all__ = ["DDENV_NS", "collada_unit", "load_sdf", "parse_sdf"]
 
@@ -80,6 +81,10 @@ class _Loader:
                      notes=self.notes.lines())
 
     def world(self, element: ET.Element, base_dir: Path | None) -> World:
+        name = (element.get("name") or "").strip()
+        problem = name_problem(name) if name else None
+        if problem is not None:
+            raise self.values.error(f"{problem}; got {shown(name)}", element, field="world/@name")
         frames = Frames(self.values, None, {"world"})
         nodes: list[ModelNode] = []
         for child in element:
@@ -104,7 +109,7 @@ class _Loader:
             scenario=self.ddenv.scenario(element),
             physics=self.ddenv.physics(element),
             ground=ground,
-            name=element.get("name") or "",
+            name=name,
             source=self.source,
             notes=self.notes.lines(),
         )

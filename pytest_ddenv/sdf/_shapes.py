@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
+from pytest_ddenv.errors import PATH_CHARACTERS, WorldError, shown, shown_path
 from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._collada import collada_unit
 from pytest_ddenv.sdf._paths import UnresolvedURI, is_remote, resolve_uri
 from pytest_ddenv.sdf._values import Values
-from pytest_ddenv.errors import WorldError
-from pytest_ddenv.world import Pose, Shape, check_shape
+from pytest_ddenv.world import Pose, Shape, check_mesh_file, check_shape, is_file
 
 MESH_SUFFIXES = (".stl", ".obj", ".dae")
 HEIGHTMAP_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
@@ -150,7 +150,10 @@ class GeometryReader:
             raise self.values.error(f"mesh scales must be positive, got {scale}", element.find("scale"), model=model,
                                     field=f"{where}/scale")
         unit = collada_unit(path) if path.suffix.lower() == ".dae" else 1.0
-        return Shape("mesh", mesh=str(path.resolve()), scale=(scale[0] * unit, scale[1] * unit, scale[2] * unit))
+        shape = Shape("mesh", mesh=str(path.resolve()), scale=(scale[0] * unit, scale[1] * unit, scale[2] * unit))
+        check_mesh_file(path.resolve(), shape.scale, lambda reason: self.values.error(
+            reason, element.find("uri"), model=model, field=f"{where}/uri"))
+        return shape
 
     def file(
         self, element: ET.Element, where: str, base_dir: Path | None, model: str, tag: str,
@@ -162,19 +165,22 @@ class GeometryReader:
         if uri_element is None or not uri:
             raise self.values.error(f"a <{tag}> needs a <uri>", element if uri_element is None else uri_element,
                                     model=model, field=f"{where}/uri")
+        shown_uri = shown(uri, PATH_CHARACTERS)
         if is_remote(uri):
-            raise self.values.unsupported(tag, f"remote URI {uri!r} (never fetched: download the model and add its "
-                                          "folder to the model path)", uri_element, model=model, field=f"{where}/uri")
+            raise self.values.unsupported(tag, f"remote URI {shown_uri} (never fetched: download the model and add "
+                                          "its folder to the model path)", uri_element, model=model,
+                                          field=f"{where}/uri")
         try:
             path = resolve_uri(uri, base_dir, self.search_paths)
         except UnresolvedURI as unresolved:
             raise self.values.error(f"missing {tag} file {unresolved.describe()}", uri_element, model=model,
                                     field=f"{where}/uri") from None
-        if not path.is_file():
-            raise self.values.error(f"{tag} {uri!r} is not a file: {path}", uri_element, model=model,
-                                    field=f"{where}/uri")
+        if not is_file(path):
+            raise self.values.error(f"{tag} {shown_uri} is not a file: {shown_path(path)}", uri_element,
+                                    model=model, field=f"{where}/uri")
         if path.suffix.lower() not in suffixes:
-            detail = f"format {path.suffix or '(no extension)'!r} of {uri!r}; supported: {', '.join(suffixes)}"
+            suffix = shown(path.suffix or "(no extension)")
+            detail = f"format {suffix} of {shown_uri}; supported: {', '.join(suffixes)}"
             raise self.values.unsupported(tag, f"{detail}{'; ' + why if why else ''}", uri_element, model=model,
                                           field=f"{where}/uri")
         return path

@@ -14,11 +14,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pytest_ddenv.errors import shown
 from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._frames import Frame, Frames, compose
 from pytest_ddenv.sdf._includes import Documents, IncludedLight
 from pytest_ddenv.sdf._values import Values
-from pytest_ddenv.world import Pose
+from pytest_ddenv.world import Pose, name_problem
+
+MAX_NESTING = 64
+"""Deepest nesting of models in models (includes included); deeper trees are refused, not a RecursionError."""
 
 
 @dataclass
@@ -56,6 +60,7 @@ class ModelNode:
     plugins: list[str] = field(default_factory=list)
     lights: list[str] = field(default_factory=list)
     sensors: list[str] = field(default_factory=list)
+    level: int = 0  # how many models are around it
 
     def all_links(self, offset: Pose = _poses.IDENTITY) -> list[tuple[LinkSpec, Pose]]:
         """Every link of the tree with its pose in this model's frame: own (and merged) links first."""
@@ -82,6 +87,13 @@ class TreeReader:
         """The tree of a `<model>` element named `name` (`static`: an include's override)."""
         if not name:
             raise self.values.error("a model needs a name attribute", element, model=top or None, field="name")
+        problem = name_problem(name)
+        if problem is not None:
+            raise self.values.error(f"{problem}; got {shown(name)}", element, model=top or shown(name), field="name")
+        level = 0 if parent is None else parent.level + 1
+        if level > MAX_NESTING:
+            raise self.values.error(f"models nested more than {MAX_NESTING} deep; flatten the model tree", element,
+                                    model=top, field="model")
         top = top or name
         own = static if static is not None else bool(self.values.child_boolean(element, "static", "", top))
         scoped = f"{parent.scoped}{name}::" if parent is not None else ""
@@ -96,7 +108,7 @@ class TreeReader:
             static=(parent is not None and parent.static) or own, static_from=static_from, static_element=static_element,
             frames=Frames(self.values, top, {"__model__", element.get("name") or "", name}),
             pose=pose if pose is not None else self.values.pose(element, "", top),
-            placement=placement or (element.get("placement_frame") or "").strip(),
+            placement=placement or (element.get("placement_frame") or "").strip(), level=level,
         )
         self.fill(node, element, base_dir, "", top, depth)
         return node

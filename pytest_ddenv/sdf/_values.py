@@ -6,7 +6,7 @@ import math
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 
-from pytest_ddenv.errors import WorldError
+from pytest_ddenv.errors import WorldError, shown
 from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._xml import Lines
 from pytest_ddenv.world import Pose
@@ -65,12 +65,14 @@ class Values:
         try:
             values = [float(item) for item in text]
         except ValueError:
-            raise self.error(f"expected numbers, got {element.text!r}", element, model=model, field=where) from None
+            raise self.error(f"expected numbers, got {shown(element.text)}", element, model=model,
+                             field=where) from None
         if len(values) not in count:
             expected = " or ".join(str(c) for c in count)
             raise self.error(f"expected {expected} numbers, got {len(values)}", element, model=model, field=where)
         if not all(math.isfinite(v) for v in values):
-            raise self.error(f"expected finite numbers, got {element.text!r}", element, model=model, field=where)
+            raise self.error(f"expected finite numbers, got {shown(element.text)}", element, model=model,
+                             field=where)
         return values
 
     def number(self, element: ET.Element, where: str, model: str | None, *, positive: bool = False) -> float:
@@ -100,7 +102,7 @@ class Values:
             return True
         if text in ("0", "false"):
             return False
-        raise self.error(f"expected true/false or 1/0, got {element.text!r}", element, model=model, field=where)
+        raise self.error(f"expected true/false or 1/0, got {shown(element.text)}", element, model=model, field=where)
 
     def child_boolean(self, parent: ET.Element, tag: str, where: str, model: str | None) -> bool | None:
         child = parent.find(tag)

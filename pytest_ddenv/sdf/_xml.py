@@ -17,6 +17,7 @@ import defusedxml
 from defusedxml.ElementTree import DefusedXMLParser
 
 from pytest_ddenv.errors import WorldError
+from pytest_ddenv.world import read_bounded
 
 MAX_FILE_BYTES = 32 * 1024 * 1024
 """Largest SDF (or Collada) file read; larger files are refused before parsing."""
@@ -61,17 +62,8 @@ class _LineTarget:
 
 
 def read_limited(path: Path, *, what: str = "world file") -> bytes:
-    """The bytes of `path`, refusing files over MAX_FILE_BYTES (without reading them whole)."""
-    try:
-        with path.open("rb") as handle:
-            data = handle.read(MAX_FILE_BYTES + 1)
-    except OSError as error:
-        raise WorldError(f"cannot read {what}: {error.strerror or error}", source=path) from error
-    if len(data) > MAX_FILE_BYTES:
-        raise WorldError(
-            f"{what} is larger than the {MAX_FILE_BYTES} byte limit; refusing to parse it", source=path
-        )
-    return data
+    """The bytes of `path`, refusing files over MAX_FILE_BYTES (without reading them whole) and devices."""
+    return read_bounded(path, MAX_FILE_BYTES, what)
 
 
 def parse_xml(data: bytes | str, source: str | None, lines: Lines) -> ET.Element:

@@ -13,7 +13,7 @@ from pytest_ddenv.plugin import replay_command  # noqa: F401  (importable withou
         ("ddenv(world='wall.yaml', partition='kmeans')", "*unknown partition 'kmeans'; valid choices: *model2model*"),
         ("ddenv(world='wall.yaml', priority='nearest')", "*unknown priority 'nearest'; valid choices:*failure-proximal*"),
         ("ddenv(world='wall.yaml', colour=3)", "*unknown argument 'colour'; valid arguments: world, partition*"),
-        ("ddenv(world='wall.yaml', deflake=-1)", "*deflake=...*expected an integer >= 0 or one of*adaptive*"),
+        ("ddenv(world='wall.yaml', deflake=-1)", "*deflake=...*expected an integer >= 0 and <= 100 or one of*adaptive*"),
         ("ddenv(world='wall.yaml', budget='lots')", "*budget=...*expected a probe count*"),
         ("robot_failure('wobbly')", "*robot_failure('wobbly', ...)*wobbly*stuck*"),
         ("robot_failure('stuck', windw=3)", "*robot_failure('stuck', ...)*windw*"),
@@ -34,9 +34,14 @@ def test_bad_marker_is_a_usage_error_naming_the_test(wall_project: pytest.Pytest
 @pytest.mark.parametrize(
     ("option", "message"),
     [
-        (["--ddenv-deflake", "many"], "*--ddenv-deflake: expected an integer >= 0 or one of adaptive*"),
+        (["--ddenv-deflake", "many"], "*--ddenv-deflake: expected an integer >= 0 and <= 100 or one of adaptive*"),
         (["--ddenv-max-probes", "0"], "*--ddenv-max-probes: expected an integer >= 1, got '0'*"),
-        (["--ddenv-max-time", "soon"], "*--ddenv-max-time: expected a positive number of seconds*"),
+        (["--ddenv-max-time", "soon"], "*--ddenv-max-time: expected a positive, finite number of seconds*"),
+        (["--ddenv-max-time", "nan"], "*--ddenv-max-time: expected a positive, finite number of seconds, got 'nan'"),
+        (["--ddenv-max-time", "inf"], "*--ddenv-max-time: expected a positive, finite number of seconds, got 'inf'"),
+        (["--ddenv-max-time", "-5"], "*--ddenv-max-time: expected a positive, finite number of seconds, got '-5'"),
+        (["--ddenv-executor", "tcp://scheduler"], ("*--ddenv-executor: expected 'local', 'dask' or a dask scheduler "
+                                                   "address tcp://HOST:PORT*got 'tcp://scheduler'")),
         (["--ddenv-workers", "two"], "*--ddenv-workers: expected an integer >= 1*"),
         (["--ddenv-world", "nowhere.yaml"], "*--ddenv-world: no such file: nowhere.yaml*"),
     ],
@@ -48,12 +53,23 @@ def test_bad_option_is_a_usage_error(pytester: pytest.Pytester, option: list[str
     result.stderr.fnmatch_lines([message])
 
 
-def test_ini_options_have_the_same_names(pytester: pytest.Pytester) -> None:
+def test_ini_errors_name_the_ini_key(pytester: pytest.Pytester) -> None:
     pytester.makeini("[pytest]\nddenv_max_probes = zero\n")
     pytester.makepyfile("def test_ok():\n    pass\n")
     result = pytester.runpytest_subprocess()
     assert result.ret == pytest.ExitCode.USAGE_ERROR
-    result.stderr.fnmatch_lines(["*--ddenv-max-probes: expected an integer >= 1, got 'zero'*"])
+    result.stderr.fnmatch_lines(["ERROR: ddenv_max_probes in tox.ini: expected an integer >= 1, got 'zero'"])
+    result = pytester.runpytest_subprocess("--ddenv-max-probes", "0")  # the command line wins, and is named
+    result.stderr.fnmatch_lines(["ERROR: --ddenv-max-probes: expected an integer >= 1, got '0'"])
+
+
+def test_a_bad_ini_boolean_is_a_usage_error_before_any_test_runs(pytester: pytest.Pytester) -> None:
+    pytester.makeini("[pytest]\nddenv_reduce = maybe\n")
+    pytester.makepyfile("def test_fails():\n    assert False\n")
+    result = pytester.runpytest_subprocess()
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["ERROR: ddenv_reduce in tox.ini: expected true or false*invalid truth value 'maybe'"])
+    assert "test_fails" not in result.stdout.str()
 
 
 def test_options_are_listed_in_help(pytester: pytest.Pytester) -> None:
@@ -106,3 +122,21 @@ def test_a_plain_function_predicate_is_given_with_with_args(wall_project: pytest
     result = wall_project.runpytest_subprocess()
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(["*RobotFailure: The 'pressed' predicate fired*touching wall*"])
+
+
+def test_ci_logs_get_progress_lines_and_relative_artifacts_follow_the_invocation_folder(
+        wall_project: pytest.Pytester) -> None:
+    """Not a terminal (a CI log): a line per accepted step. The tests live in suite/ with their own ini file,
+    which makes suite/ pytest's rootdir; a relative --ddenv-artifacts is still relative to where pytest runs."""
+    suite = wall_project.mkdir("suite")
+    for name in ("wall.yaml", "test_scenario.py"):
+        (wall_project.path / name).rename(suite / name)
+    (suite / "pytest.ini").write_text("[pytest]\n", encoding="utf-8")
+    result = wall_project.runpytest_subprocess("suite/test_scenario.py", "--ddenv-reduce", "--ddenv-artifacts",
+                                               "out", "-p", "no:cacheprovider")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["ddenv: reducing test_reaches_goal: 6 models, 0 probes, * s (start)",
+                                 "ddenv: reducing test_reaches_goal: * models, * probes, * s (step)",
+                                 "ddenv: reducing test_reaches_goal: 1 models, * probes, * s (end)"])
+    assert (wall_project.path / "out").is_dir() and not (suite / "out").exists()
+    assert list((wall_project.path / "out").glob("*/minimal.yaml"))

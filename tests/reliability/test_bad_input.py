@@ -1,0 +1,357 @@
+"""Every row of the bad-input table in docs/reliability.md, checked: the input is made, given to its interface
+(`ddenv`, `pytest` with an option, an ini file or a marker), and the message the table shows must be what is
+printed, on one line; `ddenv` exits 2 for it and prints it in its `--json` object too.
+
+The table is read from the page: a row's first cell is its id, a key of `CASES` below. In a message, `…`
+stands for a part that changes from machine to machine (a temporary folder).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import re
+import subprocess
+import sys
+import textwrap
+import tracemalloc
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+from pytest_ddenv import World, WorldError, cli
+
+ROOT = Path(__file__).resolve().parents[2]
+PAGE = ROOT / "docs" / "reliability.md"
+
+# -- the inputs --------------------------------------------------------------------------------------------
+HEAD = "format: 1\nname: yard\n"
+SCENARIO = "scenario: {start: {x: 0, y: 0}, goal: {x: 4, y: 0}, timeout: 20}\n"
+WALL = "  - {name: wall, pose: [2, 0, 0.5], box: [0.3, 4, 1]}\n"
+YARD = HEAD + SCENARIO + "models:\n" + WALL + "  - {name: crate, pose: [-3, 3, 0.25], box: [0.5, 0.5, 0.5]}\n"
+PASSWD = "".join(f"{user}:x:{uid}:{uid}:{user}:/home/{user}:/usr/sbin/nologin\n"
+                 for uid, user in enumerate(["root", "daemon", "bin", "sys", "sync", "games", "man", "lp"]))
+BOMB = "format: 1\n" + "".join(
+    f"{name}: &{name} [{', '.join([f'*{previous}'] * 9)}]\n" if previous else f'{name}: &{name} ["lol"]\n'
+    for previous, name in zip(["", *"abcdefgh"], "abcdefghi")
+) + "models: *i\n"
+SDF = "<sdf version='1.7'><world name='yard'>{}</world></sdf>\n"
+BOX_LINK = "<link name='l'><collision name='c'><geometry><box><size>1 1 1</size></box></geometry></collision></link>"
+SDF_MESH = ("<model name='crate'><static>true</static><link name='l'><collision name='c'><geometry><mesh>"
+            "<uri>crate.stl</uri></mesh></geometry></collision></link></model>")
+XML_BOMB = ('<?xml version="1.0"?>\n<!DOCTYPE lolz [\n <!ENTITY lol "lol">\n'
+            ' <!ENTITY lol2 "&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;">\n]>\n'
+            "<sdf version='1.7'><world name='w'>&lol2;</world></sdf>\n")
+GARBAGE = random.Random(16).randbytes(3000)
+TEST_MODULE = """\
+import pytest
+
+@pytest.mark.ddenv(world="{world}"{ddenv})
+@pytest.mark.robot_failure("stuck", window=2.0, min_progress=0.2){failure}
+def test_robot(robot_world):
+    assert robot_world.run().reached_goal
+"""
+QUICK_DASK = """\
+import pytest_ddenv.execution as execution
+
+class QuickCluster(execution.DaskCluster):  # a real connection attempt that gives up after 1 s, not 30 s
+    def __init__(self, address=None, **options):
+        super().__init__(address, **{**options, "connect_timeout": 1.0})
+
+execution.DaskCluster = QuickCluster
+"""
+
+
+def _robot_test(world: str = "yard.yaml", ddenv: str = "", failure: str = "") -> str:
+    return TEST_MODULE.format(world=world, ddenv=ddenv, failure=failure)
+
+
+def _sparse(size: int) -> Callable[[Path], None]:
+    def make(path: Path) -> None:
+        with path.open("wb") as handle:
+            handle.write(b"format: 1\n")
+            handle.truncate(size)
+
+    return make
+
+
+def _read_only(path: Path) -> None:
+    path.mkdir()
+    path.chmod(0o500)
+
+
+@dataclass(frozen=True)
+class Case:
+    """An input and the command that reads it: `ddenv ...` (in-process, exit code 2 unless `code`) or
+    `pytest ...` (in a subprocess, exit code `code`). `files`: text, bytes, or a function making the path."""
+
+    command: tuple[str, ...]
+    files: dict[str, str | bytes | Callable[[Path], None]] = field(default_factory=dict)
+    code: int = 2
+    subprocess: bool = False
+    """Run `ddenv` as its own process (inputs that once crashed the interpreter)."""
+    also: tuple[str, ...] = ()
+    """More text the output must hold (e.g. the test's own failure, kept)."""
+
+
+def ddenv(*words: str, files: dict[str, str | bytes | Callable[[Path], None]] | None = None, code: int = 2,
+          subprocess: bool = False) -> Case:
+    return Case(("ddenv", *words), files or {}, code, subprocess)
+
+
+def check(name: str, content: str | bytes | Callable[[Path], None], **more: str | bytes) -> Case:
+    return ddenv("check", name, files={name: content, **more})
+
+
+def run_pytest(*options: str, files: dict[str, str | bytes | Callable[[Path], None]] | None = None,
+               code: int = pytest.ExitCode.USAGE_ERROR, also: tuple[str, ...] = ()) -> Case:
+    return Case(("pytest", *options), {"yard.yaml": YARD, "test_robot.py": _robot_test(), **(files or {})}, code,
+                also=also)
+
+
+NESTED_MODELS = SDF.format("".join(f"<model name='m{i}'>" for i in range(5000)) + BOX_LINK + "</model>" * 5000)
+FRAME_CHAIN = SDF.format(
+    "<model name='m'><frame name='f0'/>"
+    + "".join(f"<frame name='f{i}'><pose relative_to='f{i - 1}'>0 0 0 0 0 0</pose></frame>" for i in range(1, 3000))
+    + "<link name='l'><pose relative_to='f2999'>0 0 0 0 0 0</pose>"
+    + "<collision name='c'><geometry><box><size>1 1 1</size></box></geometry></collision></link></model>"
+)
+SELF_INCLUDE = "<sdf version='1.7'><model name='loop'><include><uri>loop.sdf</uri></include></model></sdf>\n"
+
+CASES: dict[str, Case] = {
+    # YAML world files
+    "alias-bomb": check("bomb.yaml", BOMB),
+    "recursive-alias": check("loop.yaml", "format: 1\nmodels: &m [*m]\n"),
+    "deep-nesting": ddenv("check", "deep.yaml", files={"deep.yaml": "format: 1\nmodels: " + "[" * 100_000
+                                                       + "]" * 100_000 + "\n"}, subprocess=True),
+    "foreign-text": check("passwd", PASSWD),
+    "foreign-yaml": check("compose.yaml", 'version: "3"\nservices:\n  web: {image: nginx}\n'),
+    "binary": check("garbage.yaml", GARBAGE),
+    "nul": check("nul.yaml", "format: 1\nname: yard\x00\n"),
+    "empty": check("empty.yaml", ""),
+    "two-documents": check("two.yaml", "format: 1\n---\nformat: 1\n"),
+    "duplicate-key": check("dup.yaml", HEAD + "models:\n  - name: crate\n    box: [1, 1, 1]\n    mass: 2\n"
+                                              "    static: false\n    mass: 20\n"),
+    "duplicate-model": check("twins.yaml", HEAD + "models:\n" + WALL + WALL),
+    "exponent": ddenv("check", "e9.yaml", files={"e9.yaml": HEAD + "models:\n  - {name: slab, box: [1e1, 1e1, "
+                                                                    "1.5E-1], mass: 1e3, static: false}\n"}, code=0),
+    "quoted-number": check("quoted.yaml", HEAD + "models:\n  - {name: crate, box: [1, 1, 1], mass: '2.5'}\n"),
+    "number-name": check("named.yaml", HEAD + "models:\n  - {name: 1e5, box: [1, 1, 1]}\n"),
+    "solver-iterations": check("physics.yaml", HEAD + "physics: {solver_iterations: 1e12}\n"),
+    "timestep": check("physics.yaml", HEAD + "physics: {timestep: 1e-12}\n"),
+    "huge-integer": check("huge.yaml", HEAD + "models:\n  - {name: crate, box: [1, 1, 1], mass: " + "9" * 5000 + "}\n"),
+    "overflow": check("far.yaml", HEAD + "models:\n  - {name: crate, box: [1, 1, 1], pose: [1e400, 0, 0]}\n"),
+    "long-integer": check("far.yaml", HEAD + "models:\n  - {name: crate, box: [1, 1, 1], pose: [1" + "0" * 400
+                          + ", 0, 0]}\n"),
+    "nan": check("nan.yaml", HEAD + "models:\n  - {name: crate, box: [1, 1, 1], pose: [0, .nan, 0]}\n"),
+    "control-name": check("bell.yaml", HEAD + 'models:\n  - {name: "crate\\a", box: [1, 1, 1]}\n'),
+    "blank-name": check("blank.yaml", HEAD + 'models:\n  - {name: " crate", box: [1, 1, 1]}\n'),
+    "long-name": check("long.yaml", HEAD + "models:\n  - {name: " + "c" * 300 + ", box: [1, 1, 1]}\n"),
+    "long-key": check("key.yaml", HEAD + "k" * 1000 + ": 1\n"),
+    "python-tag": check("tag.yaml", "format: !!python/object/apply:os.system ['echo hi']\n"),
+    "garbage-mesh": check("crate.yaml", HEAD + "models:\n  - {name: crate, mesh: {file: crate.stl}}\n",
+                          **{"crate.stl": GARBAGE}),
+    "non-mesh": check("crate.yaml", HEAD + "models:\n  - {name: crate, mesh: {file: crate.obj}}\n",
+                      **{"crate.obj": PASSWD}),
+    "long-file-name": check("crate.yaml", HEAD + "models:\n  - {name: crate, mesh: {file: " + "m" * 300 + ".stl}}\n"),
+    "missing-mesh": check("crate.yaml", HEAD + "models:\n  - {name: crate, mesh: {file: crate.stl}}\n"),
+    "big-file": check("big.yaml", _sparse(60 * 1024 * 1024)),
+    "folder": ddenv("check", "worlds", files={"worlds/yard.yaml": YARD}),
+    "device": ddenv("check", "/dev/zero"),
+    # SDF world files
+    "sdf-nesting": check("nested.world", NESTED_MODELS),
+    "sdf-frame-chain": check("chain.world", FRAME_CHAIN),
+    "sdf-control-name": check("bell.world", SDF.format(f"<model name='crate&#9;1'>{BOX_LINK}</model>")),
+    "sdf-entity-bomb": check("lol.world", XML_BOMB),
+    "sdf-binary": check("garbage.world", GARBAGE),
+    "sdf-foreign": check("passwd.world", PASSWD),
+    "sdf-solver-iterations": check("physics.world", SDF.replace("<sdf version='1.7'>", (
+        "<sdf version='1.7' xmlns:ddenv='https://github.com/pytest-ddenv/pytest-ddenv/sdf'>")).format(
+        "<ddenv:physics solver_iterations='1e12'/>")),
+    "sdf-garbage-mesh": check("crate.world", SDF.format(SDF_MESH), **{"crate.stl": GARBAGE}),
+    "sdf-include-cycle": check("yard.world", SDF.format("<include><uri>loop.sdf</uri></include>"),
+                               **{"loop.sdf": SELF_INCLUDE}),
+    "sdf-infinite": check("far.world", SDF.format(f"<model name='m'><pose>1e400 0 0 0 0 0</pose>{BOX_LINK}</model>")),
+    # ddenv options
+    "cli-collided-unknown": ddenv("run", "yard.yaml", "-p", "collided:models=[wal]", files={"yard.yaml": YARD}),
+    "cli-out-file": ddenv("reduce", "yard.yaml", "-p", "stuck", "--out", "notes.txt",
+                          files={"yard.yaml": YARD, "notes.txt": "taken"}),
+    "cli-max-time": ddenv("reduce", "yard.yaml", "-p", "stuck", "--max-time", "nan", files={"yard.yaml": YARD}),
+    "cli-executor": ddenv("reduce", "yard.yaml", "-p", "stuck", "--executor", "tcp://scheduler",
+                          files={"yard.yaml": YARD}),
+    "cli-start": ddenv("run", "yard.yaml", "--start", "1,nan", files={"yard.yaml": YARD}),
+    "cli-keep": ddenv("reduce", "yard.yaml", "-p", "stuck", "--keep", "wal", files={"yard.yaml": YARD}),
+    "cli-model-path": ddenv("check", "yard.yaml", "--model-path", "models", files={"yard.yaml": YARD}),
+    "cli-deflake": ddenv("reduce", "yard.yaml", "-p", "stuck", "--deflake", "1000000000000",
+                         files={"yard.yaml": YARD}),
+    "cli-predicate": ddenv("run", "yard.yaml", "-p", "wobbly", files={"yard.yaml": YARD}),
+    # pytest options and ini settings
+    "max-time-nan": run_pytest("--ddenv-max-time", "nan"),
+    "max-time-inf": run_pytest("--ddenv-max-time", "inf"),
+    "max-time-negative": run_pytest("--ddenv-max-time=-5"),
+    "ini-bool": run_pytest(files={"pytest.ini": "[pytest]\nddenv_reduce = maybe\n"}),
+    "ini-number": run_pytest(files={"pytest.ini": "[pytest]\nddenv_max_probes = zero\n"}),
+    "executor-form": run_pytest("--ddenv-executor", "tcp://scheduler"),
+    "executor-unreachable": run_pytest("--ddenv-reduce", "--ddenv-executor", "tcp://127.0.0.1:9",
+                                       files={"conftest.py": QUICK_DASK}, code=pytest.ExitCode.TESTS_FAILED,
+                                       also=("RobotFailure: The 'stuck' predicate fired",)),
+    "artifacts-file": run_pytest("--ddenv-artifacts", "notes.txt", files={"notes.txt": "taken"}),
+    "artifacts-read-only": run_pytest("--ddenv-reduce", "--ddenv-artifacts", "locked/out",
+                                      files={"locked": _read_only}),
+    "deflake": run_pytest("--ddenv-deflake", "many"),
+    "deflake-huge": run_pytest(files={"test_robot.py": _robot_test(ddenv=", deflake=10**12")}),
+    # markers
+    "marker-world-field": run_pytest(files={"yard.yaml": YARD.replace("box: [0.3, 4, 1]", "box: [0.3, 4, 1], "
+                                                                                          "mass: heavy")},
+                                     code=pytest.ExitCode.TESTS_FAILED),
+    "marker-world-missing": run_pytest(files={"test_robot.py": _robot_test(world="yrad.yaml")},
+                                       code=pytest.ExitCode.TESTS_FAILED),
+    "marker-collided-unknown": run_pytest(files={"test_robot.py": _robot_test(
+        failure="\n@pytest.mark.robot_failure('collided', models=['wal'])")}, code=pytest.ExitCode.TESTS_FAILED),
+    "marker-keep-unknown": run_pytest(files={"test_robot.py": _robot_test(ddenv=", keep=['wal']")},
+                                      code=pytest.ExitCode.TESTS_FAILED),
+    "marker-tolerance": run_pytest(files={"test_robot.py": _robot_test(ddenv=", tolerance=float('inf')")}),
+    "marker-predicate": run_pytest(files={"test_robot.py": _robot_test(failure="\n@pytest.mark.robot_failure("
+                                                                                "'stuck', window=float('nan'))")}),
+}
+
+
+# -- the table ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Row:
+    id: str
+    input: str
+    interface: str
+    message: str
+
+
+def table() -> dict[str, Row]:
+    rows: dict[str, Row] = {}
+    for line in PAGE.read_text(encoding="utf-8").splitlines():
+        if not line.startswith("| `") or line.count(" | ") < 3:
+            continue
+        cells = [cell.strip() for cell in re.split(r"(?<!\\) \| ", line.strip().strip("|"))]
+        identifier, what, interface = cells[0].strip("` "), cells[1], cells[2]
+        message = re.match(r"`([^`]*)`", cells[-1])
+        assert message is not None, f"the message of row {identifier} is not in backticks"
+        rows[identifier] = Row(identifier, what, interface, message[1].replace("\\|", "|"))
+    return rows
+
+
+ROWS = table()
+
+
+def test_every_row_has_a_case_and_every_case_a_row() -> None:
+    assert sorted(ROWS) == sorted(CASES)
+    assert len(ROWS) >= 40
+
+
+def test_messages_are_one_short_line() -> None:
+    for row in ROWS.values():
+        assert "\n" not in row.message and len(row.message) <= 400, row.id
+
+
+def _pattern(message: str) -> re.Pattern[str]:
+    return re.compile(".*".join(re.escape(part) for part in message.split("…")))
+
+
+def _make(folder: Path, files: dict[str, str | bytes | Callable[[Path], None]]) -> None:
+    for name, content in files.items():
+        path = folder / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if callable(content):
+            content(path)
+        elif isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content, encoding="utf-8")
+
+
+def _ddenv(case: Case, folder: Path, capsys: pytest.CaptureFixture[str], *extra: str) -> tuple[int, str, str]:
+    words = [*case.command[1:], *extra]
+    if case.subprocess:
+        done = subprocess.run([sys.executable, "-m", "pytest_ddenv.cli", *words], cwd=folder, capture_output=True,
+                              text=True, timeout=600, check=False)
+        return done.returncode, done.stdout, done.stderr
+    code = cli.main(words)
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+@pytest.mark.parametrize("identifier", sorted(CASES))
+def test_bad_input_gets_the_message_of_the_table(identifier: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                 capsys: pytest.CaptureFixture[str], request: pytest.FixtureRequest
+                                                 ) -> None:
+    case, row = CASES[identifier], ROWS[identifier]
+    if identifier == "artifacts-read-only" and os.geteuid() == 0:  # root writes into read-only folders
+        if os.access("/proc/sys", os.W_OK):
+            pytest.skip("no folder is read-only for root here")
+        case = Case(("pytest", "--ddenv-reduce", "--ddenv-artifacts", "/proc/sys/ddenv-out"), case.files, case.code)
+    pattern = _pattern(row.message)
+    if case.command[0] == "ddenv":
+        _make(tmp_path, case.files)
+        monkeypatch.chdir(tmp_path)
+        code, out, err = _ddenv(case, tmp_path, capsys)
+        printed = err if case.code else out
+        assert code == case.code, printed
+        assert any(pattern.fullmatch(line) for line in printed.splitlines()), f"{row.message!r} not in:\n{printed}"
+        if case.code == cli.EXIT_USAGE:
+            assert len(err.strip().splitlines()) == 1, err  # one line, no traceback
+            code, out, err = _ddenv(case, tmp_path, capsys, "--json")
+            data = json.loads(out)
+            assert code == 2 and data["ok"] is False and data["exit_code"] == 2
+            assert pattern.fullmatch("ddenv: error: " + data["error"]), data
+        return
+    pytester: pytest.Pytester = request.getfixturevalue("pytester")
+    _make(pytester.path, case.files)
+    result = pytester.runpytest_subprocess(*case.command[1:], "-p", "no:cacheprovider")
+    printed = result.stderr.str() + "\n" + result.stdout.str()
+    assert result.ret == case.code, printed
+    assert any(pattern.fullmatch(line) for line in printed.splitlines()), f"{row.message!r} not in:\n{printed}"
+    assert all(text in printed for text in case.also), printed
+    if case.code == pytest.ExitCode.USAGE_ERROR or "ERROR at setup" in printed:  # no plugin traceback
+        assert "Traceback" not in printed and "pytest_ddenv" not in printed and "During handling" not in printed, (
+            printed)
+
+
+# -- bounded time and memory ---------------------------------------------------------------------------------
+def test_the_alias_bomb_is_refused_without_expanding_it(tmp_path: Path) -> None:
+    path = tmp_path / "bomb.yaml"
+    path.write_text(BOMB, encoding="utf-8")
+    assert len(BOMB.encode()) < 500
+    tracemalloc.start()
+    try:
+        with pytest.raises(WorldError, match="aliases expand the document by more than 100000 nodes"):
+            World.load(path)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 * 1024 * 1024  # the expanded document would hold 387 million strings
+
+
+def test_aliases_within_the_budget_are_read(tmp_path: Path) -> None:
+    text = textwrap.dedent("""\
+        format: 1
+        models:
+          - &crate {name: crate_1, box: [0.5, 0.5, 0.5], mass: 2, static: false}
+          - {<<: *crate, name: crate_2, pose: [2, 0, 0]}
+        """)
+    world = World.from_yaml(text)
+    assert world.names == ("crate_1", "crate_2") and world.model("crate_2").mass == 2
+
+
+def test_a_message_never_holds_a_whole_file(tmp_path: Path) -> None:
+    path = tmp_path / "notes.yaml"
+    path.write_text("a long note " * 100_000, encoding="utf-8")
+    with pytest.raises(WorldError) as caught:
+        World.load(path)
+    assert "not a world file" in str(caught.value) and len(str(caught.value)) < 400
+
+
+def test_exponent_numbers_are_numbers_and_such_names_are_written_quoted(tmp_path: Path) -> None:
+    world = World.from_yaml(HEAD + "physics: {timestep: 2.5E-3}\nmodels:\n  - {name: '1e5', box: [1e0, 1, 1]}\n")
+    assert world.physics.timestep == 0.0025 and world.names == ("1e5",)
+    assert World.from_yaml(world.to_yaml()) == world
