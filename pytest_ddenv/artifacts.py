@@ -1,25 +1,48 @@
-"""Files a reduction leaves behind: minimal world (YAML, SDF), run log, summary, pictures.
+"""Files a reduction leaves behind: minimal world (YAML, SDF), run log, summary, pictures; and the lock that
+keeps two reductions out of one folder.
 
-Every file is written atomically (write to a temporary name, then rename), so an interrupted reduction
-never leaves a half-written file; the run log is appended and flushed line by line by the engine.
+Every file is written atomically and durably (write a temporary file, fsync it, rename it over the old one,
+fsync the folder), so a crash at any moment leaves either the old or the new file, never half of one. The
+run log `runs.jsonl` is appended and fsynced line by line by the engine and is never deleted: its first
+record names the problem it belongs to (`problem_header`), and a log of another problem is moved aside
+(`runs.previous-N.jsonl`), not removed. While a reduction runs, `minimal.yaml` and a provisional
+`summary.json` (``"complete": false``) hold the best world so far, rewritten at every accepted step.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
 import re
-from collections.abc import Sequence
+import time
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
+from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import Reduction
+from pytest_ddenv.reduce.log import LOG_FORMAT, sync_directory, write_failure
 from pytest_ddenv.world import World
 
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX: no folder lock
+    fcntl = None  # type: ignore[assignment]
+
 SUMMARY_FORMAT = 1
+LOCK_NAME = ".ddenv.lock"
+"""The lock file of an artifacts folder (holds the pid of the reduction that has it)."""
+STALE_OUTPUTS = ("minimal.sdf", "reduction.png", "progress.png")
+"""Outputs of an earlier problem that a new log makes stale (rewritten at the end of the reduction)."""
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
+
+
+class ArtifactsError(ReductionError):
+    """The artifacts folder cannot be used: another reduction holds it, or it cannot be written (a full disk,
+    no permission). The message says which folder or file, why, and what to do."""
 
 
 def artifact_dir_name(test_id: str) -> str:
@@ -30,9 +53,24 @@ def artifact_dir_name(test_id: str) -> str:
 
 
 def write_text_atomic(path: Path, text: str) -> None:
+    """Replace `path` with `text` all at once and durably; ArtifactsError (the file untouched) if it cannot."""
     temporary = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    temporary.write_text(text, encoding="utf-8")
-    os.replace(temporary, path)
+    data = text.encode("utf-8")
+    try:
+        handle = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(handle, view):]
+            os.fsync(handle)
+        finally:
+            os.close(handle)
+        os.replace(temporary, path)
+    except OSError as error:
+        with contextlib.suppress(OSError):
+            temporary.unlink()
+        raise ArtifactsError(write_failure(path, error)) from error
+    sync_directory(path.parent)
 
 
 def fingerprint(world: World, settings: dict[str, Any], test_source: str = "") -> str:
@@ -77,14 +115,166 @@ class ArtifactPaths:
         return self.directory / "progress.png"
 
 
-def prepare(directory: Path, problem_fingerprint: str) -> ArtifactPaths:
-    """Create the folder; keep an earlier log only if it belongs to the same problem (resume)."""
-    directory.mkdir(parents=True, exist_ok=True)
-    paths = ArtifactPaths(directory)
-    previous = read_summary(paths.summary)
-    if paths.log.exists() and (previous is None or previous.get("fingerprint") != problem_fingerprint):
-        paths.log.unlink()
-    return paths
+class FolderLock:
+    """An exclusive lock on an artifacts folder (`fcntl.flock` on its `.ddenv.lock`, which holds the owner's
+    pid). The kernel releases it when its process ends, however it ends (kill -9 included)."""
+
+    def __init__(self, directory: Path) -> None:
+        self.directory = Path(directory)
+        self._fd: int | None = None
+
+    def __enter__(self) -> Self:
+        self.acquire()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+    def acquire(self) -> None:
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            fd = os.open(self.directory / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as error:
+            raise ArtifactsError(f"cannot use the artifacts folder {self.directory}: "
+                                 f"{error.strerror or error}; pass a writable folder") from error
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                holder = _read_holder(fd)
+                os.close(fd)
+                raise ArtifactsError(
+                    f"the artifacts folder {self.directory} is in use by another reduction ({holder}); two "
+                    "reductions cannot share one folder: wait for it to end, or pass another artifacts folder"
+                ) from None
+        with contextlib.suppress(OSError):  # the pid is only for the message above
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()} {time.strftime('%Y-%m-%dT%H:%M:%S')}\n".encode(), 0)
+        self._fd = fd
+
+    def release(self) -> None:
+        if self._fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(self._fd)  # closing the last descriptor releases the flock
+            self._fd = None
+
+
+def _read_holder(fd: int) -> str:
+    try:
+        words = os.pread(fd, 200, 0).decode("utf-8", errors="replace").split()
+    except OSError:
+        words = []
+    if words and words[0].isdigit():
+        return f"pid {words[0]}" + (f", since {words[1]}" if len(words) > 1 else "")
+    return "pid unknown"
+
+
+def problem_header(problem_fingerprint: str, test_id: str = "") -> dict[str, Any]:
+    """The first record of a run log: which problem (test, world, settings) the log belongs to."""
+    return {"event": "problem", "format": LOG_FORMAT, "fingerprint": problem_fingerprint, "test": test_id}
+
+
+def prepare(directory: Path, problem_fingerprint: str, *, test_id: str = "") -> tuple[ArtifactPaths, list[str]]:
+    """Create the folder and make `runs.jsonl` the log of this problem; returns the paths and notes.
+
+    An existing log is resumed when its first record (`problem_header`) names this problem (a log without
+    that record, from an earlier version, when summary.json names it), whatever else is missing. A log of
+    another problem is moved aside to ``runs.previous-N.jsonl`` (never deleted), and the notes say so. Call it
+    while holding the folder's `FolderLock`."""
+    paths = ArtifactPaths(Path(directory))
+    notes: list[str] = []
+    try:
+        paths.directory.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise ArtifactsError(f"cannot create the artifacts folder {paths.directory}: {error.strerror or error}") from error
+    header = problem_header(problem_fingerprint, test_id)
+    if paths.log.exists():
+        first, size = _first_record(paths.log)
+        if first is not None and first.get("event") == "problem":
+            if first.get("fingerprint") == problem_fingerprint:
+                return paths, notes
+        elif first is not None and first.get("event") == "start":  # written before logs had a header
+            previous = read_summary(paths.summary)
+            if previous is not None and previous.get("fingerprint") == problem_fingerprint:
+                text = paths.log.read_text(encoding="utf-8", errors="replace")
+                write_text_atomic(paths.log, json.dumps(header) + "\n" + text)
+                return paths, notes
+        elif size == 0:
+            paths.log.unlink()  # an empty file holds nothing to keep
+        if paths.log.exists():
+            kept = _free_name(paths.directory, "runs.previous-{}.jsonl")
+            try:
+                os.replace(paths.log, kept)
+            except OSError as error:
+                raise ArtifactsError(f"cannot move the run log of another problem {paths.log} aside to {kept.name}: "
+                                     f"{error.strerror or error}; move or delete it yourself") from error
+            notes.append(f"the run log of another problem (its test, world or reduction settings differ) was kept "
+                         f"as {kept.name}; this reduction starts a new {paths.log.name}")
+    for name in STALE_OUTPUTS:
+        with contextlib.suppress(OSError):
+            (paths.directory / name).unlink()
+    write_text_atomic(paths.log, json.dumps(header) + "\n")
+    return paths, notes
+
+
+def _first_record(path: Path) -> tuple[dict[str, Any] | None, int]:
+    """The first line of a log parsed (None if it is not a record) and the file's size."""
+    try:
+        with path.open("rb") as handle:
+            line = handle.readline(1 << 20)
+        size = path.stat().st_size
+    except OSError:
+        return None, 0
+    try:
+        record = json.loads(line.decode("utf-8"))
+    except ValueError:
+        return None, size
+    return (record if isinstance(record, dict) else None), size
+
+
+def _free_name(directory: Path, pattern: str) -> Path:
+    number = 1
+    while (directory / pattern.format(number)).exists():
+        number += 1
+    return directory / pattern.format(number)
+
+
+@dataclass(frozen=True)
+class Usage:
+    """Simulations and worker CPU seconds of the earlier runs recorded in a log."""
+
+    runs: int = 0
+    simulations: int = 0
+    cpu_seconds: float = 0.0
+    complete: bool = True
+    """False when an earlier run was stopped before it could record its usage (kill -9): its simulations are
+    those it logged, its CPU time is unknown."""
+
+
+def usage_of(records: Iterable[Mapping[str, Any]]) -> Usage:
+    """What the earlier runs in a log cost. Each run starts with a ``session`` record and records its
+    cumulative ``usage`` at every accepted step and at its end; a run stopped in between adds the probes it
+    logged after its last ``usage`` record."""
+    runs: list[dict[str, Any]] = []
+    for record in records:
+        event = record.get("event")
+        if event == "session" or (not runs and event in ("start", "probe")):
+            runs.append({"usage": None, "after": 0})
+            if event != "probe":
+                continue
+        if not runs:
+            continue
+        if event == "usage":
+            runs[-1]["usage"], runs[-1]["after"] = record, 0
+        elif event == "probe":
+            runs[-1]["after"] += 1
+    simulations, cpu, complete = 0, 0.0, True
+    for run in runs:
+        usage = run["usage"] or {}
+        simulations += int(usage.get("simulations", 0)) + run["after"]
+        cpu += float(usage.get("cpu_seconds", 0.0))
+        complete = complete and bool(usage.get("final", False))
+    return Usage(len(runs), simulations, round(cpu, 6), complete)
 
 
 def read_summary(path: Path) -> dict[str, Any] | None:
@@ -125,6 +315,37 @@ def write_reduction(
     summary.update(extra or {})
     write_text_atomic(paths.summary, json.dumps(summary, indent=2) + "\n")
     return summary
+
+
+def write_progress(paths: ArtifactPaths, world: World, best: Sequence[str], *, test_id: str, problem_fingerprint: str,
+                   replay_command: str, reference: dict[str, Any], counts: Mapping[str, Any],
+                   extra: Mapping[str, Any] | None = None) -> None:
+    """The best world so far (`minimal.yaml`) and a provisional `summary.json` (``"complete": false``,
+    ``"incomplete_reason": "in progress"``): what a reduction stopped at any moment leaves behind."""
+    minimal = world.select(best)
+    write_text_atomic(paths.minimal_yaml, minimal.to_yaml(relative_to=paths.directory))
+    chosen = set(best)
+    summary = {
+        "format": SUMMARY_FORMAT,
+        "test": test_id,
+        "world": world.source or world.name,
+        "complete": False,
+        "incomplete_reason": "in progress",
+        "provisional": True,
+        "one_minimal": False,
+        "original_size": len(world),
+        "minimal_size": len(minimal),
+        "reduction_percent": round(100.0 * (1 - len(minimal) / max(len(world), 1)), 1),
+        "minimal_models": list(minimal.names),
+        "removed_models": [name for name in world.names if name not in chosen],
+        **dict(counts),
+        "reference_failure": reference,
+        "replay": replay_command,
+        "fingerprint": problem_fingerprint,
+        "files": {"minimal_yaml": str(paths.minimal_yaml), "log": str(paths.log), "summary": str(paths.summary)},
+        **dict(extra or {}),
+    }
+    write_text_atomic(paths.summary, json.dumps(summary, indent=2) + "\n")
 
 
 def write_minimal_sdf(target: Path, world: World, minimal: World, removed: Sequence[str],
@@ -173,6 +394,9 @@ def _check_cut(text: str, source: Path, minimal: World, model_paths: Sequence[st
 def failure_rate_line(reduction: Reduction) -> str:
     """"minimal world fails 5/5 seeds (original world: 3/3)", with a warning when it rarely fails."""
     fails, runs = reduction.failure_rate
+    if runs == 0:
+        why = " (the budget ran out)" if (reduction.incomplete_reason or "").startswith("budget") else ""
+        return f"minimal world's failure rate: not measured{why}"
     line = f"minimal world fails {fails}/{runs} seeds"
     if reduction.calibration is not None:
         line += f" (original world: {reduction.calibration[0]}/{reduction.calibration[1]})"
@@ -202,9 +426,12 @@ def summary_of(
         "removed_models": removed,
         "kept_models": list(reduction.kept),
         "probes": reduction.probes,
+        "resumed_probes": reduction.resumed_probes,
+        "simulations": reduction.simulations,
         "cache_hits": reduction.cache_hits,
         "skipped": reduction.skipped,
         "errors": reduction.errors,
+        "errored_candidates": reduction.errored,
         "steps": [list(step) for step in reduction.steps],
         "failure_rate": {"fails": fails, "runs": runs},
         "original_failure_rate": (

@@ -9,16 +9,19 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import os
 import signal
 import threading
+import time
 import warnings
+from collections import OrderedDict
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv import artifacts
-from pytest_ddenv.execution import Pool, WorkerError, WorkerStartError
+from pytest_ddenv.execution import Pool, ProbeDeadline, WorkerError, WorkerStartError
 from pytest_ddenv.markers import ReductionSpec
 from pytest_ddenv.probe import (
     FailureReference,
@@ -26,9 +29,22 @@ from pytest_ddenv.probe import (
     classify_result,
     keeps_start_support,
     make_probe,
+    signature_record,
     trace_of,
 )
-from pytest_ddenv.reduce import Outcome, ProgressEvent, Reduction, ReductionInterrupted, reduce
+from pytest_ddenv.reduce import (
+    Observation as ProbeObservation,
+)
+from pytest_ddenv.reduce import (
+    Outcome,
+    ProbeCancelled,
+    ProbeLog,
+    ProgressEvent,
+    Reduction,
+    ReductionInterrupted,
+    reduce,
+)
+from pytest_ddenv.reduce.deflake import make_policy
 
 if TYPE_CHECKING:
     from pytest_ddenv.sim import Run
@@ -82,66 +98,235 @@ class ReductionOutcome:
 
 
 Note = Callable[[str], None]
+PICTURE_RUNS_KEPT = 16
+"""Failing runs kept in memory for the pictures (the accepted world's run is pinned at each step)."""
 
 
 def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: None,
                   on_progress: Callable[[ProgressEvent], None] | None = None) -> ReductionOutcome:
     """Confirm `plan.reference` on `pool`, reduce `plan.world`, write the artifacts; see `ReductionOutcome`.
 
-    Raises `ReductionInterrupted` on Ctrl-C or SIGTERM, after writing the best world so far (the
-    outcome is attached as `.outcome`)."""
+    Durable at every step: the artifacts folder is locked (`artifacts.FolderLock`: a second reduction into it
+    fails with `ArtifactsError` naming the holder's pid), the log is resumed whatever else is missing, and
+    `minimal.yaml` with a provisional `summary.json` is rewritten at every accepted step. The budgets
+    (`spec.max_probes`, `spec.max_seconds`) cover every simulation of the reduction, the confirmation and
+    picture runs included; running probes are stopped at the time budget's deadline. Raises
+    `ReductionInterrupted` on Ctrl-C or SIGTERM, after writing the best world so far (the outcome is attached
+    as `.outcome`), and `ArtifactsError` / `ReductionError` when the folder or the log cannot be written (the
+    log keeps every complete record: run again to resume)."""
     spec, world = plan.spec, plan.world
+    make_policy(spec.deflake, 0.95)  # an invalid deflake fails now, before any simulation
+    deadline = None if spec.max_seconds is None else time.monotonic() + spec.max_seconds
+    expect = getattr(pool, "expect", None)
+    if plan.reference_run is not None and callable(expect):  # the watchdog scales with the original run
+        expect(float(getattr(plan.reference_run, "wall_time", 0.0) or 0.0))
     if not getattr(pool, "in_process", False):  # this process waits for the workers: import meanwhile
         threading.Thread(target=_import_ahead, name="ddenv-import-ahead", daemon=True).start()
-    call = _checked_call(pool)
-    if not plan.confirmed:
-        failed = _confirm(plan, call, note)
-        if failed is not None:
-            return failed
-    partition, priority, notes = _schemas(spec, plan.reference_run)
-    for text in notes:
-        note(text)
-    settings = {key: value for key, value in plan.fingerprint.items() if key not in BUDGETS}
-    problem = artifacts.fingerprint(world, {**settings, "partition": partition, "priority": priority},
-                                    plan.test_source)
-    paths = artifacts.prepare(plan.artifacts, problem)
+    calls = _Calls(pool, plan.reference, spec.tolerance, deadline)
+    with _sigterm_as_interrupt():
+        confirmations: list[tuple[int, ProbeResult | None, str]] = []
+        if not plan.confirmed:
+            failed = _confirm(plan, calls, note, confirmations)
+            if failed is not None:
+                return failed
+        partition, priority, notes = _schemas(spec, plan.reference_run)
+        for text in notes:
+            note(text)
+        settings = {key: value for key, value in plan.fingerprint.items() if key not in BUDGETS}
+        problem = artifacts.fingerprint(world, {**settings, "partition": partition, "priority": priority},
+                                        plan.test_source)
+        with artifacts.FolderLock(plan.artifacts):
+            paths, prepared = artifacts.prepare(plan.artifacts, problem, test_id=plan.test_id)
+            log = ProbeLog(paths.log)
+            for text in prepared + log.notes:
+                note(text)
+            try:
+                return _reduce_locked(plan, pool, calls, paths, log, problem, partition, priority,
+                                      notes + prepared + log.notes, confirmations, on_progress)
+            finally:
+                log.close()
+
+
+def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifacts.ArtifactPaths, log: ProbeLog,
+                   problem: str, partition: str, priority: str, notes: list[str],
+                   confirmations: list[tuple[int, ProbeResult | None, str]],
+                   on_progress: Callable[[ProgressEvent], None] | None) -> ReductionOutcome:
+    spec, world = plan.spec, plan.world
+    history = artifacts.usage_of(log.records)
+    log.write({"event": "session", "pid": os.getpid(), "time": time.strftime("%Y-%m-%dT%H:%M:%S")})
+    for attempt, result, verdict in confirmations:
+        _log_run(log, "confirmation", world.names, attempt, result, verdict)
     keep = (set(spec.keep) & set(world.names)) | {m.name for m in world.models if m.keep}
-    probe = make_probe(world, call, plan.reference, tolerance=spec.tolerance)
+    inner = make_probe(world, calls, plan.reference, tolerance=spec.tolerance)
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
+        calls.local.cancelled = False
+        observation = inner(candidate, attempt)
+        if calls.local.cancelled:  # stopped at the time budget's deadline: not an outcome
+            raise ProbeCancelled("budget: max_seconds")
+        return observation
+
+    common: dict[str, Any] = {"test_id": plan.test_id, "problem_fingerprint": problem, "replay_command": plan.replay_command,
+                              "reference": plan.reference.to_dict()}
+    extra = {**plan.summary_extra, "tolerance": spec.tolerance, "notes": notes, "world_notes": list(world.notes)}
+
+    def counts(probes: int) -> dict[str, Any]:
+        stats = pool.stats
+        return {"probes": probes, "simulations": history.simulations + stats.simulations,
+                "cpu_seconds": round(history.cpu_seconds + stats.cpu_seconds, 3),
+                "this_run": {"simulations": stats.simulations, "cpu_seconds": round(stats.cpu_seconds, 3)},
+                "workers": stats.to_dict()}
+
+    def usage(final: bool = False) -> None:
+        stats = pool.stats
+        log.write({"event": "usage", "simulations": stats.simulations, "cpu_seconds": round(stats.cpu_seconds, 6),
+                   "final": final})
+
+    best = _last_step(log.records) or world.names
+    fresh = log.started_with() is None
+
+    def progress(event: ProgressEvent) -> None:
+        nonlocal best
+        if (event.kind == "start" and fresh) or (event.kind == "step" and event.candidate is not None):
+            if event.kind == "step":
+                assert event.candidate is not None
+                best = event.candidate
+                calls.pin(best)
+            artifacts.write_progress(paths, world, best, counts=counts(event.probes), extra=extra, **common)
+            usage()
+        if on_progress is not None:
+            on_progress(event)
+
+    left = spec.max_probes if spec.max_probes is None else max(0, spec.max_probes - calls.started)
+    seconds = None if calls.deadline is None else max(0.0, calls.deadline - time.monotonic())
     threads = concurrent.futures.ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-probe") if pool.size > 1 else None
     interrupted: ReductionInterrupted | None = None
+    clean = False
     try:
-        with _sigterm_as_interrupt():
-            reduction = reduce(
-                world.names, probe, geometry=world,
-                reference=trace_of(plan.reference_run) if plan.reference_run is not None else None,
-                partition=partition, priority=priority, n_partitions=spec.n_partitions,
-                granularity=spec.granularity, deflake=spec.deflake, keep=tuple(sorted(keep)),
-                preconditions=(keeps_start_support(world),), max_probes=spec.max_probes,
-                max_seconds=spec.max_seconds, seed=spec.seed, log=paths.log, on_progress=on_progress,
-                executor=threads,
-            )
+        reduction = reduce(
+            world.names, probe, geometry=world,
+            reference=trace_of(plan.reference_run) if plan.reference_run is not None else None,
+            partition=partition, priority=priority, n_partitions=spec.n_partitions,
+            granularity=spec.granularity, deflake=spec.deflake, keep=tuple(sorted(keep)),
+            preconditions=(keeps_start_support(world),), max_probes=left,
+            max_seconds=seconds, seed=spec.seed, log=log, on_progress=progress,
+            executor=threads,
+        )
+        clean = True
     except ReductionInterrupted as stop:
         interrupted, reduction = stop, stop.reduction
         pool.close()  # first: probe threads blocked on workers return at once
+    except BaseException:
+        pool.close()  # a crash (a full disk, a bug): free the probe threads, then let it through
+        raise
     finally:
         if threads is not None:
-            threads.shutdown(wait=interrupted is None, cancel_futures=True)
+            threads.shutdown(wait=clean, cancel_futures=True)
+    notes = list(dict.fromkeys([*notes, *reduction.notes]))
+    extra["notes"] = notes
+    minimal_run = None
+    if interrupted is None:
+        minimal_run = calls.run_of(reduction.minimal, world, plan.reference_run)
+        if minimal_run is None and calls.may_start(spec.max_probes):
+            minimal_run = _minimal_run(calls, log, world.select(reduction.minimal))
+    usage(final=True)
     summary = artifacts.write_reduction(
-        paths, world, reduction, test_id=plan.test_id, replay_command=plan.replay_command,
-        problem_fingerprint=problem, reference=plan.reference.to_dict(), model_paths=plan.model_paths,
-        extra={**plan.summary_extra, "tolerance": spec.tolerance, "workers": pool.stats.to_dict(),
-               "notes": notes, "world_notes": list(world.notes)},
+        paths, world, reduction, model_paths=plan.model_paths,
+        extra={**extra, **counts(reduction.probes), "resumed_runs": history.runs,
+               "cpu_seconds_complete": history.complete},
+        **common,
     )
     outcome = ReductionOutcome("reduced", reduction=reduction, summary=summary, notes=notes,
-                               attachments=[paths.minimal_yaml, paths.log, paths.summary], interrupted=interrupted)
+                               attachments=[paths.minimal_yaml, paths.log, paths.summary], interrupted=interrupted,
+                               minimal_run=minimal_run)
     if interrupted is None:
-        outcome.minimal_run = _minimal_run(call, world.select(reduction.minimal))
-        outcome.attachments += _pictures(world, reduction, paths, plan.reference_run, outcome.minimal_run)
+        outcome.attachments += _pictures(world, reduction, paths, plan.reference_run, minimal_run)
     outcome.attachments = [path for path in outcome.attachments if path.exists()]
     if interrupted is not None:
         interrupted.outcome = outcome  # type: ignore[attr-defined]
         raise interrupted
     return outcome
+
+
+class _Calls:
+    """The driver's way to the pool: counts the probes it starts (the budget), stops them at the time
+    budget's deadline, and keeps recent failing runs for the pictures (no extra simulation for them)."""
+
+    def __init__(self, pool: Pool, reference: FailureReference, tolerance: float, deadline: float | None) -> None:
+        self.pool = pool
+        self.reference = reference
+        self.tolerance = tolerance
+        self.deadline = deadline
+        self.started = 0
+        self.local = threading.local()
+        self._lock = threading.Lock()
+        self._runs: OrderedDict[frozenset[str], Run] = OrderedDict()
+        self._pinned: tuple[frozenset[str], Run] | None = None
+
+    def __call__(self, world: World, attempt: int) -> ProbeResult:
+        left = None if self.deadline is None else self.deadline - time.monotonic()
+        if left is not None and left <= 0:
+            self.local.cancelled = True
+            raise ProbeDeadline("the reduction's time budget ran out before this probe started")
+        with self._lock:
+            self.started += 1
+        try:
+            result = self.pool.call(world, attempt) if left is None else self.pool.call(world, attempt, timeout=left)
+        except ProbeDeadline:
+            self.local.cancelled = True
+            raise
+        if not isinstance(result, ProbeResult):
+            raise TypeError(f"the pool's job returned {type(result).__name__}, not a ProbeResult")
+        if result.run is not None and classify_result(result.error, self.reference, self.tolerance) is Outcome.FAIL:
+            with self._lock:
+                key = frozenset(world.names)
+                self._runs[key] = result.run
+                self._runs.move_to_end(key)
+                while len(self._runs) > PICTURE_RUNS_KEPT:
+                    self._runs.popitem(last=False)
+        return result
+
+    def pin(self, candidate: tuple[str, ...]) -> None:
+        """An accepted world: keep its failing run (if this process saw it) for the pictures."""
+        key = frozenset(candidate)
+        with self._lock:
+            if key in self._runs:
+                self._pinned = (key, self._runs[key])
+
+    def run_of(self, names: tuple[str, ...], world: World, original: Run | None) -> Run | None:
+        """A failing run of the world `names` seen during this reduction (the original's for no removal)."""
+        key = frozenset(names)
+        if key == frozenset(world.names) and original is not None:
+            return original
+        with self._lock:
+            if self._pinned is not None and self._pinned[0] == key:
+                return self._pinned[1]
+            return self._runs.get(key)
+
+    def may_start(self, max_probes: int | None) -> bool:
+        """Another simulation is within the budgets."""
+        if self.deadline is not None and time.monotonic() >= self.deadline:
+            return False
+        return max_probes is None or self.started < max_probes
+
+
+def _last_step(records: list[dict[str, Any]]) -> tuple[str, ...] | None:
+    """The world adopted last in a log (the best world so far), if any."""
+    for record in reversed(records):
+        if record.get("event") == "step" and isinstance(record.get("candidate"), list):
+            return tuple(record["candidate"])
+    return None
+
+
+def _log_run(log: ProbeLog, purpose: str, names: tuple[str, ...], attempt: int, result: ProbeResult | None,
+             outcome: str) -> None:
+    """A simulation of the driver's own (confirmation, picture) in the run log, as a probe record."""
+    run = None if result is None else result.run
+    log.write({"event": "probe", "purpose": purpose, "kind": purpose, "candidate": list(names), "size": len(names),
+               "attempt": attempt, "seed": None if run is None else int(run.seed), "outcome": outcome,
+               "signature": None if result is None else signature_record(result.error),
+               "sim_time": 0.0 if run is None else float(run.sim_time),
+               "wall_time": 0.0 if run is None else float(run.wall_time), "detail": ""})
 
 
 HEAVY_IMPORTS = ("sklearn.cluster", "sklearn.linear_model", "matplotlib.pyplot", "matplotlib.collections")
@@ -163,20 +348,14 @@ def _import_ahead() -> None:
             return
 
 
-def _checked_call(pool: Pool) -> Callable[[World, int], ProbeResult]:
-    def call(world: World, attempt: int) -> ProbeResult:
-        result = pool.call(world, attempt)
-        if not isinstance(result, ProbeResult):
-            raise TypeError(f"the pool's job returned {type(result).__name__}, not a ProbeResult")
-        return result
-
-    return call
-
-
-def _confirm(plan: ReductionPlan, call: Callable[[World, int], ProbeResult], note: Note) -> ReductionOutcome | None:
-    """None when the failure reproduces on the pool; else the outcome that says why it does not."""
+def _confirm(plan: ReductionPlan, call: _Calls, note: Note,
+             confirmations: list[tuple[int, ProbeResult | None, str]]) -> ReductionOutcome | None:
+    """None when the failure reproduces on the pool; else the outcome that says why it does not. Each run
+    is appended to `confirmations` (attempt, result, outcome) for the log."""
     deflake = plan.spec.deflake
     runs = 1 + deflake if isinstance(deflake, int) else AUTO_CONFIRMATIONS
+    if plan.spec.max_probes is not None:
+        runs = max(1, min(runs, plan.spec.max_probes))
     seen: list[str] = []
     errors: list[str] = []
     for attempt in range(runs):
@@ -188,8 +367,10 @@ def _confirm(plan: ReductionPlan, call: Callable[[World, int], ProbeResult], not
         except WorkerError as error:
             errors.append(str(error))
             seen.append("error")
+            confirmations.append((attempt, None, "error"))
             continue
         outcome = classify_result(result.error, plan.reference, plan.spec.tolerance)
+        confirmations.append((attempt, result, outcome.value))
         if outcome is Outcome.FAIL:
             return None
         if outcome is Outcome.ERROR and result.error is not None:
@@ -221,12 +402,16 @@ def _schemas(spec: ReductionSpec, reference_run: Run | None) -> tuple[str, str, 
     return partition, priority, notes
 
 
-def _minimal_run(call: Callable[[World, int], ProbeResult], minimal: World) -> Run | None:
-    """The minimal world's attempt-0 run, for the pictures (None if it cannot be had)."""
+def _minimal_run(call: _Calls, log: ProbeLog, minimal: World) -> Run | None:
+    """The minimal world's attempt-0 run, for the pictures (None if it cannot be had); logged."""
     try:
-        return call(minimal, 0).run
+        result = call(minimal, 0)
     except Exception:  # noqa: BLE001 - pictures are a convenience
+        _log_run(log, "picture", minimal.names, 0, None, "error")
         return None
+    _log_run(log, "picture", minimal.names, 0, result,
+             classify_result(result.error, call.reference, call.tolerance).value)
+    return result.run
 
 
 def _pictures(world: World, reduction: Reduction, paths: artifacts.ArtifactPaths, original_run: Run | None,

@@ -17,6 +17,7 @@ import pytest
 
 from pytest_ddenv import artifacts
 from pytest_ddenv.driver import ReductionOutcome, ReductionPlan, run_reduction
+from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.markers import ReductionSpec
 from pytest_ddenv.probe import FailureReference, describe_error
 from pytest_ddenv.reduce.types import ProgressEvent, ReductionInterrupted
@@ -62,9 +63,12 @@ class ReductionSession:
         try:
             outcome = run_reduction(plan, pool, note=self.progress, on_progress=self._on_progress)
         except ReductionInterrupted as stop:
-            interrupted: ReductionOutcome = stop.outcome  # type: ignore[attr-defined]
-            self.progress(self._describe(interrupted)["line"], final=True)
+            interrupted: ReductionOutcome | None = getattr(stop, "outcome", None)
+            if interrupted is not None:
+                self.progress(self._describe(interrupted)["line"], final=True)
             raise
+        except DdenvError as error:  # the folder is locked or cannot be written: say so, keep the test's failure
+            outcome = ReductionOutcome("error", message=f"the reduction stopped: {error}")
         result = self._describe(outcome)
         self.progress(result["line"], final=True)
         return result
@@ -92,14 +96,18 @@ def describe_reduction(test_id: str, reduction: Reduction, summary: dict[str, An
     status = "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
     removed = summary["removed_models"]
     folder = _shown_path(Path(summary["files"]["summary"]).parent)
+    simulations = summary.get("simulations", reduction.simulations)
+    earlier = f" ({reduction.resumed_probes} in earlier runs)" if reduction.resumed_probes else ""
     lines = [
         f"world: {summary['world']}",
-        f"reduced {reduction.original_size} -> {reduction.minimal_size} models "
-        f"({summary['reduction_percent']}%), {status}",
+        (f"reduced {reduction.original_size} -> {reduction.minimal_size} models "
+         f"({summary['reduction_percent']}%), {status}"),
         f"minimal world: {', '.join(reduction.minimal) or '(no models)'}",
         f"removed ({len(removed)}): {_listing(removed)}",
-        f"probes: {reduction.probes} simulated, {reduction.cache_hits} from cache, "
-        f"{reduction.skipped} skipped, {reduction.errors} errors; {reduction.wall_time:.1f} s",
+        (f"probes: {reduction.probes} decided{earlier}, {reduction.cache_hits} from cache, "
+         f"{reduction.skipped} skipped, {reduction.errors} errors; {reduction.wall_time:.1f} s"),
+        (f"simulations run: {simulations} (confirmation, speculative and picture runs included; "
+         f"{summary.get('cpu_seconds', 0.0):.1f} s of worker CPU)"),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
         artifacts.failure_rate_line(reduction),
         *(f"note: {text}" for text in outcome.notes),
@@ -109,7 +117,8 @@ def describe_reduction(test_id: str, reduction: Reduction, summary: dict[str, An
     ]
     line = (
         f"{test_id}: {reduction.original_size} -> {reduction.minimal_size} models "
-        f"({summary['reduction_percent']:.0f}%), {reduction.probes} probes, {reduction.wall_time:.0f} s, "
+        f"({summary['reduction_percent']:.0f}%), {reduction.probes} probes, {simulations} simulations, "
+        f"{reduction.wall_time:.0f} s, "
         f"fails {fails}/{runs}{'' if reduction.one_minimal else ', ' + status} -> {folder}"
     )
     return {"text": "\n".join(lines) + "\n", "line": line, "attachments": [str(p) for p in outcome.attachments],

@@ -6,11 +6,21 @@ Knows the world model only (no pytest, no reduction): jobs are defined by the la
 docs/architecture.md and docs/scaling.md.
 """
 
-from pytest_ddenv.execution.base import Pool, PoolStats
+from pytest_ddenv.execution.base import WATCHDOG_ENV, Pool, PoolStats
 from pytest_ddenv.execution.dask_pool import DaskCluster, DaskPool
-from pytest_ddenv.execution.errors import PoolConfigError, WorkerError, WorkerStartError
+from pytest_ddenv.execution.errors import (
+    PoolConfigError,
+    ProbeDeadline,
+    WorkerError,
+    WorkerStartError,
+)
 from pytest_ddenv.execution.factory import check_executor, make_pool
-from pytest_ddenv.execution.local import LocalPool, cpu_count, resolve_workers
+from pytest_ddenv.execution.local import (
+    LocalPool,
+    ProbeTimeout,
+    cpu_count,
+    resolve_workers,
+)
 from pytest_ddenv.execution.request import (
     FAULT_ENV,
     Channel,
@@ -24,6 +34,7 @@ from pytest_ddenv.execution.request import (
 
 __all__ = [
     "FAULT_ENV",
+    "WATCHDOG_ENV",
     "Channel",
     "DaskCluster",
     "DaskPool",
@@ -34,7 +45,9 @@ __all__ = [
     "Pool",
     "PoolConfigError",
     "PoolStats",
+    "ProbeDeadline",
     "ProbeRequest",
+    "ProbeTimeout",
     "Reply",
     "WorkerError",
     "WorkerStartError",

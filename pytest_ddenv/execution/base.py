@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import os
 import threading
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, Protocol, Self, runtime_checkable
@@ -13,30 +15,48 @@ if TYPE_CHECKING:
 DEFAULT_WATCHDOG_FLOOR = 60.0
 """Seconds: the automatic watchdog never fires earlier than this."""
 DEFAULT_WATCHDOG_FACTOR = 10.0
-"""The automatic watchdog is this many times the slowest simulation seen so far (or the floor)."""
+"""The automatic watchdog is this many times the longest of: the original run (`expect`) and the slowest probe
+seen so far (or the floor)."""
+WATCHDOG_ENV = "DDENV_PROBE_TIMEOUT"
+"""The watchdog of pools created without an explicit ``watchdog=``: seconds (e.g. ``30``), ``auto`` (the
+default) or ``none``. The pytest plugin and ``ddenv reduce`` create their pools that way."""
+
+
+class _Default:
+    def __repr__(self) -> str:
+        return "DEFAULT"
+
+
+DEFAULT: Any = _Default()
+"""`watchdog=DEFAULT`: $DDENV_PROBE_TIMEOUT if set, else 'auto'."""
 
 
 @dataclass(frozen=True)
 class PoolStats:
     """A snapshot of a pool's counters.
 
-    `probes`: probes completed (the test's result, or the handler's own exception, came back); `errors`:
-    calls that raised `WorkerError` (crashed twice, hung, could not start, pool closed, cluster lost them);
-    `crashes`: worker deaths seen; `timeouts`: watchdog kills; `retries`: probes re-run after a crash;
-    `restarts`: worker processes started to replace dead or killed ones; `mean_overhead`: seconds per
-    completed probe spent outside the probe itself (queueing excluded: transfer, pickling, dispatch);
-    `slowest`: the longest probe (s).
+    `probes`: probes completed (the test's result, or the handler's own exception, came back); `simulations`:
+    tries started (every probe, a retry after a crash counted again); `errors`: calls that raised
+    `WorkerError` (crashed twice, hung, could not start, pool closed, cluster lost them); `crashes`: worker
+    deaths seen; `timeouts`: watchdog kills; `cancelled`: probes stopped at their caller's deadline;
+    `retries`: probes re-run after a crash; `restarts`: worker processes started to replace dead or killed
+    ones; `mean_overhead`: seconds per completed probe spent outside the probe itself (queueing excluded:
+    transfer, pickling, dispatch); `slowest`: the longest probe (s); `cpu_seconds`: CPU time the completed
+    probes used where they ran (the thread that ran each probe; a probe killed mid-run is not counted).
     """
 
     workers: int
     probes: int = 0
+    simulations: int = 0
     errors: int = 0
     crashes: int = 0
     timeouts: int = 0
+    cancelled: int = 0
     retries: int = 0
     restarts: int = 0
     mean_overhead: float = 0.0
     slowest: float = 0.0
+    cpu_seconds: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -48,19 +68,29 @@ class StatsBook:
     def __init__(self, workers: int) -> None:
         self._lock = threading.Lock()
         self.workers = workers
-        self._counts = {"probes": 0, "errors": 0, "crashes": 0, "timeouts": 0, "retries": 0, "restarts": 0}
+        self._counts = {"probes": 0, "simulations": 0, "errors": 0, "crashes": 0, "timeouts": 0, "cancelled": 0,
+                        "retries": 0, "restarts": 0}
         self._overhead = 0.0
         self._slowest = 0.0
+        self._expected = 0.0
+        self._cpu = 0.0
 
     def add(self, name: str, amount: int = 1) -> None:
         with self._lock:
             self._counts[name] += amount
 
-    def completed(self, overhead: float, seconds: float) -> None:
+    def completed(self, overhead: float, seconds: float, cpu_seconds: float = 0.0) -> None:
         with self._lock:
             self._counts["probes"] += 1
             self._overhead += max(0.0, overhead)
             self._slowest = max(self._slowest, seconds)
+            self._cpu += max(0.0, cpu_seconds)
+
+    def expect(self, seconds: float) -> None:
+        """The original run took `seconds`: the automatic watchdog is at least `factor` times that."""
+        with self._lock:
+            if math.isfinite(seconds) and seconds > 0:
+                self._expected = max(self._expected, float(seconds))
 
     @property
     def slowest(self) -> float:
@@ -68,8 +98,9 @@ class StatsBook:
             return self._slowest
 
     def watchdog(self, floor: float, factor: float) -> float:
-        """The automatic watchdog: max(floor, factor x the slowest simulation so far)."""
-        return max(floor, factor * self.slowest)
+        """The automatic watchdog: max(floor, factor x the longest of the original run and the slowest probe)."""
+        with self._lock:
+            return max(floor, factor * max(self._slowest, self._expected))
 
     def snapshot(self) -> PoolStats:
         with self._lock:
@@ -78,6 +109,7 @@ class StatsBook:
                 workers=self.workers,
                 mean_overhead=self._overhead / probes if probes else 0.0,
                 slowest=self._slowest,
+                cpu_seconds=round(self._cpu, 6),
                 **self._counts,
             )
 
@@ -97,7 +129,10 @@ class Pool(Protocol):
     @property
     def stats(self) -> PoolStats: ...
 
-    def call(self, world: World, attempt: int) -> Any: ...
+    def call(self, world: World, attempt: int, *, timeout: float | None = None) -> Any:
+        """`timeout`: seconds this probe may take before it is stopped (`ProbeDeadline`), e.g. the rest of a
+        reduction's time budget; the watchdog applies as well."""
+        ...
 
     def close(self) -> None: ...
 
@@ -107,10 +142,32 @@ class Pool(Protocol):
 
 
 def check_watchdog(watchdog: float | str | None) -> float | str | None:
+    """`watchdog` as seconds, 'auto' or None; `DEFAULT` reads $DDENV_PROBE_TIMEOUT (else 'auto')."""
     from pytest_ddenv.execution.errors import PoolConfigError
 
+    where = "watchdog"
+    if watchdog is DEFAULT:
+        text = os.environ.get(WATCHDOG_ENV, "").strip().lower()
+        if text in ("", "auto"):
+            return "auto"
+        if text in ("none", "off", "0"):
+            return None
+        where = f"${WATCHDOG_ENV}"
+        try:
+            watchdog = float(text)
+        except ValueError:
+            raise PoolConfigError(f"{where} must be a number of seconds > 0, 'auto' or 'none', got {text!r}") from None
     if watchdog is None or watchdog == "auto":
         return watchdog
-    if isinstance(watchdog, bool) or not isinstance(watchdog, (int, float)) or not watchdog > 0:
-        raise PoolConfigError(f"watchdog must be a number of seconds > 0, 'auto' or None, got {watchdog!r}")
+    if (isinstance(watchdog, bool) or not isinstance(watchdog, (int, float)) or not watchdog > 0
+            or not math.isfinite(watchdog)):
+        raise PoolConfigError(f"{where} must be a number of seconds > 0, 'auto' or None, got {watchdog!r}")
     return float(watchdog)
+
+
+def limit_of(watchdog: float | None, deadline: float | None, now: float) -> tuple[float | None, bool]:
+    """(seconds a probe may run, whether the caller's `deadline` (monotonic time) is what limits it)."""
+    left = None if deadline is None else max(0.0, deadline - now)
+    if left is not None and (watchdog is None or left < watchdog):
+        return left, True
+    return watchdog, False

@@ -22,13 +22,20 @@ from collections.abc import Sequence
 from typing import Any, Self
 
 from pytest_ddenv.execution.base import (
+    DEFAULT,
     DEFAULT_WATCHDOG_FACTOR,
     DEFAULT_WATCHDOG_FLOOR,
     PoolStats,
     StatsBook,
     check_watchdog,
+    limit_of,
 )
-from pytest_ddenv.execution.errors import PoolConfigError, WorkerError, WorkerStartError
+from pytest_ddenv.execution.errors import (
+    PoolConfigError,
+    ProbeDeadline,
+    WorkerError,
+    WorkerStartError,
+)
 from pytest_ddenv.execution.request import (
     Fault,
     Job,
@@ -237,7 +244,8 @@ class DaskPool:
     `watchdog` as for `LocalPool`, except that dask cannot kill a running task: a probe past the watchdog
     is cancelled and reported as `WorkerError`, its worker thread finishes it in the background (the
     simulated time limit bounds it). `fault_injection` supports only 'error' on dask. `owns_cluster`: close
-    the cluster with the pool.
+    the cluster with the pool. `close()` cancels the probes still waiting for their results, so that the
+    threads waiting on them return at once (`WorkerError`).
     """
 
     def __init__(
@@ -245,7 +253,7 @@ class DaskPool:
         job: Job,
         cluster: DaskCluster,
         *,
-        watchdog: float | str | None = "auto",
+        watchdog: float | str | None = DEFAULT,
         watchdog_floor: float = DEFAULT_WATCHDOG_FLOOR,
         watchdog_factor: float = DEFAULT_WATCHDOG_FACTOR,
         fault_injection: str | Sequence[Fault] | None = None,
@@ -266,6 +274,7 @@ class DaskPool:
         self._lock = threading.Lock()
         self._closed = False
         self._start_error: WorkerStartError | None = None
+        self._pending: set[Any] = set()
 
     @property
     def size(self) -> int:
@@ -280,8 +289,12 @@ class DaskPool:
             return self._stats.watchdog(self._floor, self._factor)
         return self._watchdog  # type: ignore[return-value]
 
-    def call(self, world: World, attempt: int) -> Any:
-        """Like `LocalPool.call`, on the cluster."""
+    def expect(self, seconds: float) -> None:
+        """See `LocalPool.expect`."""
+        self._stats.expect(seconds)
+
+    def call(self, world: World, attempt: int, *, timeout: float | None = None) -> Any:
+        """Like `LocalPool.call`, on the cluster (a probe past `timeout` is cancelled: `ProbeDeadline`)."""
         from distributed import KilledWorker
 
         if self._closed or self.cluster.closed:
@@ -293,10 +306,14 @@ class DaskPool:
             sequence = self._sequence
         request = ProbeRequest(world, int(attempt), fault_for(self._faults, sequence, 0))
         what = describe_request(self.job.label, request)
-        watchdog = self.watchdog_seconds()
+        watchdog, by_deadline = limit_of(self.watchdog_seconds(), None if timeout is None else
+                                         time.monotonic() + max(0.0, timeout), time.monotonic())
         started = time.perf_counter()
+        self._stats.add("simulations")
         future = self.cluster.client.submit(run_probe_task, self.job, request, pure=False,
                                             key=f"ddenv-probe-{uuid.uuid4().hex}")
+        with self._lock:
+            self._pending.add(future)
         try:
             reply: Reply = future.result(timeout=watchdog)
         except KilledWorker as error:
@@ -305,6 +322,9 @@ class DaskPool:
             raise WorkerError(f"probe of {what}: dask gave up after its workers died ({error})") from None
         except TimeoutError:
             future.cancel()
+            if by_deadline:
+                self._stats.add("cancelled")
+                raise ProbeDeadline(f"probe of {what} was cancelled at the reduction's deadline") from None
             self._stats.add("timeouts")
             self._stats.add("errors")
             raise WorkerError(f"probe of {what} ran past the {watchdog:g} s watchdog on dask") from None
@@ -320,13 +340,21 @@ class DaskPool:
                 self._stats.add("errors")
                 raise WorkerError(f"probe of {what} was lost by the dask cluster: {error!r}") from error
             raise
-        self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds)
+        finally:
+            with self._lock:
+                self._pending.discard(future)
+        self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds, reply.cpu_seconds)
         if reply.error is not None:
             raise reply.error
         return reply.value
 
     def close(self) -> None:
         self._closed = True
+        with self._lock:
+            pending, self._pending = list(self._pending), set()
+        for future in pending:  # the threads waiting on them get CancelledError -> WorkerError at once
+            with contextlib.suppress(Exception):
+                future.cancel()
         if self._owns_cluster:
             self.cluster.close()
 

@@ -18,3 +18,8 @@ class WorkerStartError(WorkerError):
 
 class PoolConfigError(DdenvError):
     """A pool was asked for with invalid settings (worker count, executor address, fault specification)."""
+
+
+class ProbeDeadline(WorkerError):
+    """The probe was stopped at its caller's deadline (`call(..., timeout=...)`: the end of a reduction's time
+    budget), not because it hung. Not an outcome of the test."""

@@ -5,7 +5,9 @@ reply, the worker's death, or the watchdog. A worker that dies mid-probe is repl
 once on the fresh worker; a second death, a watchdog kill, or closing the pool raise `WorkerError`. A worker
 that cannot start its job (the test does not import there) raises `WorkerStartError`, and so does every
 later call. With ``in_process=handler`` probes run in the calling process instead (no worker process, no
-fault isolation), one at a time.
+fault isolation), one at a time; there the watchdog is a SIGALRM timer that interrupts the probe with
+`ProbeTimeout` (in the main thread, when no one else uses SIGALRM; elsewhere only the simulation's own
+cooperative `max_wall_time` bounds a probe).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import itertools
 import multiprocessing
 import os
 import queue
+import signal
 import sys
 import threading
 import time
@@ -25,13 +28,20 @@ from multiprocessing.connection import Connection, wait
 from typing import TYPE_CHECKING, Any, Self
 
 from pytest_ddenv.execution.base import (
+    DEFAULT,
     DEFAULT_WATCHDOG_FACTOR,
     DEFAULT_WATCHDOG_FLOOR,
     PoolStats,
     StatsBook,
     check_watchdog,
+    limit_of,
 )
-from pytest_ddenv.execution.errors import PoolConfigError, WorkerError, WorkerStartError
+from pytest_ddenv.execution.errors import (
+    PoolConfigError,
+    ProbeDeadline,
+    WorkerError,
+    WorkerStartError,
+)
 from pytest_ddenv.execution.request import (
     Fault,
     Handler,
@@ -118,6 +128,56 @@ class _Died(Exception):
 
 class _Hung(Exception):
     pass
+
+
+class ProbeTimeout(BaseException):
+    """Raised in the main thread by the in-process watchdog (SIGALRM) to stop a probe that runs too long. A
+    BaseException, so that a test's ``except Exception`` does not take it for the test's own error."""
+
+
+class _Alarm:
+    """Raise `ProbeTimeout` in this (main) thread after `seconds`, then every second until disarmed (a test
+    that swallows it is interrupted again). Inactive off the main thread, without `seconds`, or when someone
+    else (pytest-timeout's signal method, the test itself) uses SIGALRM."""
+
+    def __init__(self, seconds: float | None) -> None:
+        self.seconds = seconds
+        self.active = False
+        self.armed = False
+        self.fired = False
+        self.previous: Any = None
+
+    def usable(self) -> bool:
+        if self.seconds is None or not hasattr(signal, "setitimer"):
+            return False
+        if threading.current_thread() is not threading.main_thread():
+            return False
+        handler = signal.getsignal(signal.SIGALRM)
+        return handler in (signal.SIG_DFL, signal.SIG_IGN, None) and signal.getitimer(signal.ITIMER_REAL)[0] == 0
+
+    def _fire(self, signum: int, frame: object) -> None:
+        if self.armed:
+            self.fired = True
+            raise ProbeTimeout(f"the probe ran past {self.seconds:g} s")
+
+    def __enter__(self) -> Self:
+        if not self.usable():
+            return self
+        assert self.seconds is not None
+        self.previous = signal.signal(signal.SIGALRM, self._fire)
+        self.active = self.armed = True
+        signal.setitimer(signal.ITIMER_REAL, max(self.seconds, 1e-3), 1.0)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        while self.active:
+            try:
+                self.armed = False
+                signal.setitimer(signal.ITIMER_REAL, 0)
+                signal.signal(signal.SIGALRM, self.previous)
+                self.active = False
+            except ProbeTimeout:  # delivered just before it was disarmed
+                continue
 
 
 class _Worker:
@@ -224,8 +284,10 @@ class LocalPool:
 
     `workers`: count or 'auto' (one per core). `in_process`: a handler `handler(world, attempt)` that runs
     probes in this process instead of worker processes (then `workers` must be 1). `watchdog`: wall-clock
-    seconds a probe may take before its worker is killed, 'auto' (max(`watchdog_floor`, `watchdog_factor` x
-    the slowest probe so far)) or None (never). `context`: multiprocessing start method ('forkserver' where
+    seconds a probe may take before its worker is killed (in-process: interrupted, see the module
+    docstring), 'auto' (max(`watchdog_floor`, `watchdog_factor` x the longest of the original run, see
+    `expect`, and the slowest probe so far)) or None (never); by default $DDENV_PROBE_TIMEOUT, else 'auto'.
+    A hung probe is a `WorkerError`: an ERROR outcome, never a verdict. `context`: multiprocessing start method ('forkserver' where
     available, else 'spawn'; 'fork' is refused: pybullet and fork do not mix). `fault_injection`: test-only
     faults (see `Fault`); default from $DDENV_FAULT_INJECTION.
     """
@@ -236,7 +298,7 @@ class LocalPool:
         workers: int | str = "auto",
         *,
         in_process: Handler | None = None,
-        watchdog: float | str | None = "auto",
+        watchdog: float | str | None = DEFAULT,
         watchdog_floor: float = DEFAULT_WATCHDOG_FLOOR,
         watchdog_factor: float = DEFAULT_WATCHDOG_FACTOR,
         context: str | None = None,
@@ -265,7 +327,7 @@ class LocalPool:
         if in_process is not None:
             if self._size != 1:
                 raise PoolConfigError(f"an in-process pool has exactly 1 worker, got workers={workers!r}")
-            unsafe = sorted({f.kind for f in self._faults} - {"error"})
+            unsafe = sorted({f.kind for f in self._faults} - {"error", "hang"})
             if unsafe:
                 raise PoolConfigError(f"fault(s) {', '.join(unsafe)} would take down the calling process; "
                                       "use worker processes to inject them")
@@ -310,11 +372,17 @@ class LocalPool:
             return self._stats.watchdog(self._floor, self._factor)
         return self._watchdog  # type: ignore[return-value]
 
-    def call(self, world: World, attempt: int) -> Any:
+    def expect(self, seconds: float) -> None:
+        """The original run of the test took `seconds` (wall): the automatic watchdog is at least
+        `watchdog_factor` times that."""
+        self._stats.expect(seconds)
+
+    def call(self, world: World, attempt: int, *, timeout: float | None = None) -> Any:
         """Run the job's test on `world` as re-run `attempt` on a worker; return the handler's value.
 
         Raises what the handler raised (re-raised here), `WorkerStartError` when the workers cannot start
-        the job, or `WorkerError` when the pool could not complete the probe (worker died twice,
+        the job, `ProbeDeadline` when the probe ran past `timeout` seconds (the caller's deadline: the worker
+        is killed), or `WorkerError` when the pool could not complete the probe (worker died twice,
         watchdog, pool closed).
         """
         if self._closed:
@@ -324,9 +392,10 @@ class LocalPool:
         with self._sequence_lock:
             sequence = next(self._sequence)
         request = ProbeRequest(world, int(attempt))
+        deadline = None if timeout is None else time.monotonic() + max(0.0, float(timeout))
         if self._handler is not None:
-            return self._call_here(replace(request, fault=fault_for(self._faults, sequence, 0)))
-        return self._call_on_worker(request, sequence)
+            return self._call_here(replace(request, fault=fault_for(self._faults, sequence, 0)), deadline)
+        return self._call_on_worker(request, sequence, deadline)
 
     def close(self, grace: float = CLOSE_GRACE) -> None:
         """Stop every worker (let them exit for `grace` seconds, then terminate/kill) and reap them."""
@@ -345,23 +414,37 @@ class LocalPool:
         return f"LocalPool({self.job.label}, {mode}{', closed' if self._closed else ''})"
 
     # -- in-process ----------------------------------------------------------------------------------
-    def _call_here(self, request: ProbeRequest) -> Any:
+    def _call_here(self, request: ProbeRequest, deadline: float | None) -> Any:
         assert self._handler is not None
+        what = describe_request(self.job.label, request)
         with self._local_lock:
+            limit, by_deadline = limit_of(self.watchdog_seconds(), deadline, time.monotonic())
+            self._stats.add("simulations")
             started = time.perf_counter()
-            reply = answer(request, self._handler)
+            alarm = _Alarm(limit)
+            try:
+                with alarm:
+                    reply = answer(request, self._handler)
+            except ProbeTimeout:
+                self._stats.add("cancelled" if by_deadline else "timeouts")
+                if by_deadline:
+                    raise ProbeDeadline(f"probe of {what} was stopped at the reduction's deadline") from None
+                self._stats.add("errors")
+                raise WorkerError(f"probe of {what} ran past the {limit:g} s watchdog in this process; it was "
+                                  "interrupted") from None
         return self._finish(reply, started)
 
     # -- worker processes ----------------------------------------------------------------------------
-    def _call_on_worker(self, request: ProbeRequest, sequence: int) -> Any:
+    def _call_on_worker(self, request: ProbeRequest, sequence: int, deadline: float | None) -> Any:
         what = describe_request(self.job.label, request)
         worker = self._acquire()
         for try_index in (0, 1):
             attempt = replace(request, fault=fault_for(self._faults, sequence, try_index))
-            watchdog = self.watchdog_seconds()
             try:
                 if not worker.ready:
                     worker.await_ready(self._startup_timeout)
+                watchdog, by_deadline = limit_of(self.watchdog_seconds(), deadline, time.monotonic())
+                self._stats.add("simulations")
                 started = time.perf_counter()
                 reply = worker.call(attempt, watchdog)
             except WorkerStartError as error:
@@ -385,6 +468,10 @@ class LocalPool:
             except _Hung:
                 self._forget(worker)
                 self._raise_if_closed(what)
+                if by_deadline:
+                    self._stats.add("cancelled")
+                    raise ProbeDeadline(f"probe of {what} was stopped at the reduction's deadline; its worker was "
+                                        "killed") from None
                 self._stats.add("timeouts")
                 self._stats.add("errors")
                 raise WorkerError(f"probe of {what} ran past the {watchdog:g} s watchdog; its worker was killed") from None
@@ -397,7 +484,7 @@ class LocalPool:
         raise AssertionError("unreachable")  # pragma: no cover
 
     def _finish(self, reply: Reply, started: float) -> Any:
-        self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds)
+        self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds, reply.cpu_seconds)
         if reply.error is not None:
             raise reply.error
         return reply.value

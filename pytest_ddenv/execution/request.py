@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -88,6 +89,8 @@ class Reply:
     value: Any
     error: BaseException | None
     seconds: float
+    cpu_seconds: float = 0.0
+    """CPU time of the thread that ran the probe (pybullet simulates in that thread)."""
 
 
 class Channel(Protocol):
@@ -136,13 +139,13 @@ def serve_requests(channel: Channel, handle: Handler) -> None:
 
 def answer(request: ProbeRequest, handle: Handler) -> Reply:
     """Run one probe (after its injected fault, if any), catching what the handler raises."""
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.thread_time()
     try:
         inject(request.fault)
         value = handle(request.world, request.attempt)
     except Exception as error:  # noqa: BLE001 - sent back to the caller, which re-raises it
-        return Reply(None, error, time.perf_counter() - started)
-    return Reply(value, None, time.perf_counter() - started)
+        return Reply(None, error, time.perf_counter() - started, time.thread_time() - cpu)
+    return Reply(value, None, time.perf_counter() - started, time.thread_time() - cpu)
 
 
 def describe_request(label: str, request: ProbeRequest) -> str:
@@ -151,9 +154,13 @@ def describe_request(label: str, request: ProbeRequest) -> str:
 
 
 def inject(fault: FaultKind | None) -> None:
-    """Misbehave on purpose (test-only hook)."""
+    """Misbehave on purpose (test-only hook); says so on stderr first (pid included), so that a test can wait
+    for the fault instead of guessing when it happens."""
     if fault is None:
         return
+    with contextlib.suppress(Exception):
+        sys.stderr.write(f"ddenv fault injection: {fault} (pid {os.getpid()})\n")
+        sys.stderr.flush()
     if fault == "crash":
         with contextlib.suppress(Exception):  # no core file: a test must not litter or wait for the dump
             import resource

@@ -5,7 +5,12 @@ world's geometry and the reference trace of the failing run. See docs/algorithm.
 """
 
 from pytest_ddenv.reduce.context import Context
-from pytest_ddenv.reduce.deflake import DEFLAKE_POLICIES, FixedReruns, SequentialTest
+from pytest_ddenv.reduce.deflake import (
+    DEFLAKE_POLICIES,
+    MAX_DEFLAKE,
+    FixedReruns,
+    SequentialTest,
+)
 from pytest_ddenv.reduce.engine import reduce
 from pytest_ddenv.reduce.log import VOLATILE_FIELDS, ProbeLog
 from pytest_ddenv.reduce.partition import PARTITIONS, Partitioner
@@ -19,6 +24,7 @@ from pytest_ddenv.reduce.types import (
     Outcome,
     Precondition,
     Probe,
+    ProbeCancelled,
     ProgressEvent,
     Reduction,
     ReductionInterrupted,
@@ -29,6 +35,7 @@ __all__ = [
     "COMPLEMENT_ORDERS",
     "DEFLAKE_POLICIES",
     "GRANULARITIES",
+    "MAX_DEFLAKE",
     "PARTITIONS",
     "PRIORITIES",
     "PRIORITY_ALIASES",
@@ -44,6 +51,7 @@ __all__ = [
     "Precondition",
     "Prioritizer",
     "Probe",
+    "ProbeCancelled",
     "ProbeLog",
     "ProgressEvent",
     "Reduction",

@@ -28,7 +28,10 @@ from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.types import Outcome
 
 DEFLAKE_POLICIES: tuple[str, ...] = ("adaptive", "auto")
-"""Named policies; `deflake` also accepts a non-negative int (fixed re-runs)."""
+"""Named policies; `deflake` also accepts a non-negative int (fixed re-runs, at most `MAX_DEFLAKE`)."""
+MAX_DEFLAKE = 100
+"""The most fixed re-runs per candidate `deflake=N` accepts (101 runs; the adaptive test stops after 30, auto
+after 10): more re-runs say nothing new about a failure and a typo such as 10**12 would never end."""
 
 
 class DeflakePolicy(Protocol):
@@ -167,10 +170,20 @@ def make_policy(deflake: int | str, confidence: float) -> DeflakePolicy:
     if not isinstance(confidence, (int, float)) or isinstance(confidence, bool) or not 0.5 < confidence < 1.0:
         raise ReductionError(f"confidence must be a number strictly between 0.5 and 1, got {confidence!r}")
     if isinstance(deflake, str) and deflake.strip().isdigit():
-        deflake = int(deflake.strip())
+        digits = deflake.strip()
+        if len(digits) > 20:  # int() of 5000 digits raises ValueError; it is out of bounds anyway
+            raise ReductionError(f"deflake must be at most {MAX_DEFLAKE} re-runs per candidate, got a "
+                                 f"{len(digits)}-digit number")
+        deflake = int(digits)
     if isinstance(deflake, int) and not isinstance(deflake, bool):
         if deflake < 0:
-            raise ReductionError(f"deflake must be >= 0 re-runs or 'adaptive', got {deflake}")
+            raise ReductionError(f"deflake must be >= 0 re-runs, 'adaptive' or 'auto', got {deflake}")
+        if deflake > MAX_DEFLAKE:
+            shown = str(deflake) if deflake.bit_length() <= 64 else f"a {deflake.bit_length()}-bit number"
+            raise ReductionError(
+                f"deflake must be at most {MAX_DEFLAKE} re-runs per candidate, got {shown}; for a very flaky "
+                "failure use deflake='auto' (calibrated on the original world) or 'adaptive'"
+            )
         return FixedReruns(deflake)
     if deflake == "adaptive":
         return SequentialTest(confidence=float(confidence))

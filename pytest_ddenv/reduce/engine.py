@@ -40,6 +40,10 @@ from pytest_ddenv.reduce.types import (
 )
 
 
+def plural(count: int, noun: str) -> str:
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
 def reduce(
     elements: Sequence[str],
     probe: Probe,
@@ -131,7 +135,11 @@ class _Engine:
         self.log = self._open_log(settings)
         self.cache: MutableMapping[Any, Any] = settings.cache if settings.cache is not None else {}
         preloaded: dict[frozenset[str], list[Outcome]] = {}
-        self.resumed = bool(self.log is not None and self.log.records)
+        self.resumed = self.log is not None and self.log.started_with() is not None
+        self.history = self.log.decided_probes() if self.log is not None else 0
+        """Probes decided by earlier runs of a resumed log (reported as part of the whole history)."""
+        self.unverified = 0
+        """Single removals of the result that were rejected on ERROR runs alone (even after a retry)."""
         if self.log is not None:
             for key, decision in self.log.decisions().items():
                 self.cache.setdefault(key, decision)
@@ -172,11 +180,14 @@ class _Engine:
         try:
             try:
                 self.write_start()
-                self.calibrate()
                 try:
+                    self.calibrate()
                     one_minimal, incomplete = self.reduce_to_one_minimal(), None
                 except BudgetExhausted as exhausted:
                     one_minimal, incomplete = False, exhausted.reason
+                if one_minimal and self.unverified:
+                    one_minimal = False
+                    incomplete = f"not verified: {plural(self.unverified, 'candidate')} errored"
                 failure_rate = self.measure_failure_rate()
             except KeyboardInterrupt as interrupt:
                 if isinstance(interrupt, ReductionInterrupted):
@@ -201,11 +212,13 @@ class _Engine:
         known = self.log.calibration() if self.log is not None else None
         if known is None:
             original = self.settings.elements
-            fails, runs = self.prober.measure(original, 1, policy.sure_runs, purpose="calibration")
+            logged = self.log.measured("calibration", original) if self.log is not None else {}
+            fails, runs = self.prober.measure(original, 1, policy.sure_runs, purpose="calibration", known=logged,
+                                              strict=True)
             if fails < runs:
-                more = self.prober.measure(original, 1 + runs, policy.runs - runs, purpose="calibration")
+                more = self.prober.measure(original, 1 + runs, policy.runs - runs, purpose="calibration",
+                                           known=logged, strict=True)
                 fails, runs = fails + more[0], runs + more[1]
-            self.prober.counters.probes += runs
             rule = policy.rule_for(fails, runs)
             self.write({"event": "calibration", "fails": fails, "runs": runs, "rule": rule.label})
         else:
@@ -268,15 +281,21 @@ class _Engine:
         return _Plan(ordered=ordered, removal=removal, subsets=True)
 
     def verify(self) -> bool:
-        """Try removing each single remaining element; adopt and return True if one still reproduces f."""
+        """Try removing each single remaining element; adopt and return True if one still reproduces f.
+
+        A removal rejected on ERROR runs alone is tried once more (its ERROR attempts run again); if it
+        still errors, `unverified` counts it and the result is not reported 1-minimal."""
         self.emit("verify")
         trials = self.verify_trials()
         self.verifying = True
         try:
             found = self.prober.first_reproducing(trials, quiet=True)
+            while found is None and self.prober.retry_errored(trials):
+                found = self.prober.first_reproducing(trials, quiet=True)
         finally:
             self.verifying = False
         if found is None:
+            self.unverified = len(self.prober.errored_among(trials))
             return False
         self.adopt(trials[found[0]], found[1])
         self.granularity = len(self.current)
@@ -329,18 +348,19 @@ class _Engine:
         return trials
 
     def adopt(self, trial: Trial, decision: Decision) -> None:
+        self.unverified = 0
         self.current = tuple(name for name in trial.candidate if name not in self.settings.keep)
         if decision.trace is not None:
             self.context.trace = decision.trace
         self.minimal_runs = decision.runs
-        self.steps.append((self.prober.counters.probes, len(trial.candidate)))
+        self.steps.append((self.probes(), len(trial.candidate)))
         self.write(
             {
                 "event": "step",
                 "kind": trial.kind,
                 "candidate": list(trial.candidate),
                 "size": len(trial.candidate),
-                "probes": self.prober.counters.probes,
+                "probes": self.probes(),
             }
         )
         self.emit("step", candidate=trial.candidate)
@@ -350,7 +370,8 @@ class _Engine:
         if runs == 0:
             return (0, 0)
         minimal = self.full(self.current)
-        fails, runs = self.prober.measure(minimal, self.minimal_runs, runs)
+        logged = self.log.measured("failure-rate", minimal) if self.log is not None else {}
+        fails, runs = self.prober.measure(minimal, self.minimal_runs, runs, known=logged)
         self.write({"event": "failure-rate", "candidate": list(minimal), "fails": fails, "runs": runs})
         return fails, runs
 
@@ -371,6 +392,10 @@ class _Engine:
     def elapsed(self) -> float:
         return time.monotonic() - self.started_at
 
+    def probes(self) -> int:
+        """Probes decided in the whole history: the resumed log's and this call's."""
+        return self.history + self.prober.counters.probes
+
     def emit(self, kind: str, *, candidate: Candidate | None = None, outcome: Outcome | None = None) -> None:
         if self.settings.on_progress is None:
             return
@@ -378,7 +403,7 @@ class _Engine:
             ProgressEvent(
                 kind=kind,
                 size=len(self.full(self.current)),
-                probes=self.prober.counters.probes,
+                probes=self.probes(),
                 granularity=self.granularity,
                 elapsed=self.elapsed(),
                 candidate=candidate,
@@ -393,11 +418,18 @@ class _Engine:
 
     def result(self, *, one_minimal: bool, incomplete: str | None, failure_rate: tuple[int, int]) -> Reduction:
         settings, counters = self.settings, self.prober.counters
+        notes = list(self.log.notes) if self.log is not None else []
+        if self.unverified:
+            notes.append(
+                f"not verified: {plural(self.unverified, 'single removal')} of the minimal world rejected only "
+                "because the runs errored (a worker died or a probe hung), also when tried again; a resumed "
+                "reduction tries again"
+            )
         return Reduction(
             original=settings.elements,
             minimal=self.full(self.current),
             kept=tuple(name for name in settings.elements if name in settings.keep),
-            probes=counters.probes,
+            probes=self.probes(),
             cache_hits=counters.cache_hits,
             skipped=len(counters.skipped),
             errors=counters.errors,
@@ -412,6 +444,10 @@ class _Engine:
             deflake=settings.policy.label if self.calibration is None else f"auto:{self.prober.policy.label}",
             seed=settings.seed,
             calibration=self.calibration,
+            simulations=counters.simulations,
+            resumed_probes=self.history,
+            errored=len(counters.errored),
+            notes=tuple(notes),
         )
 
     def write_start(self) -> None:
@@ -446,9 +482,12 @@ class _Engine:
                 "size": len(reduction.minimal),
                 "original_size": len(reduction.original),
                 "probes": reduction.probes,
+                "simulations": reduction.simulations,
+                "resumed_probes": reduction.resumed_probes,
                 "cache_hits": reduction.cache_hits,
                 "skipped": reduction.skipped,
                 "errors": reduction.errors,
+                "errored": reduction.errored,
                 "steps": [list(step) for step in reduction.steps],
                 "one_minimal": reduction.one_minimal,
                 "incomplete_reason": reduction.incomplete_reason,
@@ -467,6 +506,6 @@ class _Engine:
         if started is not None and (started[0] != settings.elements or set(started[1]) != settings.keep):
             raise ReductionError(
                 f"the probe log {log.path or '(in memory)'} belongs to a reduction of a different world "
-                f"({len(started[0])} elements, keep={list(started[1])}); pass another log path or delete it"
+                f"({len(started[0])} elements, keep={list(started[1])}); pass another log path, or move this one away"
             )
         return log

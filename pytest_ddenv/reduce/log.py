@@ -10,16 +10,28 @@ identical for two reductions with the same inputs and seed.
 A log is also a cache: `ProbeLog.load(path)` (or ``reduce(..., log=path)`` on an existing file) reads the
 verdicts it holds, and the new reduction appends to the same file without simulating those candidates
 again. Runs of a candidate that was being decided when the reduction stopped are reused too.
+
+A log survives a crash at any moment: each line is written with one `write` on a file opened for appending
+and fsynced before the reduction goes on, so after a `kill -9`, an out-of-memory kill or a power cut the file
+holds every record up to the last one or two, plus at most one incomplete last line. Opening the log cuts
+that line off (and says so in `ProbeLog.notes`) instead of appending after it. A write that fails (a full
+disk) is undone with `ftruncate`, so the file never holds half a record, and raises `ReductionError`.
+
+Errors are not verdicts: a candidate rejected only because of ERROR runs is logged as ``errored`` (not
+``reject``), its ERROR runs are not reused, and a resumed reduction tries it again.
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import math
 import os
-from collections.abc import Mapping
+import threading
+from collections.abc import Collection, Mapping
 from pathlib import Path
-from typing import IO, Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -57,15 +69,19 @@ def jsonable(value: Any) -> Any:
 class ProbeLog:
     """A JSON-lines log of a reduction; also the source of verdicts when resuming.
 
-    ``ProbeLog(path)`` appends to `path` and reads what it already holds (``resume=False`` truncates it
-    instead). ``ProbeLog(None)`` keeps the records in memory only. `records` holds every record read or
-    written, as parsed from its JSON line.
+    ``ProbeLog(path)`` appends to `path` and reads what it already holds, cutting off an incomplete last line
+    (``resume=False`` truncates it instead). ``ProbeLog(None)`` keeps the records in memory only. `records`
+    holds every record read or written, as parsed from its JSON line; `notes` what opening the file repaired.
+    `durable=False` skips the fsync after each line (faster, for throw-away logs).
     """
 
-    def __init__(self, path: str | os.PathLike[str] | None = None, *, resume: bool = True) -> None:
+    def __init__(self, path: str | os.PathLike[str] | None = None, *, resume: bool = True, durable: bool = True) -> None:
         self.path: Path | None = Path(path) if path is not None else None
         self.records: list[dict[str, Any]] = []
-        self._file: IO[str] | None = None
+        self.notes: list[str] = []
+        self.durable = durable
+        self._fd: int | None = None
+        self._lock = threading.Lock()
         if self.path is None:
             return
         if self.path.is_dir():
@@ -73,7 +89,7 @@ class ProbeLog:
         if resume and self.path.exists():
             self.records = self._read(self.path)
         elif self.path.exists():
-            self.path.write_text("")
+            os.truncate(self.path, 0)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> ProbeLog:
@@ -85,23 +101,45 @@ class ProbeLog:
     # -- writing ------------------------------------------------------------------------------------------
 
     def write(self, record: Mapping[str, Any]) -> None:
-        """Append one record and flush it to disk."""
+        """Append one record; it is on disk (fsynced) when this returns. Raises ReductionError if it cannot be
+        written (the file is left as it was: complete records only)."""
         line = json.dumps(jsonable(record), allow_nan=False)
-        self.records.append(json.loads(line))
-        if self.path is None:
-            return
-        if self._file is None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._file = self.path.open("a", encoding="utf-8")
-        self._file.write(line + "\n")
-        self._file.flush()
+        parsed = json.loads(line)
+        if self.path is not None:
+            self._append((line + "\n").encode("utf-8"))
+        self.records.append(parsed)
+
+    def _append(self, data: bytes) -> None:
+        assert self.path is not None
+        with self._lock:
+            size = 0
+            try:
+                if self._fd is None:
+                    created = not self.path.exists()
+                    self.path.parent.mkdir(parents=True, exist_ok=True)
+                    self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+                    if created and self.durable:
+                        sync_directory(self.path.parent)
+                size = os.fstat(self._fd).st_size
+                view = memoryview(data)
+                while view:
+                    view = view[os.write(self._fd, view):]
+                if self.durable:
+                    os.fsync(self._fd)
+            except OSError as error:
+                if self._fd is not None:
+                    with contextlib.suppress(OSError):
+                        os.ftruncate(self._fd, size)  # never leave half a record behind
+                raise ReductionError(write_failure(self.path, error)) from error
 
     def close(self) -> None:
-        if self._file is not None:
-            self._file.close()
-            self._file = None
+        with self._lock:
+            if self._fd is not None:
+                with contextlib.suppress(OSError):
+                    os.close(self._fd)
+                self._fd = None
 
-    def __enter__(self) -> ProbeLog:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc_info: object) -> None:
@@ -124,17 +162,19 @@ class ProbeLog:
         return None
 
     def decisions(self) -> dict[frozenset[str], Decision]:
-        """The verdict on every candidate this log decided (the latest one if several)."""
+        """The verdict on every candidate this log decided (the latest one if several). Rejections that rest
+        on ERROR runs (``errored``) are not verdicts and are left out."""
         decided: dict[frozenset[str], Decision] = {}
         for record in self.records:
-            if record.get("event") in ("accept", "reject", "cache-hit"):
+            if record.get("event") in ("accept", "reject", "cache-hit") and not record.get("errored", False):
                 decided[frozenset(record["candidate"])] = Decision(
                     reproduces=bool(record["reproduces"]), fails=int(record["fails"]), runs=int(record["runs"])
                 )
         return decided
 
     def partial_runs(self) -> dict[frozenset[str], list[Outcome]]:
-        """Outcomes of attempts 0, 1, ... of candidates whose runs were logged but not yet decided."""
+        """Outcomes of attempts 0, 1, ... of candidates whose runs were logged but not yet decided, up to the
+        first ERROR run or missing attempt (an ERROR is no outcome of the seed: that attempt runs again)."""
         runs: dict[frozenset[str], dict[int, Outcome]] = {}
         for record in self.records:
             if record.get("event") == "probe" and record.get("purpose", "reduce") == "reduce":
@@ -145,28 +185,81 @@ class ProbeLog:
             if key in decided:
                 continue
             outcomes: list[Outcome] = []
-            while len(outcomes) in by_attempt:
+            while by_attempt.get(len(outcomes), Outcome.ERROR) is not Outcome.ERROR:
                 outcomes.append(by_attempt[len(outcomes)])
             if outcomes:
                 partial[key] = outcomes
         return partial
 
-    @staticmethod
-    def _read(path: Path) -> list[dict[str, Any]]:
-        lines = path.read_text(encoding="utf-8").splitlines()
+    def measured(self, purpose: str, candidate: Collection[str]) -> dict[int, Outcome]:
+        """attempt -> outcome of the logged `purpose` runs ("calibration", "failure-rate") of `candidate`,
+        ERROR runs left out (they run again)."""
+        key = frozenset(candidate)
+        found: dict[int, Outcome] = {}
+        for record in self.records:
+            if (record.get("event") == "probe" and record.get("purpose") == purpose
+                    and frozenset(record.get("candidate", ())) == key and record.get("outcome") != "error"):
+                found[int(record["attempt"])] = Outcome(record["outcome"])
+        return found
+
+    def decided_probes(self) -> int:
+        """Probe runs whose result a reduction used (reduction and calibration runs), in this log so far."""
+        return sum(
+            1 for record in self.records
+            if record.get("event") == "probe" and record.get("purpose", "reduce") in ("reduce", "calibration")
+        )
+
+    def _read(self, path: Path) -> list[dict[str, Any]]:
+        data = path.read_bytes()
+        complete = data.rfind(b"\n") + 1
+        if complete < len(data):  # a last line without its newline: cut short by a crash or a full disk
+            os.truncate(path, complete)
+            self.notes.append(
+                f"{path.name}: its last line was incomplete ({len(data) - complete} bytes, cut short by a crash "
+                "or a full disk) and was removed; every complete record before it is reused"
+            )
         records: list[dict[str, Any]] = []
-        for number, line in enumerate(lines, start=1):
+        ignored: list[int] = []
+        for number, line in enumerate(data[:complete].decode("utf-8", errors="replace").split("\n"), start=1):
             if not line.strip():
                 continue
             try:
                 record = json.loads(line)
-            except json.JSONDecodeError as error:
-                if number == len(lines):  # a line cut short by a crash: everything before it is good
-                    break
-                raise ReductionError(
-                    f"{path}:{number}: not a probe-log line ({error}); delete the file to start over"
-                ) from error
+            except json.JSONDecodeError:
+                record = None
             if not isinstance(record, dict) or "event" not in record:
-                raise ReductionError(f"{path}:{number}: not a probe-log record; delete the file to start over")
+                if not records:
+                    raise ReductionError(
+                        f"{path}:{number}: not a probe-log record, so this file is not a pytest-ddenv run log; "
+                        "pass another log path, or move the file away to start over"
+                    )
+                ignored.append(number)
+                continue
             records.append(record)
+        if ignored:
+            shown = ", ".join(map(str, ignored[:5])) + (f" and {len(ignored) - 5} more" if len(ignored) > 5 else "")
+            self.notes.append(f"{path.name}: line(s) {shown} are not records (damaged) and were ignored; the "
+                              "candidates they decided are decided again")
         return records
+
+
+def sync_directory(directory: Path) -> None:
+    """fsync a folder, so that a file just created or renamed in it survives a crash (best effort)."""
+    try:
+        handle = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(handle)
+    except OSError:
+        pass
+    finally:
+        os.close(handle)
+
+
+def write_failure(path: Path, error: OSError) -> str:
+    """The message for a file of a reduction that could not be written."""
+    code = errno.errorcode.get(error.errno or 0, "")
+    why = f"{error.strerror or error}" + (f" ({code})" if code else "")
+    return (f"cannot write {path}: {why}. Every record written before is intact; free some space (or fix the "
+            "folder's permissions) and run the reduction again: it resumes from the log")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import concurrent.futures
 import functools
 import os
+import threading
 import time
 from collections.abc import Callable, MutableMapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -30,6 +31,7 @@ from pytest_ddenv.reduce.types import (
     Outcome,
     Precondition,
     Probe,
+    ProbeCancelled,
     Trace,
 )
 
@@ -50,18 +52,35 @@ class Trial:
     kind: str
 
 
-@dataclass(frozen=True)
+@dataclass
 class Budget:
+    """`max_probes` bounds every simulation the engine starts (calibration, reduction, speculative,
+    prefetched and failure-rate runs); `max_seconds` the wall time, also while probes run. A probe that its
+    caller cancelled (`ProbeCancelled`) stops the reduction for the reason it gives."""
+
     max_probes: int | None
     max_seconds: float | None
     started_at: float
+    stopped: str | None = None
+
+    def stop(self, reason: str) -> BudgetExhausted:
+        self.stopped = self.stopped or reason
+        return BudgetExhausted(self.stopped)
 
     def exhausted(self, probes_started: int) -> str | None:
+        if self.stopped is not None:
+            return self.stopped
         if self.max_probes is not None and probes_started >= self.max_probes:
             return "budget: max_probes"
         if self.max_seconds is not None and time.monotonic() - self.started_at >= self.max_seconds:
             return "budget: max_seconds"
         return None
+
+    def seconds_left(self) -> float | None:
+        """Wall seconds until the time budget runs out (None: no time budget)."""
+        if self.max_seconds is None:
+            return None
+        return max(0.0, self.started_at + self.max_seconds - time.monotonic())
 
 
 @dataclass
@@ -84,21 +103,40 @@ class _Open:
 @dataclass
 class Counters:
     probes: int = 0
-    """Reduction probes completed."""
+    """Probes decided: results used for a verdict (reduction and calibration runs) in this call."""
     started: int = 0
-    """Reduction probes started (submitted); the probe budget counts these."""
+    """Simulations submitted (every kind); the probe budget counts these."""
     cache_hits: int = 0
     errors: int = 0
     abandoned: int = 0
     """Concurrent or prefetched probes whose results were not needed (still running or thrown away)."""
     skipped: set[frozenset[str]] = field(default_factory=set)
+    errored: set[frozenset[str]] = field(default_factory=set)
+    """Candidates rejected on ERROR runs alone (see Decision.errored)."""
+    _ran: int = 0
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def ran(self) -> None:
+        with self._lock:
+            self._ran += 1
+
+    @property
+    def simulations(self) -> int:
+        """Simulations that actually started (cancelled-before-start submissions excluded)."""
+        with self._lock:
+            return self._ran
 
 
-def call_probe(probe: Probe, candidate: Candidate, attempt: int) -> Any:
-    """Run one probe; an exception from it becomes an ERROR observation (KeyboardInterrupt passes)."""
+def call_probe(probe: Probe, candidate: Candidate, attempt: int, counters: Counters | None = None) -> Any:
+    """Run one probe; an exception from it becomes an ERROR observation (KeyboardInterrupt and
+    ProbeCancelled pass). Counts the simulation in `counters` as it starts."""
+    if counters is not None:
+        counters.ran()
     started = time.perf_counter()
     try:
         return probe(candidate, attempt)
+    except ProbeCancelled:
+        raise
     except Exception as error:
         return Observation(
             Outcome.ERROR,
@@ -151,6 +189,10 @@ class Prober:
         self.elapsed = elapsed
         self.on_probe = on_probe
         self.counters = Counters()
+        self.errored: dict[frozenset[str], Decision] = {}
+        """Rejections that rest on ERROR runs: "not f" for this reduction, never cached (see Decision.errored)."""
+        self._errored_runs: dict[frozenset[str], list[Outcome]] = {}
+        self._retried: set[frozenset[str]] = set()
         self._consulted: set[frozenset[str]] = set()
         workers = getattr(executor, "_max_workers", None)
         self.window = workers if isinstance(workers, int) and workers > 0 else (os.cpu_count() or 2)
@@ -194,8 +236,11 @@ class Prober:
                 raise BudgetExhausted(reason)
             self.counters.started += 1
             attempt = len(state.outcomes)
-            observation = checked_observation(call_probe(self.probe, state.trial.candidate, attempt))
-            self._take(state, attempt, observation)
+            try:
+                result = call_probe(self.probe, state.trial.candidate, attempt, self.counters)
+            except ProbeCancelled as cancelled:
+                raise self.budget.stop(cancelled.reason) from None
+            self._take(state, attempt, checked_observation(result))
         return self._decide(state, verdict)
 
     def _concurrent(self, trials: Sequence[Trial], quiet: bool) -> tuple[int, Decision] | None:
@@ -214,15 +259,20 @@ class Prober:
                 reason = self._submit(statuses, futures)
                 if not futures:
                     raise BudgetExhausted(reason or "budget: max_probes")
-                done, _ = concurrent.futures.wait(futures, return_when=concurrent.futures.FIRST_COMPLETED)
+                done, _ = concurrent.futures.wait(
+                    futures, timeout=self.budget.seconds_left(), return_when=concurrent.futures.FIRST_COMPLETED
+                )
+                if not done:  # the time budget ran out while probes run: they are abandoned (see close())
+                    raise self.budget.stop("budget: max_seconds")
                 for future in sorted(done, key=lambda f: position[id(futures[f][0])]):
                     state, attempt = futures.pop(future)
                     self._finish(state, attempt, future)
             finished = True
         finally:
             for future in list(futures):
-                if future.cancel():
+                if future.cancel():  # queued, never started: not a simulation
                     futures.pop(future)
+                    self.counters.started -= 1
             if finished:  # results that are already there are recorded; the running ones are kept for later
                 for future in [f for f in futures if f.done()]:
                     state, attempt = futures.pop(future)
@@ -280,7 +330,7 @@ class Prober:
                 if reason is not None:
                     return reason
                 self.counters.started += 1
-                future = self.executor.submit(call_probe, self.probe, state.trial.candidate, attempt)
+                future = self.executor.submit(call_probe, self.probe, state.trial.candidate, attempt, self.counters)
             state.in_flight.add(attempt)
             futures[future] = (state, attempt)
         self._prefetch_ahead(statuses, busy=len(futures))
@@ -314,7 +364,9 @@ class Prober:
             if busy + self.prefetch.running() >= self.window or self.budget.exhausted(self.counters.started):
                 return
             self.counters.started += 1
-            self.prefetch.start(key, functools.partial(executor.submit, call_probe, probe, candidate, attempt))
+            self.prefetch.start(
+                key, functools.partial(executor.submit, call_probe, probe, candidate, attempt, self.counters)
+            )
 
     def planned(self, trials: Sequence[Trial]) -> list[tuple[Candidate, int]]:
         """The probes deciding `trials` would start first: a first attempt of each undecided candidate, then
@@ -332,7 +384,11 @@ class Prober:
 
     def _finish(self, state: _Open, attempt: int, future: concurrent.futures.Future[Any]) -> None:
         state.in_flight.discard(attempt)
-        state.early[attempt] = checked_observation(future.result())
+        try:
+            result = future.result()
+        except ProbeCancelled as cancelled:
+            raise self.budget.stop(cancelled.reason) from None
+        state.early[attempt] = checked_observation(result)
         while state.decision is None and len(state.outcomes) in state.early:
             current = len(state.outcomes)
             self._take(state, current, state.early.pop(current))
@@ -359,26 +415,77 @@ class Prober:
     # -- extra runs of a decided world ----------------------------------------------------------------------
 
     def measure(
-        self, candidate: Candidate, first_attempt: int, runs: int, purpose: str = "failure-rate"
+        self,
+        candidate: Candidate,
+        first_attempt: int,
+        runs: int,
+        purpose: str = "failure-rate",
+        *,
+        known: dict[int, Outcome] | None = None,
+        strict: bool = False,
     ) -> tuple[int, int]:
         """(fails, runs) over attempts first_attempt .. first_attempt+runs-1, logged with `purpose`
-        ("failure-rate" or "calibration"); no budget applies."""
-        attempts = range(first_attempt, first_attempt + runs)
-        if self.executor is None:
-            results = [call_probe(self.probe, candidate, attempt) for attempt in attempts]
-        else:
-            executor = self.executor
-            submitted = [
-                self.prefetch.take(candidate, a) or executor.submit(call_probe, self.probe, candidate, a)
-                for a in attempts
-            ]
-            results = [future.result() for future in submitted]
-        fails = 0
-        for attempt, result in zip(attempts, results, strict=True):
-            observation = checked_observation(result)
-            self._log_probe(Trial(candidate, purpose), attempt, observation, purpose=purpose)
-            fails += observation.outcome is Outcome.FAIL
-        return fails, runs
+        ("failure-rate" or "calibration"). Attempts in `known` (logged by an earlier run) are not simulated
+        again. The budget applies: when it runs out, fewer runs are counted, or with `strict`,
+        BudgetExhausted is raised. Calibration runs count as decided probes."""
+        attempts = list(range(first_attempt, first_attempt + runs))
+        known = known or {}
+        fails = done = 0
+        exhausted: str | None = None
+        submitted: list[tuple[int, concurrent.futures.Future[Any]]] = []
+        for attempt in attempts:
+            if attempt in known:
+                continue
+            future = self.prefetch.take(candidate, attempt) if self.executor is not None else None
+            if future is None:
+                exhausted = self.budget.exhausted(self.counters.started)
+                if exhausted is not None:
+                    break
+                self.counters.started += 1
+                if self.executor is not None:
+                    future = self.executor.submit(call_probe, self.probe, candidate, attempt, self.counters)
+                else:
+                    future = concurrent.futures.Future()
+                    try:
+                        future.set_result(call_probe(self.probe, candidate, attempt, self.counters))
+                    except ProbeCancelled as cancelled:
+                        exhausted = self.budget.stop(cancelled.reason).reason
+                        break
+            submitted.append((attempt, future))
+        results: dict[int, Observation] = {}
+        stopped = exhausted is not None and exhausted != "budget: max_probes"  # time is up: wait for nothing more
+        try:
+            for attempt, future in submitted:
+                if stopped and future.cancel():
+                    self.counters.started -= 1
+                    continue
+                try:
+                    results[attempt] = checked_observation(future.result(timeout=self.budget.seconds_left()))
+                except ProbeCancelled as cancelled:
+                    exhausted, stopped = self.budget.stop(cancelled.reason).reason, True
+                except concurrent.futures.TimeoutError:
+                    exhausted, stopped = self.budget.stop("budget: max_seconds").reason, True
+                    self.prefetch.adopt(candidate, attempt, future)  # abandoned (see close())
+        finally:
+            for attempt, future in submitted:
+                if attempt not in results and not future.done() and future.cancel():
+                    self.counters.started -= 1
+        for attempt in attempts:
+            if attempt in known:
+                outcome = known[attempt]
+            elif attempt in results:
+                observation = results[attempt]
+                self._log_probe(Trial(candidate, purpose), attempt, observation, purpose=purpose)
+                if purpose == "calibration":
+                    self.counters.probes += 1
+                outcome = observation.outcome
+            else:
+                continue
+            fails += outcome is Outcome.FAIL
+            done += 1
+        if exhausted is not None and strict:
+            raise BudgetExhausted(exhausted)
+        return fails, done
 
     # -- bookkeeping --------------------------------------------------------------------------------------
 
@@ -392,7 +499,28 @@ class Prober:
         known = self.cache.get(key)
         if isinstance(known, Decision):
             return known
+        if key in self.errored:
+            return self.errored[key]
         return _Open(trial, list(self.preloaded.get(key, ())))
+
+    def errored_among(self, trials: Sequence[Trial]) -> list[Trial]:
+        """The trials whose current "not f" rests on ERROR runs alone."""
+        return [trial for trial in trials if frozenset(trial.candidate) in self.errored]
+
+    def retry_errored(self, trials: Sequence[Trial]) -> int:
+        """Forget the errored rejections of `trials` not retried yet, so that deciding them runs their ERROR
+        attempts again (once per candidate); how many will be retried."""
+        count = 0
+        for trial in trials:
+            key = frozenset(trial.candidate)
+            if key in self.errored and key not in self._retried:
+                self._retried.add(key)
+                del self.errored[key]
+                runs = self._errored_runs.pop(key, [])
+                prefix = runs[: runs.index(Outcome.ERROR)] if Outcome.ERROR in runs else runs
+                self.preloaded[key] = prefix
+                count += 1
+        return count
 
     def _take(self, state: _Open, attempt: int, observation: Observation) -> None:
         self.counters.probes += 1
@@ -424,20 +552,31 @@ class Prober:
 
     def _decide(self, state: _Open, verdict: bool) -> Decision:
         fails = sum(1 for outcome in state.outcomes if outcome is Outcome.FAIL)
-        decision = Decision(reproduces=verdict, fails=fails, runs=len(state.outcomes), trace=state.trace)
+        errors = sum(1 for outcome in state.outcomes if outcome is Outcome.ERROR)
+        valid = [outcome for outcome in state.outcomes if outcome is not Outcome.ERROR]
+        errored = not verdict and errors > 0 and self.policy.verdict(valid) is not False
+        decision = Decision(reproduces=verdict, fails=fails, runs=len(state.outcomes), trace=state.trace,
+                            errored=errored)
         state.decision = decision
-        self.cache[frozenset(state.trial.candidate)] = decision
-        self._write(
-            {
-                "event": "accept" if verdict else "reject",
-                "kind": state.trial.kind,
-                "candidate": list(state.trial.candidate),
-                "size": len(state.trial.candidate),
-                "reproduces": verdict,
-                "fails": fails,
-                "runs": len(state.outcomes),
-            }
-        )
+        key = frozenset(state.trial.candidate)
+        if errored:  # not a verdict: "not f" for this reduction only, tried again on resume
+            self.errored[key] = decision
+            self._errored_runs[key] = list(state.outcomes)
+            self.counters.errored.add(key)
+        else:
+            self.cache[key] = decision
+        record: dict[str, Any] = {
+            "event": "errored" if errored else "accept" if verdict else "reject",
+            "kind": state.trial.kind,
+            "candidate": list(state.trial.candidate),
+            "size": len(state.trial.candidate),
+            "reproduces": verdict,
+            "fails": fails,
+            "runs": len(state.outcomes),
+        }
+        if errors:
+            record["errors"] = errors
+        self._write(record)
         return decision
 
     def _consult(self, trial: Trial, decision: Decision, *, cached: bool, quiet: bool) -> None:
@@ -448,17 +587,18 @@ class Prober:
             self.context.history.append(Verdict(frozenset(key - self.keep), decision.reproduces))
         if cached and not quiet:
             self.counters.cache_hits += 1
-            self._write(
-                {
-                    "event": "cache-hit",
-                    "kind": trial.kind,
-                    "candidate": list(trial.candidate),
-                    "size": len(trial.candidate),
-                    "reproduces": decision.reproduces,
-                    "fails": decision.fails,
-                    "runs": decision.runs,
-                }
-            )
+            record: dict[str, Any] = {
+                "event": "cache-hit",
+                "kind": trial.kind,
+                "candidate": list(trial.candidate),
+                "size": len(trial.candidate),
+                "reproduces": decision.reproduces,
+                "fails": decision.fails,
+                "runs": decision.runs,
+            }
+            if decision.errored:
+                record["errored"] = True
+            self._write(record)
 
     def _consult_skip(self, trial: Trial, reason: str, quiet: bool) -> None:
         key = frozenset(trial.candidate)

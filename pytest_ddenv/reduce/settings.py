@@ -119,8 +119,8 @@ def validate(
         if not callable(check):
             raise ReductionError(f"every precondition must be callable(candidate) -> str | None, got {check!r}")
     if max_seconds is not None and (
-        isinstance(max_seconds, bool) or not isinstance(max_seconds, numbers.Real) or max_seconds < 0
-    ):
+        isinstance(max_seconds, bool) or not isinstance(max_seconds, numbers.Real) or not max_seconds >= 0
+    ):  # `not >= 0` also refuses NaN
         raise ReductionError(f"max_seconds must be None or a number >= 0, got {max_seconds!r}")
     if cache is not None and not isinstance(cache, MutableMapping):
         raise ReductionError(f"cache must be None or a MutableMapping, got {type(cache).__name__}")

@@ -126,6 +126,20 @@ class Decision:
     """How many runs the verdict is based on (the attempts 0 .. runs-1)."""
     trace: Trace | None = field(default=None, compare=False, repr=False)
     """The trace of the first f run, when there was one (not persisted in the log)."""
+    errored: bool = False
+    """A rejection that rests on ERROR runs: without them the deflake rule would not have rejected. It is
+    treated as "not f" for the decisions of this reduction, but it is no verdict: it is never stored in the
+    cache or read back from a log (a resumed reduction tries the candidate again), and a reduction whose
+    1-minimality rests on one is not reported 1-minimal."""
+
+
+class ProbeCancelled(Exception):
+    """Raised by a probe whose simulation its caller stopped (e.g. at the max_seconds deadline): not an
+    outcome. The engine records nothing for it and ends the reduction as out of budget."""
+
+    def __init__(self, reason: str = "budget: max_seconds") -> None:
+        super().__init__(reason)
+        self.reason = reason
 
 
 @dataclass(frozen=True)
@@ -137,7 +151,7 @@ class ProgressEvent:
     size: int
     """Current number of elements (kept ones included)."""
     probes: int
-    """Simulations run so far."""
+    """Probes decided so far (simulations whose result was used; a resumed log's included)."""
     granularity: int
     elapsed: float
     """Wall seconds since the reduction started."""
@@ -155,19 +169,23 @@ class Reduction:
     kept: Candidate
     """Elements that were never reducible (`keep`)."""
     probes: int
-    """Simulations run by the reduction (first runs and deflake re-runs; failure-rate runs excluded)."""
+    """Probes decided: simulations whose result the reduction used (first runs, deflake re-runs and the
+    calibration runs of deflake="auto"; failure-rate runs excluded). A resumed reduction counts the probes of
+    the log it resumed (`resumed_probes` of them) too, so this is the whole history."""
     cache_hits: int
     """Candidates whose verdict came from the cache (or a resumed log) instead of a simulation."""
     skipped: int
     """Distinct candidates a precondition skipped without simulating them."""
     errors: int
-    """Simulations whose outcome was ERROR (the probe raised or reported an error)."""
+    """Simulations of this call whose outcome was ERROR (the probe raised or reported an error)."""
     steps: tuple[tuple[int, int], ...]
     """(probes so far, size) at the start and after each adopted smaller world."""
     one_minimal: bool
     """True when every single reducible element of `minimal` was shown necessary (see docs/algorithm.md)."""
     incomplete_reason: str | None
-    """None, "budget: max_probes", "budget: max_seconds" or "interrupted"."""
+    """None, "budget: max_probes", "budget: max_seconds", "interrupted", or "not verified: N candidates
+    errored" (the minimal world is 1-minimal only if those N single removals, rejected on ERROR runs alone,
+    do not reproduce f; a resumed reduction tries them again)."""
     failure_rate: tuple[int, int]
     """(fails, runs) of `minimal` over `failure_rate_runs` extra attempts."""
     wall_time: float
@@ -179,6 +197,16 @@ class Reduction:
     seed: int
     calibration: tuple[int, int] | None = None
     """deflake="auto": (fails, runs) of the original world's calibration runs (also counted in `probes`)."""
+    simulations: int = 0
+    """Simulations this call of `reduce` started, whatever became of them: decided probes, calibration and
+    failure-rate runs, and speculative or prefetched runs whose result was not needed. Never more than
+    `max_probes`. (Earlier runs of a resumed log: `resumed_probes`.)"""
+    resumed_probes: int = 0
+    """Of `probes`, those read from the resumed log (0 for a fresh reduction)."""
+    errored: int = 0
+    """Distinct candidates rejected on ERROR runs alone (see `Decision.errored`), retried once at the end."""
+    notes: tuple[str, ...] = ()
+    """What the reduction wants its reader to know (a torn log line cut off, a candidate that errored)."""
 
     @property
     def original_size(self) -> int:

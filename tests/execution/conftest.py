@@ -4,8 +4,7 @@ driven through a pool."""
 from __future__ import annotations
 
 import concurrent.futures
-import signal
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import pytest
@@ -19,17 +18,6 @@ from pytest_ddenv.scenario_job import ScenarioJob
 from pytest_ddenv.world import World
 
 STUCK = (PredicateSpec("stuck", {"window": 2.0, "min_progress": 0.2}),)
-
-
-@pytest.fixture
-def ctrl_c_raises() -> Iterator[None]:
-    """Ctrl-C (SIGINT) raises KeyboardInterrupt in this process, even where it was started with SIGINT
-    ignored (a background job: CI runners, nohup)."""
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 @pytest.fixture(scope="session")

@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 
 from pytest_ddenv.errors import ReductionError
-from pytest_ddenv.reduce import Observation, Outcome, ProbeLog, ReductionInterrupted, reduce
+from pytest_ddenv.reduce import (
+    Observation,
+    Outcome,
+    ProbeLog,
+    ReductionInterrupted,
+    reduce,
+)
 
 from .conftest import SetOracle, line_trace, names
 
@@ -80,7 +86,9 @@ def test_resume_does_not_reprobe_decided_candidates(tmp_path: Path) -> None:
 
     fresh = reduce(elements, SetOracle(CULPRITS, rate=0.7, salt=5), deflake=2, failure_rate_runs=0)
     assert resumed.minimal == fresh.minimal
-    assert resumed.probes + partial.probes == fresh.probes
+    assert resumed.probes == fresh.probes, "a resumed reduction reports the whole history"
+    assert resumed.resumed_probes == partial.probes == 25
+    assert resumed.simulations + partial.simulations == fresh.simulations
     assert resumed.cache_hits > 0
     starts = [record for record in read_lines(path) if record["event"] == "start"]
     assert [record["resumed"] for record in starts] == [False, True]
@@ -114,14 +122,119 @@ def test_a_log_of_another_world_is_refused(tmp_path: Path) -> None:
     assert fresh.records == [] and path.read_text() == ""
 
 
-def test_a_line_cut_short_by_a_crash_is_ignored(tmp_path: Path) -> None:
+def test_a_line_cut_short_by_a_crash_is_cut_off_and_said(tmp_path: Path) -> None:
     path = tmp_path / "runs.jsonl"
     reduce(names(8), SetOracle(frozenset({"m0001"})), log=path, deflake=0)
     text = path.read_text()
     path.write_text(text + '{"event": "probe", "cand')
-    assert len(ProbeLog.load(path).records) == len(text.splitlines())
-    path.write_text('{"event": "start"}\nnot json\n{"event": "end"}\n')
-    with pytest.raises(ReductionError, match=":2: not a probe-log line"):
+    log = ProbeLog.load(path)
+    assert len(log.records) == len(text.splitlines())
+    assert path.read_text() == text, "the fragment is cut off, not appended to"
+    assert "last line was incomplete (24 bytes" in log.notes[0]
+    log.write({"event": "note"})
+    log.close()
+    assert ProbeLog.load(path).records[-1] == {"event": "note"} and ProbeLog.load(path).notes == []
+    again = reduce(names(8), SetOracle(frozenset({"m0001"})), log=path, deflake=0)
+    assert again.notes == () and again.probes > 0
+
+
+def test_a_damaged_line_inside_the_log_is_ignored_and_said(tmp_path: Path) -> None:
+    path = tmp_path / "runs.jsonl"
+    path.write_text('{"event": "start"}\nnot json\n[1, 2]\n{"event": "end"}\n')
+    log = ProbeLog.load(path)
+    assert [record["event"] for record in log.records] == ["start", "end"]
+    expected = ("runs.jsonl: line(s) 2, 3 are not records (damaged) and were ignored; the candidates they "
+                "decided are decided again")
+    assert log.notes == [expected]
+
+
+def test_a_file_that_is_not_a_log_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "runs.jsonl"
+    path.write_text("name: a world\nmodels: []\n")
+    with pytest.raises(ReductionError, match=":1: not a probe-log record, so this file is not a pytest-ddenv run"):
         ProbeLog.load(path)
+    assert path.read_text() == "name: a world\nmodels: []\n", "left alone"
     with pytest.raises(ReductionError, match="no probe log"):
         ProbeLog.load(tmp_path / "missing.jsonl")
+
+
+def test_every_line_is_fsynced(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import os
+
+    synced: list[int] = []
+    real_fsync = os.fsync
+    monkeypatch.setattr(os, "fsync", lambda fd: (synced.append(fd), real_fsync(fd))[1])
+    log = ProbeLog(tmp_path / "runs.jsonl")
+    for index in range(3):
+        log.write({"event": "probe", "attempt": index})
+    log.close()
+    assert len(synced) >= 3
+
+
+def test_a_write_that_fails_leaves_complete_lines_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full disk in the middle of a line: the half line is removed and the error says what to do."""
+    import errno
+    import os
+
+    path = tmp_path / "runs.jsonl"
+    log = ProbeLog(path)
+    log.write({"event": "start"})
+    real_write = os.write
+
+    def half_then_full(fd: int, data: bytes) -> int:
+        if len(data) > 10:
+            real_write(fd, bytes(data[:10]))
+            return 10
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "write", half_then_full)
+    with pytest.raises(ReductionError, match=r"cannot write .*runs.jsonl: No space left on device \(ENOSPC\)\. "
+                                             r"Every record written before is intact.*resumes from the log"):
+        log.write({"event": "probe", "candidate": ["a"]})
+    monkeypatch.undo()
+    log.close()
+    assert path.read_text() == '{"event": "start"}\n'
+    assert [record["event"] for record in ProbeLog.load(path).records] == ["start"]
+
+
+def test_errored_rejections_are_not_verdicts_and_are_retried_on_resume(tmp_path: Path) -> None:
+    """The smaller failing world {m0001} is never seen because its probes always error (a worker killed):
+    the reduction must not claim 1-minimality, must not log a "reject" verdict for it, tries it once more
+    at the end, and a resumed reduction tries it again and finds it."""
+    path = tmp_path / "runs.jsonl"
+    culprit = frozenset({"m0001"})
+
+    def erroring(candidate: tuple[str, ...], attempt: int) -> Observation:
+        if frozenset(candidate) == culprit:
+            return Observation(Outcome.ERROR, detail="WorkerError: the worker was killed by SIGKILL")
+        return SetOracle(culprit)(candidate, attempt)
+
+    first = reduce(names(4), erroring, log=path, deflake=0, failure_rate_runs=0, priority="sequential")
+    assert first.minimal == ("m0000", "m0001")
+    assert not first.one_minimal and first.incomplete_reason == "not verified: 1 candidate errored"
+    assert first.errored == 1 and first.errors == 2, "tried once more at the end"
+    assert any(note.startswith("not verified: 1 single removal") for note in first.notes)
+    records = read_lines(path)
+    assert [r["event"] for r in records if frozenset(r.get("candidate", ())) == culprit and r["event"] != "probe"] \
+        == ["errored", "errored"]
+    assert culprit not in ProbeLog.load(path).decisions()
+
+    oracle = SetOracle(culprit)
+    resumed = reduce(names(4), oracle, log=path, deflake=0, failure_rate_runs=0, priority="sequential")
+    assert resumed.one_minimal and resumed.minimal == ("m0001",) and resumed.incomplete_reason is None
+    assert oracle.calls == [(("m0001",), 0), ((), 0)], "only the errored candidate and the new one run"
+
+
+def test_a_rejection_is_errored_only_when_the_errors_made_it(tmp_path: Path) -> None:
+    """deflake=1 (two runs): ERROR then PASS is no verdict (one PASS alone would ask for another run);
+    PASS then PASS is a verdict."""
+    path = tmp_path / "runs.jsonl"
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        if candidate == ("m0000",) and attempt == 0:
+            return Observation(Outcome.ERROR, detail="worker killed")
+        return SetOracle(frozenset({"m0000", "m0001"}))(candidate, attempt)
+
+    reduce(names(2), probe, log=path, deflake=1, failure_rate_runs=0, priority="sequential")
+    verdicts = {tuple(r["candidate"]): r["event"] for r in read_lines(path) if r["event"] in ("reject", "errored")}
+    assert verdicts == {("m0000",): "errored", ("m0001",): "reject"}

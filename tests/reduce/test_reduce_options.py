@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import time
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -16,6 +16,7 @@ from pytest_ddenv.reduce import (
     PRIORITIES,
     Observation,
     Outcome,
+    ProbeCancelled,
     ProgressEvent,
     ReductionInterrupted,
     reduce,
@@ -44,21 +45,69 @@ def test_a_zero_probe_budget_returns_the_original() -> None:
 def test_a_probe_budget_gives_the_best_world_so_far(budget: int) -> None:
     oracle = SetOracle(CULPRITS)
     result = reduce(names(64), oracle, max_probes=budget, deflake=0, failure_rate_runs=2)
-    assert result.probes == budget
+    assert result.probes == result.simulations == len(oracle.calls) == budget
     assert result.incomplete_reason == "budget: max_probes" and not result.one_minimal
     assert reproduces(result.minimal)
-    assert result.failure_rate == (2, 2), "the best world so far is still measured"
+    assert result.failure_rate == (0, 0), "the failure-rate runs are simulations too: none left"
     assert len(result.minimal) == result.steps[-1][1]
 
 
+def test_the_budget_covers_the_failure_rate_and_calibration_runs() -> None:
+    complete = reduce(names(64), SetOracle(CULPRITS), deflake="auto", failure_rate_runs=5)
+    assert complete.one_minimal and complete.simulations == complete.probes + 5
+    oracle = SetOracle(CULPRITS)
+    result = reduce(names(64), oracle, max_probes=complete.probes + 2, deflake="auto", failure_rate_runs=5)
+    assert result.one_minimal and result.minimal == complete.minimal and result.incomplete_reason is None
+    assert result.failure_rate == (2, 2), "measured with what the budget left"
+    assert len(oracle.calls) == result.simulations == complete.probes + 2
+    early = reduce(names(64), SetOracle(CULPRITS), max_probes=2, deflake="auto")
+    assert early.incomplete_reason == "budget: max_probes" and early.simulations == 2
+    assert early.minimal == names(64) and early.calibration is None, "the budget ran out while calibrating"
+
+
 def test_a_time_budget() -> None:
-    def slow(candidate: tuple[str, ...], attempt: int) -> Observation:
-        time.sleep(0.01)
+    oracle = SetOracle(CULPRITS)
+    result = reduce(names(200), oracle, max_seconds=0, deflake=0, failure_rate_runs=3)
+    assert result.incomplete_reason == "budget: max_seconds" and not result.one_minimal
+    assert result.minimal == names(200) and oracle.calls == [] and result.failure_rate == (0, 0)
+
+
+def test_the_time_budget_interrupts_running_probes() -> None:
+    """The deadline passes while a probe is still running: the reduction ends without waiting for it (a
+    hang guard of 60 s lets the test finish if it does not)."""
+    release = threading.Event()
+    waited: list[bool] = []
+
+    def blocking(candidate: tuple[str, ...], attempt: int) -> Observation:
+        if len(candidate) < 64:
+            waited.append(release.wait(60))
         return SetOracle(CULPRITS)(candidate, attempt)
 
-    result = reduce(names(200), slow, max_seconds=0.05, deflake=0, failure_rate_runs=0)
-    assert result.incomplete_reason == "budget: max_seconds"
-    assert reproduces(result.minimal) and result.probes < 40
+    executor = ThreadPoolExecutor(max_workers=2)
+    try:
+        result = reduce(names(64), blocking, max_seconds=0.5, deflake=0, executor=executor)
+        assert waited == [], "returned while the probes were still running"
+    finally:
+        release.set()
+        executor.shutdown(wait=True)
+    assert result.incomplete_reason == "budget: max_seconds" and result.minimal == names(64)
+    assert result.probes == 0 and result.simulations == 2 and result.errors == 0
+
+
+def test_a_probe_cancelled_by_its_caller_ends_the_reduction_without_a_verdict(tmp_path: Path) -> None:
+    path = tmp_path / "runs.jsonl"
+
+    def cancelled_later(candidate: tuple[str, ...], attempt: int) -> Observation:
+        if len(cancelled_later.calls) == 3:  # type: ignore[attr-defined]
+            raise ProbeCancelled("budget: max_seconds")
+        cancelled_later.calls.append(candidate)  # type: ignore[attr-defined]
+        return SetOracle(CULPRITS)(candidate, attempt)
+
+    cancelled_later.calls = []  # type: ignore[attr-defined]
+    result = reduce(names(64), cancelled_later, deflake=0, log=path, failure_rate_runs=2)
+    assert result.incomplete_reason == "budget: max_seconds" and result.errors == 0
+    assert result.probes == 3 and result.simulations == 4 and result.failure_rate == (0, 0)
+    assert sum(1 for line in path.read_text().splitlines() if '"event": "probe"' in line) == 3
 
 
 def test_budgets_with_an_executor() -> None:
@@ -216,6 +265,10 @@ VALID: dict[str, Any] = {}
         ({"n_partitions": 1}, "n_partitions must be an int >= 2"),
         ({"max_probes": -1}, "max_probes must be an int >= 0"),
         ({"max_seconds": "1s"}, "max_seconds must be None or a number"),
+        ({"max_seconds": float("nan")}, "max_seconds must be None or a number >= 0, got nan"),
+        ({"deflake": 10**12}, "deflake must be at most 100 re-runs per candidate, got 1000000000000"),
+        ({"deflake": 10**100}, "deflake must be at most 100 re-runs per candidate, got a 333-bit number"),
+        ({"deflake": "9" * 5000}, "deflake must be at most 100 re-runs per candidate, got a 5000-digit number"),
         ({"keep": ["nope"]}, "keep names elements that are not in the world: nope"),
         ({"keep": "m0001"}, "not the string"),
         ({"confidence": 0.3}, "confidence must be a number strictly between 0.5 and 1"),
