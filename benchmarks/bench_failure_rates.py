@@ -5,7 +5,7 @@
 
 For each paper scenario (ditch, rubble, friction: the predicates and schema pairing of
 examples/test_paper_scenarios.py, priority avg-trajectory-proximal), each reduction seed and each deflake
-rule (`--rules`: `3` = `reduce()`'s own default, `auto` = the plugin's and `ddenv reduce`'s default; any
+rule (`--rules`: `3` = the paper's rule, `reduce()`'s default before issue 16; `auto` = the default everywhere; any
 value `reduce(deflake=...)` accepts), it reduces the scenario test's own failing run (noise seed
 `--failure-seed`, 0 as in the examples) through the same probe path as the plugin and `ddenv reduce`: a
 `ScenarioJob` on a `pytest_ddenv.execution` pool, `make_probe(world, pool.call, reference)`, `reduce(...)` with
@@ -67,7 +67,7 @@ PARTITIONS = {
     "friction": "model2model",
 }
 DEFAULT_RULES = ("3", "auto")
-"""`3`: reduce()'s own default today; `auto`: the plugin's and the CLI's default."""
+"""`3`: the paper's rule (reduce()'s default before issue 16); `auto`: the default of every entry point."""
 ATTEMPTS_PER_SEED = 1000
 """A reduction with seed s runs attempts ATTEMPTS_PER_SEED * s + k (common.Problem.attempt_offset)."""
 FRESH_FIRST_ATTEMPT = 1_000_000
@@ -146,7 +146,6 @@ def measure(problem: Problem, *, scenario: str, partition: str, priority: str, r
                                                         deflake=rule, seed=seed, workers=workers)
     minimal = fresh_rate(problem, reduction.minimal, fresh_runs, fresh_first_attempt, workers)
     calibration_runs = reduction.calibration[1] if reduction.calibration else 0
-    engine_rate_runs = reduction.failure_rate[1]
     below_half = 2 * minimal["fails"] * original["runs"] < original["fails"] * minimal["runs"]
     return {
         "scenario": scenario,
@@ -166,7 +165,9 @@ def measure(problem: Problem, *, scenario: str, partition: str, priority: str, r
         "probes": reduction.probes,
         "calibration_runs": calibration_runs,
         "engine_failure_rate": list(reduction.failure_rate),
-        "speculative_unused": simulations - reduction.probes - engine_rate_runs,
+        "not_decided_simulations": simulations - reduction.probes,
+        "rate_check": None if reduction.rate_check is None else reduction.rate_check.decision,
+        "rate_backoffs": reduction.rate_backoffs,
         "cache_hits": reduction.cache_hits,
         "errors": reduction.errors,
         "minimal_fresh": minimal,
@@ -184,12 +185,15 @@ def table_row(row: dict[str, Any]) -> list[Any]:
         f"{row['rule']} ({row['rule_used'].removeprefix('auto:')})")
     minimal, original = row["minimal_fresh"], row["original_fresh"]
     size = f"{row['original_size']} → {row['minimal_size']}" + ("" if row["one_minimal"] else " (not 1-minimal)")
-    return [row["scenario"], row["reduction_seed"], rule, size, row["simulations"],
+    check = row.get("rate_check") or "-"
+    if row.get("rate_backoffs"):
+        check += f" ({row['rate_backoffs']} back-off{'s' if row['rate_backoffs'] > 1 else ''})"
+    return [row["scenario"], row["reduction_seed"], rule, size, row["simulations"], check,
             f"{minimal['fails']}/{minimal['runs']}", f"{original['fails']}/{original['runs']}",
             "**BELOW HALF**" if row["below_half"] else ""]
 
 
-HEADERS = ["scenario", "reduction seed", "rule", "minimal size", "simulations", "minimal fails (fresh)",
+HEADERS = ["scenario", "reduction seed", "rule", "minimal size", "simulations", "rate check", "minimal fails (fresh)",
            "original fails (fresh)", "< half the original's"]
 
 
@@ -268,8 +272,8 @@ def main(argv: list[str] | None = None) -> int:
                     results["load_samples"].append(row["load_average"])
                     print(f"{name} seed {seed} rule {row['rule_used']}: {row['original_size']} -> "
                           f"{row['minimal_size']}, {row['simulations']} simulations ({row['probes']} probes incl. "
-                          f"{row['calibration_runs']} calibration, {row['engine_failure_rate'][1]} failure-rate runs, "
-                          f"{row['speculative_unused']} speculative unused), minimal fails "
+                          f"{row['calibration_runs']} calibration; {row['not_decided_simulations']} fresh-run or speculative), "
+                          f"rate check {row['rate_check']} ({row['rate_backoffs']} back-offs), minimal fails "
                           f"{row['minimal_fresh']['fails']}/{row['minimal_fresh']['runs']} fresh, original "
                           f"{original['fails']}/{original['runs']}, {row['wall_time']:.1f} s, load "
                           f"{row['load_average']}; minimal {row['minimal']}", flush=True)

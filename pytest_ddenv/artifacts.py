@@ -391,22 +391,6 @@ def _check_cut(text: str, source: Path, minimal: World, model_paths: Sequence[st
                            source=source)
 
 
-def failure_rate_line(reduction: Reduction) -> str:
-    """"minimal world fails 5/5 seeds (original world: 3/3)", with a warning when it rarely fails."""
-    fails, runs = reduction.failure_rate
-    if runs == 0:
-        why = " (the budget ran out)" if (reduction.incomplete_reason or "").startswith("budget") else ""
-        return f"minimal world's failure rate: not measured{why}"
-    line = f"minimal world fails {fails}/{runs} seeds"
-    if reduction.calibration is not None:
-        line += f" (original world: {reduction.calibration[0]}/{reduction.calibration[1]})"
-    if runs and fails * 2 < runs:
-        line += " (warning: it rarely reproduces the failure" + (
-            "; consider deflake='auto')" if reduction.calibration is None else ")"
-        )
-    return line
-
-
 def summary_of(
     world: World, reduction: Reduction, *, test_id: str, replay_command: str, reference: dict[str, Any]
 ) -> dict[str, Any]:
@@ -435,8 +419,20 @@ def summary_of(
         "steps": [list(step) for step in reduction.steps],
         "failure_rate": {"fails": fails, "runs": runs},
         "original_failure_rate": (
-            None if reduction.calibration is None
-            else {"fails": reduction.calibration[0], "runs": reduction.calibration[1]}
+            None if reduction.original_failure_rate is None
+            else {"fails": reduction.original_failure_rate[0], "runs": reduction.original_failure_rate[1]}
+        ),
+        "rate_check": None if reduction.rate_check is None else {
+            "decision": reduction.rate_check.decision,
+            "p_value": round(reduction.rate_check.p_value, 6),
+            "level_per_look": round(reduction.rate_check.level, 6),
+            "backoffs": reduction.rate_backoffs,
+        },
+        "needed_models": list(reduction.needed),
+        "precondition_kept": [{"model": name, "reason": reason} for name, reason in reduction.precondition_kept],
+        "without_precondition_kept": (
+            None if reduction.without_precondition_kept is None
+            else dict(zip(("fails", "runs"), reduction.without_precondition_kept, strict=True))
         ),
         "wall_time": round(reduction.wall_time, 3),
         "schemas": {
@@ -449,3 +445,22 @@ def summary_of(
         "reference_failure": reference,
         "replay": replay_command,
     }
+
+
+def folder_problem(folder: Path) -> str | None:
+    """Why reductions cannot write into `folder` (made when missing), or None: a file in its place, or the
+    folder (or its nearest existing parent) not writable. Checked before any probe runs."""
+    try:
+        if folder.exists() and not folder.is_dir():
+            return f"{folder} is a file, not a folder"
+        existing = folder
+        while not existing.exists() and existing.parent != existing:
+            existing = existing.parent
+        if not existing.is_dir():
+            return f"{existing} is a file, so the folder {folder} cannot be made"
+        if not os.access(existing, os.W_OK | os.X_OK):
+            made = "" if existing == folder else f" (to make {folder} in it)"
+            return f"the folder {existing} is not writable{made}"
+    except OSError as error:  # a loop of symbolic links, a name too long, ...
+        return f"{folder} cannot be used: {error.strerror or error}"
+    return None

@@ -88,49 +88,24 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _probe_timeout(text: str) -> float | str:
+    """--probe-timeout: seconds, 'auto' or 'none'."""
+    if text.strip().lower() in ("auto", "none"):
+        return text.strip().lower()
+    try:
+        return _positive_float(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, 'auto' or 'none', got {shown(text)}") \
+            from None
+
+
 def _executor(text: str) -> str:
+    from pytest_ddenv.execution.factory import executor_problem
+
     problem = executor_problem(text)
     if problem is not None:
         raise argparse.ArgumentTypeError(problem)
     return text
-
-
-def executor_problem(executor: str) -> str | None:
-    """Why `executor` is not 'local', 'dask' or a dask scheduler address tcp://HOST:PORT (tls://...), or None.
-    Only the form is checked: whether the scheduler answers is known when a reduction connects to it."""
-    from urllib.parse import urlsplit
-
-    if executor in ("local", "dask"):
-        return None
-    expected = "expected 'local', 'dask' or a dask scheduler address tcp://HOST:PORT (or tls://HOST:PORT)"
-    try:
-        parts = urlsplit(executor)
-        port = parts.port
-    except ValueError:  # a port that is not a number from 0 to 65535
-        return f"{expected}, got {shown(executor)}"
-    if parts.scheme not in ("tcp", "tls") or not parts.hostname or not port or parts.path not in ("", "/") or (
-            parts.query or parts.fragment or parts.username):
-        return f"{expected}, got {shown(executor)}"
-    return None
-
-
-def folder_problem(folder: Path) -> str | None:
-    """Why reductions cannot write into `folder` (made when missing), or None: a file in its place, or the
-    folder (or its nearest existing parent) not writable. Checked before any probe runs."""
-    try:
-        if folder.exists() and not folder.is_dir():
-            return f"{folder} is a file, not a folder"
-        existing = folder
-        while not existing.exists() and existing.parent != existing:
-            existing = existing.parent
-        if not existing.is_dir():
-            return f"{existing} is a file, so the folder {folder} cannot be made"
-        if not os.access(existing, os.W_OK | os.X_OK):
-            made = "" if existing == folder else f" (to make {folder} in it)"
-            return f"the folder {existing} is not writable{made}"
-    except OSError as error:  # a loop of symbolic links, a name too long, ...
-        return f"{folder} cannot be used: {error.strerror or error}"
-    return None
 
 
 def parse_predicate(text: str) -> PredicateSpec:
@@ -293,6 +268,10 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     add_world_options(reduce)
     reduce.add_argument("--max-probes", type=_positive_int, metavar="N", help="stop after N simulations")
     reduce.add_argument("--max-time", type=_positive_float, metavar="S", help="stop after S wall seconds")
+    reduce.add_argument("--probe-timeout", type=_probe_timeout, metavar="S",
+                        help="wall-clock limit of one probe: S seconds, 'auto' (max(60 s, 10 x the longest of the "
+                             "original run and the slowest probe)) or 'none'; a probe past it is an error, not a "
+                             "verdict (default: $DDENV_PROBE_TIMEOUT, else auto)")
     reduce.add_argument("--workers", type=_workers, default="auto", metavar="N",
                         help="probe worker processes: a number, or 'auto' for one per core (the default); 1 "
                              "simulates in this process")
@@ -576,6 +555,8 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     keep = _keep(world, arguments.keep)
     priority = PRIORITY_ALIASES.get(arguments.priority, arguments.priority)
     executor = check_executor(arguments.executor)
+    from pytest_ddenv.artifacts import folder_problem
+
     problem = folder_problem(_artifacts_folder(arguments))
     if problem is not None:
         raise UsageError(f"{'--out' if arguments.out else 'the artifacts folder'}: {problem}")
@@ -584,7 +565,11 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     progress = ProgressLine(sys.stderr, quiet=arguments.quiet)
     in_process = job.handler() if executor is None and arguments.workers == 1 else None
     try:
-        with make_pool(job, arguments.workers, executor, in_process=in_process) as pool:
+        from pytest_ddenv.execution.base import DEFAULT
+
+        chosen = arguments.probe_timeout  # None: not given ($DDENV_PROBE_TIMEOUT, else auto)
+        watchdog = DEFAULT if chosen is None else None if chosen == "none" else chosen
+        with make_pool(job, arguments.workers, executor, in_process=in_process, watchdog=watchdog) as pool:
             progress.note(f"simulating the original world ({len(world)} models, seed {arguments.seed}; "
                           f"{_where(pool)})")
             original = pool.call(world, 0)
@@ -703,32 +688,16 @@ def _command_line(arguments: argparse.Namespace) -> list[str]:
 
 
 def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any], notes: Sequence[str] = ()) -> str:
-    from pytest_ddenv import artifacts
+    from pytest_ddenv.report_text import result_lines, status_of
 
-    status = "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
-    removed = summary["removed_models"]
     return "\n".join([
         (f"{path}: {reduction.original_size} -> {reduction.minimal_size} models "
-        f"({summary['reduction_percent']}% removed), {status}"),
-        f"kept: {', '.join(reduction.minimal) or '(none)'}",
-        f"removed ({len(removed)}): {_shorten(removed)}",
-        (f"probes: {reduction.probes} simulated, {reduction.cache_hits} from cache, {reduction.skipped} skipped, "
-        f"{reduction.errors} errors; {reduction.wall_time:.1f} s"),
-        f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
-        artifacts.failure_rate_line(reduction),
-        *(f"note: {text}" for text in notes),
-        *(f"not simulated: {text}" for text in summary.get("world_notes", [])),
+         f"({summary['reduction_percent']}% removed), {status_of(reduction)}"),
+        *result_lines(reduction, summary, notes),
         f"artifacts: {Path(summary['files']['summary']).parent}",
         f"pictures: {', '.join(summary.get('pictures', [])) or '(none)'}",
         f"replay: {summary['replay']}",
     ])
-
-
-def _shorten(names: Sequence[str], limit: int = 8) -> str:
-    if not names:
-        return "(none)"
-    shown = ", ".join(names[:limit])
-    return shown if len(names) <= limit else f"{shown}, ... (+{len(names) - limit} more, see summary.json)"
 
 
 # -- replay ------------------------------------------------------------------------------------------------

@@ -22,8 +22,9 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from pytest_ddenv.cli import executor_problem, folder_problem
+from pytest_ddenv.artifacts import folder_problem
 from pytest_ddenv.errors import DdenvError, shown
+from pytest_ddenv.execution.factory import executor_problem
 from pytest_ddenv.markers import (
     MarkerError,
     ReductionSpec,
@@ -75,6 +76,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
          {"metavar": "PATH"}),
         ("model-path", "extra folders (separated by ':') searched for SDF <include>s of model://NAME",
          {"metavar": "DIRS"}),
+        ("probe-timeout", "wall-clock limit of one probe of a reduction: SECONDS, 'auto' (the default: max(60 s, "
+                          "10 x the longest of the original run and the slowest probe)) or 'none'; a probe past "
+                          "it is an error, not a verdict (default: $DDENV_PROBE_TIMEOUT, else auto)",
+         {"metavar": "SECONDS"}),
         ("run-timeout", "wall-clock seconds one robot_world.run() may take before it fails with ControllerTimeout "
                         "(default 300): bounds a controller that is too slow", {"metavar": "SECONDS"}),
     ]
@@ -126,6 +131,27 @@ def _seconds_setting(config: pytest.Config, name: str) -> float | None:
     return seconds
 
 
+def _watchdog_setting(config: pytest.Config) -> Any:
+    """`--ddenv-probe-timeout` as the pools' `watchdog` argument: seconds, 'auto', None, or DEFAULT (unset:
+    $DDENV_PROBE_TIMEOUT, else auto)."""
+    from pytest_ddenv.execution.base import DEFAULT
+
+    value = _setting(config, "ddenv_probe_timeout")
+    if value in (None, ""):
+        return DEFAULT
+    text = str(value).strip().lower()
+    if text in ("auto", "none"):
+        return None if text == "none" else "auto"
+    try:
+        seconds = float(text)
+    except ValueError:
+        seconds = -1.0
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise pytest.UsageError(f"{_where(config, 'ddenv_probe_timeout')}: expected a positive, finite number of "
+                                f"seconds, 'auto' or 'none', got {shown(value)}")
+    return seconds
+
+
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers",
@@ -153,6 +179,7 @@ def _validate_options(config: pytest.Config) -> None:
     _int_setting(config, "ddenv_seed", 0)
     _seconds_setting(config, "ddenv_max_time")
     _seconds_setting(config, "ddenv_run_timeout")
+    _watchdog_setting(config)
     deflake = _setting(config, "ddenv_deflake")
     if deflake not in (None, ""):
         try:
@@ -369,14 +396,15 @@ def _probe_pool(item: pytest.Function) -> Any:
     workers = _setting(config, "ddenv_workers") or default
     count = int(workers) if str(workers).isdigit() else workers
     executor = check_executor(_setting(config, "ddenv_executor") or None)
+    watchdog = _watchdog_setting(config)
     if executor is None:
-        return make_pool(PytestJob.of(item), count, in_process=ItemHandler(item))
+        return make_pool(PytestJob.of(item), count, in_process=ItemHandler(item), watchdog=watchdog)
     cluster = config.stash.get(_cluster_key, None)
     if cluster is None:
         cluster = DaskCluster(None if executor == "dask" else executor,
                               n_workers=None if count == "auto" else int(count))
         config.stash[_cluster_key] = cluster
-    return make_pool(PytestJob.of(item, capture="sys"), count, executor, cluster=cluster)
+    return make_pool(PytestJob.of(item, capture="sys"), count, executor, cluster=cluster, watchdog=watchdog)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

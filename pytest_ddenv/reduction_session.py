@@ -21,6 +21,7 @@ from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.markers import ReductionSpec
 from pytest_ddenv.probe import FailureReference, describe_error
 from pytest_ddenv.reduce.types import ProgressEvent, ReductionInterrupted
+from pytest_ddenv.report_text import result_lines, status_of
 from pytest_ddenv.robot_world import FIXTURE, RobotWorld
 
 if TYPE_CHECKING:
@@ -93,25 +94,14 @@ def describe_reduction(test_id: str, reduction: Reduction, summary: dict[str, An
                        outcome: ReductionOutcome) -> dict[str, Any]:
     """The report section, the terminal line and the attachments of a reduction."""
     fails, runs = reduction.failure_rate
-    status = "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
-    removed = summary["removed_models"]
+    status = status_of(reduction)
     folder = _shown_path(Path(summary["files"]["summary"]).parent)
     simulations = summary.get("simulations", reduction.simulations)
-    earlier = f" ({reduction.resumed_probes} in earlier runs)" if reduction.resumed_probes else ""
     lines = [
         f"world: {summary['world']}",
         (f"reduced {reduction.original_size} -> {reduction.minimal_size} models "
          f"({summary['reduction_percent']}%), {status}"),
-        f"minimal world: {', '.join(reduction.minimal) or '(no models)'}",
-        f"removed ({len(removed)}): {_listing(removed)}",
-        (f"probes: {reduction.probes} decided{earlier}, {reduction.cache_hits} from cache, "
-         f"{reduction.skipped} skipped, {reduction.errors} errors; {reduction.wall_time:.1f} s"),
-        (f"simulations run: {simulations} (confirmation, speculative and picture runs included; "
-         f"{summary.get('cpu_seconds', 0.0):.1f} s of worker CPU)"),
-        f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
-        artifacts.failure_rate_line(reduction),
-        *(f"note: {text}" for text in outcome.notes),
-        *(f"not simulated: {text}" for text in summary.get("world_notes", [])),
+        *result_lines(reduction, summary, outcome.notes),
         f"artifacts: {folder}",
         f"replay: {summary['replay']}",
     ]
@@ -123,13 +113,6 @@ def describe_reduction(test_id: str, reduction: Reduction, summary: dict[str, An
     )
     return {"text": "\n".join(lines) + "\n", "line": line, "attachments": [str(p) for p in outcome.attachments],
             "summary": summary, "reproducible": True, "status": "reduced"}
-
-
-def _listing(names: list[str], limit: int = 12) -> str:
-    if not names:
-        return "(none)"
-    shown = ", ".join(names[:limit])
-    return shown if len(names) <= limit else f"{shown}, ... and {len(names) - limit} more (see summary.json)"
 
 
 def _shown_path(path: Path) -> Path:

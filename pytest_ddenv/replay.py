@@ -119,7 +119,8 @@ class ReplayResult:
         return self.reproduced > 0 if self.fresh else self.reproduced == len(self.runs)
 
     def describe(self) -> str:
-        """"reproduced 7/10 fresh seeds (70 %, 95 % interval 40-89 %); the original world failed 3/3"."""
+        """"reproduced: 7/10 fresh seeds failed the same way (70 %, 95% interval 40-89 %); the original world
+        failed 5/5 fresh runs in the reduction"."""
         total = len(self.runs)
         kind = "fresh seeds" if self.fresh else "recorded failing seeds"
         low, high = self.interval
@@ -127,7 +128,8 @@ class ReplayResult:
                 f"way ({100 * self.reproduced / max(total, 1):.0f} %, {CONFIDENCE:.0%} interval "
                 f"{100 * low:.0f}-{100 * high:.0f} %)")
         if self.original_rate is not None:
-            text += f"; the original world failed {self.original_rate[0]}/{self.original_rate[1]} in the reduction"
+            text += (f"; the original world failed {self.original_rate[0]}/{self.original_rate[1]} fresh runs "
+                     "in the reduction")
         return text
 
     def to_dict(self) -> dict[str, Any]:

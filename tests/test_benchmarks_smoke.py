@@ -127,9 +127,10 @@ def test_failure_rates_of_a_minimal_world_on_fresh_seeds(bench, failure_rates, p
     assert row["minimal_fresh"]["runs"] == 2 and row["original_fresh"] == {"fails": 2, "runs": 2}
     assert row["below_half"] is (2 * row["minimal_fresh"]["fails"] < 2)
     assert row["fresh_attempts"] == [fresh, fresh + 1]
-    # one worker: no speculation; every simulation is a probe (calibration included) or a failure-rate run
-    assert row["speculative_unused"] == 0
-    assert row["simulations"] == row["probes"] + row["engine_failure_rate"][1] > 0
+    # one worker: no speculation; every simulation is a probe (calibration included) or a fresh run of the
+    # rate comparison (the minimal world's, and the original's beyond its calibration runs)
+    assert row["rate_check"] == "holds" and row["rate_backoffs"] == 0
+    assert row["not_decided_simulations"] == row["simulations"] - row["probes"] >= row["engine_failure_rate"][1] > 0
     if rule == 0:
         assert row["rule_used"] == "0" and row["calibration_runs"] == 0
     else:

@@ -333,18 +333,23 @@ def test_subprocess_smoke(worlds: dict[str, Path]) -> None:
 def test_the_failure_rate_line_compares_with_the_original_and_warns() -> None:
     from dataclasses import replace
 
-    from pytest_ddenv.artifacts import failure_rate_line
-    from pytest_ddenv.reduce import reduce
+    from pytest_ddenv.reduce import Rate, reduce
+    from pytest_ddenv.report_text import failure_rate_line
 
     solid = reduce(("a", "b"), lambda candidate, attempt: _observation("a" in candidate), deflake="auto",
                    failure_rate_runs=4)
-    assert failure_rate_line(solid) == "minimal world fails 4/4 seeds (original world: 3/3)"
-    rare = replace(solid, failure_rate=(1, 5))
-    assert failure_rate_line(rare).endswith("(original world: 3/3) (warning: it rarely reproduces the failure)")
-    fixed = replace(rare, calibration=None)
-    assert failure_rate_line(fixed) == (
-        "minimal world fails 1/5 seeds (warning: it rarely reproduces the failure; consider deflake='auto')"
-    )
+    assert solid.rate_check is not None and solid.rate_check.decision == "holds"
+    assert failure_rate_line(solid).startswith(
+        "minimal world fails 4/4 fresh runs vs the original's 4/4: not significantly below the original's "
+        "(one-sided Fisher exact p = 1, level 0.05 per look)")
+    below = replace(solid, rate_check=replace(solid.rate_check, reduced=Rate(0, 4), decision="below"),
+                    rate_backoffs=3)
+    assert failure_rate_line(below).endswith("(warning: it fails less often than the original, after 3 back-offs)")
+    stopped = replace(solid, rate_check=replace(solid.rate_check, reduced=Rate(2, 2), decision="continue"))
+    assert "undecided, the budget stopped the rate comparison" in failure_rate_line(stopped)
+    unchecked = replace(solid, rate_check=None, failure_rate=(1, 5))
+    assert failure_rate_line(unchecked) == (
+        "minimal world fails 1/5 fresh runs (original world: 3/3) (warning: it rarely reproduces the failure)")
 
 
 def _observation(failed: bool) -> Any:

@@ -113,6 +113,7 @@ PAGES: dict[str, Page] = {
             "result.minimal == ('asphalt_plane', 'asphalt_plane_clone')",
             "result.one_minimal",
             "result.failure_rate == (5, 5)",
+            "result.rate_check.decision == 'holds'",
             "Path('ddenv-artifacts/ditch/runs.jsonl').is_file()",
         )},
         slow=True,

@@ -4,23 +4,41 @@ from __future__ import annotations
 
 from typing import Any
 
+from pytest_ddenv.errors import shown
 from pytest_ddenv.execution.base import Pool
-from pytest_ddenv.execution.dask_pool import ADDRESS_SCHEMES, DaskCluster, DaskPool
+from pytest_ddenv.execution.dask_pool import DaskCluster, DaskPool
 from pytest_ddenv.execution.errors import PoolConfigError
 from pytest_ddenv.execution.local import LocalPool, resolve_workers
 from pytest_ddenv.execution.request import Handler, Job
+
+
+def executor_problem(executor: str) -> str | None:
+    """Why `executor` is not 'local', 'dask' or a dask scheduler address tcp://HOST:PORT (tls://...), or None.
+    Only the form is checked: whether the scheduler answers is known when a reduction connects to it."""
+    from urllib.parse import urlsplit
+
+    if executor in ("local", "dask"):
+        return None
+    expected = "expected 'local', 'dask' or a dask scheduler address tcp://HOST:PORT (or tls://HOST:PORT)"
+    try:
+        parts = urlsplit(executor)
+        port = parts.port
+    except ValueError:  # a port that is not a number from 0 to 65535
+        return f"{expected}, got {shown(executor)}"
+    if parts.scheme not in ("tcp", "tls") or not parts.hostname or not port or parts.path not in ("", "/") or (
+            parts.query or parts.fragment or parts.username):
+        return f"{expected}, got {shown(executor)}"
+    return None
 
 
 def check_executor(executor: str | None) -> str | None:
     """None for local worker processes, else "dask" or a scheduler address (PoolConfigError if invalid)."""
     if executor in (None, "", "local"):
         return None
-    if isinstance(executor, str) and (executor == "dask" or executor.startswith(ADDRESS_SCHEMES)):
-        return executor
-    raise PoolConfigError(
-        f"unknown executor {executor!r}: use 'local', 'dask' (a local dask cluster) or a dask scheduler "
-        "address such as tcp://scheduler:8786"
-    )
+    problem = executor_problem(executor) if isinstance(executor, str) else f"expected a string, got {executor!r}"
+    if problem is not None:
+        raise PoolConfigError(f"unknown executor: {problem}")
+    return executor
 
 
 def make_pool(

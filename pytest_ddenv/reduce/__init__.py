@@ -15,6 +15,7 @@ from pytest_ddenv.reduce.engine import reduce
 from pytest_ddenv.reduce.log import VOLATILE_FIELDS, ProbeLog
 from pytest_ddenv.reduce.partition import PARTITIONS, Partitioner
 from pytest_ddenv.reduce.priority import PRIORITIES, PRIORITY_ALIASES, Prioritizer
+from pytest_ddenv.reduce.rates import Rate, RateComparison
 from pytest_ddenv.reduce.settings import COMPLEMENT_ORDERS, GRANULARITIES
 from pytest_ddenv.reduce.types import (
     Candidate,
@@ -54,6 +55,8 @@ __all__ = [
     "ProbeCancelled",
     "ProbeLog",
     "ProgressEvent",
+    "Rate",
+    "RateComparison",
     "Reduction",
     "ReductionInterrupted",
     "SequentialTest",

@@ -6,7 +6,10 @@ the part least likely to matter is removed first). The first candidate that repr
 deflaking) becomes the current world. Granularity follows ddmin (after a subset: n_partitions; after a
 complement: max(n-1, 2); no progress: min(2n, size)) or the paper (n+1 every round). When no candidate
 of the finest round (every part one element) reproduces f, a verification pass tries removing each single
-remaining element; only if none reproduces f is the result declared 1-minimal. See docs/algorithm.md.
+remaining element; only if none reproduces f is the result declared 1-minimal. Finally the minimal world's
+failure rate is compared with the original's on fresh runs (rate_check.py); when it is significantly lower,
+the reduction backs off to the last accepted world whose rate holds, rejects the step after it, and reduces
+again from there (at most MAX_BACKOFFS times). See docs/algorithm.md.
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ from pytest_ddenv.reduce.log import LOG_FORMAT, ProbeLog
 from pytest_ddenv.reduce.partition import Partitioner
 from pytest_ddenv.reduce.priority import Prioritizer
 from pytest_ddenv.reduce.prober import Budget, BudgetExhausted, Prober, Trial
+from pytest_ddenv.reduce.rate_check import RateChecker
+from pytest_ddenv.reduce.rates import RateComparison
 from pytest_ddenv.reduce.settings import Settings, validate
 from pytest_ddenv.reduce.types import (
     Candidate,
@@ -38,6 +43,10 @@ from pytest_ddenv.reduce.types import (
     ReductionInterrupted,
     Trace,
 )
+
+MAX_BACKOFFS = 3
+"""How many times a reduction backs off from a minimal world that fails significantly less often than the
+original before it reports that world with its rate as it is."""
 
 
 def plural(count: int, noun: str) -> str:
@@ -54,7 +63,7 @@ def reduce(
     priority: str | Prioritizer = "avg-trajectory-proximal",
     n_partitions: int = 2,
     granularity: str = "ddmin",
-    deflake: int | str = 3,
+    deflake: int | str = "auto",
     confidence: float = 0.95,
     keep: Collection[str] = (),
     preconditions: Sequence[Precondition] = (),
@@ -64,7 +73,7 @@ def reduce(
     cache: MutableMapping[Any, Any] | None = None,
     executor: concurrent.futures.Executor | None = None,
     log: ProbeLog | str | os.PathLike[str] | None = None,
-    failure_rate_runs: int = 5,
+    failure_rate_runs: int = 20,
     on_progress: Callable[[ProgressEvent], None] | None = None,
     complement_order: str = "reverse",
 ) -> Reduction:
@@ -104,6 +113,16 @@ def reduce(
 
 
 Part = tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class _Step:
+    """An accepted world of the reduction (the original first), with the first attempt that was not used
+    to accept it (its fresh runs start there) and the trace of the failure it was accepted on."""
+
+    world: Candidate
+    fresh_from: int
+    trace: Trace | None
 
 
 @dataclass(frozen=True)
@@ -169,6 +188,13 @@ class _Engine:
             on_probe=lambda candidate, outcome: self.emit("probe", candidate=candidate, outcome=outcome),
         )
         self.steps: list[tuple[int, int]] = [(0, len(settings.elements))]
+        self.chain: list[_Step] = [_Step(settings.elements, 1, settings.reference)]
+        """The accepted worlds since the original (or since the last back-off's good world), in order."""
+        self.rates = RateChecker(self.prober, self.log, settings.elements, settings.failure_rate_runs, self.write)
+        self.rate_check: RateComparison | None = None
+        self.backoffs = 0
+        self.backoff_notes: list[str] = []
+        self.precondition_check: tuple[int, int] | None = None
         self.verifying = False
         self.calibration: tuple[int, int] | None = None
         if settings.executor is not None:
@@ -180,15 +206,9 @@ class _Engine:
         try:
             try:
                 self.write_start()
-                try:
-                    self.calibrate()
-                    one_minimal, incomplete = self.reduce_to_one_minimal(), None
-                except BudgetExhausted as exhausted:
-                    one_minimal, incomplete = False, exhausted.reason
-                if one_minimal and self.unverified:
-                    one_minimal = False
-                    incomplete = f"not verified: {plural(self.unverified, 'candidate')} errored"
-                failure_rate = self.measure_failure_rate()
+                one_minimal, incomplete = self.reduce_and_check()
+                failure_rate = self.final_rate()
+                self.check_without_precondition_kept()
             except KeyboardInterrupt as interrupt:
                 if isinstance(interrupt, ReductionInterrupted):
                     raise
@@ -203,21 +223,83 @@ class _Engine:
             if self.log is not None:
                 self.log.close()
 
+    def reduce_and_check(self) -> tuple[bool, str | None]:
+        """Reduce to a 1-minimal world, compare its failure rate with the original's and back off while it
+        is significantly lower; (1-minimal, incomplete reason)."""
+        try:
+            self.calibrate()
+            while True:
+                one_minimal = self.reduce_to_one_minimal()
+                if one_minimal and self.unverified:
+                    return False, f"not verified: {plural(self.unverified, 'candidate')} errored"
+                if len(self.chain) == 1:  # nothing removed: no comparison to make
+                    return one_minimal, None
+                self.rate_check = self.rates.compare(self.chain[-1].world, self.chain[-1].fresh_from)
+                if self.rate_check is None or self.rate_check.decision != "below" or self.backoffs >= MAX_BACKOFFS:
+                    return one_minimal, None
+                if not self.back_off():
+                    return one_minimal, None
+        except BudgetExhausted as exhausted:
+            return False, exhausted.reason
+
+    def back_off(self) -> bool:
+        """The minimal world fails significantly less often than the original: find (binary search over
+        the accepted worlds) the last one whose rate holds, reject every later one ("rate-below") and go on
+        reducing from it. False when the budget stopped the search."""
+        below = self.rate_check
+        assert below is not None
+        good, bad = 0, len(self.chain) - 1
+        while bad - good > 1:
+            middle = (good + bad) // 2
+            comparison = self.rates.compare(self.chain[middle].world, self.chain[middle].fresh_from)
+            if comparison is None or comparison.decision == "continue":
+                return False
+            good, bad = (middle, bad) if comparison.decision == "holds" else (good, middle)
+        rejected = self.chain[good + 1:]
+        for step in rejected:
+            outcomes = self.rates.record_of(step.world).values()
+            fails = sum(outcome is Outcome.FAIL for outcome in outcomes)
+            runs = sum(outcome is not Outcome.ERROR for outcome in outcomes)
+            self.cache[frozenset(step.world)] = Decision(reproduces=False, fails=fails, runs=runs)
+            self.context.history.append(Verdict(frozenset(step.world) - self.settings.keep, False))
+            self.write({"event": "rate-below", "candidate": list(step.world), "reproduces": False,
+                        "fails": fails, "runs": runs})
+        self.backoffs += 1
+        self.rate_check = None
+        back = self.chain[good]
+        del self.chain[good + 1:]
+        self.current = tuple(name for name in back.world if name not in self.settings.keep)
+        self.context.trace = back.trace
+        self.minimal_runs = back.fresh_from
+        self.granularity = min(self.settings.n_partitions, len(self.current))
+        self.carried = None
+        self.unverified = 0
+        self.steps.append((self.probes(), len(back.world)))
+        self.write({"event": "back-off", "candidate": list(back.world), "size": len(back.world),
+                    "probes": self.probes()})
+        self.backoff_notes.append(
+            f"back-off {self.backoffs}: a {len(rejected[-1].world)}-element minimal world failed significantly "
+            f"less often than the original ({below.describe()}); {plural(len(rejected), 'accepted world')} "
+            f"rejected for it, reduction resumed from {len(back.world)} elements")
+        self.emit("step", candidate=back.world)
+        return True
+
     def calibrate(self) -> None:
         """deflake="auto": measure the original world's failure rate (or read it from a resumed log) and
         size the deflake rule from it. Attempt 0 is the reference failure; these are attempts 1, 2, ..."""
         policy = self.settings.policy
-        if not isinstance(policy, CalibratedReruns):
+        if not isinstance(policy, CalibratedReruns) or not self.current:
             return
         known = self.log.calibration() if self.log is not None else None
         if known is None:
             original = self.settings.elements
             logged = self.log.measured("calibration", original) if self.log is not None else {}
+            into = self.rates.record_of(original)
             fails, runs = self.prober.measure(original, 1, policy.sure_runs, purpose="calibration", known=logged,
-                                              strict=True)
+                                              strict=True, into=into)
             if fails < runs:
                 more = self.prober.measure(original, 1 + runs, policy.runs - runs, purpose="calibration",
-                                           known=logged, strict=True)
+                                           known=logged, strict=True, into=into)
                 fails, runs = fails + more[0], runs + more[1]
             rule = policy.rule_for(fails, runs)
             self.write({"event": "calibration", "fails": fails, "runs": runs, "rule": rule.label})
@@ -311,7 +393,7 @@ class _Engine:
         """The probes the engine starts next if the current round (or verification pass) finds nothing:
         prefetched on idle workers (see prefetch.py). A guess: a schema error here is left to the real round."""
         if self.verifying or not self.current:
-            runs = self.settings.failure_rate_runs
+            runs = self.rates.looks[0] if self.rates.looks else 0
             return [(self.full(self.current), attempt) for attempt in range(self.minimal_runs, self.minimal_runs + runs)]
         if self.granularity >= len(self.current):
             return self.prober.planned(self.verify_trials())
@@ -353,6 +435,7 @@ class _Engine:
         if decision.trace is not None:
             self.context.trace = decision.trace
         self.minimal_runs = decision.runs
+        self.chain.append(_Step(trial.candidate, decision.runs, decision.trace))
         self.steps.append((self.probes(), len(trial.candidate)))
         self.write(
             {
@@ -365,15 +448,41 @@ class _Engine:
         )
         self.emit("step", candidate=trial.candidate)
 
-    def measure_failure_rate(self) -> tuple[int, int]:
-        runs = self.settings.failure_rate_runs
-        if runs == 0:
+    def final_rate(self) -> tuple[int, int]:
+        """(fails, runs) of the minimal world's fresh runs: those of the rate comparison, or (nothing was
+        removed, or the comparison is off) the original world's first look."""
+        if self.rate_check is not None:
+            rate = self.rate_check.reduced
+        elif self.rates.looks:
+            rate = self.rates.original_rate(self.rates.looks[0]) if len(self.chain) == 1 else self.rates.rate(
+                self.chain[-1].world, self.chain[-1].fresh_from, self.rates.looks[0])
+        else:
             return (0, 0)
         minimal = self.full(self.current)
-        logged = self.log.measured("failure-rate", minimal) if self.log is not None else {}
-        fails, runs = self.prober.measure(minimal, self.minimal_runs, runs, known=logged)
-        self.write({"event": "failure-rate", "candidate": list(minimal), "fails": fails, "runs": runs})
-        return fails, runs
+        self.write({"event": "failure-rate", "candidate": list(minimal), "fails": rate.fails, "runs": rate.runs})
+        return rate.fails, rate.runs
+
+    def precondition_kept(self) -> tuple[tuple[str, str], ...]:
+        """(element, reason) for each element of the minimal world whose removal a precondition refused
+        (it was not shown needed for the failure, only for the scenario to be valid)."""
+        kept: list[tuple[str, str]] = []
+        for name in self.current:
+            candidate = self.full(tuple(other for other in self.current if other != name))
+            reason = next((str(r) for check in self.prober.preconditions if (r := check(candidate)) is not None), None)
+            if reason is not None:
+                kept.append((name, reason))
+        return tuple(kept)
+
+    def check_without_precondition_kept(self) -> None:
+        """Cheap information: does the minimal world without its precondition-kept elements still fail?
+        A few runs (the first look), preconditions bypassed, within the budget."""
+        kept = {name for name, _ in self.precondition_kept()}
+        if not kept or not self.rates.looks or self.prober.budget.exhausted(self.prober.counters.started):
+            return
+        world = self.full(tuple(name for name in self.current if name not in kept))
+        rate = self.rates.rate(world, 0, min(3, self.rates.looks[0]))
+        self.precondition_check = (rate.fails, rate.runs)
+        self.write({"event": "precondition-check", "candidate": list(world), "fails": rate.fails, "runs": rate.runs})
 
     # -- helpers ------------------------------------------------------------------------------------------
 
@@ -418,7 +527,7 @@ class _Engine:
 
     def result(self, *, one_minimal: bool, incomplete: str | None, failure_rate: tuple[int, int]) -> Reduction:
         settings, counters = self.settings, self.prober.counters
-        notes = list(self.log.notes) if self.log is not None else []
+        notes = [*(self.log.notes if self.log is not None else []), *self.backoff_notes]
         if self.unverified:
             notes.append(
                 f"not verified: {plural(self.unverified, 'single removal')} of the minimal world rejected only "
@@ -448,6 +557,10 @@ class _Engine:
             resumed_probes=self.history,
             errored=len(counters.errored),
             notes=tuple(notes),
+            rate_check=self.rate_check,
+            rate_backoffs=self.backoffs,
+            precondition_kept=self.precondition_kept(),
+            without_precondition_kept=self.precondition_check,
         )
 
     def write_start(self) -> None:
@@ -492,6 +605,8 @@ class _Engine:
                 "one_minimal": reduction.one_minimal,
                 "incomplete_reason": reduction.incomplete_reason,
                 "failure_rate": list(reduction.failure_rate),
+                "rate_check": None if reduction.rate_check is None else reduction.rate_check.decision,
+                "rate_backoffs": reduction.rate_backoffs,
                 "wall_time": reduction.wall_time,
             }
         )

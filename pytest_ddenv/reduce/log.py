@@ -166,7 +166,8 @@ class ProbeLog:
         on ERROR runs (``errored``) are not verdicts and are left out."""
         decided: dict[frozenset[str], Decision] = {}
         for record in self.records:
-            if record.get("event") in ("accept", "reject", "cache-hit") and not record.get("errored", False):
+            if (record.get("event") in ("accept", "reject", "cache-hit", "rate-below")
+                    and not record.get("errored", False)):
                 decided[frozenset(record["candidate"])] = Decision(
                     reproduces=bool(record["reproduces"]), fails=int(record["fails"]), runs=int(record["runs"])
                 )

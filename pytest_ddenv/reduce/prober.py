@@ -182,6 +182,8 @@ class Prober:
         self.preconditions = preconditions
         self.cache = cache
         self.preloaded = preloaded
+        self._left_open: dict[frozenset[str], _Open] = {}
+        """Candidates a round left undecided, with their runs so far (see _keep_undecided)."""
         self.budget = budget
         self.executor = executor
         self.log = log
@@ -279,6 +281,7 @@ class Prober:
                     self._finish(state, attempt, future)
             for future, (state, attempt) in futures.items():
                 self.prefetch.adopt(state.trial.candidate, attempt, future)
+            self._keep_undecided(statuses)
         answer = resolution[1]
         last = len(statuses) - 1 if answer is None else answer
         for trial, status in zip(trials[: last + 1], statuses[: last + 1], strict=True):
@@ -399,6 +402,13 @@ class Prober:
                 self.prefetch.keep(state.trial.candidate, later, observation)
             state.early.clear()
 
+    def _keep_undecided(self, statuses: Sequence[str | Decision | _Open]) -> None:
+        """Candidates the round left undecided keep their runs (outcomes, trace, early results), so a later
+        round that needs one again (after a back-off, say) goes on from them instead of simulating again."""
+        for status in statuses:
+            if isinstance(status, _Open) and status.decision is None and (status.outcomes or status.early):
+                self._left_open[frozenset(status.trial.candidate)] = status
+
     @staticmethod
     def _resolve(statuses: Sequence[str | Decision | _Open]) -> tuple[bool, int | None]:
         """(known, index): is the round's answer known yet, and the first reproducing index (or None)."""
@@ -423,11 +433,13 @@ class Prober:
         *,
         known: dict[int, Outcome] | None = None,
         strict: bool = False,
+        into: dict[int, Outcome] | None = None,
     ) -> tuple[int, int]:
         """(fails, runs) over attempts first_attempt .. first_attempt+runs-1, logged with `purpose`
         ("failure-rate" or "calibration"). Attempts in `known` (logged by an earlier run) are not simulated
         again. The budget applies: when it runs out, fewer runs are counted, or with `strict`,
-        BudgetExhausted is raised. Calibration runs count as decided probes."""
+        BudgetExhausted is raised. Calibration runs count as decided probes. `into`, when given, receives
+        attempt -> outcome of every attempt counted (known ones included)."""
         attempts = list(range(first_attempt, first_attempt + runs))
         known = known or {}
         fails = done = 0
@@ -481,6 +493,8 @@ class Prober:
                 outcome = observation.outcome
             else:
                 continue
+            if into is not None:
+                into[attempt] = outcome
             fails += outcome is Outcome.FAIL
             done += 1
         if exhausted is not None and strict:
@@ -501,6 +515,11 @@ class Prober:
             return known
         if key in self.errored:
             return self.errored[key]
+        earlier = self._left_open.get(key)
+        if earlier is not None:  # running attempts were handed to the prefetch store, which gives them back
+            done = len(earlier.outcomes)
+            early = {attempt: result for attempt, result in earlier.early.items() if attempt >= done}
+            return _Open(trial, list(earlier.outcomes), earlier.trace, early=early)
         return _Open(trial, list(self.preloaded.get(key, ())))
 
     def errored_among(self, trials: Sequence[Trial]) -> list[Trial]:

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.outcome import Outcome
+from pytest_ddenv.reduce.rates import RateComparison
 
 FloatArray = NDArray[np.float64]
 Candidate = tuple[str, ...]
@@ -187,7 +188,8 @@ class Reduction:
     errored" (the minimal world is 1-minimal only if those N single removals, rejected on ERROR runs alone,
     do not reproduce f; a resumed reduction tries them again)."""
     failure_rate: tuple[int, int]
-    """(fails, runs) of `minimal` over `failure_rate_runs` extra attempts."""
+    """(fails, runs) of `minimal` on fresh attempts (after those it was accepted on): the rate comparison's
+    runs (at most `failure_rate_runs`)."""
     wall_time: float
     partition: str
     priority: str
@@ -207,6 +209,31 @@ class Reduction:
     """Distinct candidates rejected on ERROR runs alone (see `Decision.errored`), retried once at the end."""
     notes: tuple[str, ...] = ()
     """What the reduction wants its reader to know (a torn log line cut off, a candidate that errored)."""
+    rate_check: RateComparison | None = None
+    """The minimal world's failure rate on fresh runs compared with the original's (rates.py): "holds",
+    "below" (significantly lower, after `rate_backoffs` back-offs), or "continue" (the budget stopped the
+    comparison). None when nothing was removed or `failure_rate_runs` is 0."""
+    rate_backoffs: int = 0
+    """How many times the reduction backed off from a minimal world whose rate was significantly lower."""
+    precondition_kept: tuple[tuple[str, str], ...] = ()
+    """(element, reason): elements of `minimal` whose removal a precondition refused; they were not shown
+    needed for the failure, only for the scenario to be valid."""
+    without_precondition_kept: tuple[int, int] | None = None
+    """(fails, runs) of `minimal` without the `precondition_kept` elements (preconditions bypassed, a few
+    runs): information, not part of the verdict."""
+
+    @property
+    def original_failure_rate(self) -> tuple[int, int] | None:
+        """(fails, runs) of the original world's fresh runs: the rate comparison's, else the calibration's."""
+        if self.rate_check is not None:
+            return (self.rate_check.original.fails, self.rate_check.original.runs)
+        return self.calibration
+
+    @property
+    def needed(self) -> Candidate:
+        """The elements of `minimal` shown needed for the failure (not kept by `keep` or a precondition)."""
+        other = set(self.kept) | {name for name, _ in self.precondition_kept}
+        return tuple(name for name in self.minimal if name not in other)
 
     @property
     def original_size(self) -> int:

@@ -33,9 +33,10 @@ def test_every_probe_and_decision_is_a_json_line(tmp_path: Path) -> None:
     records = read_lines(path)
     events = [record["event"] for record in records]
     assert events[0] == "start" and events[-1] == "end"
-    assert {"round", "probe", "accept", "reject", "step", "failure-rate"} <= set(events)
+    assert {"round", "probe", "accept", "reject", "step", "rate-check", "failure-rate"} <= set(events)
     probes = [record for record in records if record["event"] == "probe"]
-    assert len(probes) == result.probes + result.failure_rate[1] == len(oracle.calls)
+    fresh = [record for record in probes if record["purpose"] == "failure-rate"]
+    assert len(probes) == result.probes + len(fresh) == len(oracle.calls) == result.simulations
     for record in probes:
         assert set(record) >= {"candidate", "attempt", "seed", "outcome", "signature", "sim_time", "wall_time"}
         assert record["seed"] == record["attempt"]
@@ -110,7 +111,7 @@ def test_resume_after_an_interrupt(tmp_path: Path) -> None:
     oracle = SetOracle(CULPRITS)
     result = reduce(names(30), oracle, log=ProbeLog.load(path), deflake=0)
     assert set(result.minimal) == CULPRITS
-    assert len(oracle.calls) + 8 == reduce(names(30), SetOracle(CULPRITS), deflake=0).probes + 5
+    assert len(oracle.calls) + 8 == reduce(names(30), SetOracle(CULPRITS), deflake=0).simulations
 
 
 def test_a_log_of_another_world_is_refused(tmp_path: Path) -> None:

@@ -54,11 +54,15 @@ def test_a_probe_budget_gives_the_best_world_so_far(budget: int) -> None:
 
 def test_the_budget_covers_the_failure_rate_and_calibration_runs() -> None:
     complete = reduce(names(64), SetOracle(CULPRITS), deflake="auto", failure_rate_runs=5)
-    assert complete.one_minimal and complete.simulations == complete.probes + 5
+    assert complete.one_minimal and complete.calibration == (3, 3) and complete.rate_check is not None
+    assert complete.rate_check.decision == "holds" and complete.failure_rate == (5, 5)
+    # 5 fresh runs of the minimal world, and the original's 3 calibration runs topped up to 5
+    assert complete.simulations == complete.probes + 5 + 2
     oracle = SetOracle(CULPRITS)
     result = reduce(names(64), oracle, max_probes=complete.probes + 2, deflake="auto", failure_rate_runs=5)
     assert result.one_minimal and result.minimal == complete.minimal and result.incomplete_reason is None
     assert result.failure_rate == (2, 2), "measured with what the budget left"
+    assert result.rate_check is not None and result.rate_check.decision == "continue", "no verdict on 2 runs"
     assert len(oracle.calls) == result.simulations == complete.probes + 2
     early = reduce(names(64), SetOracle(CULPRITS), max_probes=2, deflake="auto")
     assert early.incomplete_reason == "budget: max_probes" and early.simulations == 2
@@ -163,10 +167,15 @@ def test_preconditions_skip_candidates_without_probing() -> None:
 
     oracle = SetOracle(CULPRITS)
     result = reduce(names(24), oracle, preconditions=[needs_ground], deflake=0)
-    assert all(ground in candidate for candidate, _ in oracle.calls)
+    without_ground = [(candidate, attempt) for candidate, attempt in oracle.calls if ground not in candidate]
+    assert without_ground == [(tuple(sorted(CULPRITS)), attempt) for attempt in range(3)], (
+        "only the check of the minimal world without what a precondition kept")
     assert result.skipped > 0
     assert set(result.minimal) == CULPRITS | {ground}
     assert result.one_minimal, "1-minimal relative to the preconditions"
+    assert result.precondition_kept == ((ground, "the robot spawns on m0000"),)
+    assert set(result.needed) == CULPRITS
+    assert result.without_precondition_kept == (3, 3), "the failure reproduces without the ground too"
 
 
 def test_keep_elements_stay_in_every_candidate() -> None:

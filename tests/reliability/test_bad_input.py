@@ -180,6 +180,8 @@ CASES: dict[str, Case] = {
     "cli-out-file": ddenv("reduce", "yard.yaml", "-p", "stuck", "--out", "notes.txt",
                           files={"yard.yaml": YARD, "notes.txt": "taken"}),
     "cli-max-time": ddenv("reduce", "yard.yaml", "-p", "stuck", "--max-time", "nan", files={"yard.yaml": YARD}),
+    "cli-probe-timeout": ddenv("reduce", "yard.yaml", "-p", "stuck", "--probe-timeout", "0",
+                               files={"yard.yaml": YARD}),
     "cli-executor": ddenv("reduce", "yard.yaml", "-p", "stuck", "--executor", "tcp://scheduler",
                           files={"yard.yaml": YARD}),
     "cli-start": ddenv("run", "yard.yaml", "--start", "1,nan", files={"yard.yaml": YARD}),
@@ -190,6 +192,7 @@ CASES: dict[str, Case] = {
     "cli-predicate": ddenv("run", "yard.yaml", "-p", "wobbly", files={"yard.yaml": YARD}),
     # pytest options and ini settings
     "max-time-nan": run_pytest("--ddenv-max-time", "nan"),
+    "probe-timeout-word": run_pytest("--ddenv-probe-timeout", "soon"),
     "max-time-inf": run_pytest("--ddenv-max-time", "inf"),
     "max-time-negative": run_pytest("--ddenv-max-time=-5"),
     "ini-bool": run_pytest(files={"pytest.ini": "[pytest]\nddenv_reduce = maybe\n"}),

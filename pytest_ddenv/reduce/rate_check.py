@@ -1,0 +1,94 @@
+"""The end of a reduction: does the reduced world still fail as often as the original?
+
+Both worlds are run on fresh attempts (the original's after its reference run, a reduced world's after the
+runs it was accepted on: runs selected for failing are never counted) and compared look by look with
+`rates.compare` (a one-sided group-sequential Fisher test, see rates.py and docs/algorithm.md). Every run is
+logged with purpose "failure-rate", so a resumed reduction reuses them; the original world's calibration
+runs (deflake="auto") count as its first fresh runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
+from pytest_ddenv.reduce.log import ProbeLog
+from pytest_ddenv.reduce.prober import Prober
+from pytest_ddenv.reduce.rates import LOOKS, Rate, RateComparison, compare
+from pytest_ddenv.reduce.types import Candidate, Outcome
+
+
+def looks_up_to(max_runs: int) -> tuple[int, ...]:
+    """The looks of a comparison that runs each world at most `max_runs` times: LOOKS below it, then it."""
+    return (*(look for look in LOOKS if look < max_runs), max_runs) if max_runs > 0 else ()
+
+
+class RateChecker:
+    """Runs worlds on fresh attempts and compares each with the original world (whose runs are shared)."""
+
+    def __init__(self, prober: Prober, log: ProbeLog | None, original: Candidate, max_runs: int,
+                 write: Callable[[dict[str, Any]], None]) -> None:
+        self.prober = prober
+        self.log = log
+        self.original = original
+        self.looks = looks_up_to(max_runs)
+        self.write = write
+        self.outcomes: dict[frozenset[str], dict[int, Outcome]] = {}
+        """world -> attempt -> outcome of its fresh runs so far (ERROR runs included; they are not counted)."""
+
+    def record_of(self, world: Candidate) -> dict[int, Outcome]:
+        """The outcomes of `world`'s fresh runs, to be filled by Prober.measure(into=...)."""
+        return self.outcomes.setdefault(frozenset(world), {})
+
+    def rate(self, world: Candidate, first: int, target: int) -> Rate:
+        """`world`'s failures among `target` fresh runs (attempts from `first`; an ERROR run is replaced by
+        one more attempt, once); fewer runs when the budget runs out."""
+        outcomes = self.record_of(world)
+        end = first + target
+        for _ in range(2):
+            known = {**self._logged(world), **outcomes}
+            self.prober.measure(world, first, end - first, known=known, into=outcomes)
+            present = [outcome for attempt, outcome in outcomes.items() if first <= attempt < end]
+            counted = [outcome for outcome in present if outcome is not Outcome.ERROR]
+            if len(counted) >= target or len(present) < end - first:
+                break
+            end += target - len(counted)
+        counted = [o for a, o in outcomes.items() if first <= a < end and o is not Outcome.ERROR][:target]
+        return Rate(sum(outcome is Outcome.FAIL for outcome in counted), len(counted))
+
+    def original_rate(self, target: int) -> Rate:
+        return self.rate(self.original, 1, target)
+
+    def compare(self, world: Candidate, first: int) -> RateComparison | None:
+        """Compare `world` (fresh attempts from `first`) with the original, look by look; None when the
+        comparison is switched off (max_runs 0). The decision is "continue" when the budget stopped it.
+        Logged as a "rate-check" record."""
+        comparison: RateComparison | None = None
+        for look in self.looks:
+            reduced = self.rate(world, first, look)  # the reduced world first: its rate is the one reported
+            original = self.original_rate(look)
+            comparison = compare(original, reduced, self.looks)
+            if reduced.runs < look or original.runs < look:  # the budget ran out: no verdict on so few runs
+                comparison = replace(comparison, decision="continue")
+                break
+            if comparison.decision != "continue":
+                break
+        if comparison is not None:
+            self.write({
+                "event": "rate-check",
+                "candidate": list(world),
+                "original": [comparison.original.fails, comparison.original.runs],
+                "reduced": [comparison.reduced.fails, comparison.reduced.runs],
+                "p_value": comparison.p_value,
+                "decision": comparison.decision,
+            })
+        return comparison
+
+    def _logged(self, world: Candidate) -> dict[int, Outcome]:
+        if self.log is None:
+            return {}
+        logged = self.log.measured("failure-rate", world)
+        if frozenset(world) == frozenset(self.original):
+            logged = {**self.log.measured("calibration", world), **logged}
+        return logged

@@ -1,0 +1,77 @@
+"""The text of a reduction's result, the same in the pytest report and in `ddenv reduce`'s output."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from pytest_ddenv.reduce.types import Reduction
+
+
+def status_of(reduction: Reduction) -> str:
+    return "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
+
+
+def listing(names: Sequence[str], limit: int = 12) -> str:
+    if not names:
+        return "(none)"
+    shown = ", ".join(names[:limit])
+    return shown if len(names) <= limit else f"{shown}, ... and {len(names) - limit} more (see summary.json)"
+
+
+def result_lines(reduction: Reduction, summary: dict[str, Any], notes: Sequence[str]) -> list[str]:
+    """From the minimal world to the notes: what was kept and why, what it cost, how often it fails."""
+    removed = summary["removed_models"]
+    earlier = f" ({reduction.resumed_probes} in earlier runs)" if reduction.resumed_probes else ""
+    return [
+        f"minimal world: {', '.join(reduction.minimal) or '(no models)'}",
+        *needed_lines(reduction),
+        f"removed ({len(removed)}): {listing(removed)}",
+        (f"probes: {reduction.probes} decided{earlier}, {reduction.cache_hits} from cache, "
+         f"{reduction.skipped} skipped, {reduction.errors} errors; {reduction.wall_time:.1f} s"),
+        (f"simulations run: {summary.get('simulations', reduction.simulations)} (confirmation, fresh-run, "
+         f"speculative and picture runs included; {summary.get('cpu_seconds', 0.0):.1f} s of worker CPU)"),
+        f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
+        failure_rate_line(reduction),
+        *(f"note: {text}" for text in notes),
+        *(f"not simulated: {text}" for text in summary.get("world_notes", [])),
+    ]
+
+
+def failure_rate_line(reduction: Reduction) -> str:
+    """How often the minimal world fails on fresh runs, compared with the original world (rates.py), with a
+    warning when it is significantly lower, when the budget stopped the comparison, or when it rarely fails."""
+    fails, runs = reduction.failure_rate
+    check = reduction.rate_check
+    if runs == 0:
+        stopped = (reduction.incomplete_reason or "").startswith("budget") or (
+            check is not None and check.decision == "continue")
+        return f"minimal world's failure rate: not measured{' (the budget ran out)' if stopped else ''}"
+    if check is not None and check.decision == "continue":
+        return (f"minimal world fails {check.reduced} fresh runs vs the original's {check.original}: undecided, "
+                "the budget stopped the rate comparison (warning: the rate is not checked)")
+    if check is not None:
+        line = f"minimal world {check.describe()}"
+        if check.decision == "below":
+            line += f" (warning: it fails less often than the original, after {reduction.rate_backoffs} back-offs)"
+        return line
+    line = f"minimal world fails {fails}/{runs} fresh runs"
+    original = reduction.original_failure_rate
+    if original is not None:
+        line += f" (original world: {original[0]}/{original[1]})"
+    if fails * 2 < runs:
+        line += " (warning: it rarely reproduces the failure)"
+    return line
+
+
+def needed_lines(reduction: Reduction) -> list[str]:
+    """"needed for the failure" apart from "kept by a precondition" (and the check without the latter)."""
+    if not reduction.precondition_kept:
+        return []
+    kept = ", ".join(f"{name} ({reason})" for name, reason in reduction.precondition_kept)
+    lines = [f"needed for the failure: {', '.join(reduction.needed) or '(no models)'}",
+             f"kept by a precondition, not shown needed: {kept}"]
+    if reduction.without_precondition_kept is not None:
+        fails, runs = reduction.without_precondition_kept
+        lines.append(f"without them (precondition bypassed) the failure reproduced in {fails}/{runs} runs")
+    return lines
