@@ -56,3 +56,65 @@ def test_bad_arguments_are_refused() -> None:
     with pytest.raises(ValueError, match="increasing"):
         compare(Rate(1, 1), Rate(1, 1), looks=(10, 5))
     assert next_look(0) == 5 and next_look(5) == 10 and next_look(20) == 0
+
+
+# -- in the engine: a minimal world that fails rarely is caught, the reduction backs off -----------------
+
+
+def rare_without_b(salt: int):  # type: ignore[no-untyped-def]
+    """f always with both 'a' and 'b'; with 'a' alone f only 30 % of the runs (a lucky deflake rule accepts it)."""
+    from pytest_ddenv.reduce import Observation, Outcome
+
+    from .conftest import uniform
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        present = set(candidate)
+        fails = {"a", "b"} <= present or ("a" in present and uniform(candidate, attempt, salt) < 0.3)
+        return Observation(Outcome.FAIL if fails else Outcome.PASS, signature={"kind": "stuck"}, seed=attempt)
+
+    return probe
+
+
+ELEMENTS = ("a", "b", "c", "d", "e", "f")
+
+
+def test_a_rarely_failing_minimal_world_is_backed_off_from(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from pytest_ddenv.reduce import ProbeLog, reduce
+
+    # deflake=3 accepts {'a'} (30 % per run, 4 runs) about three times in four: find a salt where it does
+    for salt in range(20):
+        log = tmp_path / f"runs-{salt}.jsonl"
+        result = reduce(ELEMENTS, rare_without_b(salt), deflake=3, partition="even", priority="sequential",
+                        log=log)
+        if result.rate_backoffs:
+            break
+    else:
+        pytest.fail("deflake=3 never accepted the rarely failing world")
+    assert result.minimal == ("a", "b") and result.one_minimal
+    assert result.rate_check is not None and result.rate_check.decision == "holds"
+    assert any(note.startswith("back-off 1: a 1-element minimal world failed significantly less often")
+               for note in result.notes)
+    events = [line for line in log.read_text().splitlines() if '"rate-below"' in line or '"back-off"' in line]
+    assert any('"candidate": ["a"]' in line and '"rate-below"' in line for line in events)
+    # resumed from its log: the rejection holds, nothing decided is simulated again
+    calls: list[tuple[tuple[str, ...], int]] = []
+    probe = rare_without_b(salt)
+
+    def counting(candidate: tuple[str, ...], attempt: int):  # type: ignore[no-untyped-def]
+        calls.append((candidate, attempt))
+        return probe(candidate, attempt)
+
+    again = reduce(ELEMENTS, counting, deflake=3, partition="even", priority="sequential", log=ProbeLog.load(log))
+    assert again.minimal == ("a", "b") and again.rate_backoffs == 0 and calls == []
+
+
+def test_the_budget_stopping_the_comparison_is_reported() -> None:
+    from pytest_ddenv.reduce import reduce
+
+    from .conftest import SetOracle
+
+    full = reduce(ELEMENTS, SetOracle(frozenset({"a"})), deflake=0, partition="even", priority="sequential")
+    short = reduce(ELEMENTS, SetOracle(frozenset({"a"})), deflake=0, partition="even", priority="sequential",
+                   max_probes=full.probes + 3)
+    assert short.minimal == ("a",) and short.rate_check is not None and short.rate_check.decision == "continue"
+    assert short.simulations == full.probes + 3
