@@ -54,7 +54,7 @@ class RateChecker:
             if len(counted) >= target or len(present) < end - first:
                 break
             end += target - len(counted)
-        counted = [o for a, o in outcomes.items() if first <= a < end and o is not Outcome.ERROR][:target]
+        counted = [o for a, o in sorted(outcomes.items()) if first <= a < end and o is not Outcome.ERROR][:target]
         return Rate(sum(outcome is Outcome.FAIL for outcome in counted), len(counted))
 
     def original_rate(self, target: int) -> Rate:
