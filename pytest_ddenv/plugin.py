@@ -421,16 +421,6 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
     from pytest_ddenv.reduction_session import ReductionSession
 
-    class Session(ReductionSession):
-        """Hands each engine event to the progress line too (a CI log needs to know which are steps)."""
-
-        def _on_progress(self, event: ProgressEvent) -> None:
-            progress.event = event
-            try:
-                super()._on_progress(event)
-            finally:
-                progress.event = None
-
     spec, _ = item.stash.get(_spec_key, (ReductionSpec(), ()))
     deflake = _setting(item.config, "ddenv_deflake")
     spec = dataclasses.replace(
@@ -440,7 +430,7 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
         max_seconds=_seconds_setting(item.config, "ddenv_max_time") or spec.max_seconds,
     )
     progress = _ProgressLine(item.config)
-    session = Session(
+    session = ReductionSession(
         item=item,
         error=error,
         spec=spec,
@@ -511,8 +501,6 @@ class _ProgressLine:
         self.capture = config.pluginmanager.getplugin("capturemanager")
         self.verbose = config.get_verbosity() > 0
         self.started = time.monotonic()
-        self.event: ProgressEvent | None = None
-        """The engine event the next call words (set around each call by the plugin's session)."""
         self.silent = self.reporter is None or hasattr(config, "workerinput")
         self.live = not self.silent and bool(self.reporter.isatty)
         self.log = None if self.silent or self.live else config.stash.get(_log_key, None)
@@ -524,10 +512,11 @@ class _ProgressLine:
                 self.reporter.flush()
             self.heartbeat.start()
 
-    def __call__(self, text: str, *, final: bool = False, probe_line: str | None = None) -> None:
+    def __call__(self, text: str, *, final: bool = False, probe_line: str | None = None,
+                 event: ProgressEvent | None = None) -> None:
+        """`event`: the engine event this line words, if any (a CI log needs to know which are steps)."""
         if self.silent:
             return
-        event, self.event = self.event, None
         elapsed = time.monotonic() - self.started
         line = f"ddenv: {text}" if final else f"ddenv: {text}, {elapsed:.0f} s"
         with self.heartbeat.lock:

@@ -78,7 +78,8 @@ class ReductionSession:
         probe_line = None
         if event.kind == "probe" and event.candidate is not None and event.outcome is not None:
             probe_line = f"probe {event.probes}: {len(event.candidate)} models -> {event.outcome.value}"
-        self.progress(f"reducing {self.item.name}: {event.size} models, {event.probes} probes", probe_line=probe_line)
+        self.progress(f"reducing {self.item.name}: {event.size} models, {event.probes} probes", probe_line=probe_line,
+                      event=event)
 
     def _describe(self, outcome: ReductionOutcome) -> dict[str, Any]:
         if outcome.status != "reduced":
