@@ -20,12 +20,15 @@ import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Self
+from typing import TYPE_CHECKING, Any, Self
 
-from pytest_ddenv.errors import ReductionError
+from pytest_ddenv.errors import DdenvError, ReductionError
 from pytest_ddenv.reduce import Reduction
 from pytest_ddenv.reduce.log import LOG_FORMAT, sync_directory, write_failure
 from pytest_ddenv.world import World
+
+if TYPE_CHECKING:
+    from pytest_ddenv.stages import StagesOutcome
 
 try:
     import fcntl
@@ -105,6 +108,14 @@ class ArtifactPaths:
     @property
     def summary(self) -> Path:
         return self.directory / "summary.json"
+
+    @property
+    def simplified_yaml(self) -> Path:
+        return self.directory / "simplified.yaml"
+
+    @property
+    def passing_yaml(self) -> Path:
+        return self.directory / "passing.yaml"
 
     @property
     def reduction_png(self) -> Path:
@@ -315,6 +326,30 @@ def write_reduction(
     summary.update(extra or {})
     write_text_atomic(paths.summary, json.dumps(summary, indent=2) + "\n")
     return summary
+
+
+def write_stage_worlds(paths: ArtifactPaths, staged: StagesOutcome) -> dict[str, str]:
+    """`simplified.yaml` (the world after the stages that change it, when they did) and `passing.yaml` (the
+    nearest passing world, when found), each with an `.sdf` beside it when the world can be written as SDF;
+    returns {file key: path}. Files of an earlier run that this one did not find are removed."""
+    files: dict[str, str] = {}
+    for key, path, world in (("simplified", paths.simplified_yaml, staged.final if staged.changed else None),
+                             ("passing", paths.passing_yaml, staged.passing)):
+        sdf = path.with_suffix(".sdf")
+        if world is None:
+            for stale in (path, sdf):
+                stale.unlink(missing_ok=True)
+            continue
+        write_text_atomic(path, world.to_yaml(relative_to=paths.directory))
+        files[f"{key}_yaml"] = str(path)
+        try:
+            text = world.to_sdf()
+        except DdenvError:  # a world SDF cannot say (a robot given as a URDF description): YAML only
+            sdf.unlink(missing_ok=True)
+            continue
+        write_text_atomic(sdf, text)
+        files[f"{key}_sdf"] = str(sdf)
+    return files
 
 
 def write_progress(paths: ArtifactPaths, world: World, best: Sequence[str], *, test_id: str, problem_fingerprint: str,

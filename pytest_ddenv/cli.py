@@ -88,6 +88,15 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _stages(text: str) -> tuple[str, ...]:
+    from pytest_ddenv.stages import StagesError, parse_stages
+
+    try:
+        return parse_stages(text)
+    except StagesError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def _probe_timeout(text: str) -> float | str:
     """--probe-timeout: seconds, 'auto' or 'none'."""
     if text.strip().lower() in ("auto", "none"):
@@ -268,6 +277,12 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     add_world_options(reduce)
     reduce.add_argument("--max-probes", type=_positive_int, metavar="N", help="stop after N simulations")
     reduce.add_argument("--max-time", type=_positive_float, metavar="S", help="stop after S wall seconds")
+    reduce.add_argument("--stages", type=_stages, default=None, metavar="LIST",
+                        help="what to do after the model-level reduction, comma-separated: models (always), shapes, "
+                             "attributes, time, explain, passing, or 'all' (default: models,explain,passing)")
+    reduce.add_argument("--stage-probes", type=_positive_int, metavar="N",
+                        help="simulations each stage after the models may start (default: all of them together "
+                             "at most twice the model-level probes)")
     reduce.add_argument("--probe-timeout", type=_probe_timeout, metavar="S",
                         help="wall-clock limit of one probe: S seconds, 'auto' (max(60 s, 10 x the longest of the "
                              "original run and the slowest probe)) or 'none'; a probe past it is an error, not a "
@@ -640,6 +655,7 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
         ReductionSpec(), partition=arguments.partition, priority=priority, n_partitions=arguments.n_partitions,
         granularity=arguments.granularity, deflake=deflake, tolerance=arguments.tolerance, keep=keep,
         seed=arguments.seed, max_probes=arguments.max_probes, max_seconds=arguments.max_time,
+        stages=arguments.stages, stage_probes=arguments.stage_probes,
     )
     folder = _artifacts_folder(arguments)
     command = "ddenv " + " ".join(shlex.quote(a) for a in _command_line(arguments))

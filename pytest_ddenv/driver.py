@@ -45,6 +45,16 @@ from pytest_ddenv.reduce import (
     reduce,
 )
 from pytest_ddenv.reduce.deflake import make_policy
+from pytest_ddenv.reduce.types import Probe
+from pytest_ddenv.stages import (
+    DEFAULT_STAGES,
+    Budget,
+    StageContext,
+    StagesOutcome,
+    run_stages,
+    stage_budget,
+    stage_policy,
+)
 
 if TYPE_CHECKING:
     from pytest_ddenv.sim import Run
@@ -52,8 +62,9 @@ if TYPE_CHECKING:
 
 TRAJECTORY_PARTITIONS = ("timeseg", "trajectoryseg")
 TRAJECTORY_PRIORITIES = ("failure-proximal", "avg-trajectory-proximal", "min-trajectory-proximal", "timestep")
-BUDGETS = ("max_probes", "max_seconds")
-"""Settings that do not change the problem: a run with another budget resumes the same log."""
+BUDGETS = ("max_probes", "max_seconds", "stages", "stage_probes")
+"""Settings that do not change the problem: a run with another budget (or other stages after the models)
+resumes the same log."""
 AUTO_CONFIRMATIONS = 4
 """Runs that may confirm the failure with deflake="auto"/"adaptive" (1 + the paper's default 3 re-runs)."""
 
@@ -95,6 +106,7 @@ class ReductionOutcome:
     notes: list[str] = field(default_factory=list)
     interrupted: ReductionInterrupted | None = None
     minimal_run: Run | None = None
+    stages: StagesOutcome | None = None
 
 
 Note = Callable[[str], None]
@@ -182,7 +194,7 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
         log.write({"event": "usage", "simulations": stats.simulations, "cpu_seconds": round(stats.cpu_seconds, 6),
                    "final": final})
 
-    best = _last_step(log.records) or world.names
+    best = _last_step(log.own_records()) or world.names
     fresh = log.started_with() is None
 
     def progress(event: ProgressEvent) -> None:
@@ -229,6 +241,17 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
         minimal_run = calls.run_of(reduction.minimal, world, plan.reference_run)
         if minimal_run is None and calls.may_start(spec.max_probes):
             minimal_run = _minimal_run(calls, log, world.select(reduction.minimal))
+    staged: StagesOutcome | None = None
+    if interrupted is None and len(spec.stages or DEFAULT_STAGES) > 1 and reduction.minimal:
+        try:
+            staged = _run_stages(plan, pool, reduction, calls, log, paths, minimal_run)
+        except KeyboardInterrupt as stop:
+            pool.close()
+            interrupted = ReductionInterrupted(reduction)
+            interrupted.__cause__ = stop
+        if staged is not None:
+            extra["stages"] = staged.to_dict()
+            extra["stage_files"] = artifacts.write_stage_worlds(paths, staged)
     usage(final=True)
     summary = artifacts.write_reduction(
         paths, world, reduction, model_paths=plan.model_paths,
@@ -238,7 +261,9 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
     )
     outcome = ReductionOutcome("reduced", reduction=reduction, summary=summary, notes=notes,
                                attachments=[paths.minimal_yaml, paths.log, paths.summary], interrupted=interrupted,
-                               minimal_run=minimal_run)
+                               minimal_run=minimal_run, stages=staged)
+    if staged is not None:
+        outcome.attachments += [Path(path) for path in extra["stage_files"].values()]
     if interrupted is None:
         outcome.attachments += _pictures(world, reduction, paths, plan.reference_run, minimal_run)
     outcome.attachments = [path for path in outcome.attachments if path.exists()]
@@ -246,6 +271,41 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
         interrupted.outcome = outcome  # type: ignore[attr-defined]
         raise interrupted
     return outcome
+
+
+def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _Calls, log: ProbeLog,
+                paths: artifacts.ArtifactPaths, minimal_run: Run | None) -> StagesOutcome:
+    """The stages after the models (`spec.stages`), from the minimal world, within their budget."""
+    spec = plan.spec
+    left = None if spec.max_probes is None else max(0, spec.max_probes - calls.started)
+    logged = sum(1 for record in log.own_records() if record.get("event") == "probe")  # resumed runs too
+    model_cost = max(logged, pool.stats.simulations)  # speculative runs cancelled unlogged count too
+    limit, per_stage = stage_budget(model_cost, spec.stage_probes, left)
+    started = calls.started
+    policy = stage_policy(make_policy(spec.deflake, 0.95), reduction)
+    threads = concurrent.futures.ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-stage") if pool.size > 1 else None
+
+    def wrap(inner: Probe) -> Probe:
+        def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
+            calls.local.cancelled = False
+            observation = inner(candidate, attempt)
+            if calls.local.cancelled:
+                raise ProbeCancelled("budget: max_seconds")
+            return observation
+
+        return probe
+
+    context = StageContext(
+        base=plan.world.select(reduction.minimal), call=calls, reference=plan.reference, tolerance=spec.tolerance,
+        log=log, policy=policy, seed=spec.seed, budget=Budget(limit, lambda: calls.started, started, per_stage),
+        executor=threads, wrap=wrap,
+    )
+    try:
+        return run_stages(spec.stages or DEFAULT_STAGES, context, reduction, minimal_run=minimal_run,
+                          folder=paths.directory, log_only=spec.stages is None)
+    finally:
+        if threads is not None:
+            threads.shutdown(wait=False, cancel_futures=True)
 
 
 class _Calls:

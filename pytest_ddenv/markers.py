@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 
 DDENV_KEYWORDS = (
     "world", "partition", "priority", "n_partitions", "granularity", "deflake", "tolerance", "keep", "seed", "budget",
-    "skip_unsupported",
+    "skip_unsupported", "stages",
 )
 
 
@@ -42,6 +42,12 @@ class ReductionSpec:
     max_probes: int | None = None
     max_seconds: float | None = None
     skip_unsupported: bool = False
+    stages: tuple[str, ...] | None = None
+    """The model-level reduction and the stages after it that are on (None: not given, the default
+    `pytest_ddenv.stages.DEFAULT_STAGES`)."""
+    stage_probes: int | None = None
+    """Simulations each stage after the models may start (None: all of them together at most twice the
+    model-level probes)."""
 
 
 def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> ReductionSpec:
@@ -95,7 +101,21 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
             raise MarkerError("ddenv(skip_unsupported=...): expected True or False, got "
                               f"{shown(values['skip_unsupported'])}")
         updates["skip_unsupported"] = values["skip_unsupported"]
+    if "stages" in values:
+        updates["stages"] = parse_stage_list(values["stages"], "ddenv(stages=...)")
     return ReductionSpec(**{**spec.__dict__, **updates})
+
+
+def parse_stage_list(value: Any, where: str) -> tuple[str, ...]:
+    """The stages after the model-level reduction: 'models,shapes,...', a list of names, or 'all'."""
+    from pytest_ddenv.stages import StagesError, parse_stages
+
+    if not isinstance(value, (str, list, tuple)):
+        raise MarkerError(f"{where}: expected a comma-separated string or a list of stage names, got {shown(value)}")
+    try:
+        return parse_stages(value)
+    except StagesError as error:
+        raise MarkerError(f"{where}: {error}") from None
 
 
 def parse_deflake(value: Any, where: str, policies: Sequence[str] | None = None) -> int | str:

@@ -80,6 +80,11 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                           "10 x the longest of the original run and the slowest probe)) or 'none'; a probe past "
                           "it is an error, not a verdict (default: $DDENV_PROBE_TIMEOUT, else auto)",
          {"metavar": "SECONDS"}),
+        ("stages", "what to do after the model-level reduction, comma-separated: models (always), shapes, "
+                   "attributes, time, explain, passing, or 'all' (default: models,explain,passing; the marker's "
+                   "stages= when this is not given on the command line)", {"metavar": "LIST"}),
+        ("stage-probes", "simulations each stage after the models may start (default: all of them together at "
+                         "most twice the model-level probes)", {"metavar": "N"}),
         ("run-timeout", "wall-clock seconds one robot_world.run() may take before it fails with ControllerTimeout "
                         "(default 300): bounds a controller that is too slow", {"metavar": "SECONDS"}),
     ]
@@ -131,6 +136,20 @@ def _seconds_setting(config: pytest.Config, name: str) -> float | None:
     return seconds
 
 
+def _stages_setting(config: pytest.Config, marker: tuple[str, ...] | None) -> tuple[str, ...] | None:
+    """--ddenv-stages, else the marker's stages=, else the ini value (None: the default stages)."""
+    from pytest_ddenv.markers import parse_stage_list
+
+    given = config.getoption("ddenv_stages")
+    value = given if given not in (None, "") else (None if marker is not None else config.getini("ddenv_stages"))
+    if value in (None, ""):
+        return marker
+    try:
+        return parse_stage_list(value, _where(config, "ddenv_stages"))
+    except MarkerError as error:
+        raise pytest.UsageError(str(error)) from None
+
+
 def _watchdog_setting(config: pytest.Config) -> Any:
     """`--ddenv-probe-timeout` as the pools' `watchdog` argument: seconds, 'auto', None, or DEFAULT (unset:
     $DDENV_PROBE_TIMEOUT, else auto)."""
@@ -156,7 +175,7 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers",
         "ddenv(world=PATH, partition=..., priority=..., n_partitions=2, granularity='ddmin', deflake='auto', "
-        "tolerance=0.5, keep=(...), seed=0, budget=N, skip_unsupported=False): the world of a robot scenario test "
+        "tolerance=0.5, keep=(...), seed=0, budget=N, skip_unsupported=False, stages='models,explain,passing'): the world of a robot scenario test "
         "and how to reduce it when the test fails under --ddenv-reduce.",
     )
     config.addinivalue_line(
@@ -176,6 +195,8 @@ def _validate_options(config: pytest.Config) -> None:
         raise pytest.UsageError(f"{_where(config, 'ddenv_reduce')}: expected true or false (or 1/0, yes/no, "
                                 f"on/off): {error}") from None
     _int_setting(config, "ddenv_max_probes", 1)
+    _int_setting(config, "ddenv_stage_probes", 1)
+    _stages_setting(config, None)
     _int_setting(config, "ddenv_seed", 0)
     _seconds_setting(config, "ddenv_max_time")
     _seconds_setting(config, "ddenv_run_timeout")
@@ -428,6 +449,8 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
         deflake=spec.deflake if deflake in (None, "") else parse_deflake(deflake, "--ddenv-deflake"),
         max_probes=_int_setting(item.config, "ddenv_max_probes", 1) or spec.max_probes,
         max_seconds=_seconds_setting(item.config, "ddenv_max_time") or spec.max_seconds,
+        stages=_stages_setting(item.config, spec.stages),
+        stage_probes=_int_setting(item.config, "ddenv_stage_probes", 1),
     )
     progress = _ProgressLine(item.config)
     session = ReductionSession(

@@ -159,8 +159,11 @@ ProbeCall = Callable[[World, int], ProbeResult]
 """call(world, attempt) -> ProbeResult: a pool's `call`, or a handler in this process."""
 
 
-def make_probe(world: World, call: ProbeCall, reference: FailureReference, *, tolerance: float) -> Probe:
-    """A probe for the engine: run the test on `world.select(candidate)` and classify the result.
+def make_probe(world: World, call: ProbeCall, reference: FailureReference, *, tolerance: float,
+               build: Callable[[Candidate], World] | None = None) -> Probe:
+    """A probe for the engine: run the test on `world.select(candidate)` (or on `build(candidate)`: the
+    stages after the model-level reduction reduce shapes and simplifications, not models) and classify the
+    result.
 
     What `call` itself raises (a worker that died twice, a test that cannot start in a worker) is an ERROR
     observation whose detail is the exception's text, never a verdict.
@@ -169,7 +172,7 @@ def make_probe(world: World, call: ProbeCall, reference: FailureReference, *, to
     def probe(candidate: Candidate, attempt: int) -> ProbeObservation:
         started = time.perf_counter()
         try:
-            result = call(world.select(candidate), attempt)
+            result = call(world.select(candidate) if build is None else build(candidate), attempt)
         except Exception as error:  # noqa: BLE001 - the pool could not run it: an error, with its reason
             return ProbeObservation(Outcome.ERROR, wall_time=time.perf_counter() - started,
                                     detail=f"{type(error).__name__}: {error}"[:DETAIL_LIMIT])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from pytest_ddenv.reduce.types import Reduction
@@ -33,6 +34,7 @@ def result_lines(reduction: Reduction, summary: dict[str, Any], notes: Sequence[
          f"speculative and picture runs included; {summary.get('cpu_seconds', 0.0):.1f} s of worker CPU)"),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
         failure_rate_line(reduction),
+        *stage_lines(summary),
         *(f"note: {text}" for text in notes),
         *(f"not simulated: {text}" for text in summary.get("world_notes", [])),
     ]
@@ -74,4 +76,32 @@ def needed_lines(reduction: Reduction) -> list[str]:
     if reduction.without_precondition_kept is not None:
         fails, runs = reduction.without_precondition_kept
         lines.append(f"without them (precondition bypassed) the failure reproduced in {fails}/{runs} runs")
+    return lines
+
+
+def stage_lines(summary: dict[str, Any]) -> list[str]:
+    """What the stages after the models found (`--ddenv-stages`), one line per finding."""
+    staged = summary.get("stages")
+    if not staged:
+        return []
+    lines: list[str] = []
+    for result in staged["results"]:
+        cost = f"{result['simulations']} simulations" + (f", incomplete ({result['incomplete']})"
+                                                         if result.get("incomplete") else "")
+        lines.append(f"stage {result['stage']} ({cost}):")
+        lines += [f"  {finding}" for finding in result["findings"]]
+    rate = staged.get("final_failure_rate")
+    if rate is not None:
+        line = f"simplified world fails {rate[0]}/{rate[1]} fresh runs"
+        reference = staged.get("minimal_failure_rate")
+        if reference:
+            line += f" (minimal world: {reference[0]}/{reference[1]})"
+        if staged.get("final_rate_errors"):
+            line += f" (warning: {staged['final_rate_errors']} more runs errored)"
+        if staged.get("final_rate_below"):
+            line += " (warning: significantly less often than the minimal world)"
+        lines.append(line)
+    files = summary.get("stage_files") or {}
+    if files:
+        lines.append("stage worlds: " + ", ".join(Path(path).name for path in files.values()))
     return lines

@@ -165,8 +165,12 @@ def runs_worth_starting_ahead(policy: DeflakePolicy) -> int:
     return policy.max_runs if isinstance(policy, (FixedReruns, ConfirmedRuns)) else 0
 
 
-def make_policy(deflake: int | str, confidence: float) -> DeflakePolicy:
-    """`deflake` is a non-negative int (fixed re-runs, also as a digit string), "adaptive" or "auto"."""
+def make_policy(deflake: int | str | DeflakePolicy, confidence: float) -> DeflakePolicy:
+    """`deflake` is a non-negative int (fixed re-runs, also as a digit string), "adaptive", "auto", or a
+    decided rule (`FixedReruns`, `ConfirmedRuns`, `SequentialTest`: the stages after the model-level
+    reduction reuse the rule it calibrated)."""
+    if isinstance(deflake, (FixedReruns, ConfirmedRuns, SequentialTest)):
+        return deflake
     if not isinstance(confidence, (int, float)) or isinstance(confidence, bool) or not 0.5 < confidence < 1.0:
         raise ReductionError(f"confidence must be a number strictly between 0.5 and 1, got {confidence!r}")
     if isinstance(deflake, str) and deflake.strip().isdigit():

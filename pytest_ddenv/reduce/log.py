@@ -75,6 +75,10 @@ class ProbeLog:
     `durable=False` skips the fsync after each line (faster, for throw-away logs).
     """
 
+    stage: str | None = None
+    """The stage after the model-level reduction whose records this log reads (None: the model-level one);
+    see `view`."""
+
     def __init__(self, path: str | os.PathLike[str] | None = None, *, resume: bool = True, durable: bool = True) -> None:
         self.path: Path | None = Path(path) if path is not None else None
         self.records: list[dict[str, Any]] = []
@@ -97,6 +101,16 @@ class ProbeLog:
         if not Path(path).is_file():
             raise ReductionError(f"no probe log at {path}; a log is created by reduce(..., log=path)")
         return cls(path, resume=True)
+
+    def view(self, stage: str) -> ProbeLog:
+        """The log of one stage after the model-level reduction (``--ddenv-stages``): every record it writes
+        goes to this log's file with ``"stage": stage``, and its reading methods (`decisions`, `started_with`
+        ...) see only that stage's records, so each stage resumes on its own. Closing a view does nothing."""
+        return _StageView(self, stage)
+
+    def own_records(self) -> list[dict[str, Any]]:
+        """The records of this log's stage (those without a ``stage`` key for the model-level log)."""
+        return [record for record in self.records if record.get("stage") == self.stage]
 
     # -- writing ------------------------------------------------------------------------------------------
 
@@ -149,14 +163,14 @@ class ProbeLog:
 
     def started_with(self) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
         """(elements, keep) of the first reduction recorded in this log, or None if it has none."""
-        for record in self.records:
+        for record in self.own_records():
             if record.get("event") == "start":
                 return tuple(record.get("elements", ())), tuple(record.get("keep", ()))
         return None
 
     def calibration(self) -> tuple[int, int] | None:
         """(fails, runs) of the first deflake calibration recorded in this log, or None."""
-        for record in self.records:
+        for record in self.own_records():
             if record.get("event") == "calibration":
                 return int(record["fails"]), int(record["runs"])
         return None
@@ -165,7 +179,7 @@ class ProbeLog:
         """The verdict on every candidate this log decided (the latest one if several). Rejections that rest
         on ERROR runs (``errored``) are not verdicts and are left out."""
         decided: dict[frozenset[str], Decision] = {}
-        for record in self.records:
+        for record in self.own_records():
             if (record.get("event") in ("accept", "reject", "cache-hit", "rate-below")
                     and not record.get("errored", False)):
                 decided[frozenset(record["candidate"])] = Decision(
@@ -177,7 +191,7 @@ class ProbeLog:
         """Outcomes of attempts 0, 1, ... of candidates whose runs were logged but not yet decided, up to the
         first ERROR run or missing attempt (an ERROR is no outcome of the seed: that attempt runs again)."""
         runs: dict[frozenset[str], dict[int, Outcome]] = {}
-        for record in self.records:
+        for record in self.own_records():
             if record.get("event") == "probe" and record.get("purpose", "reduce") == "reduce":
                 runs.setdefault(frozenset(record["candidate"]), {})[int(record["attempt"])] = Outcome(record["outcome"])
         decided = self.decisions()
@@ -197,7 +211,7 @@ class ProbeLog:
         ERROR runs left out (they run again)."""
         key = frozenset(candidate)
         found: dict[int, Outcome] = {}
-        for record in self.records:
+        for record in self.own_records():
             if (record.get("event") == "probe" and record.get("purpose") == purpose
                     and frozenset(record.get("candidate", ())) == key and record.get("outcome") != "error"):
                 found[int(record["attempt"])] = Outcome(record["outcome"])
@@ -206,7 +220,7 @@ class ProbeLog:
     def decided_probes(self) -> int:
         """Probe runs whose result a reduction used (reduction and calibration runs), in this log so far."""
         return sum(
-            1 for record in self.records
+            1 for record in self.own_records()
             if record.get("event") == "probe" and record.get("purpose", "reduce") in ("reduce", "calibration")
         )
 
@@ -242,6 +256,26 @@ class ProbeLog:
             self.notes.append(f"{path.name}: line(s) {shown} are not records (damaged) and were ignored; the "
                               "candidates they decided are decided again")
         return records
+
+
+class _StageView(ProbeLog):
+    """`ProbeLog.view`: one stage's records, written through the parent log (same file, same lock)."""
+
+    def __init__(self, parent: ProbeLog, stage: str) -> None:  # noqa: D107 - shares the parent's state
+        self.path = parent.path
+        self.records = parent.records
+        self.notes = []
+        self.durable = parent.durable
+        self.stage = stage
+        self._parent = parent
+        self._fd = None
+        self._lock = threading.Lock()
+
+    def write(self, record: Mapping[str, Any]) -> None:
+        self._parent.write({**record, "stage": self.stage})
+
+    def close(self) -> None:
+        """The parent log owns the file."""
 
 
 def sync_directory(directory: Path) -> None:

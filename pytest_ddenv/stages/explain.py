@@ -1,0 +1,126 @@
+"""Explain each culprit: for every model (and shape) of the final world, what happens without it: it
+passes, fails another way (which), or still fails the same way but less often.
+
+Read from the probes already made where possible: the 1-minimality check of the models stage (and of the
+shapes stage) ran exactly "the minimal world without this element". Only what the log does not hold (an
+element kept by a precondition, a check cut short by the budget) is simulated, on the final world, if
+`simulate` allows it.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+from pytest_ddenv.reduce import ProbeLog, Reduction
+from pytest_ddenv.stages.context import StageContext
+from pytest_ddenv.stages.result import StageResult
+
+STAGE = "explain"
+
+
+def _summary(records: Iterable[Mapping[str, Any]]) -> dict[str, Any] | None:
+    """Counts of the outcomes of the probe records given, and the other failures seen (None: no runs)."""
+    outcomes: Counter[str] = Counter()
+    others: Counter[str] = Counter()
+    for record in records:
+        outcome = str(record.get("outcome"))
+        if outcome == "error":
+            continue
+        outcomes[outcome] += 1
+        signature = record.get("signature")
+        if outcome == "other" and isinstance(signature, Mapping):
+            others[_failure_text(signature)] += 1
+    if not outcomes:
+        return None
+    return {"pass": outcomes["pass"], "same": outcomes["fail"], "other": outcomes["other"],
+            "other_failures": [{"failure": text, "runs": count} for text, count in others.most_common()]}
+
+
+def _failure_text(signature: Mapping[str, Any]) -> str:
+    if "predicate" in signature:
+        pose = signature.get("pose") or [0.0, 0.0]
+        return f"{signature['predicate']} at ({float(pose[0]):.1f}, {float(pose[1]):.1f})"
+    return f"{signature.get('exception', 'an exception')} at {signature.get('location', '?')}"
+
+
+def describe(counts: Mapping[str, Any]) -> str:
+    """'passes (3 of 3 runs)', 'fails another way: flipped at (4.0, 1.0) (2 of 3 runs)', ..."""
+    runs = counts["pass"] + counts["same"] + counts["other"]
+    if counts.get("rate_below"):
+        fails, fresh = counts["rate_below"]
+        return (f"still the same failure but significantly less often: {fails} of {fresh} fresh runs (the "
+                "failure-rate comparison put it back)")
+    if counts["same"] and (counts["pass"] or counts["other"]):
+        return f"still the same failure, less often ({counts['same']} of {runs} runs)"
+    if counts["same"]:
+        return f"still the same failure ({counts['same']} of {runs} runs)"
+    if counts["other"] and counts["other_failures"]:
+        failures = ", ".join(f"{o['failure']}" for o in counts["other_failures"][:3])
+        return f"fails another way: {failures} ({counts['other']} of {runs} runs)" + (
+            f", passes in {counts['pass']}" if counts["pass"] else "")
+    return f"passes ({counts['pass']} of {runs} runs)"
+
+
+def logged_without(log: ProbeLog, world_names: Iterable[str], element: str) -> dict[str, Any] | None:
+    """What the log's own stage saw for the world `world_names` without `element` (None: never run)."""
+    key = frozenset(world_names) - {element}
+    counts = _summary(record for record in log.own_records()
+                      if record.get("event") == "probe" and record.get("purpose", "reduce") == "reduce"
+                      and frozenset(record.get("candidate", ())) == key)
+    for record in log.own_records():
+        if record.get("event") == "rate-below" and frozenset(record.get("candidate", ())) == key:
+            counts = counts or {"pass": 0, "same": 0, "other": 0, "other_failures": []}
+            counts["rate_below"] = [int(record["fails"]), int(record["runs"])]
+    return counts
+
+
+def run(context: StageContext, models: Reduction, shapes: StageResult | None, *, simulate: bool) -> StageResult:
+    """`context.base` is the final world; `models` the model-level reduction (its log is `context.log`)."""
+    final = context.base
+    begin = context.budget.started()
+    explained: list[dict[str, Any]] = []
+    elements: list[tuple[str, str, Any]] = [("model", name, None) for name in models.minimal if name in final]
+    if shapes is not None and shapes.reduction is not None:
+        elements += [("shape", name, shapes) for name in shapes.reduction.minimal]
+    for kind, element, stage in elements:
+        if kind == "model":
+            counts = logged_without(context.log, models.minimal, element)
+            source = "log: the model-level minimal world without it"
+        else:
+            counts = logged_without(context.log.view("shapes"), stage.reduction.minimal, element)
+            source = "log: the shapes stage's world without it"
+        kept_by = dict(models.precondition_kept)
+        if counts is None and simulate and kind == "model" and not final.model(element).keep \
+                and element not in kept_by:
+            decided = context.decide(STAGE, f"without {element}", final.without([element]), stage_begin=begin)
+            if decided.runs:
+                counts = _summary(record for record in context.log.view(STAGE).own_records()
+                                  if record.get("event") == "probe" and record.get("candidate") == [f"without {element}"])
+                source = "simulated: the final world without it"
+        entry: dict[str, Any] = {"element": element, "kind": kind, "source": source if counts else "not run"}
+        if counts is not None:
+            entry.update(counts)
+            entry["without"] = describe(counts)
+        elif kind == "model":
+            entry["without"] = _why_not_run(models, element)
+        else:
+            owner = element.rsplit("#", 1)[0]
+            alone = sum(1 for name in stage.reduction.minimal if name.rsplit("#", 1)[0] == owner) == 1
+            entry["without"] = (f"not run: it is the only shape kept of {owner} (see without {owner})" if alone
+                                else "not run (the budget ran out)")
+        explained.append(entry)
+    findings = [f"without {entry['element']}: {entry['without']}" for entry in explained]
+    return StageResult(STAGE, final, simulations=context.budget.started() - begin, findings=findings,
+                       details={"elements": explained})
+
+
+def _why_not_run(models: Reduction, element: str) -> str:
+    for name, reason in models.precondition_kept:
+        if name == element:
+            bypassed = models.without_precondition_kept
+            tail = "" if bypassed is None else (f"; with the precondition bypassed for every such model the "
+                                                f"failure reproduced in {bypassed[0]}/{bypassed[1]} runs")
+            return f"not run: kept by a precondition ({reason}){tail}"
+    return "not run (kept, or the budget ran out before it was checked)"

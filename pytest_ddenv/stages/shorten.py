@@ -1,0 +1,160 @@
+"""Stage `time`: shorten the scenario. The latest start pose along the failing trajectory that still gives
+the same failure (binary search over points of the path, at most `MAX_POINTS`), then the shortest time limit
+(the failure's time from the new start plus a margin), each decided by the deflake rule."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from pytest_ddenv.stages.context import StageContext
+from pytest_ddenv.stages.result import StageResult
+from pytest_ddenv.world import Pose, World
+
+if TYPE_CHECKING:
+    from pytest_ddenv.sim import Run
+
+STAGE = "time"
+MAX_POINTS = 16
+"""Start points tried along the path at most (binary search: about 4 decisions)."""
+MIN_SPACING = 0.25
+"""Metres between two start points at least."""
+TIME_MARGIN = 1.0
+"""Simulated seconds left after the failure's time in the shortened time limit."""
+
+
+def start_points(run: Run, failure_time: float) -> list[tuple[float, int]]:
+    """(path distance before the failure point, sample index) of the candidate starts, from the original
+    start (first) to the failure point (last), evenly spaced along the path."""
+    times = np.asarray(run.times, dtype=float)
+    last = int(np.searchsorted(times, failure_time, side="right")) - 1
+    last = max(0, min(last, len(times) - 1))
+    positions = np.asarray(run.poses[: last + 1, :2], dtype=float)
+    steps = np.linalg.norm(np.diff(positions, axis=0), axis=1) if len(positions) > 1 else np.zeros(0)
+    along = np.concatenate([[0.0], np.cumsum(steps)])
+    total = float(along[-1])
+    spacing = max(MIN_SPACING, total / MAX_POINTS)
+    points: list[tuple[float, int]] = [(total, 0)]
+    mark = spacing
+    for index in range(1, last + 1):
+        if along[index] >= mark:
+            points.append((total - float(along[index]), index))
+            mark = float(along[index]) + spacing
+    if points[-1][1] != last and last > 0:
+        points.append((0.0, last))
+    return points
+
+
+def moved(world: World, point: Point) -> World:
+    """`world` with the robot starting (at rest, on what is under it) at `point` of the path."""
+    assert world.scenario is not None
+    start = Pose(point.x, point.y, 0.0, 0.0, 0.0, point.yaw)
+    return dataclasses.replace(world, scenario=dataclasses.replace(world.scenario, start=start, start_z_given=False))
+
+
+@dataclass(frozen=True)
+class Point:
+    """A start point of the path: its distance (m) before the failure point, the time (s) the robot was
+    there in the failing run, and its pose in the plane."""
+
+    distance: float
+    time: float
+    x: float
+    y: float
+    yaw: float
+
+
+def path_points(context: StageContext, trajectory: Run | None) -> tuple[list[Point], float] | None:
+    """The start points and the failure time: from the stage's log when it has them (a resumed reduction
+    uses the same path whatever run it has now), else from `trajectory` (then logged)."""
+    view = context.log.view(STAGE)
+    for record in view.own_records():
+        if record.get("event") == "path":
+            return [Point(*point) for point in record["points"]], float(record["failure_time"])
+    if trajectory is None or len(trajectory.times) < 2:
+        return None
+    failure_time = float(trajectory.failure.time) if trajectory.failure is not None else float(trajectory.times[-1])
+    clearance = float(trajectory.footprint[0])  # a start closer than a robot length is where it got stuck
+    points = [Point(distance, float(trajectory.times[index]), *(float(trajectory.poses[index][k]) for k in (0, 1, 5)))
+              for distance, index in start_points(trajectory, failure_time) if distance >= clearance or index == 0]
+    view.write({"event": "path", "failure_time": failure_time,
+                "points": [[p.distance, p.time, p.x, p.y, p.yaw] for p in points]})
+    return points, failure_time
+
+
+def run(context: StageContext) -> StageResult:
+    world = context.base
+    begin = context.budget.started()
+    path = path_points(context, context.run) if world.scenario is not None else None
+    if world.scenario is None or path is None:
+        why = "the world has no scenario" if world.scenario is None else "no failing run of the minimal world"
+        return StageResult(STAGE, world, findings=[f"not shortened: {why}"])
+    points, failure_time = path
+    good, bad = 0, len(points)
+    details: dict[str, Any] = {"points": len(points)}
+    incomplete: str | None = None
+    failure_times: dict[int, float] = {}
+    errors: list[str] = []
+    while bad - good > 1:
+        middle = (good + bad) // 2
+        distance = points[middle].distance
+        decided = context.decide(STAGE, f"start {distance:.2f} m before the failure point",
+                                 moved(world, points[middle]), stage_begin=begin)
+        if decided.verdict is None and not decided.error:
+            incomplete = "budget: no probes left"
+            break
+        if decided.error:  # the start is not valid (e.g. inside a model): start earlier
+            errors.append(f"a start {distance:.2f} m before the failure point errored: {decided.error}")
+            bad = middle
+        elif decided.verdict:
+            good = middle
+            failure_times[middle] = _failure_time(decided.signatures)
+        else:
+            bad = middle
+    distance, start_time = points[good].distance, points[good].time
+    shortened = world if good == 0 else moved(world, points[good])
+    findings: list[str] = []
+    if good:
+        findings.append(f"starting {distance:.2f} m before the failure point (t = {start_time:.1f} s of the "
+                        f"original run, {points[0].distance - distance:.2f} m along its path) still gives the same "
+                        "failure")
+    else:
+        findings.append("the robot needs its original start: no later start along the path gave the same failure")
+    findings += errors
+    details.update({"start": shortened.scenario.start.as_list() if shortened.scenario else None,
+                    "start_time": start_time, "distance_before_failure": distance})
+    original_timeout = world.scenario.timeout
+    new_failure = failure_times.get(good, max(0.0, failure_time - start_time))
+    timeout = float(math.ceil(new_failure + TIME_MARGIN))
+    if incomplete is None and timeout < original_timeout:
+        assert shortened.scenario is not None
+        limited = dataclasses.replace(shortened, scenario=dataclasses.replace(shortened.scenario, timeout=timeout))
+        decided = context.decide(STAGE, f"time limit {timeout:g} s, start {distance:.2f} m before", limited,
+                                 stage_begin=begin)
+        if decided.verdict:
+            shortened = limited
+            findings.append(f"time limit {original_timeout:g} s -> {timeout:g} s")
+        elif decided.verdict is None and not decided.error:
+            incomplete = "budget: no probes left"
+        else:
+            findings.append(f"the failure needs the time limit of {original_timeout:g} s (not {timeout:g} s)")
+    assert shortened.scenario is not None
+    saved_failing = max(0.0, failure_time - new_failure)
+    saved_passing = original_timeout - shortened.scenario.timeout
+    findings.append(f"simulated time saved per probe: {saved_failing:.1f} s on a failing run, {saved_passing:.1f} s "
+                    "on a passing one")
+    details.update({"timeout": shortened.scenario.timeout, "original_timeout": original_timeout,
+                    "saved_sim_seconds_failing": round(saved_failing, 3),
+                    "saved_sim_seconds_passing": round(saved_passing, 3)})
+    return StageResult(STAGE, shortened, probes=0, simulations=context.budget.started() - begin, findings=findings,
+                       details=details, incomplete=incomplete)
+
+
+def _failure_time(signatures: list[dict[str, object] | None]) -> float:
+    """The latest failure time among the runs' signatures (0 when none has one)."""
+    times = [float(s["time"]) for s in signatures if isinstance(s, dict) and isinstance(s.get("time"), (int, float))]
+    return max(times, default=0.0)
