@@ -28,11 +28,11 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from pytest_ddenv.oracle import FailureSignature, PredicateSpec  # noqa: E402
-from pytest_ddenv.probe import FailureReference, classify_result  # noqa: E402
-from pytest_ddenv.reduce import Outcome  # noqa: E402
-from pytest_ddenv.scenario_job import ScenarioJob  # noqa: E402
-from pytest_ddenv.world import World  # noqa: E402
+from pytest_ddenv.oracle import FailureSignature, PredicateSpec
+from pytest_ddenv.probe import FailureReference, classify_result
+from pytest_ddenv.reduce import Outcome
+from pytest_ddenv.scenario_job import ScenarioJob
+from pytest_ddenv.world import World
 
 STUCK = "stuck:window=5,min_progress=0.2"
 SCENARIOS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
@@ -128,8 +128,6 @@ def main() -> None:
                     arguments.out.write_text(json.dumps(rows, indent=2) + "\n")
     print("| scenario | seed | model probes / sims | stage probes / sims (budget) | <= 2x | shapes | attributes | time "
           "| passing | minimal fresh fails | simplified fresh fails | wall s |")
-    print("")
-    print("(<= 2x: the stages' simulations are at most twice the model-level reduction's)")
     print("|---|---:|---:|---:|:-:|---|---|---|:-:|---:|---:|---:|")
     for row in rows:
         stages = row["stages"]
@@ -141,6 +139,7 @@ def main() -> None:
               + " | ".join(cells)
               + f" | {'yes' if row['passing_found'] else 'no'} | {row['minimal_fresh_fails']}/{row['fresh_runs']} | "
               f"{simplified} | {row['wall_seconds']} |")
+    print("\n<= 2x: the stages' simulations are at most twice the model-level reduction's")
 
 
 if __name__ == "__main__":

@@ -265,7 +265,7 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
     if staged is not None:
         outcome.attachments += [Path(path) for path in extra["stage_files"].values()]
     if interrupted is None:
-        outcome.attachments += _pictures(world, reduction, paths, plan.reference_run, minimal_run)
+        outcome.attachments += _pictures(world, reduction, paths, plan.reference_run, minimal_run, staged)
     outcome.attachments = [path for path in outcome.attachments if path.exists()]
     if interrupted is not None:
         interrupted.outcome = outcome  # type: ignore[attr-defined]
@@ -475,13 +475,17 @@ def _minimal_run(call: _Calls, log: ProbeLog, minimal: World) -> Run | None:
 
 
 def _pictures(world: World, reduction: Reduction, paths: artifacts.ArtifactPaths, original_run: Run | None,
-              minimal_run: Run | None) -> list[Path]:
-    """reduction.png and progress.png (the original and the minimal world's failing trajectories)."""
+              minimal_run: Run | None, staged: StagesOutcome | None = None) -> list[Path]:
+    """reduction.png and progress.png (the original and the minimal world's failing trajectories), and the
+    stages' simplified.png and passing.png."""
     try:
         from pytest_ddenv import render
 
-        return list(render.write_reduction_pictures(world, reduction, paths, original_run=original_run,
-                                                    minimal_run=minimal_run))
+        written = list(render.write_reduction_pictures(world, reduction, paths, original_run=original_run,
+                                                       minimal_run=minimal_run))
+        if staged is not None:
+            written += render.write_stage_pictures(staged, paths, minimal_run=minimal_run)
+        return written
     except Exception as error:  # noqa: BLE001 - pictures are a convenience; never lose the reduction over one
         warnings.warn(f"ddenv: pictures not written: {type(error).__name__}: {error}", stacklevel=1)
         return []

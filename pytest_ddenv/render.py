@@ -43,6 +43,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.artifacts import ArtifactPaths
     from pytest_ddenv.reduce import Reduction
     from pytest_ddenv.sim import Run
+    from pytest_ddenv.stages import StagesOutcome
 
 __all__ = [
     "DPI",
@@ -786,6 +787,23 @@ def write_reduction_pictures(world: World, reduction: Reduction, paths: Artifact
     return written
 
 
+def write_stage_pictures(staged: StagesOutcome, paths: ArtifactPaths, *, minimal_run: Run | None = None) -> list[Path]:
+    """`simplified.png` (the world the stages left: the kept shapes, simplified models and the shortened
+    start, with the minimal world's failing run) and `passing.png` (the nearest passing world), when found."""
+    written: list[Path] = []
+    runs = () if minimal_run is None else (minimal_run,)
+    if staged.changed and staged.final is not None:
+        rate = "" if staged.final_rate is None else f", fails {staged.final_rate[0]}/{staged.final_rate[1]} fresh runs"
+        written.append(plot_world(staged.final, runs, path=paths.directory / "simplified.png",
+                                  title=f"after the stages: kept shapes, simpler values, start{rate}"))
+    if staged.passing is not None:
+        found = staged.result("passing")
+        difference = "; ".join(found.details.get("difference", [])) if found is not None else ""
+        written.append(plot_world(staged.passing, runs, path=paths.directory / "passing.png",
+                                  title=_wrap(f"nearest passing world: {difference}", 60)))
+    return written
+
+
 def _progress_note(reduction: Reduction) -> str:
     fails, runs = reduction.failure_rate
     lines = [f"{reduction.probes} probes ({reduction.cache_hits} cached, {reduction.skipped} skipped)",
@@ -807,7 +825,7 @@ def probe_sizes_from_log(log: Path) -> list[tuple[int, int, str]]:
             record = json.loads(line)
         except ValueError:
             continue
-        if isinstance(record, dict):
+        if isinstance(record, dict) and "stage" not in record:  # the stages after the models are not drawn here
             if record.get("event") == "start":
                 records = []
             records.append(record)

@@ -207,7 +207,7 @@ def recorded_seeds(log: Path, minimal: Sequence[str], fallback: int) -> list[int
         except ValueError:
             continue
         if (isinstance(record, dict) and record.get("event") == "probe" and record.get("outcome") == "fail"
-                and sorted(record.get("candidate", ())) == wanted and isinstance(record.get("seed"), int)
+                and "stage" not in record and sorted(record.get("candidate", ())) == wanted and isinstance(record.get("seed"), int)
                 and record["seed"] not in seeds):
             seeds.append(record["seed"])
     return seeds or [fallback]

@@ -193,3 +193,15 @@ scenario: {start: {x: 0, y: 0, yaw: 0}, goal: {x: 4, y: 1}, timeout: 5}
 models:
   - {name: box, pose: [1.5, 2.5, 0.25], box: [0.5, 0.5, 0.5]}
 """
+
+
+def test_bench_stages_parses_the_examples_predicates_and_shortens_findings():
+    sys.path.insert(0, str(BENCHMARKS))
+    import bench_stages
+
+    assert bench_stages.predicate_specs(("high_centered", "stuck:window=5,min_progress=0.2")) == (
+        bench_stages.PredicateSpec("high_centered", {}),
+        bench_stages.PredicateSpec("stuck", {"window": 5.0, "min_progress": 0.2}))
+    assert bench_stages.short({"findings": ["a: x 1.2 -> 1 (the failure holds)", "b: the failure needs y"]}) == (
+        "1 held; b: the failure needs y")
+    assert bench_stages.short({"findings": [], "reverted": True}) == "reverted (rate)"

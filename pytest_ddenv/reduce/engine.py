@@ -23,7 +23,7 @@ from typing import Any
 
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.context import Context, Verdict
-from pytest_ddenv.reduce.deflake import CalibratedReruns
+from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy
 from pytest_ddenv.reduce.log import LOG_FORMAT, ProbeLog
 from pytest_ddenv.reduce.partition import Partitioner
 from pytest_ddenv.reduce.priority import Prioritizer
@@ -63,7 +63,7 @@ def reduce(
     priority: str | Prioritizer = "avg-trajectory-proximal",
     n_partitions: int = 2,
     granularity: str = "ddmin",
-    deflake: int | str = "auto",
+    deflake: int | str | DeflakePolicy = "auto",
     confidence: float = 0.95,
     keep: Collection[str] = (),
     preconditions: Sequence[Precondition] = (),

@@ -77,7 +77,7 @@ def validate(
     n_partitions: int,
     granularity: str,
     complement_order: str,
-    deflake: int | str,
+    deflake: int | str | DeflakePolicy,
     confidence: float,
     keep: Collection[str],
     preconditions: Sequence[Precondition],

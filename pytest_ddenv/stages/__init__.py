@@ -86,10 +86,10 @@ class StagesOutcome:
 
     def to_dict(self) -> dict[str, Any]:
         return {"stages": list(self.stages), "probes": self.probes, "simulations": self.simulations,
-                "budget": self.budget,
-                "changed": self.changed, "final_failure_rate": None if self.final_rate is None else list(self.final_rate),
-                "final_rate_below": self.rate_below,
-                "minimal_failure_rate": None if self.minimal_rate is None else list(self.minimal_rate), "final_rate_errors": self.final_errors,
+                "budget": self.budget, "changed": self.changed,
+                "final_failure_rate": None if self.final_rate is None else list(self.final_rate),
+                "final_rate_below": self.rate_below, "final_rate_errors": self.final_errors,
+                "minimal_failure_rate": None if self.minimal_rate is None else list(self.minimal_rate),
                 "results": [result.to_dict() for result in self.results]}
 
 
@@ -153,13 +153,16 @@ def run_stages(stages: Sequence[str], context: StageContext, models: Reduction, 
     explained = None
     if "explain" in stages:
         decisions = budget.decisions
-        explained = record(explain.run(final_context, models, outcome.result("shapes"), simulate=not log_only),
-                           decisions)
+        shaped = outcome.result("shapes")
+        kept_shapes = None if shaped is None or shaped.details.get("reverted") else shaped
+        explained = record(explain.run(final_context, models, kept_shapes, simulate=not log_only), decisions)
     if "passing" in stages:
         budget.reserve = 0
         decisions = budget.decisions
-        found = record(passing.run(final_context, explained, outcome.result("attributes"),
-                                   final_is_minimal=not outcome.changed, search=not log_only), decisions)
+        simplified = outcome.result("attributes")
+        kept = None if simplified is None or simplified.details.get("reverted") else simplified
+        found = record(passing.run(final_context, explained, kept, final_is_minimal=not outcome.changed,
+                                   search=not log_only), decisions)
         if found.details.get("found"):
             outcome.passing = found.world
     outcome.simulations = budget.started() - begin

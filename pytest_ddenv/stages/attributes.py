@@ -64,6 +64,10 @@ def _number(value: float) -> str:
     return f"{value:.4g}"
 
 
+def _degrees(value: float) -> str:
+    return f"{math.degrees(value):.4g} deg"
+
+
 def _ladder_proposal(model: Model, attribute: str, rung_from: int, get: Callable[[Model], float],
                      put: Callable[[Model, float], Model], steps: tuple[float, ...], *, positive: bool = False,
                      shown: Callable[[float], str] = _number) -> Proposal | None:
@@ -73,24 +77,31 @@ def _ladder_proposal(model: Model, attribute: str, rung_from: int, get: Callable
         target = _rounded(value, steps[rung], positive=positive)
         if abs(target - value) > 1e-9:
             return Proposal(f"{model.name}:{attribute}", model.name, attribute, shown(value), shown(target),
-                            lambda m, t=target: put(m, t), rung)
+                            _setting(put, target), rung)
     return None
+
+
+def _setting(put: Callable[[Model, float], Model], value: float) -> Callable[[Model], Model]:
+    return lambda model: put(model, value)
+
+
+def _pose_get(key: str) -> Callable[[Model], float]:
+    return lambda model: float(getattr(model.pose, key))
 
 
 def _pose_put(key: str) -> Callable[[Model, float], Model]:
     return lambda model, value: dataclasses.replace(model, pose=dataclasses.replace(model.pose, **{key: value}))
 
 
-def _shape_put(index: int, step: float) -> Callable[[Model, float], Model]:
-    """Round every dimension of shape `index` to `step` (the value passed is ignored: the step is what
-    the ladder chose)."""
+def _shape_rounding(index: int, step: float) -> Callable[[Model], Model]:
+    """Round every dimension of shape `index` to `step`."""
 
-    def put(model: Model, _: float) -> Model:
+    def change(model: Model) -> Model:
         shapes = list(model.shapes)
         shapes[index] = _round_shape(shapes[index], step)
         return dataclasses.replace(model, shapes=tuple(shapes))
 
-    return put
+    return change
 
 
 def _round_size(value: float, step: float) -> float:
@@ -124,7 +135,7 @@ def _size_proposal(model: Model, index: int, rung_from: int) -> Proposal | None:
         simpler = _round_shape(shape, LENGTHS[rung])
         if simpler != shape:
             return Proposal(f"{model.name}:size#{index}", model.name, f"size#{index}", _dimensions(shape),
-                            _dimensions(simpler), lambda m, r=rung: _shape_put(index, LENGTHS[r])(m, 0.0), rung)
+                            _dimensions(simpler), _shape_rounding(index, LENGTHS[rung]), rung)
     return None
 
 
@@ -169,12 +180,6 @@ def proposals(world: World, rungs: dict[str, int] | None, folder: Path) -> list[
             continue
         candidates: list[Proposal | None] = []
 
-        def wanted(attribute: str) -> int | None:
-            key = f"{model.name}:{attribute}"
-            if rungs is None:
-                return 0
-            return rungs[key] + 1 if key in rungs else None
-
         if rungs is None:
             if model.mu != 1.0 or model.mu2 != 1.0:
                 candidates.append(Proposal(f"{model.name}:friction", model.name, "friction",
@@ -194,23 +199,30 @@ def proposals(world: World, rungs: dict[str, int] | None, folder: Path) -> list[
                                                lambda m: dataclasses.replace(m, mass=None)))
         moves_start = model.name == support  # never move what the robot starts on
         for key in ("x", "y") if not moves_start else ():
-            rung = wanted(key)
+            rung = _rung(rungs, model.name, key)
             if rung is not None:
-                candidates.append(_ladder_proposal(model, key, rung, lambda m, k=key: float(getattr(m.pose, k)),
-                                                   _pose_put(key), LENGTHS))
-        rung = wanted("yaw")
+                candidates.append(_ladder_proposal(model, key, rung, _pose_get(key), _pose_put(key), LENGTHS))
+        rung = _rung(rungs, model.name, "yaw")
         if rung is not None and not moves_start:
-            candidates.append(_ladder_proposal(model, "yaw", rung, lambda m: float(m.pose.yaw), _pose_put("yaw"),
-                                               ANGLES, shown=lambda v: f"{math.degrees(v):.4g} deg"))
+            candidates.append(_ladder_proposal(model, "yaw", rung, _pose_get("yaw"), _pose_put("yaw"), ANGLES,
+                                               shown=_degrees))
         for index in range(len(model.shapes)):
-            rung = wanted(f"size#{index}")
+            rung = _rung(rungs, model.name, f"size#{index}")
             if rung is not None and not moves_start:
                 candidates.append(_size_proposal(model, index, rung))
-            rung = wanted(f"mesh#{index}")
+            rung = _rung(rungs, model.name, f"mesh#{index}")
             if rung is not None:
                 candidates.append(_mesh_proposal(model, index, rung, world.source, folder))
         found.extend(proposal for proposal in candidates if proposal is not None)
     return found
+
+
+def _rung(rungs: dict[str, int] | None, model: str, attribute: str) -> int | None:
+    """The ladder rung to try for `attribute` of `model` in this pass (None: not this pass)."""
+    if rungs is None:
+        return 0
+    key = f"{model}:{attribute}"
+    return rungs[key] + 1 if key in rungs else None
 
 
 def simplified(world: World, applied: list[Proposal]) -> World:

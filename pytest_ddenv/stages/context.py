@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from pytest_ddenv.execution import ProbeDeadline
 from pytest_ddenv.outcome import Outcome
 from pytest_ddenv.probe import (
     FailureReference,
@@ -129,6 +130,8 @@ class StageContext:
             attempt = len(outcomes)
             try:
                 last = self.call(world, attempt)
+            except ProbeDeadline:  # the time budget ran out: undecided, like the probe budget
+                return Decided(None, _count(outcomes, passes), len(outcomes))
             except Exception as error:  # noqa: BLE001 - the pool could not run it: no verdict
                 view.write({"event": "probe", "purpose": "reduce", "candidate": [label], "attempt": attempt,
                             "outcome": "error", "detail": f"{type(error).__name__}: {error}"[:300]})
@@ -170,6 +173,8 @@ class StageContext:
                     break
                 try:
                     result = self.call(world, attempt)
+                except ProbeDeadline:
+                    break
                 except Exception:  # noqa: BLE001 - an error is no outcome of the seed
                     errors += 1
                     continue

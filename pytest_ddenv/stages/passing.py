@@ -37,8 +37,12 @@ def differences(final: World, attributes: StageResult | None) -> dict[str, Calla
             found[f"without shape #{index} ({shape.kind}) of {model.name}"] = _without_shape(model.name, index)
     for model in final.models:
         if not model.keep and model.name != support:
-            found[f"without {model.name}"] = lambda world, name=model.name: world.without([name])
+            found[f"without {model.name}"] = _without_model(model.name)
     return found
+
+
+def _without_model(name: str) -> Callable[[World], World]:
+    return lambda world: world.without([name])
 
 
 def _without_shape(name: str, index: int) -> Callable[[World], World]:

@@ -156,5 +156,5 @@ def run(context: StageContext) -> StageResult:
 
 def _failure_time(signatures: list[dict[str, object] | None]) -> float:
     """The latest failure time among the runs' signatures (0 when none has one)."""
-    times = [float(s["time"]) for s in signatures if isinstance(s, dict) and isinstance(s.get("time"), (int, float))]
-    return max(times, default=0.0)
+    times = [value for s in signatures if isinstance(s, dict) and isinstance(value := s.get("time"), (int, float))]
+    return float(max(times, default=0.0))

@@ -184,6 +184,7 @@ CASES: dict[str, Case] = {
                                files={"yard.yaml": YARD}),
     "cli-executor": ddenv("reduce", "yard.yaml", "-p", "stuck", "--executor", "tcp://scheduler",
                           files={"yard.yaml": YARD}),
+    "cli-stages": ddenv("reduce", "yard.yaml", "-p", "stuck", "--stages", "everything", files={"yard.yaml": YARD}),
     "cli-start": ddenv("run", "yard.yaml", "--start", "1,nan", files={"yard.yaml": YARD}),
     "cli-keep": ddenv("reduce", "yard.yaml", "-p", "stuck", "--keep", "wal", files={"yard.yaml": YARD}),
     "cli-model-path": ddenv("check", "yard.yaml", "--model-path", "models", files={"yard.yaml": YARD}),
@@ -193,6 +194,7 @@ CASES: dict[str, Case] = {
     # pytest options and ini settings
     "max-time-nan": run_pytest("--ddenv-max-time", "nan"),
     "probe-timeout-word": run_pytest("--ddenv-probe-timeout", "soon"),
+    "stages-word": run_pytest("--ddenv-stages", "models,shape"),
     "max-time-inf": run_pytest("--ddenv-max-time", "inf"),
     "max-time-negative": run_pytest("--ddenv-max-time=-5"),
     "ini-bool": run_pytest(files={"pytest.ini": "[pytest]\nddenv_reduce = maybe\n"}),

@@ -15,7 +15,13 @@ from hypothesis import strategies as st
 from pytest_ddenv.probe import ErrorInfo, FailureReference, ProbeResult, make_probe
 from pytest_ddenv.reduce import ProbeLog, Reduction, reduce
 from pytest_ddenv.reduce.deflake import FixedReruns
-from pytest_ddenv.stages import Budget, StageContext, StagesOutcome, parse_stages, run_stages
+from pytest_ddenv.stages import (
+    Budget,
+    StageContext,
+    StagesOutcome,
+    parse_stages,
+    run_stages,
+)
 from pytest_ddenv.stages.attributes import proposals
 from pytest_ddenv.world import Model, Pose, Scenario, Shape, World
 
@@ -186,3 +192,21 @@ def test_stage_results_hold_for_any_known_answer(shapes: int, data: st.DataObjec
         assert not fails(change(final))
     assert outcome.passing is not None and not fails(outcome.passing)  # the passing world passes
     assert dataclasses.replace(outcome.passing, models=()) == dataclasses.replace(final, models=())
+
+
+def test_a_mesh_becomes_its_bounding_box_then_its_convex_hull(tmp_path: Path) -> None:
+    import trimesh
+
+    mesh_file = tmp_path / "tetra.stl"
+    trimesh.Trimesh(vertices=[[0, 0, 0], [2, 0, 0], [0, 1, 0], [0, 0, 0.5]],
+                    faces=[[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]).export(mesh_file)
+    rock = Model("rock", (Shape("mesh", mesh=str(mesh_file)),), pose=Pose(1.0, 2.0, 0.0))
+    world = World(models=(rock,))
+    first = {p.attribute: p for p in proposals(world, None, tmp_path / "meshes")}["mesh#0"]
+    boxed = first.apply(rock).shapes[0]
+    assert boxed.kind == "box" and boxed.size == (2.0, 1.0, 0.5)
+    assert (boxed.pose.x, boxed.pose.y, boxed.pose.z) == (1.0, 0.5, 0.25)  # the box is centred on the mesh
+    second = {p.attribute: p for p in proposals(world, {"rock:mesh#0": 0}, tmp_path / "meshes")}["mesh#0"]
+    hull = second.apply(rock).shapes[0]
+    assert hull.kind == "mesh" and Path(str(hull.mesh)).parent == tmp_path / "meshes"
+    assert len(trimesh.load(hull.mesh).vertices) == 4
