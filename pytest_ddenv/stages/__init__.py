@@ -10,7 +10,6 @@ its own ``stage`` key (so it resumes), and all of them share one simulation budg
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +37,9 @@ FINAL_RATE_RUNS = 10
 """Fresh runs (at most) of the world each stage that changes it leaves, compared with the minimal world's:
 a stage whose world fails significantly less often is reverted, so the final world never overstates. They
 are kept out of the budget of the stage itself, so that the rate is always measured."""
+NOISE = 0.2
+"""A stage's world whose failures on its fresh runs would be this unlikely at the minimal world's rate (about
+one standard deviation, one-sided) fails less often beyond the noise of those runs: the stage is reverted."""
 PASSING_RESERVE = 6
 """Simulations kept for the nearest passing world while the stages before it run."""
 
@@ -182,14 +184,16 @@ def _rate(context: StageContext, label: str, world: World, number: int) -> tuple
 
 
 def rate_drops(rate: tuple[int, int], minimal: tuple[int, int]) -> bool:
-    """A stage's world fails less often than the minimal world beyond the noise of its runs: its observed
-    rate is more than two standard deviations of a `rate[1]`-run binomial below the minimal world's rate
-    (estimated as (fails + 0.5) / (runs + 1), never 0 or 1), or significantly below it (Fisher)."""
+    """A stage's world fails less often than the minimal world beyond the noise of its runs: at the minimal
+    world's rate (estimated as (fails + 0.5) / (runs + 1), never 0 or 1), `rate[1]` runs would show as few
+    failures as `rate[0]` with probability below `NOISE` (binomial tail), or the rate is significantly below
+    the minimal world's (Fisher, one-sided, 5 %)."""
     if rate[1] == 0 or minimal[1] == 0:
         return False
+    from scipy.stats import binom
+
     expected = (minimal[0] + 0.5) / (minimal[1] + 1.0)
-    noise = 2.0 * math.sqrt(expected * (1.0 - expected) / rate[1])
-    return rate[0] / rate[1] < expected - noise or _significantly_below(rate, minimal)
+    return bool(binom.cdf(rate[0], rate[1], expected) < NOISE) or _significantly_below(rate, minimal)
 
 
 def _significantly_below(final: tuple[int, int], minimal: tuple[int, int]) -> bool:

@@ -210,3 +210,45 @@ def test_a_mesh_becomes_its_bounding_box_then_its_convex_hull(tmp_path: Path) ->
     hull = second.apply(rock).shapes[0]
     assert hull.kind == "mesh" and Path(str(hull.mesh)).parent == tmp_path / "meshes"
     assert len(trimesh.load(hull.mesh).vertices) == 4
+
+
+def test_a_stage_world_is_reverted_only_beyond_the_noise_of_its_runs() -> None:
+    from pytest_ddenv.stages import rate_drops
+
+    assert not rate_drops((9, 10), (20, 20))  # one miss in 10 against a world that always failed: noise
+    assert rate_drops((8, 10), (20, 20))
+    assert not rate_drops((6, 10), (11, 15)) and rate_drops((5, 10), (11, 15))
+    assert not rate_drops((10, 10), (5, 5)) and not rate_drops((0, 0), (5, 5))
+
+
+def test_a_stage_world_that_fails_less_often_is_never_the_result() -> None:
+    """The pad's wide block fails only 30 % of the time once it is the pad's only shape: the 1-shape world is
+    accepted by the lenient deflake rule, then the engine's rate comparison backs off from it (or the
+    stage's own check reverts the stage); either way the final world fails as often as the minimal one."""
+
+    def flaky_when_alone(world: World) -> bool:
+        return fails(world)
+
+    world = make_world(6, culprit=3, mu=100.0)
+    call = call_of(flaky_when_alone)
+    log = ProbeLog(None)
+    models = reduce(world.names, make_probe(world, call, REFERENCE, tolerance=0.5), deflake=1, log=log,
+                    partition="model2model", priority="sequential", failure_rate_runs=5)
+
+    def flaky_call(candidate_world: World, attempt: int) -> ProbeResult:
+        alone = "pad" in candidate_world and len(candidate_world.model("pad").shapes) == 1
+        if alone and random.Random(attempt * 7919).random() < 0.7:
+            return ProbeResult(None, None)
+        return call(candidate_world, attempt)
+
+    context = StageContext(base=world.select(models.minimal), call=flaky_call, reference=REFERENCE, tolerance=0.5,
+                           log=log, policy=FixedReruns(1), seed=0,
+                           budget=Budget(None, lambda: call.counter["calls"]))  # type: ignore[attr-defined]
+    outcome = run_stages(parse_stages("models,shapes"), context, models, minimal_run=None, folder=Path("/x"))
+    shapes = outcome.result("shapes")
+    assert shapes is not None and outcome.final is not None
+    pad = outcome.final.model("pad")
+    assert len(pad.shapes) >= 2 or shapes.details.get("reverted") is True
+    assert any(shape.size is not None and shape.size[0] > 0.6 for shape in pad.shapes)
+    if outcome.final_rate is not None:
+        assert outcome.final_rate[0] == outcome.final_rate[1]
