@@ -282,7 +282,7 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
                              "attributes, time, explain, passing, or 'all' (default: models,explain,passing)")
     reduce.add_argument("--stage-probes", type=_positive_int, metavar="N",
                         help="simulations each stage after the models may start (default: all of them together "
-                             "at most twice the model-level probes)")
+                             "at most twice the model-level simulations)")
     reduce.add_argument("--probe-timeout", type=_probe_timeout, metavar="S",
                         help="wall-clock limit of one probe: S seconds, 'auto' (max(60 s, 10 x the longest of the "
                              "original run and the slowest probe)) or 'none'; a probe past it is an error, not a "

@@ -47,7 +47,7 @@ class ReductionSpec:
     `pytest_ddenv.stages.DEFAULT_STAGES`)."""
     stage_probes: int | None = None
     """Simulations each stage after the models may start (None: all of them together at most twice the
-    model-level probes)."""
+    model-level simulations)."""
 
 
 def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> ReductionSpec:

@@ -84,7 +84,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                    "attributes, time, explain, passing, or 'all' (default: models,explain,passing; the marker's "
                    "stages= when this is not given on the command line)", {"metavar": "LIST"}),
         ("stage-probes", "simulations each stage after the models may start (default: all of them together at "
-                         "most twice the model-level probes)", {"metavar": "N"}),
+                         "most twice the model-level simulations)", {"metavar": "N"}),
         ("run-timeout", "wall-clock seconds one robot_world.run() may take before it fails with ControllerTimeout "
                         "(default 300): bounds a controller that is too slow", {"metavar": "SECONDS"}),
     ]
@@ -175,8 +175,8 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers",
         "ddenv(world=PATH, partition=..., priority=..., n_partitions=2, granularity='ddmin', deflake='auto', "
-        "tolerance=0.5, keep=(...), seed=0, budget=N, skip_unsupported=False, stages='models,explain,passing'): the world of a robot scenario test "
-        "and how to reduce it when the test fails under --ddenv-reduce.",
+        "tolerance=0.5, keep=(...), seed=0, budget=N, skip_unsupported=False, stages='models,explain,passing'): "
+        "the world of a robot scenario test and how to reduce it when the test fails under --ddenv-reduce.",
     )
     config.addinivalue_line(
         "markers",
