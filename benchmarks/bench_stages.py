@@ -3,8 +3,9 @@
     python benchmarks/bench_stages.py --quick            # ditch, seed 0 (about 0.5 min)
     python benchmarks/bench_stages.py [--seeds 0 1 2]    # 3 scenarios x 3 seeds (about 6 min on 2 cores)
 
-For each paper scenario (the predicates and schema pairing of examples/test_paper_scenarios.py) and seed, it
-runs `ddenv reduce WORLD ... --seed S --stages all --workers 2` as a user would (a fresh process, the
+For each paper scenario (the predicates of examples/test_paper_scenarios.py; the default schema pairing,
+model2model + avg-trajectory-proximal, or with `--pairing examples` the examples' own: timeseg on rubble)
+and seed, it runs `ddenv reduce WORLD ... --seed S --stages all --workers 2` as a user would (a fresh process, the
 default budget), reads `summary.json`, and then runs the model-level `minimal.yaml` and the stages'
 `simplified.yaml` on the same 10 fresh noise seeds (attempts 1_000_000 .., used by no reduction), counting
 the runs that fail the same way as the reduction's reference failure (`classify_result`, tolerance 0.5 m).
@@ -67,8 +68,12 @@ def reference_of(summary: dict[str, Any]) -> FailureReference:
                             None if signature is None else FailureSignature.from_dict(signature))
 
 
-def one(scenario: str, seed: int, workers: int, folder: Path) -> dict[str, Any]:
+DEFAULT_PAIRING = ("--partition", "model2model", "--priority", "avg-trajectory-proximal")
+
+
+def one(scenario: str, seed: int, workers: int, folder: Path, examples_pairing: bool = False) -> dict[str, Any]:
     predicates, pairing = SCENARIOS[scenario]
+    pairing = pairing if examples_pairing else DEFAULT_PAIRING
     command = ["ddenv", "reduce", str(ROOT / "worlds" / f"{scenario}.yaml"), *[a for p in predicates for a in ("-p", p)],
                *pairing, "--seed", str(seed), "--stages", "all", "--workers", str(workers), "--out", str(folder), "-q"]
     started = time.perf_counter()
@@ -85,7 +90,7 @@ def one(scenario: str, seed: int, workers: int, folder: Path) -> dict[str, Any]:
     simplified = World.load(simplified_path) if simplified_path.exists() else minimal
     stages = {result["stage"]: result for result in staged["results"]}
     return {
-        "scenario": scenario, "seed": seed, "wall_seconds": round(wall, 1),
+        "scenario": scenario, "seed": seed, "pairing": " ".join(pairing[1::2]), "wall_seconds": round(wall, 1),
         "model_probes": summary["probes"], "model_simulations": summary["simulations"] - staged["simulations"],
         "minimal_size": summary["minimal_size"],
         "stage_probes": staged["probes"], "stage_simulations": staged["simulations"], "budget": staged["budget"],
@@ -115,6 +120,8 @@ def main() -> None:
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--quick", action="store_true", help="ditch, seed 0")
+    parser.add_argument("--pairing", choices=["default", "examples"], default="default",
+                        help="the plugin's default schema pairing, or the examples' (timeseg on rubble)")
     parser.add_argument("--out", type=Path)
     arguments = parser.parse_args()
     if arguments.quick:
@@ -123,7 +130,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as scratch:
         for scenario in arguments.scenarios:
             for seed in arguments.seeds:
-                rows.append(one(scenario, seed, arguments.workers, Path(scratch) / f"{scenario}-{seed}"))
+                rows.append(one(scenario, seed, arguments.workers, Path(scratch) / f"{scenario}-{seed}",
+                                examples_pairing=arguments.pairing == "examples"))
                 if arguments.out:
                     arguments.out.write_text(json.dumps(rows, indent=2) + "\n")
     print("| scenario | seed | model probes / sims | stage probes / sims (budget) | <= 2x | shapes | attributes | time "

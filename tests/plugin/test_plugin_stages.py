@@ -7,7 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from tests.plugin.test_plugin_reduce import summary_of
+
+def summary_of(pytester: pytest.Pytester) -> dict:
+    (summary,) = Path(pytester.path, "ddenv-artifacts").glob("*/summary.json")
+    return json.loads(summary.read_text())
 
 
 def test_models_only_is_the_model_level_reduction_alone(wall_project: pytest.Pytester) -> None:
