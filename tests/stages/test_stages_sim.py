@@ -88,3 +88,14 @@ def test_an_unknown_stage_is_one_clear_error(tmp_path: Path, capsys: pytest.Capt
     (tmp_path / "wall.yaml").write_text(LONG_WALL)
     assert main(["reduce", str(tmp_path / "wall.yaml"), "-p", STUCK, "--stages", "models,shape"]) == 2
     assert "unknown stage 'shape'; valid stages: models, shapes, attributes, time, explain, passing" in capsys.readouterr().err
+
+
+def test_max_probes_covers_the_stages(tmp_path: Path) -> None:
+    summary = reduce_wall(tmp_path, "--stages", "all", "--max-probes", "25")
+    staged = summary["stages"]
+    model_level = summary["this_run"]["simulations"] - staged["simulations"] - 1  # minus the original run
+    assert staged["budget"] <= 25 - model_level  # what the model level left
+    assert staged["simulations"] <= staged["budget"]
+    assert summary["this_run"]["simulations"] <= 25 + 1  # the budget, and `ddenv reduce`'s own original run
+    time = next(result for result in staged["results"] if result["stage"] == "time")
+    assert time["incomplete"] == "budget: no probes left"
