@@ -517,23 +517,25 @@ def _cmd_show(arguments: argparse.Namespace) -> int:
     from pytest_ddenv import render
 
     world = load_world(arguments, arguments.world)
-    runs, poses = _read_runs(Path(arguments.runs)) if arguments.runs else ([], [])
+    runs, poses, outcomes = _read_runs(Path(arguments.runs)) if arguments.runs else ([], [], [])
     target = arguments.output or f"{_world_stem(arguments.world)}.png"
-    picture = render.plot_world(world, runs, path=target, failure_poses=poses)
+    picture = render.plot_world(world, runs, path=target, failure_poses=poses, failure_outcomes=outcomes)
     text = f"wrote {picture} ({len(world)} models, {len(runs)} runs, {len(poses)} failure poses)"
     _emit(arguments, text, {"ok": True, "picture": str(picture), "models": len(world), "runs": len(runs),
                             "failure_poses": len(poses)})
     return EXIT_OK
 
 
-def _read_runs(path: Path) -> tuple[list[Run], list[list[float]]]:
-    """Runs (`ddenv run --record` lines) and failure poses (probe-log lines) of a JSON-lines file."""
+def _read_runs(path: Path) -> tuple[list[Run], list[list[float]], list[str]]:
+    """Runs (`ddenv run --record` lines), failure poses (probe-log lines) and each pose's outcome ("fail":
+    the same failure as the reduced one, "other": another failure) of a JSON-lines file."""
     from pytest_ddenv.sim import Run
 
     if not path.is_file():
         raise UsageError(f"{path}: no such runs file")
     runs: list[Run] = []
     poses: list[list[float]] = []
+    outcomes: list[str] = []
     for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
         if not line.strip():
             continue
@@ -550,9 +552,10 @@ def _read_runs(path: Path) -> tuple[list[Run], list[list[float]]]:
             pose = (record.get("signature") or {}).get("pose")
             if isinstance(pose, list) and len(pose) >= 3:
                 poses.append([float(v) for v in pose])
+                outcomes.append("other" if record.get("outcome") == "other" else "fail")
     if not runs and not poses:
         raise UsageError(f"{path}: no runs and no failure poses in this file")
-    return runs, poses
+    return runs, poses, outcomes
 
 
 # -- reduce ------------------------------------------------------------------------------------------------

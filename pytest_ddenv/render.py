@@ -434,6 +434,19 @@ def _draw_failure_pose(axes: Axes, pose: Sequence[float], color: str, *,
     axes.plot([x], [y], marker="X", markersize=13, color=color, markeredgecolor="white", linestyle="none", zorder=9)
 
 
+_POSE_LABELS = {"fail": "probe failed the same way", "other": "probe failed another way",
+                "pass": "probe passed", "error": "probe errored"}
+
+
+def _failure_legend_entries(axes: Axes, outcomes: Sequence[str]) -> None:
+    """Invisible artists that give the legend one entry per outcome drawn (with its count)."""
+    for outcome, color in _OUTCOME_COLORS.items():
+        count = sum(1 for o in outcomes if o == outcome)
+        if count:
+            axes.plot([], [], marker="X", markersize=10, color=color, markeredgecolor="white", linestyle="none",
+                      label=f"{_POSE_LABELS[outcome]} ({count})")
+
+
 def _run_outcome(run: Run) -> str:
     if run.failure is not None:
         return f"{run.failure.predicate} at t\u00a0=\u00a0{run.failure.time:.1f}\u00a0s"
@@ -622,18 +635,20 @@ def _label_style(dx: float, dy: float) -> dict[str, Any]:
 
 # -- public pictures ----------------------------------------------------------------------------------
 def plot_world(world: World, runs: Sequence[Run] = (), *, path: str | Path, title: str | None = None,
-               failure_poses: Sequence[Sequence[float]] = ()) -> Path:
+               failure_poses: Sequence[Sequence[float]] = (), failure_outcomes: Sequence[str] = ()) -> Path:
     """Write a top-down picture of `world` with `runs` (trajectories, failure poses) to `path` (PNG).
 
     `failure_poses` marks extra failure poses (x, y, z, roll, pitch, yaw) without trajectories, e.g. from
-    a probe log, drawn with the first run's robot footprint (a Husky's without runs). Models the runs
-    touched when they failed are labelled.
+    a probe log, drawn with the first run's robot footprint (a Husky's without runs); `failure_outcomes`
+    (one per pose: "fail", "other", ...) colours them by outcome (same failure red, another failure orange)
+    with a legend entry each. Models the runs touched when they failed are labelled.
     """
-    return _save(draw_world(world, runs, title=title, failure_poses=failure_poses), path)
+    return _save(draw_world(world, runs, title=title, failure_poses=failure_poses,
+                            failure_outcomes=failure_outcomes), path)
 
 
 def draw_world(world: World, runs: Sequence[Run] = (), *, title: str | None = None,
-               failure_poses: Sequence[Sequence[float]] = ()) -> Figure:
+               failure_poses: Sequence[Sequence[float]] = (), failure_outcomes: Sequence[str] = ()) -> Figure:
     """The figure of `plot_world` (close it with `matplotlib.pyplot.close` when done)."""
     figure, axes = _figure(WORLD_SIZE)
     prints = footprints(world)
@@ -642,8 +657,13 @@ def draw_world(world: World, runs: Sequence[Run] = (), *, title: str | None = No
     for index, run in enumerate(runs):
         _draw_run(axes, run, _RUN_COLORS[index % len(_RUN_COLORS)], f"seed {run.seed}")
     footprint = runs[0].footprint if runs else ROBOT_FOOTPRINT  # the poses' robot: the runs' if any
-    for pose in failure_poses:
-        _draw_failure_pose(axes, pose, "#d62728", footprint=footprint)
+    outcomes = list(failure_outcomes) or ["fail"] * len(failure_poses)
+    if len(outcomes) != len(failure_poses):
+        raise ValueError(f"failure_outcomes has {len(outcomes)} entries for {len(failure_poses)} failure poses")
+    for pose, outcome in zip(failure_poses, outcomes, strict=True):
+        _draw_failure_pose(axes, pose, _OUTCOME_COLORS.get(outcome, _OUTCOME_COLORS["fail"]), footprint=footprint)
+    if failure_outcomes:
+        _failure_legend_entries(axes, outcomes)
     points = [np.asarray(run.positions)[:, :2] for run in runs] + [np.asarray(p)[:2] for p in failure_poses]
     _view(axes, world, prints, points)
     touched = [name for name in world.names if any(run.failure and name in run.failure.touched for run in runs)]
@@ -776,11 +796,13 @@ def write_reduction_pictures(world: World, reduction: Reduction, paths: Artifact
     status = "1-minimal" if reduction.one_minimal else (reduction.incomplete_reason or "incomplete")
     reduction_title = (f"{name}: {reduction.original_size} → {_models(reduction.minimal_size)} "
                        f"({reduction.probes} probes, {status})")
+    probe_sizes = probe_sizes_from_log(paths.log)
+    steps = steps_from_log(paths.log) if probe_sizes else None
     written = [
         plot_reduction(world, reduction.minimal, path=paths.reduction_png, original_run=original_run,
                        minimal_run=minimal_run, failure_pose=failure_pose, title=reduction_title),
-        plot_progress(reduction.steps, path=paths.progress_png, probes=reduction.probes,
-                      probe_sizes=probe_sizes_from_log(paths.log),
+        plot_progress(steps or reduction.steps, path=paths.progress_png,
+                      probes=len(probe_sizes) if steps else reduction.probes, probe_sizes=probe_sizes,
                       title=f"{name}: world size during the reduction ({status})",
                       note=_progress_note(reduction)),
     ]
@@ -813,8 +835,8 @@ def _progress_note(reduction: Reduction) -> str:
     return "\n".join(lines)
 
 
-def probe_sizes_from_log(log: Path) -> list[tuple[int, int, str]]:
-    """(probe number, candidate size, outcome) of the reduction probes of the last reduction in a run log."""
+def _last_reduction(log: Path) -> list[dict[str, Any]]:
+    """The model-level records of the last reduction in a run log (from its last ``start``)."""
     try:
         lines = log.read_text(encoding="utf-8").splitlines()
     except OSError:
@@ -829,9 +851,34 @@ def probe_sizes_from_log(log: Path) -> list[tuple[int, int, str]]:
             if record.get("event") == "start":
                 records = []
             records.append(record)
-    probes = [r for r in records if r.get("event") == "probe" and r.get("purpose", "reduce") == "reduce"]
+    return records
+
+
+def _is_reduction_probe(record: dict[str, Any]) -> bool:
+    return record.get("event") == "probe" and record.get("purpose", "reduce") == "reduce"
+
+
+def probe_sizes_from_log(log: Path) -> list[tuple[int, int, str]]:
+    """(probe number, candidate size, outcome) of the reduction probes of the last reduction in a run log."""
+    probes = [r for r in _last_reduction(log) if _is_reduction_probe(r)]
     return [(number, int(r.get("size", len(r.get("candidate", ())))), str(r.get("outcome", "")))
             for number, r in enumerate(probes, start=1)]
+
+
+def steps_from_log(log: Path) -> list[tuple[int, int]]:
+    """(probe number, size) of the start and of every adopted world (``step``, ``back-off``) of the last
+    reduction in a run log, on the same probe numbering as `probe_sizes_from_log`: a step is drawn at the
+    last probe logged before it, the one that justified it. Empty when the log has no start."""
+    steps: list[tuple[int, int]] = []
+    probes = 0
+    for record in _last_reduction(log):
+        if record.get("event") == "start":
+            steps.append((0, len(record.get("elements", ())) + len(record.get("keep", ()))))
+        elif _is_reduction_probe(record):
+            probes += 1
+        elif record.get("event") in ("step", "back-off") and isinstance(record.get("candidate"), list):
+            steps.append((probes, len(record["candidate"])))
+    return steps
 
 
 def _reference_pose(summary: Path) -> list[float] | None:

@@ -220,3 +220,38 @@ def test_documentation_pictures_are_small() -> None:
     images = sorted((ROOT / "docs" / "images").glob("*.png"))
     for image in images:
         assert image.stat().st_size < 200_000, f"{image} is larger than 200 KB"
+
+
+def test_probe_failure_poses_are_coloured_by_outcome_with_a_legend(worlds: dict[str, World]) -> None:
+    poses = [[1.0, 0.0, 0.2, 0, 0, 0], [4.0, 1.0, 0.2, 0, 0, 1.0], [6.0, -1.0, 0.2, 0, 0, 2.0]]
+    figure = render.draw_world(worlds["ditch"], failure_poses=poses, failure_outcomes=["fail", "other", "fail"])
+    try:
+        axes = figure.axes[0]
+        outlines = [patch for patch in axes.patches if type(patch).__name__ == "Polygon" and not patch.get_fill()]
+        colours = sorted(tuple(round(c, 3) for c in patch.get_edgecolor()[:3]) for patch in outlines[-3:])
+        red, orange = (0.839, 0.153, 0.157), (1.0, 0.498, 0.055)
+        assert colours == sorted([red, red, orange])
+        labels = [text.get_text() for text in axes.get_legend().get_texts()]
+        assert "probe failed the same way (2)" in labels and "probe failed another way (1)" in labels
+    finally:
+        render._pyplot().close(figure)
+    with pytest.raises(ValueError, match="2 entries for 3 failure poses"):
+        render.draw_world(worlds["ditch"], failure_poses=poses, failure_outcomes=["fail", "other"])
+
+
+def test_progress_steps_are_drawn_at_the_probe_that_justified_them(tmp_path: Path) -> None:
+    """Each accepted step sits on the probe dot of the candidate it adopted (same numbering as the dots)."""
+    from pytest_ddenv.reduce import Observation, Outcome, reduce
+
+    names = tuple(f"m{i}" for i in range(12))
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        return Observation(Outcome.FAIL if {"m3", "m8"} <= set(candidate) else Outcome.PASS)
+
+    log = tmp_path / "runs.jsonl"
+    reduce(names, probe, partition="even", priority="sequential", deflake=1, log=log, failure_rate_runs=0)
+    dots = render.probe_sizes_from_log(log)
+    steps = render.steps_from_log(log)
+    assert steps[0] == (0, 12) and steps[-1][1] == 2 and len(steps) > 2
+    for number, size in steps[1:]:
+        assert dots[number - 1] == (number, size, "fail")  # the dot just before the step is its own candidate
