@@ -332,6 +332,7 @@ def _draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghost
     from matplotlib.patches import Polygon
 
     order = sorted(range(len(prints)), key=lambda i: (-prints[i].area, prints[i].top))
+    shown = frictions_shown(world, prints)
     for layer, index in enumerate(order):
         model, footprint = world.models[index], prints[index]
         ghost, strong = footprint.name in ghosted, footprint.name in highlighted
@@ -342,8 +343,8 @@ def _draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghost
                                                 edgecolor=_HIGHLIGHT, linewidth=5.0, zorder=zorder - 0.0005))
         axes.add_collection(PatchCollection(
             [Polygon(polygon, closed=True) for polygon in footprint.polygons],
-            facecolor=_fill(model),
-            edgecolor="#9a9a9a" if ghost else _DYNAMIC_EDGE if model.dynamic and friction(model) else _EDGE,
+            facecolor=_fill(model, shown[model.name]),
+            edgecolor="#9a9a9a" if ghost else _DYNAMIC_EDGE if model.dynamic and shown[model.name] else _EDGE,
             linewidth=0.7 if len(footprint.polygons) == 1 else 0.4,
             linestyle="--" if ghost else "-",
             alpha=0.15 if ghost else 0.45 if terrain else 0.9,
@@ -368,8 +369,18 @@ def _largest(footprint: Footprint) -> FloatArray:
     return max(footprint.polygons, key=_polygon_area)
 
 
-def _fill(model: Model) -> str:
-    return _FILL[friction(model) or category(model)]
+def _fill(model: Model, shown: Friction) -> str:
+    return _FILL[shown or category(model)]
+
+
+def frictions_shown(world: World, prints: Sequence[Footprint]) -> dict[str, Friction]:
+    """The friction class each model is drawn with: its own (`friction`), except terrain (wider than
+    `TERRAIN_EXTENT`) when every terrain model has the same class: friction is then not what differs, and a
+    high-friction ground would only colour the whole background."""
+    terrain = {fp.name for fp in prints if fp.extent > TERRAIN_EXTENT}
+    classes = {friction(model) for model in world.models if model.name in terrain}
+    neutral = len(classes) == 1
+    return {model.name: None if neutral and model.name in terrain else friction(model) for model in world.models}
 
 
 def _draw_scenario(axes: Axes, world: World) -> None:
@@ -388,13 +399,15 @@ def _draw_scenario(axes: Axes, world: World) -> None:
               linestyle="none", zorder=6, label="goal")
 
 
-def _draw_run(axes: Axes, run: Run, color: str, label: str, *, underlay: bool = False) -> None:
-    """A trajectory; an `underlay` is wide and translucent so a run drawn on top of it stays visible."""
+def _draw_run(axes: Axes, run: Run, color: str, label: str, *, underlay: bool = False,
+              outcome: str | None = None) -> None:
+    """A trajectory; an `underlay` is wide and translucent so a run drawn on top of it stays visible.
+    `outcome` replaces the run's own outcome in the legend (the test's failure, when no predicate found it)."""
     positions = np.asarray(run.positions)
     if len(positions):
         axes.plot(positions[:, 0], positions[:, 1], color=color, linewidth=6.0 if underlay else 1.8,
                   alpha=0.35 if underlay else 1.0, solid_capstyle="round", zorder=6.5 if underlay else 7,
-                  label=_wrap(f"{label}: {_run_outcome(run)}"))
+                  label=_wrap(f"{label}: {outcome or _run_outcome(run)}"))
     if run.failure is not None:
         _draw_failure_pose(axes, run.failure.pose, color, footprint=run.footprint, dashed=underlay)
 
@@ -498,7 +511,7 @@ def _legend(axes: Axes, world: World, prints: Sequence[Footprint], *, ghosted: b
 
     handles: list[Any] = list(axes.get_legend_handles_labels()[0])
     kinds = {category(m) for m in world.models}
-    frictions = {friction(m) for m in world.models}
+    frictions = set(frictions_shown(world, prints).values())
     extents = [fp.extent for fp in prints]
     if highlighted:
         handles.append(Patch(facecolor="white", edgecolor=_HIGHLIGHT, linewidth=2.5,
@@ -675,21 +688,23 @@ def draw_world(world: World, runs: Sequence[Run] = (), *, title: str | None = No
 
 def plot_reduction(world: World, minimal: Sequence[str], *, path: str | Path, original_run: Run | None = None,
                    minimal_run: Run | None = None, failure_pose: Sequence[float] | None = None,
-                   title: str | None = None) -> Path:
+                   title: str | None = None, failure_text: str | None = None) -> Path:
     """Write the original world with removed models ghosted and the `minimal` models highlighted and labelled.
 
     `original_run` (wide, translucent) and `minimal_run` (thin, on top) are drawn with their failure poses;
     without an original run, `failure_pose` (the reference failure's pose) is marked instead. Each failure pose
     is outlined with the robot's own `Run.footprint` (the minimal run's for `failure_pose`, else a Husky's).
+    `failure_text` labels both runs with the test's own failure (e.g. "AssertionError at test_x.py:12") when
+    it was not found by a predicate.
     """
     figure = draw_reduction(world, minimal, original_run=original_run, minimal_run=minimal_run,
-                            failure_pose=failure_pose, title=title)
+                            failure_pose=failure_pose, title=title, failure_text=failure_text)
     return _save(figure, path)
 
 
 def draw_reduction(world: World, minimal: Sequence[str], *, original_run: Run | None = None,
                    minimal_run: Run | None = None, failure_pose: Sequence[float] | None = None,
-                   title: str | None = None) -> Figure:
+                   title: str | None = None, failure_text: str | None = None) -> Figure:
     """The figure of `plot_reduction` (close it with `matplotlib.pyplot.close` when done)."""
     kept = frozenset(minimal)
     removed = frozenset(world.names) - kept
@@ -699,14 +714,16 @@ def draw_reduction(world: World, minimal: Sequence[str], *, original_run: Run | 
     _draw_scenario(axes, world)
     points: list[FloatArray] = []
     if original_run is not None:
-        _draw_run(axes, original_run, _RUN_COLORS[0], f"original run ({_models(len(world))})", underlay=True)
+        _draw_run(axes, original_run, _RUN_COLORS[0], f"original run ({_models(len(world))})", underlay=True,
+                  outcome=failure_text)
         points.append(np.asarray(original_run.positions)[:, :2])
     elif failure_pose is not None:
         footprint = minimal_run.footprint if minimal_run is not None else ROBOT_FOOTPRINT
         _draw_failure_pose(axes, failure_pose, _RUN_COLORS[0], footprint=footprint)
         points.append(np.asarray(failure_pose, dtype=float)[:2])
     if minimal_run is not None:
-        _draw_run(axes, minimal_run, _RUN_COLORS[1], f"minimal world run ({_models(len(kept))})")
+        _draw_run(axes, minimal_run, _RUN_COLORS[1], f"minimal world run ({_models(len(kept))})",
+                  outcome=failure_text)
         points.append(np.asarray(minimal_run.positions)[:, :2])
     _view(axes, world, prints, points)
     default = f"{_title(world, None).split(':')[0]}: {len(world)} → {_models(len(kept))}"
@@ -792,6 +809,7 @@ def write_reduction_pictures(world: World, reduction: Reduction, paths: Artifact
     per-probe dots of the progress picture come from the run log `paths.log` when it exists.
     """
     failure_pose = None if original_run is not None else _reference_pose(paths.summary)
+    failure_text = _reference_text(paths.summary)
     name = world.name or (Path(world.source).stem if world.source else "world")
     status = "1-minimal" if reduction.one_minimal else (reduction.incomplete_reason or "incomplete")
     reduction_title = (f"{name}: {reduction.original_size} → {_models(reduction.minimal_size)} "
@@ -800,7 +818,8 @@ def write_reduction_pictures(world: World, reduction: Reduction, paths: Artifact
     steps = steps_from_log(paths.log) if probe_sizes else None
     written = [
         plot_reduction(world, reduction.minimal, path=paths.reduction_png, original_run=original_run,
-                       minimal_run=minimal_run, failure_pose=failure_pose, title=reduction_title),
+                       minimal_run=minimal_run, failure_pose=failure_pose, title=reduction_title,
+                       failure_text=failure_text),
         plot_progress(steps or reduction.steps, path=paths.progress_png,
                       probes=len(probe_sizes) if steps else reduction.probes, probe_sizes=probe_sizes,
                       title=f"{name}: world size during the reduction ({status})",
@@ -879,6 +898,17 @@ def steps_from_log(log: Path) -> list[tuple[int, int]]:
         elif record.get("event") in ("step", "back-off") and isinstance(record.get("candidate"), list):
             steps.append((probes, len(record["candidate"])))
     return steps
+
+
+def _reference_text(summary: Path) -> str | None:
+    """The reduced failure in its own words when no predicate found it ("AssertionError at test_x.py:12")."""
+    try:
+        reference = json.loads(summary.read_text(encoding="utf-8"))["reference_failure"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if not isinstance(reference, dict) or reference.get("signature") is not None:
+        return None
+    return f"{reference.get('exception_type', 'an exception')} at {reference.get('location', '?')}"
 
 
 def _reference_pose(summary: Path) -> list[float] | None:

@@ -255,3 +255,43 @@ def test_progress_steps_are_drawn_at_the_probe_that_justified_them(tmp_path: Pat
     assert steps[0] == (0, 12) and steps[-1][1] == 2 and len(steps) > 2
     for number, size in steps[1:]:
         assert dots[number - 1] == (number, size, "fail")  # the dot just before the step is its own candidate
+
+
+def test_a_failure_found_by_an_assert_is_labelled_in_its_own_words(worlds: dict[str, World], tmp_path: Path) -> None:
+    world = worlds["ditch"]
+    run = fake_run([(0.0, 0.0), (3.0, 0.5)], failure=None)
+    run = Run(**{**run.__dict__, "reached_goal": False, "goal_time": None})
+    summary = tmp_path / "summary.json"
+    summary.write_text(json.dumps({"reference_failure": {"exception_type": "AssertionError",
+                                                         "location": "test_x.py:12", "signature": None}}))
+    text = render._reference_text(summary)
+    assert text == "AssertionError at test_x.py:12"
+    figure = render.draw_reduction(world, world.names[:2], original_run=run, minimal_run=run, failure_text=text)
+    try:
+        labels = " ".join(t.get_text() for t in figure.axes[0].get_legend().get_texts()).replace("\n", " ")
+        assert labels.count("AssertionError at test_x.py:12") == 2 and "no failure" not in labels
+    finally:
+        render._pyplot().close(figure)
+    summary.write_text(json.dumps({"reference_failure": {"exception_type": "RobotFailure", "location": "x:1",
+                                                         "signature": {"predicate": "stuck"}}}))
+    assert render._reference_text(summary) is None  # a predicate's failure keeps the run's own words
+
+
+def test_terrain_is_neutral_unless_its_friction_differs(worlds: dict[str, World]) -> None:
+    ditch = worlds["ditch"]
+    shown = render.frictions_shown(ditch, render.footprints(ditch))
+    assert ditch.model("asphalt_plane").mu > 5 and shown["asphalt_plane"] is None  # both plateaus: mu 100
+    assert shown["asphalt_plane_clone"] is None
+    slippery = ditch.select(["asphalt_plane", "asphalt_plane_clone"])
+    slippery = World(models=(slippery.models[0], replace_mu(slippery.models[1], 0.1)), scenario=ditch.scenario)
+    shown = render.frictions_shown(slippery, render.footprints(slippery))
+    assert shown == {"asphalt_plane": "high", "asphalt_plane_clone": "low"}  # what differs is shown
+    friction_world = worlds["friction"]
+    tiles = render.frictions_shown(friction_world, render.footprints(friction_world))
+    assert tiles["grey_wall_clone_clone_5"] == "high"  # small patches keep their colour
+
+
+def replace_mu(model, mu: float):
+    import dataclasses
+
+    return dataclasses.replace(model, mu=mu, mu2=mu)
