@@ -469,10 +469,13 @@ def _run_outcome(run: Run) -> str:
 
 
 def _view(axes: Axes, world: World, prints: Sequence[Footprint], points: Sequence[FloatArray]) -> None:
-    """Limits that show the start, goal, trajectories and every model except huge terrain, equal aspect."""
+    """Limits that show the start, goal, trajectories and every model except huge terrain, equal aspect. A
+    world of terrain only (a minimal world of two ground slabs) is framed on its scenario and runs, so a
+    0.5 m gap between two 20 m slabs is not a hairline."""
     boxes: list[FloatArray] = [np.asarray(p, dtype=float).reshape(-1, 2) for p in points if len(p)]
     small = [fp for fp in prints if fp.extent <= TERRAIN_EXTENT]
-    boxes += [np.stack([fp.low, fp.high]) for fp in (small or prints)]
+    if small or (not boxes and world.scenario is None):  # terrain frames the view only if nothing else can
+        boxes += [np.stack([fp.low, fp.high]) for fp in (small or prints)]
     if world.scenario is not None:
         goal = world.scenario.goal
         tolerance = world.scenario.goal_tolerance

@@ -295,3 +295,15 @@ def replace_mu(model, mu: float):
     import dataclasses
 
     return dataclasses.replace(model, mu=mu, mu2=mu)
+
+
+def test_a_world_of_terrain_only_is_framed_on_its_scenario_and_runs(worlds: dict[str, World]) -> None:
+    minimal = worlds["ditch"].select(["asphalt_plane", "asphalt_plane_clone"])  # two 20 m plateaus
+    run = fake_run([(-3.0, -0.5), (1.4, -0.7)])
+    figure = render.draw_world(minimal, [run])
+    try:
+        low, high = figure.axes[0].get_xlim()
+        assert high - low < 15.0  # the start, the goal and the run; not the 40 m of terrain
+        assert low < -3.0 and high > 3.7  # the start (x = -3) and the goal (x = 3.75) are in view
+    finally:
+        render._pyplot().close(figure)
