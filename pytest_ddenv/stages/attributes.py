@@ -291,7 +291,6 @@ def run(context: StageContext, folder: Path) -> StageResult:
         details["failure_rate"] = rate
     return StageResult(STAGE, world, probes=probes, simulations=context.budget.started() - begin,
                        findings=findings or ["nothing to simplify"], details=details, incomplete=incomplete,
-                       elements=tuple(p.name for p in [*held, *broke.values()]),
                        differences={f"{p.model}: {p.attribute} {p.before} -> {p.after}": _applying(p)
                                     for p in broke.values()})
 

@@ -25,7 +25,6 @@ class StageResult:
     details: dict[str, Any] = field(default_factory=dict)
     incomplete: str | None = None
     reduction: Reduction | None = None
-    elements: tuple[str, ...] = ()
     differences: dict[str, Callable[[World], World]] = field(default_factory=dict)
     """Changes of the final world that each broke the failure here (what the nearest passing world may
     apply), by their description."""

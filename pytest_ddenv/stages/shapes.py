@@ -86,4 +86,4 @@ def run(context: StageContext) -> StageResult:
     return StageResult(STAGE, build(reduction.minimal), probes=reduction.probes, simulations=simulations,
                        findings=findings, details={"models": details, "kept": list(reduction.minimal), **rate},
                        incomplete=None if reduction.one_minimal else reduction.incomplete_reason,
-                       reduction=reduction, elements=tuple(elements))
+                       reduction=reduction)
