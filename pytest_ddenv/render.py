@@ -574,7 +574,9 @@ def _short(name: str, limit: int = 30) -> str:
 
 
 def _marker_boxes(axes: Axes) -> list[Any]:
-    """Display boxes around the start, goal and failure markers."""
+    """Display boxes around the start, goal and failure markers, the goal's tolerance circle and the robot
+    outlines at failure poses: what a label must not hide."""
+    from matplotlib.patches import Circle, Polygon
     from matplotlib.transforms import Bbox
 
     boxes = []
@@ -583,6 +585,9 @@ def _marker_boxes(axes: Axes) -> list[Any]:
             continue
         for x, y in axes.transData.transform(np.column_stack(line.get_data()).astype(float)):
             boxes.append(Bbox.from_extents(x - 10, y - 10, x + 10, y + 10))
+    for patch in axes.patches:
+        if isinstance(patch, Circle) or (isinstance(patch, Polygon) and not patch.get_fill()):
+            boxes.append(patch.get_window_extent())
     return boxes
 
 

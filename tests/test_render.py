@@ -307,3 +307,23 @@ def test_a_world_of_terrain_only_is_framed_on_its_scenario_and_runs(worlds: dict
         assert low < -3.0 and high > 3.7  # the start (x = -3) and the goal (x = 3.75) are in view
     finally:
         render._pyplot().close(figure)
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_labels_never_hide_the_goal_or_a_failure_outline(name: str, worlds: dict[str, World]) -> None:
+    import matplotlib.pyplot as plt
+
+    world = worlds[name]
+    run = scenario_run(world)
+    figure = render.draw_world(world, [run])  # every model the run touched is labelled
+    try:
+        figure.canvas.draw()
+        axes = figure.axes[0]
+        labels = [text.get_bbox_patch().get_window_extent() for text in axes.texts if text.get_bbox_patch()]
+        keep_clear = [patch.get_window_extent() for patch in axes.patches
+                      if type(patch).__name__ == "Circle" or (type(patch).__name__ == "Polygon" and not patch.get_fill())]
+        assert keep_clear and labels
+        for label in labels:
+            assert not any(label.overlaps(box) for box in keep_clear), name
+    finally:
+        plt.close(figure)
