@@ -337,6 +337,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     handler = _HANDLERS[arguments.command]
     try:
         return handler(arguments)
+    except BrokenPipeError:  # the reader went away (`ddenv ... | head`): stop quietly, as a Unix tool does
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_FAILED
     except (DdenvError, OSError) as error:
         _traceback_if(arguments.debug)
         return _fail(_describe_error(error), as_json=arguments.json)
@@ -519,11 +523,26 @@ def _cmd_show(arguments: argparse.Namespace) -> int:
     world = load_world(arguments, arguments.world)
     runs, poses, outcomes = _read_runs(Path(arguments.runs)) if arguments.runs else ([], [], [])
     target = arguments.output or f"{_world_stem(arguments.world)}.png"
-    picture = render.plot_world(world, runs, path=target, failure_poses=poses, failure_outcomes=outcomes)
+    picture = render.plot_world(world, runs, path=target, failure_poses=poses, failure_outcomes=outcomes,
+                                robot_footprint=_robot_footprint(world) if poses and not runs else None)
     text = f"wrote {picture} ({len(world)} models, {len(runs)} runs, {len(poses)} failure poses)"
     _emit(arguments, text, {"ok": True, "picture": str(picture), "models": len(world), "runs": len(runs),
                             "failure_poses": len(poses)})
     return EXIT_OK
+
+
+def _robot_footprint(world: World) -> tuple[float, float] | None:
+    """The (length, width) of the world's own robot, for failure poses drawn without a run (None: unknown)."""
+    if world.scenario is None:
+        return None
+    from pytest_ddenv.sim.quiet import silenced
+    from pytest_ddenv.sim.robot import make_robot
+
+    try:
+        with silenced():  # a URDF robot imports pybullet, which prints its build time on the C-level stdout
+            return tuple(make_robot(world.scenario.robot, world.source).footprint)  # type: ignore[return-value]
+    except DdenvError:  # a robot this process does not know (registered by the user's code)
+        return None
 
 
 def _read_runs(path: Path) -> tuple[list[Run], list[list[float]], list[str]]:

@@ -656,20 +656,23 @@ def _label_style(dx: float, dy: float) -> dict[str, Any]:
 
 # -- public pictures ----------------------------------------------------------------------------------
 def plot_world(world: World, runs: Sequence[Run] = (), *, path: str | Path, title: str | None = None,
-               failure_poses: Sequence[Sequence[float]] = (), failure_outcomes: Sequence[str] = ()) -> Path:
+               failure_poses: Sequence[Sequence[float]] = (), failure_outcomes: Sequence[str] = (),
+               robot_footprint: tuple[float, float] | None = None) -> Path:
     """Write a top-down picture of `world` with `runs` (trajectories, failure poses) to `path` (PNG).
 
     `failure_poses` marks extra failure poses (x, y, z, roll, pitch, yaw) without trajectories, e.g. from
     a probe log, drawn with the first run's robot footprint (a Husky's without runs); `failure_outcomes`
     (one per pose: "fail", "other", ...) colours them by outcome (same failure red, another failure orange)
-    with a legend entry each. Models the runs touched when they failed are labelled.
+    with a legend entry each. `robot_footprint` (length, width) outlines them when there is no run (the
+    world's own robot; default a Husky's). Models the runs touched when they failed are labelled.
     """
     return _save(draw_world(world, runs, title=title, failure_poses=failure_poses,
-                            failure_outcomes=failure_outcomes), path)
+                            failure_outcomes=failure_outcomes, robot_footprint=robot_footprint), path)
 
 
 def draw_world(world: World, runs: Sequence[Run] = (), *, title: str | None = None,
-               failure_poses: Sequence[Sequence[float]] = (), failure_outcomes: Sequence[str] = ()) -> Figure:
+               failure_poses: Sequence[Sequence[float]] = (), failure_outcomes: Sequence[str] = (),
+               robot_footprint: tuple[float, float] | None = None) -> Figure:
     """The figure of `plot_world` (close it with `matplotlib.pyplot.close` when done)."""
     figure, axes = _figure(WORLD_SIZE)
     prints = footprints(world)
@@ -677,7 +680,7 @@ def draw_world(world: World, runs: Sequence[Run] = (), *, title: str | None = No
     _draw_scenario(axes, world)
     for index, run in enumerate(runs):
         _draw_run(axes, run, _RUN_COLORS[index % len(_RUN_COLORS)], f"seed {run.seed}")
-    footprint = runs[0].footprint if runs else ROBOT_FOOTPRINT  # the poses' robot: the runs' if any
+    footprint = runs[0].footprint if runs else robot_footprint or ROBOT_FOOTPRINT  # the poses' robot
     outcomes = list(failure_outcomes) or ["fail"] * len(failure_poses)
     if len(outcomes) != len(failure_poses):
         raise ValueError(f"failure_outcomes has {len(outcomes)} entries for {len(failure_poses)} failure poses")

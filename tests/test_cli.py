@@ -415,3 +415,15 @@ def test_a_quiet_or_terminal_progress_has_no_heartbeat_thread() -> None:
     quiet = ProgressLine(io.StringIO(), quiet=True)
     assert quiet.heartbeat._thread is None
     quiet.close()
+
+
+def test_a_closed_pipe_ends_the_command_quietly(tmp_path: Path) -> None:
+    """`ddenv ... | head`: the reader goes away before the output is written; no traceback on stderr."""
+    world = Path(__file__).resolve().parent.parent / "worlds" / "ditch.yaml"
+    process = subprocess.Popen([sys.executable, "-m", "pytest_ddenv.cli", "check", str(world), "--json"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
+    assert process.stdout is not None and process.stderr is not None
+    process.stdout.close()  # before the command has written anything (it is still importing)
+    error = process.stderr.read().decode()
+    assert process.wait(timeout=120) == 1
+    assert "Traceback" not in error and "Broken pipe" not in error

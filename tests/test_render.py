@@ -327,3 +327,20 @@ def test_labels_never_hide_the_goal_or_a_failure_outline(name: str, worlds: dict
             assert not any(label.overlaps(box) for box in keep_clear), name
     finally:
         plt.close(figure)
+
+
+def test_failure_poses_without_a_run_are_outlined_with_the_worlds_own_robot() -> None:
+    """`ddenv show` of a probe log draws the poses with the world's robot (here a URDF diffbot), not a Husky."""
+    from pytest_ddenv.cli import _robot_footprint
+
+    world = World.load(ROOT / "examples" / "robots" / "diffbot_world.yaml")
+    footprint = _robot_footprint(world)
+    assert footprint is not None and footprint != render.ROBOT_FOOTPRINT and footprint[0] < 0.8
+    figure = render.draw_world(world, failure_poses=[[5.0, 0.0, 0.1, 0, 0, 0]], robot_footprint=footprint)
+    try:
+        (outline,) = [p for p in figure.axes[0].patches if type(p).__name__ == "Polygon" and not p.get_fill()]
+        xy = np.asarray(outline.get_xy())[:4]
+        assert np.allclose(xy[:, 0].max() - xy[:, 0].min(), footprint[0])  # yaw 0: its length along x
+        assert np.allclose(xy[:, 1].max() - xy[:, 1].min(), footprint[1])
+    finally:
+        render._pyplot().close(figure)
