@@ -158,9 +158,17 @@ def test_the_budget_bounds_every_stage_and_undecided_is_not_needed() -> None:
     world = make_world(30, culprit=11, mu=100.0)
     _, outcome, _ = reduce_all(world, fails, parse_stages("all"), limit=12)
     assert outcome.simulations <= 12
+    # a budget that cuts the attributes stage in the middle: what it did not decide is never "needed"
+    _, outcome, _ = reduce_all(make_world(3, culprit=1, mu=100.0), fails, parse_stages("models,attributes"),
+                               limit=20)
+    assert outcome.simulations <= 20
     attributes = outcome.result("attributes")
-    if attributes is not None and attributes.incomplete:
-        assert not any("needs" in finding for finding in attributes.findings if "not decided" in finding)
+    assert attributes is not None and attributes.incomplete == "budget: max_probes"
+    undecided = {(p["model"], p["attribute"]) for p in attributes.details["undecided"]}
+    assert undecided and not undecided & {(p["model"], p["attribute"]) for p in attributes.details["broke"]}
+    for model, attribute in undecided:
+        assert not any(f.startswith(f"{model}: the failure needs {attribute} ") for f in attributes.findings)
+        assert any(f.startswith(f"{model}: {attribute} ") and "not decided" in f for f in attributes.findings)
 
 
 def test_proposals_never_round_a_dimension_up_past_its_rung() -> None:
