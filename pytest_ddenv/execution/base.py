@@ -129,9 +129,10 @@ class Pool(Protocol):
     @property
     def stats(self) -> PoolStats: ...
 
-    def call(self, world: World, attempt: int, *, timeout: float | None = None) -> Any:
+    def call(self, world: World, attempt: int, *, timeout: float | None = None, record: bool = False) -> Any:
         """`timeout`: seconds this probe may take before it is stopped (`ProbeDeadline`), e.g. the rest of a
-        reduction's time budget; the watchdog applies as well."""
+        reduction's time budget; the watchdog applies as well. `record`: the probe's runs record their full
+        detail (`Run.detail`)."""
         ...
 
     def close(self) -> None: ...

@@ -293,7 +293,7 @@ class DaskPool:
         """See `LocalPool.expect`."""
         self._stats.expect(seconds)
 
-    def call(self, world: World, attempt: int, *, timeout: float | None = None) -> Any:
+    def call(self, world: World, attempt: int, *, timeout: float | None = None, record: bool = False) -> Any:
         """Like `LocalPool.call`, on the cluster (a probe past `timeout` is cancelled: `ProbeDeadline`)."""
         from distributed import KilledWorker
 
@@ -304,7 +304,7 @@ class DaskPool:
         with self._lock:
             self._sequence += 1
             sequence = self._sequence
-        request = ProbeRequest(world, int(attempt), fault_for(self._faults, sequence, 0))
+        request = ProbeRequest(world, int(attempt), fault_for(self._faults, sequence, 0), record=bool(record))
         what = describe_request(self.job.label, request)
         watchdog, by_deadline = limit_of(self.watchdog_seconds(), None if timeout is None else
                                          time.monotonic() + max(0.0, timeout), time.monotonic())

@@ -377,7 +377,7 @@ class LocalPool:
         `watchdog_factor` times that."""
         self._stats.expect(seconds)
 
-    def call(self, world: World, attempt: int, *, timeout: float | None = None) -> Any:
+    def call(self, world: World, attempt: int, *, timeout: float | None = None, record: bool = False) -> Any:
         """Run the job's test on `world` as re-run `attempt` on a worker; return the handler's value.
 
         Raises what the handler raised (re-raised here), `WorkerStartError` when the workers cannot start
@@ -391,7 +391,7 @@ class LocalPool:
             raise self._start_error
         with self._sequence_lock:
             sequence = next(self._sequence)
-        request = ProbeRequest(world, int(attempt))
+        request = ProbeRequest(world, int(attempt), record=bool(record))
         deadline = None if timeout is None else time.monotonic() + max(0.0, float(timeout))
         if self._handler is not None:
             return self._call_here(replace(request, fault=fault_for(self._faults, sequence, 0)), deadline)

@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal, Protocol, runtime_checkable
 
+from pytest_ddenv.detail import recording_detail
 from pytest_ddenv.execution.errors import PoolConfigError
 
 if TYPE_CHECKING:
@@ -74,11 +75,13 @@ def fault_for(faults: Sequence[Fault], sequence: int, try_index: int) -> FaultKi
 
 @dataclass(frozen=True)
 class ProbeRequest:
-    """One probe for a worker: run the job's test on `world` as re-run number `attempt` (picklable)."""
+    """One probe for a worker: run the job's test on `world` as re-run number `attempt` (picklable);
+    `record`: the runs it makes record their full detail (`Run.detail`, for animations and recordings)."""
 
     world: World
     attempt: int
     fault: FaultKind | None = None
+    record: bool = False
 
 
 @dataclass(frozen=True)
@@ -142,7 +145,8 @@ def answer(request: ProbeRequest, handle: Handler) -> Reply:
     started, cpu = time.perf_counter(), time.thread_time()
     try:
         inject(request.fault)
-        value = handle(request.world, request.attempt)
+        with recording_detail(request.record):
+            value = handle(request.world, request.attempt)
     except Exception as error:  # noqa: BLE001 - sent back to the caller, which re-raises it
         return Reply(None, error, time.perf_counter() - started, time.thread_time() - cpu)
     return Reply(value, None, time.perf_counter() - started, time.thread_time() - cpu)

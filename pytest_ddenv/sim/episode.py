@@ -16,10 +16,12 @@ from typing import Any
 
 import numpy as np
 
+from pytest_ddenv.detail import detail_requested
 from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.oracle import GROUND, Contact, FailureSignature, History, Predicate, RobotState
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.control import AnyCommand, Command, LaserScan, Observation, wrap_angle
+from pytest_ddenv.sim.detail_recorder import DetailRecorder
 from pytest_ddenv.sim.laser import Laser
 from pytest_ddenv.sim.robot import Robot
 from pytest_ddenv.sim.run import Run
@@ -79,6 +81,8 @@ class Episode:
         self._observed = False
         self._pose: tuple[float, float, float, float, float, float] = (0.0,) * 6
         self._contacts: tuple[Contact, ...] = ()
+        self._detail = DetailRecorder(p, client, world, body, bodies, frozenset(robot.wheel_links), self.laser,
+                                      mount.height if mount else 0.0) if detail_requested() else None
         self.sense()
 
     @property
@@ -166,6 +170,8 @@ class Episode:
         self._poses.append(list(pose))
         self._velocities.append(list(velocity))
         self._loads.append(loads)
+        if self._detail is not None:
+            self._detail.sample()
 
     def observe(self) -> Observation:
         """What the robot's sensors say at this tick. Draws the tick's noise and advances the dead-reckoning
@@ -235,6 +241,7 @@ class Episode:
             wall_time=time.perf_counter() - self.started,
             steps=self._steps,
             pybullet_version=self.pybullet_version,
+            detail=None if self._detail is None else self._detail.result(),
         )
 
 

@@ -16,6 +16,26 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)
+class RunDetail:
+    """What a run records beyond the robot's pose when asked (`pytest_ddenv.detail.recording_detail`), for
+    the animations and the 3D recording. Sampled at the run's `times`.
+
+    `bodies`: moving model name -> (T, 7) x y z qx qy qz qw (static models stay where the world puts them).
+    `joints`: (T, J) the robot's joint positions in joint index order (wheels turning). `scan_angles` (R,)
+    and `scan_ranges` (T, R): the latest laser scan at each time (robot frame, `inf` = no hit; None without a
+    laser), from `scan_height` above the robot's base. `contacts`: per time, (model, x, y, z, normal force)
+    of each point where the robot touches a model, or the ground with a part that is not a wheel.
+    """
+
+    bodies: Mapping[str, FloatArray]
+    joints: FloatArray
+    scan_angles: FloatArray | None
+    scan_ranges: FloatArray | None
+    scan_height: float
+    contacts: tuple[tuple[tuple[str, float, float, float, float], ...], ...]
+
+
+@dataclass(frozen=True, eq=False)
 class Run:
     """One simulated run of a world with a seed.
 
@@ -51,6 +71,7 @@ class Run:
     pybullet_version: str
     robot: str = "husky"
     footprint: tuple[float, float] = (0.99, 0.67)
+    detail: RunDetail | None = None
 
     @property
     def positions(self) -> FloatArray:

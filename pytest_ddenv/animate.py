@@ -1,0 +1,230 @@
+"""Animations of a run: frames from PyBullet's software renderer (TinyRenderer, headless), written as a GIF.
+
+A replay, not a re-simulation: the world is built once in a render-only pybullet client and every frame
+puts the robot (base pose and joints) and the moving models where the run recorded them (`Run.detail`;
+without it, the moving models stay at their start poses). A chase camera follows the robot from behind and
+above, its heading smoothed so that the picture does not swing with every wobble. Each frame carries the
+simulated time; from the failure moment on the frame has a red border and the failure's words.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
+from pytest_ddenv.sim.quiet import silenced
+from pytest_ddenv.sim.robot import make_robot
+from pytest_ddenv.sim.run import Run
+from pytest_ddenv.world import World
+
+Frame = NDArray[np.uint8]
+
+WIDTH, HEIGHT = 320, 240
+"""Frame size in pixels: TinyRenderer's cost grows with it (about 40 ms a frame at this size)."""
+MAX_FRAMES = 60
+"""Rendered frames per animation at most (a few seconds of rendering); a long run is played faster."""
+MIN_STEP = 0.25
+"""Simulated seconds between frames at least (a short run is not rendered at every recorded tick)."""
+FPS = 8
+"""Frames per second of the GIF."""
+HOLD_FRAMES = 8
+"""The last frame (the failure) is held this many frames, so that a looping GIF pauses on it."""
+CHASE_DISTANCE, CHASE_HEIGHT = 4.5, 2.6
+"""Camera: metres behind the robot, and above its base."""
+GROUND_RGBA = (0.78, 0.78, 0.74, 1.0)
+_PALETTE = ((0.55, 0.42, 0.30), (0.36, 0.50, 0.63), (0.52, 0.60, 0.36), (0.66, 0.46, 0.52), (0.45, 0.45, 0.58),
+            (0.70, 0.58, 0.34), (0.40, 0.58, 0.55))
+_DEFAULT_COLOR = (0.6, 0.6, 0.6, 1.0)
+_FAILURE_RED = (214, 39, 40)
+
+
+@dataclass(frozen=True)
+class AnimationInfo:
+    """What `write_animation` made: the file, its frames, the simulated times they show, the failure time
+    (None: the run did not fail), the bytes written and the seconds spent rendering and encoding."""
+
+    path: Path
+    frames: int
+    times: tuple[float, ...]
+    failure_time: float | None
+    size_bytes: int
+    seconds: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"file": self.path.name, "frames": self.frames, "first_time": self.times[0] if self.times else None,
+                "last_time": self.times[-1] if self.times else None, "failure_time": self.failure_time,
+                "bytes": self.size_bytes, "seconds": round(self.seconds, 3)}
+
+
+def frame_times(run: Run, *, max_frames: int = MAX_FRAMES, min_step: float = MIN_STEP) -> list[int]:
+    """Indices into `run.times` of the frames to render: evenly spaced over the run (at least `min_step`
+    simulated seconds apart, at most `max_frames`), always the last sample, and the sample at the failure."""
+    times = np.asarray(run.times, dtype=float)
+    if len(times) == 0:
+        return []
+    duration = float(times[-1] - times[0])
+    step = max(min_step, duration / max(1, max_frames - 1))
+    wanted = np.arange(float(times[0]), float(times[-1]) + 1e-9, step)
+    indices = {int(np.searchsorted(times, t, side="left")) for t in wanted}
+    indices.add(len(times) - 1)
+    if run.failure is not None:
+        indices.add(min(len(times) - 1, int(np.searchsorted(times, run.failure.time - 1e-9, side="left"))))
+    return sorted(i for i in indices if i < len(times))
+
+
+def _color(name: str, model_color: tuple[float, float, float, float]) -> list[float]:
+    if tuple(model_color) != _DEFAULT_COLOR:
+        return [float(v) for v in model_color]
+    index = int(hashlib.sha1(name.encode()).hexdigest(), 16) % len(_PALETTE)  # the same colour in every world
+    return [*_PALETTE[index], 1.0]
+
+
+class _Scene:
+    """A render-only pybullet client holding the world and the robot."""
+
+    def __init__(self, world: World) -> None:
+        with silenced():
+            import pybullet as p
+        self.p = p
+        self.client = p.connect(p.DIRECT)
+        try:
+            self._build(world)
+        except BaseException:
+            p.disconnect(self.client)
+            raise
+
+    def _build(self, world: World) -> None:
+        p, client = self.p, self.client
+        with silenced():
+            bodies = build_world(p, client, world)
+        colors = {model.name: model.color for model in world.models}
+        self.bodies = {name: body for body, name in bodies.items()}
+        for body, name in bodies.items():
+            rgba = list(GROUND_RGBA) if name == GROUND_BODY_NAME else _color(name, colors[name])
+            for link in range(-1, p.getNumJoints(body, physicsClientId=client)):
+                p.changeVisualShape(body, link, rgbaColor=rgba, textureUniqueId=-1, physicsClientId=client)
+        start = world.scenario.start if world.scenario is not None else None
+        self.robot: int | None = None
+        if world.scenario is not None and start is not None:
+            try:
+                with silenced():
+                    robot = make_robot(world.scenario.robot, world.source)
+                    self.robot = robot.spawn(client, (start.x, start.y, 0.5), start.yaw)
+            except Exception:  # noqa: BLE001 - a robot of the user's that cannot be made here: drawn as a box
+                self.robot = None
+        if self.robot is None:
+            shape = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.45, 0.3, 0.15], rgbaColor=[0.95, 0.75, 0.1, 1],
+                                        physicsClientId=client)
+            self.robot = p.createMultiBody(0.0, -1, shape, [0, 0, 0], physicsClientId=client)
+        self.joints = p.getNumJoints(self.robot, physicsClientId=client)
+
+    def place(self, run: Run, index: int) -> None:
+        p, client = self.p, self.client
+        x, y, z, roll, pitch, yaw = (float(v) for v in run.poses[index])
+        p.resetBasePositionAndOrientation(self.robot, [x, y, z], p.getQuaternionFromEuler([roll, pitch, yaw]),
+                                          physicsClientId=client)
+        detail = run.detail
+        if detail is None:
+            return
+        if detail.joints.shape[1] == self.joints:
+            for joint, angle in enumerate(detail.joints[index]):
+                p.resetJointState(self.robot, joint, float(angle), physicsClientId=client)
+        for name, poses in detail.bodies.items():
+            body = self.bodies.get(name)
+            if body is not None and index < len(poses):
+                p.resetBasePositionAndOrientation(body, poses[index][:3].tolist(), poses[index][3:].tolist(),
+                                                  physicsClientId=client)
+
+    def image(self, eye: Sequence[float], target: Sequence[float], width: int, height: int) -> Frame:
+        p = self.p
+        view = p.computeViewMatrix(list(eye), list(target), [0.0, 0.0, 1.0])
+        projection = p.computeProjectionMatrixFOV(60.0, width / height, 0.1, 80.0)
+        _, _, rgba, _, _ = p.getCameraImage(width, height, view, projection, renderer=p.ER_TINY_RENDERER,
+                                            lightDirection=[0.4, -0.5, 1.0], shadow=0, physicsClientId=self.client)
+        return np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3].copy()
+
+    def close(self) -> None:
+        self.p.disconnect(self.client)
+
+
+def chase_headings(run: Run, indices: Sequence[int], smoothing: float = 1.5) -> list[float]:
+    """The camera's heading at each frame: the robot's yaw, unwrapped and smoothed with a time constant of
+    `smoothing` simulated seconds."""
+    yaws = np.unwrap(np.asarray(run.poses[:, 5], dtype=float))
+    times = np.asarray(run.times, dtype=float)
+    heading = float(yaws[0])
+    last = float(times[0])
+    result = []
+    for index in range(len(times)):
+        blend = 1.0 - math.exp(-(float(times[index]) - last) / smoothing)
+        heading += blend * (float(yaws[index]) - heading)
+        last = float(times[index])
+        result.append(heading)
+    return [result[i] for i in indices]
+
+
+def render_frames(world: World, run: Run, *, title: str = "", width: int = WIDTH, height: int = HEIGHT,
+                  max_frames: int = MAX_FRAMES) -> Iterator[tuple[float, Frame]]:
+    """(simulated time, RGB frame) of the run, chase camera, with the time and the failure marked."""
+    indices = frame_times(run, max_frames=max_frames)
+    headings = chase_headings(run, indices)
+    failure_time = None if run.failure is None else float(run.failure.time)
+    scene = _Scene(world)
+    try:
+        for index, heading in zip(indices, headings):
+            scene.place(run, index)
+            x, y, z = (float(v) for v in run.poses[index][:3])
+            eye = (x - CHASE_DISTANCE * math.cos(heading), y - CHASE_DISTANCE * math.sin(heading), z + CHASE_HEIGHT)
+            frame = scene.image(eye, (x, y, z), width, height)
+            now = float(run.times[index])
+            failed = failure_time is not None and now >= failure_time - 1e-9
+            yield now, _annotate(frame, title, now, run if failed else None)
+    finally:
+        scene.close()
+
+
+def _annotate(frame: Frame, title: str, now: float, failed_run: Run | None) -> Frame:
+    from PIL import Image, ImageDraw
+
+    image = Image.fromarray(frame)
+    draw = ImageDraw.Draw(image)
+    width, height = image.size
+    draw.rectangle((0, 0, width, 16), fill=(255, 255, 255))
+    draw.text((4, 2), f"{title}   t = {now:5.1f} s" if title else f"t = {now:5.1f} s", fill=(0, 0, 0))
+    if failed_run is not None and failed_run.failure is not None:
+        failure = failed_run.failure
+        draw.rectangle((0, 0, width - 1, height - 1), outline=_FAILURE_RED, width=4)
+        words = f"FAILED: {failure.predicate} at t = {failure.time:.1f} s"
+        draw.rectangle((0, height - 18, width, height), fill=_FAILURE_RED)
+        draw.text((6, height - 15), words, fill=(255, 255, 255))
+    return np.asarray(image, dtype=np.uint8)
+
+
+def write_animation(path: Path, world: World, run: Run, *, title: str = "", fps: int = FPS,
+                    max_frames: int = MAX_FRAMES) -> AnimationInfo:
+    """Render `run` in `world` and write it as a looping GIF at `path` (atomically: a temporary file, then
+    renamed)."""
+    import imageio.v3 as iio
+
+    started = time.perf_counter()
+    shown = list(render_frames(world, run, title=title, max_frames=max_frames))
+    frames = [frame for _, frame in shown]
+    if frames:
+        frames += [frames[-1]] * HOLD_FRAMES
+    path = Path(path)
+    temporary = path.with_name(path.name + ".tmp")
+    iio.imwrite(temporary, np.stack(frames) if frames else np.zeros((1, HEIGHT, WIDTH, 3), np.uint8),
+                extension=".gif", duration=1000 / fps, loop=0)
+    temporary.replace(path)
+    return AnimationInfo(path, len(shown), tuple(t for t, _ in shown),
+                         None if run.failure is None else float(run.failure.time), path.stat().st_size,
+                         time.perf_counter() - started)
