@@ -36,8 +36,8 @@ MIN_STEP = 0.25
 """Simulated seconds between frames at least (a short run is not rendered at every recorded tick)."""
 FPS = 8
 """Frames per second of the GIF."""
-HOLD_FRAMES = 8
-"""The last frame (the failure) is held this many frames, so that a looping GIF pauses on it."""
+HOLD_SECONDS = 1.5
+"""The last frame (the failure) is shown this long, so that a looping GIF pauses on it."""
 CHASE_DISTANCE, CHASE_HEIGHT = 4.5, 2.6
 """Camera: metres behind the robot, and above its base."""
 GROUND_RGBA = (0.78, 0.78, 0.74, 1.0)
@@ -217,13 +217,11 @@ def write_animation(path: Path, world: World, run: Run, *, title: str = "", fps:
 
     started = time.perf_counter()
     shown = list(render_frames(world, run, title=title, max_frames=max_frames))
-    frames = [frame for _, frame in shown]
-    if frames:
-        frames += [frames[-1]] * HOLD_FRAMES
+    frames = [frame for _, frame in shown] or [np.zeros((HEIGHT, WIDTH, 3), np.uint8)]
+    durations = [1000.0 / fps] * (len(frames) - 1) + [1000.0 * HOLD_SECONDS]
     path = Path(path)
     temporary = path.with_name(path.name + ".tmp")
-    iio.imwrite(temporary, np.stack(frames) if frames else np.zeros((1, HEIGHT, WIDTH, 3), np.uint8),
-                extension=".gif", duration=1000 / fps, loop=0)
+    iio.imwrite(temporary, np.stack(frames), extension=".gif", duration=durations, loop=0)
     temporary.replace(path)
     return AnimationInfo(path, len(shown), tuple(t for t, _ in shown),
                          None if run.failure is None else float(run.failure.time), path.stat().st_size,

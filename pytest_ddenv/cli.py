@@ -72,6 +72,25 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _media(text: str) -> str:
+    from pytest_ddenv.media import MediaChoiceError, media_choice
+
+    try:
+        return media_choice(text, "--media")
+    except MediaChoiceError as error:
+        raise argparse.ArgumentTypeError(str(error).removeprefix("--media: ")) from None
+
+
+def _resolved_media(given: str | None) -> str:
+    """--media, else $DDENV_MEDIA, else all."""
+    from pytest_ddenv.media import MediaChoiceError, media_choice
+
+    try:
+        return media_choice(given, "--media")
+    except MediaChoiceError as error:
+        raise UsageError(str(error)) from None
+
+
 def _workers(text: str) -> int | str:
     if text == "auto":
         return text
@@ -243,6 +262,9 @@ def _add_show(commands: Any, common: argparse.ArgumentParser) -> None:
     show.add_argument("--runs", metavar="FILE", help="runs to draw: a `ddenv run --record` file, or a "
                                                       "reduction's runs.jsonl (failure poses)")
     show.add_argument("-o", "--output", help="picture to write (default: WORLD.png in the current folder)")
+    show.add_argument("--animate", nargs="?", const="", default=None, metavar="GIF",
+                      help="also write an animation (default: WORLD.gif) of the first run of --runs, or of one "
+                           "simulated run of the world's scenario (seed 0, built-in controller) without --runs")
     add_world_options(show)
 
 
@@ -280,6 +302,10 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     reduce.add_argument("--stages", type=_stages, default=None, metavar="LIST",
                         help="what to do after the model-level reduction, comma-separated: models (always), shapes, "
                              "attributes, time, explain, passing, or 'all' (default: models,explain,passing)")
+    reduce.add_argument("--media", type=_media, default=None, metavar="WHAT",
+                        help="what to show besides the files: 'all' (pictures, original.gif/minimal.gif "
+                             "animations, recording.rrd when rerun-sdk is installed), 'pictures' or 'none' "
+                             "(default: $DDENV_MEDIA, else all)")
     reduce.add_argument("--stage-probes", type=_positive_int, metavar="N",
                         help="simulations each stage after the models may start (default: all of them together "
                              "at most twice the model-level simulations)")
@@ -310,6 +336,9 @@ def _add_replay(commands: Any, common: argparse.ArgumentParser) -> None:
                         help="re-run the seeds on which the reduction saw the minimal world fail (each should "
                              "fail again) instead of fresh ones")
     replay.add_argument("--tolerance", type=_positive_float, metavar="M", help="default: the recorded one")
+    replay.add_argument("--animate", nargs="?", const="", default=None, metavar="GIF",
+                        help="also write an animation of the first run that failed the same way (else the first "
+                             "run): default ARTIFACT_DIR/replay.gif")
 
 
 def _add_convert(commands: Any, common: argparse.ArgumentParser) -> None:
@@ -526,9 +555,33 @@ def _cmd_show(arguments: argparse.Namespace) -> int:
     picture = render.plot_world(world, runs, path=target, failure_poses=poses, failure_outcomes=outcomes,
                                 robot_footprint=_robot_footprint(world) if poses and not runs else None)
     text = f"wrote {picture} ({len(world)} models, {len(runs)} runs, {len(poses)} failure poses)"
-    _emit(arguments, text, {"ok": True, "picture": str(picture), "models": len(world), "runs": len(runs),
-                            "failure_poses": len(poses)})
+    data: dict[str, Any] = {"ok": True, "picture": str(picture), "models": len(world), "runs": len(runs),
+                            "failure_poses": len(poses)}
+    if arguments.animate is not None:
+        if world.scenario is None:
+            raise UsageError(f"{arguments.world}: --animate needs a scenario (a robot to follow); add one with "
+                             "--robot/--start/--goal")
+        run = runs[0] if runs else _simulated_run(world)
+        animation = _animate(arguments.animate or f"{_world_stem(arguments.world)}.gif", world, run,
+                             "recorded run" if runs else "seed 0")
+        text += f"\nwrote {animation.path} ({animation.frames} frames, {animation.size_bytes // 1024} KB)"
+        data["animation"] = animation.to_dict()
+    _emit(arguments, text, data)
     return EXIT_OK
+
+
+def _simulated_run(world: World) -> Run:
+    from pytest_ddenv.detail import recording_detail
+    from pytest_ddenv.scenario_job import run_scenario
+
+    with recording_detail():
+        return run_scenario(world, (), seed=0)
+
+
+def _animate(target: str, world: World, run: Run, title: str) -> Any:
+    from pytest_ddenv.animate import write_animation
+
+    return write_animation(Path(target), world, run, title=title)
 
 
 def _robot_footprint(world: World) -> tuple[float, float] | None:
@@ -585,6 +638,7 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     from pytest_ddenv.scenario_job import ScenarioJob
 
     _user_code(arguments)
+    arguments.media = _resolved_media(arguments.media)
     world = with_scenario(arguments, load_world(arguments, arguments.world), arguments.world)
     predicates = _predicates(arguments.predicates)
     _check_predicate_models(predicates, world)
@@ -609,7 +663,7 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
         with make_pool(job, arguments.workers, executor, in_process=in_process, watchdog=watchdog) as pool:
             progress.note(f"simulating the original world ({len(world)} models, seed {arguments.seed}; "
                           f"{_where(pool)})")
-            original = pool.call(world, 0)
+            original = pool.call(world, 0, record=arguments.media == "all")
             if original.error is None or original.error.ddenv_error or original.error.phase != "call":
                 return _does_not_fail(arguments, original)
             progress.note(f"it fails: {_failure_text(original)}; reducing")
@@ -690,7 +744,7 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
             f" --controller {shlex.quote(arguments.controller)}" if arguments.controller else ""),
         fingerprint={**settings, "predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
                      "controller": arguments.controller, "imports": list(arguments.imports)},
-        confirmed=True,
+        confirmed=True, media=arguments.media,
         model_paths=tuple(folder for value in arguments.model_paths for folder in value.split(os.pathsep) if folder),
         summary_extra={"predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
                        "scenario_seed": arguments.seed, "command": command, "controller": arguments.controller,
@@ -740,6 +794,7 @@ def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any], no
 
 # -- replay ------------------------------------------------------------------------------------------------
 def _cmd_replay(arguments: argparse.Namespace) -> int:
+    from pytest_ddenv.outcome import Outcome
     from pytest_ddenv.replay import read_artifacts, replay
 
     if not arguments.imports and not arguments.controller:  # what the reduction itself used, if recorded
@@ -748,8 +803,11 @@ def _cmd_replay(arguments: argparse.Namespace) -> int:
         arguments.controller = summary.get("controller")
     controller = _user_code(arguments)
     predicates = _predicates(arguments.predicates) or None
-    result = replay(arguments.artifacts, predicates=predicates, max_runs=arguments.runs,
-                    tolerance=arguments.tolerance, controller=controller, recorded=arguments.recorded)
+    from pytest_ddenv.detail import recording_detail
+
+    with recording_detail(arguments.animate is not None):
+        result = replay(arguments.artifacts, predicates=predicates, max_runs=arguments.runs,
+                        tolerance=arguments.tolerance, controller=controller, recorded=arguments.recorded)
     reference = result.reference
     lines = [(f"{arguments.artifacts}: minimal world of {len(result.world)} models; reference failure: "
              f"{reference.predicate} at t = {reference.time:.2f} s at ({reference.position[0]:.2f}, "
@@ -759,7 +817,16 @@ def _cmd_replay(arguments: argparse.Namespace) -> int:
         what = f"raised {run.raised}" if run.raised else what
         lines.append(f"  seed {run.seed}: {run.outcome.value} ({what})")
     lines.append(result.describe())
-    _emit(arguments, "\n".join(lines), result.to_dict())
+    data = result.to_dict()
+    shown = [run for run in result.runs if run.run is not None]
+    if arguments.animate is not None and shown:
+        chosen = next((run for run in shown if run.outcome is Outcome.FAIL), shown[0])
+        assert chosen.run is not None
+        animation = _animate(arguments.animate or str(Path(arguments.artifacts) / "replay.gif"), result.world,
+                             chosen.run, f"replay seed {chosen.seed}")
+        lines.append(f"wrote {animation.path} (seed {chosen.seed}, {animation.frames} frames)")
+        data["animation"] = animation.to_dict()
+    _emit(arguments, "\n".join(lines), data)
     return EXIT_OK if result.ok else EXIT_FAILED
 
 

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 from pytest_ddenv import artifacts
 from pytest_ddenv.execution import Pool, ProbeDeadline, WorkerError, WorkerStartError
 from pytest_ddenv.markers import ReductionSpec
+from pytest_ddenv.media import DEFAULT_MEDIA, write_media
 from pytest_ddenv.probe import (
     FailureReference,
     ProbeResult,
@@ -91,6 +92,9 @@ class ReductionPlan:
     summary_extra: Mapping[str, Any] = field(default_factory=dict)
     model_paths: tuple[str, ...] = ()
     """The folders the world's SDF `model://` includes were found in (to cut `minimal.sdf` from the file)."""
+    media: str = DEFAULT_MEDIA
+    """What to show besides the files: "all" (pictures, animations, 3D recording), "pictures" or "none"
+    (`pytest_ddenv.media`)."""
 
 
 @dataclass
@@ -236,11 +240,14 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
             threads.shutdown(wait=clean, cancel_futures=True)
     notes = list(dict.fromkeys([*notes, *reduction.notes]))
     extra["notes"] = notes
-    minimal_run = None
-    if interrupted is None:
+    minimal_run = recorded_minimal = recorded_original = None
+    if interrupted is None and plan.media != "none":
         minimal_run = calls.run_of(reduction.minimal, world, plan.reference_run)
-        if minimal_run is None and calls.may_start(spec.max_probes):
-            minimal_run = _minimal_run(calls, log, world.select(reduction.minimal))
+        if (minimal_run is None or plan.media == "all") and calls.may_start(spec.max_probes):
+            recorded_minimal = _minimal_run(calls, log, world.select(reduction.minimal), record=plan.media == "all")
+            minimal_run = minimal_run or recorded_minimal
+        if plan.media == "all":  # before the summary: its counts include every simulation
+            recorded_original = _recorded_original(plan, calls, log, confirmations)
     staged: StagesOutcome | None = None
     if interrupted is None and len(spec.stages or DEFAULT_STAGES) > 1 and reduction.minimal:
         try:
@@ -264,8 +271,12 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
                                minimal_run=minimal_run, stages=staged)
     if staged is not None:
         outcome.attachments += [Path(path) for path in extra["stage_files"].values()]
-    if interrupted is None:
+    if interrupted is None and plan.media != "none":
         outcome.attachments += _pictures(world, reduction, paths, plan.reference_run, minimal_run, staged)
+    if interrupted is None and plan.media == "all":
+        shown = [("original", world, recorded_original),
+                 ("minimal", world.select(reduction.minimal), recorded_minimal)]
+        outcome.attachments += write_media(paths.directory, shown).paths
     outcome.attachments = [path for path in outcome.attachments if path.exists()]
     if interrupted is not None:
         interrupted.outcome = outcome  # type: ignore[attr-defined]
@@ -323,7 +334,7 @@ class _Calls:
         self._runs: OrderedDict[frozenset[str], Run] = OrderedDict()
         self._pinned: tuple[frozenset[str], Run] | None = None
 
-    def __call__(self, world: World, attempt: int) -> ProbeResult:
+    def __call__(self, world: World, attempt: int, *, record: bool = False) -> ProbeResult:
         left = None if self.deadline is None else self.deadline - time.monotonic()
         if left is not None and left <= 0:
             self.local.cancelled = True
@@ -331,7 +342,10 @@ class _Calls:
         with self._lock:
             self.started += 1
         try:
-            result = self.pool.call(world, attempt) if left is None else self.pool.call(world, attempt, timeout=left)
+            options: dict[str, Any] = {"record": True} if record else {}
+            if left is not None:
+                options["timeout"] = left
+            result = self.pool.call(world, attempt, **options)
         except ProbeDeadline:
             self.local.cancelled = True
             raise
@@ -421,7 +435,7 @@ def _confirm(plan: ReductionPlan, call: _Calls, note: Note,
     for attempt in range(runs):
         note(f"confirming the failure ({attempt + 1}/{runs})")
         try:
-            result = call(plan.world, attempt)
+            result = call(plan.world, attempt, record=plan.media == "all")
         except WorkerStartError as error:
             return ReductionOutcome("error", message=f"the test could not be run in a probe worker: {error}")
         except WorkerError as error:
@@ -462,16 +476,34 @@ def _schemas(spec: ReductionSpec, reference_run: Run | None) -> tuple[str, str, 
     return partition, priority, notes
 
 
-def _minimal_run(call: _Calls, log: ProbeLog, minimal: World) -> Run | None:
-    """The minimal world's attempt-0 run, for the pictures (None if it cannot be had); logged."""
+def _minimal_run(call: _Calls, log: ProbeLog, minimal: World, *, record: bool = False) -> Run | None:
+    """The minimal world's attempt-0 run, for the pictures (`record`: and the animations, with its full
+    detail); None if it cannot be had. Logged."""
+    return _logged_run(call, log, minimal, 0, "recording" if record else "picture", record)
+
+
+def _logged_run(call: _Calls, log: ProbeLog, world: World, attempt: int, purpose: str, record: bool) -> Run | None:
     try:
-        result = call(minimal, 0)
+        result = call(world, attempt, record=record)
     except Exception:  # noqa: BLE001 - pictures are a convenience
-        _log_run(log, "picture", minimal.names, 0, None, "error")
+        _log_run(log, purpose, world.names, attempt, None, "error")
         return None
-    _log_run(log, "picture", minimal.names, 0, result,
+    _log_run(log, purpose, world.names, attempt, result,
              classify_result(result.error, call.reference, call.tolerance).value)
     return result.run
+
+
+def _recorded_original(plan: ReductionPlan, call: _Calls, log: ProbeLog,
+                       confirmations: list[tuple[int, ProbeResult | None, str]]) -> Run | None:
+    """The original world's failing run with its full detail: the run that confirmed the failure, else one
+    more run (attempt 0, logged) when the budget allows."""
+    for _, result, verdict in confirmations:
+        if verdict == Outcome.FAIL.value and result is not None and result.run is not None \
+                and result.run.detail is not None:
+            return result.run
+    if not call.may_start(plan.spec.max_probes):
+        return None
+    return _logged_run(call, log, plan.world, 0, "recording", True)
 
 
 def _pictures(world: World, reduction: Reduction, paths: artifacts.ArtifactPaths, original_run: Run | None,

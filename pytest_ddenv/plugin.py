@@ -83,6 +83,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         ("stages", "what to do after the model-level reduction, comma-separated: models (always), shapes, "
                    "attributes, time, explain, passing, or 'all' (default: models,explain,passing; the marker's "
                    "stages= when this is not given on the command line)", {"metavar": "LIST"}),
+        ("media", "what a reduction shows besides its files: 'all' (pictures, original.gif/minimal.gif "
+                  "animations, recording.rrd when rerun-sdk is installed), 'pictures' or 'none' (default: "
+                  "$DDENV_MEDIA, else all)", {"metavar": "WHAT"}),
         ("stage-probes", "simulations each stage after the models may start (default: all of them together at "
                          "most twice the model-level simulations)", {"metavar": "N"}),
         ("run-timeout", "wall-clock seconds one robot_world.run() may take before it fails with ControllerTimeout "
@@ -120,6 +123,17 @@ def _int_setting(config: pytest.Config, name: str, minimum: int) -> int | None:
     if number < minimum:
         raise pytest.UsageError(f"{_where(config, name)}: expected an integer >= {minimum}, got {shown(value)}")
     return number
+
+
+def _media_setting(config: pytest.Config) -> str:
+    """--ddenv-media, else the ini value, else $DDENV_MEDIA, else all."""
+    from pytest_ddenv.media import MediaChoiceError, media_choice
+
+    value = _setting(config, "ddenv_media")
+    try:
+        return media_choice(value, _where(config, "ddenv_media"))
+    except MediaChoiceError as error:
+        raise pytest.UsageError(str(error)) from None
 
 
 def _seconds_setting(config: pytest.Config, name: str) -> float | None:
@@ -196,6 +210,7 @@ def _validate_options(config: pytest.Config) -> None:
                                 f"on/off): {error}") from None
     _int_setting(config, "ddenv_max_probes", 1)
     _int_setting(config, "ddenv_stage_probes", 1)
+    _media_setting(config)
     _stages_setting(config, None)
     _int_setting(config, "ddenv_seed", 0)
     _seconds_setting(config, "ddenv_max_time")
@@ -461,6 +476,7 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
         progress=progress,
         replay=replay_command,
         model_paths=_model_paths(item.config),
+        media=_media_setting(item.config),
     )
     try:
         with _probe_pool(item) as pool:
@@ -601,9 +617,11 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     if html is not None and hasattr(html, "extras"):
         extras = list(getattr(report, "extras", []))
         for path in attachments:
-            if path.endswith(".png"):  # embedded, so the picture survives --self-contained-html and moves
+            if path.endswith((".png", ".gif")):  # embedded: survives --self-contained-html and moves
                 content = base64.b64encode(Path(path).read_bytes()).decode("ascii")
-                extras.append(html.extras.png(content, name=Path(path).name))
+                kind = Path(path).suffix[1:]
+                extras.append(html.extras.image(content, name=Path(path).name, mime_type=f"image/{kind}",
+                                                extension=kind))
             else:
                 extras.append(html.extras.url(path, name=Path(path).name))
         report.extras = extras

@@ -19,6 +19,7 @@ from pytest_ddenv import artifacts
 from pytest_ddenv.driver import ReductionOutcome, ReductionPlan, run_reduction
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.markers import ReductionSpec
+from pytest_ddenv.media import DEFAULT_MEDIA
 from pytest_ddenv.probe import FailureReference, describe_error
 from pytest_ddenv.reduce.types import ProgressEvent, ReductionInterrupted
 from pytest_ddenv.report_text import result_lines, status_of
@@ -40,6 +41,7 @@ class ReductionSession:
     progress: Progress
     replay: Callable[[pytest.Item, Path], str]
     model_paths: tuple[str, ...] = ()
+    media: str = DEFAULT_MEDIA
 
     def run(self, pool: Pool) -> dict[str, Any]:
         robot_world: RobotWorld = self.item.funcargs[FIXTURE]  # type: ignore[assignment]
@@ -59,7 +61,7 @@ class ReductionSession:
                 "predicates": [spec.to_json() for spec in robot_world.predicates],
                 "scenario_seed": robot_world.seed,
             },
-            model_paths=self.model_paths,
+            model_paths=self.model_paths, media=self.media,
         )
         try:
             outcome = run_reduction(plan, pool, note=self.progress, on_progress=self._on_progress)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -76,6 +76,8 @@ class ReplayRun:
     failure: FailureSignature | None
     raised: str = ""
     """What the run raised instead of finishing (a controller's exception), if anything."""
+    run: Run | None = field(default=None, compare=False, repr=False)
+    """The run itself (None when it raised)."""
 
 
 FRESH_FIRST_ATTEMPT = 1000
@@ -242,7 +244,7 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
         except Exception as error:  # the controller under test raised: another failure than the reference
             results.append(ReplayRun(run_seed, Outcome.OTHER, None, f"{type(error).__name__}: {error}"))
             continue
-        results.append(ReplayRun(run_seed, classify(run, reference, limit), run.failure))
+        results.append(ReplayRun(run_seed, classify(run, reference, limit), run.failure, run=run))
     original = summary.get("original_failure_rate") or None
     original_rate = (int(original["fails"]), int(original["runs"])) if isinstance(original, Mapping) else None
     return ReplayResult(folder, world, reference, chosen, limit, tuple(results), fresh=not recorded,

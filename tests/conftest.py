@@ -5,3 +5,10 @@
 import scipy.stats  # noqa: F401
 
 pytest_plugins = ["pytester"]
+
+# The suite runs about a hundred reductions: each makes the PNG pictures only, not the animations and the 3D
+# recording of the default `--ddenv-media all` (seconds each). tests/test_media.py asks for them explicitly.
+# Set here, before any test starts, so that pytester subprocesses and `ddenv` subprocesses inherit it.
+import os  # noqa: E402
+
+os.environ.setdefault("DDENV_MEDIA", "pictures")

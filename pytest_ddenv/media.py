@@ -1,0 +1,90 @@
+"""What a reduction shows besides its files: which media to make, and the animations and 3D recording.
+
+`--ddenv-media` (ini `ddenv_media`, `$DDENV_MEDIA`, `ddenv reduce --media`) chooses: `all` (the default:
+pictures, `original.gif`/`minimal.gif`, and `recording.rrd` when rerun-sdk is installed), `pictures` (the
+PNG pictures only) or `none`. Animations and the recording are drawn from runs that recorded their full
+detail (`Run.detail`): the run that confirmed the failure, and one run of the minimal world.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pytest_ddenv.sim.run import Run
+from pytest_ddenv.world import World
+
+MEDIA_CHOICES = ("all", "pictures", "none")
+MEDIA_ENV = "DDENV_MEDIA"
+DEFAULT_MEDIA = "all"
+
+
+class MediaChoiceError(ValueError):
+    """A media setting that is not one of `MEDIA_CHOICES`; the message says where it was given."""
+
+
+def media_choice(value: str | None, where: str) -> str:
+    """`value` checked (None or empty: `$DDENV_MEDIA`, else `all`); `where` names the option in the error."""
+    if value in (None, ""):
+        value, where = os.environ.get(MEDIA_ENV, "").strip(), f"${MEDIA_ENV}"
+        if not value:
+            return DEFAULT_MEDIA
+    text = str(value).strip().lower()
+    if text not in MEDIA_CHOICES:
+        raise MediaChoiceError(f"{where}: expected one of {', '.join(MEDIA_CHOICES)}, got {value!r}")
+    return text
+
+
+@dataclass
+class MediaWritten:
+    """The files `write_media` made and what each took (`info`: file name -> frames, bytes, seconds ...)."""
+
+    paths: list[Path] = field(default_factory=list)
+    info: dict[str, dict[str, Any]] = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+def write_media(directory: Path, shown: Sequence[tuple[str, World, Run | None]]) -> MediaWritten:
+    """`<label>.gif` for each (label, world, run) with a run, and one `recording.rrd` of them all (when
+    rerun-sdk is installed). Never raises: a medium that cannot be made is a warning (the reduction's files
+    are what matter)."""
+    from pytest_ddenv.animate import write_animation
+
+    started = time.perf_counter()
+    written = MediaWritten()
+    runs = [(label, world, run) for label, world, run in shown if run is not None]
+    for label, world, run in runs:
+        try:
+            info = write_animation(directory / f"{label}.gif", world, run, title=f"{label} ({_models(world)})")
+        except Exception as error:  # noqa: BLE001 - a convenience; never lose the reduction over one
+            warnings.warn(f"ddenv: {label}.gif not written: {type(error).__name__}: {error}", stacklevel=1)
+            continue
+        written.paths.append(info.path)
+        written.info[info.path.name] = info.to_dict()
+    if runs:
+        _write_recording(directory / "recording.rrd", runs, written)
+    written.seconds = time.perf_counter() - started
+    return written
+
+
+def _write_recording(path: Path, runs: Sequence[tuple[str, World, Run]], written: MediaWritten) -> None:
+    from pytest_ddenv.recording import recording_available, write_recording
+
+    if not recording_available():
+        return
+    try:
+        info = write_recording(path, runs)
+    except Exception as error:  # noqa: BLE001 - as above
+        warnings.warn(f"ddenv: {path.name} not written: {type(error).__name__}: {error}", stacklevel=1)
+        return
+    written.paths.append(info.path)
+    written.info[info.path.name] = info.to_dict()
+
+
+def _models(world: World) -> str:
+    return f"{len(world)} model{'' if len(world) == 1 else 's'}"

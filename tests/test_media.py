@@ -1,0 +1,154 @@
+"""Animations and what they are drawn from: runs that record their full detail (real simulations, real
+worker processes, real GIF files read back with imageio)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pytest_ddenv.animate import HEIGHT, WIDTH, frame_times, write_animation
+from pytest_ddenv.detail import recording_detail
+from pytest_ddenv.execution import LocalPool
+from pytest_ddenv.media import MediaChoiceError, media_choice
+from pytest_ddenv.oracle import PredicateSpec
+from pytest_ddenv.scenario_job import ScenarioJob
+from pytest_ddenv.sim import Run, simulate
+from pytest_ddenv.world import World
+
+ROOT = Path(__file__).resolve().parent.parent
+PREDICATES = (PredicateSpec("stuck", {"window": 5.0, "min_progress": 0.2}), PredicateSpec("high_centered", {}))
+WORLDS = ("ditch", "rubble", "friction", "cul_de_sac")
+
+
+def failing_run(name: str, *, detail: bool = True) -> tuple[World, Run]:
+    world = World.load(ROOT / "worlds" / f"{name}.yaml")
+    with recording_detail(detail):
+        run = simulate(world, seed=0, predicates=[spec.build() for spec in PREDICATES])
+    return world, run
+
+
+def read_gif(path: Path) -> np.ndarray:
+    import imageio.v3 as iio
+
+    return iio.imread(path, index=None)
+
+
+def border_is_red(frame: np.ndarray) -> bool:
+    """The failure's red frame: both side edges red from top to bottom (a red floor tile is not both)."""
+    edges = np.concatenate([frame[20:HEIGHT - 20, 1], frame[20:HEIGHT - 20, WIDTH - 2]]).astype(int)
+    return bool(np.all((abs(edges[:, 0] - 214) < 30) & (abs(edges[:, 1] - 39) < 30) & (abs(edges[:, 2] - 40) < 30)))
+
+
+# -- the detail a run records -------------------------------------------------------------------------------
+def test_recording_detail_leaves_the_run_itself_unchanged() -> None:
+    world, plain = failing_run("rubble", detail=False)
+    _, detailed = failing_run("rubble")
+    assert plain.detail is None and detailed.detail is not None
+    assert plain.same_trajectory(detailed) and plain.failure == detailed.failure
+    detail, samples = detailed.detail, len(detailed.times)
+    moving = {model.name for model in world.models if model.dynamic}
+    assert set(detail.bodies) == moving and all(poses.shape == (samples, 7) for poses in detail.bodies.values())
+    assert detail.scan_ranges is not None and detail.scan_angles is not None
+    assert detail.scan_ranges.shape == (samples, len(detail.scan_angles)) and len(detail.contacts) == samples
+    assert detail.joints.shape[0] == samples
+    touched = {point[0] for points in detail.contacts for point in points}
+    assert touched & set(detailed.touched), "the contact points name the models the run touched"
+
+
+def test_a_probe_asked_to_record_brings_back_the_detail_from_a_worker_process() -> None:
+    world = World.load(ROOT / "worlds" / "ditch.yaml").select(["asphalt_plane", "asphalt_plane_clone"])
+    with LocalPool(ScenarioJob(PREDICATES), 1) as pool:
+        recorded = pool.call(world, 0, record=True)
+        plain = pool.call(world, 0)
+    assert recorded.run.detail is not None and plain.run.detail is None
+    assert recorded.run.same_trajectory(plain.run)
+
+
+# -- animations ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", WORLDS)
+def test_animation_frames_size_and_the_failure_moment(name: str, tmp_path: Path) -> None:
+    world, run = failing_run(name)
+    info = write_animation(tmp_path / f"{name}.gif", world, run, title=name)
+    frames = read_gif(info.path)
+    assert frames.shape[1:3] == (HEIGHT, WIDTH)
+    assert len(frames) == info.frames and 2 <= info.frames <= 60
+    assert info.size_bytes == info.path.stat().st_size < 3_000_000
+    assert info.times[0] == run.times[0] and info.times[-1] == run.times[-1]
+    assert not border_is_red(frames[0])
+    if run.failure is not None:
+        assert info.times[0] <= info.failure_time <= info.times[-1], "the failure moment is inside the clip"
+        first_red = next(i for i, frame in enumerate(frames) if border_is_red(frame))
+        assert info.times[first_red] == pytest.approx(run.failure.time, abs=0.06)
+        assert all(border_is_red(frame) for frame in frames[first_red:])
+    else:
+        assert not any(border_is_red(frame) for frame in frames)
+    assert len({frame.tobytes() for frame in frames[:info.frames]}) > info.frames // 2, "the picture moves"
+
+
+def test_frames_are_spread_over_the_run_and_include_the_failure() -> None:
+    _, run = failing_run("ditch")
+    indices = frame_times(run, max_frames=10)
+    assert indices[0] == 0 and indices[-1] == len(run.times) - 1 and len(indices) <= 12
+    assert run.failure is not None
+    assert any(abs(run.times[i] - run.failure.time) < 0.06 for i in indices)
+
+
+def test_a_run_without_detail_is_animated_with_the_models_where_they_started(tmp_path: Path) -> None:
+    world, run = failing_run("ditch", detail=False)
+    info = write_animation(tmp_path / "plain.gif", world, run)
+    assert len(read_gif(info.path)) == info.frames
+
+
+# -- the media setting --------------------------------------------------------------------------------------
+def test_media_choice_reads_the_option_then_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("DDENV_MEDIA", raising=False)
+    assert media_choice(None, "--x") == "all" and media_choice("Pictures", "--x") == "pictures"
+    monkeypatch.setenv("DDENV_MEDIA", "none")
+    assert media_choice(None, "--x") == "none" and media_choice("all", "--x") == "all"
+    monkeypatch.setenv("DDENV_MEDIA", "movies")
+    with pytest.raises(MediaChoiceError, match=r"\$DDENV_MEDIA: expected one of all, pictures, none, got 'movies'"):
+        media_choice(None, "--x")
+
+
+def test_a_bad_media_option_is_one_usage_error(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile("def test_nothing():\n    pass\n")
+    result = pytester.runpytest_subprocess("--ddenv-media", "movies")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--ddenv-media: expected one of all, pictures, none, got 'movies'*"])
+
+
+TEST = '''
+import pytest
+
+@pytest.mark.ddenv(world="worlds/ditch.yaml", partition="model2model", priority="avg-trajectory")
+@pytest.mark.robot_failure("stuck", window=5.0, min_progress=0.2)
+def test_ditch(robot_world):
+    assert robot_world.run().reached_goal
+'''
+
+
+@pytest.mark.slow
+def test_a_reduction_leaves_animations_counted_runs_and_an_inline_html_animation(pytester: pytest.Pytester) -> None:
+    shutil.copytree(ROOT / "worlds", pytester.path / "worlds")
+    pytester.makepyfile(test_ditch=TEST)
+    result = pytester.runpytest_subprocess("--ddenv-reduce", "--ddenv-media", "all", "--html=report.html",
+                                           "--self-contained-html", "--junitxml=junit.xml",
+                                           "-o", "junit_logging=system-out")
+    result.assert_outcomes(failed=1)
+    (folder,) = (pytester.path / "ddenv-artifacts").iterdir()
+    for name in ("original.gif", "minimal.gif"):
+        frames = read_gif(folder / name)
+        assert len(frames) > 2 and border_is_red(frames[-1])
+    records = [json.loads(line) for line in (folder / "runs.jsonl").read_text().splitlines()]
+    recordings = [r for r in records if r.get("event") == "probe" and r.get("purpose") == "recording"]
+    assert len(recordings) == 1 and recordings[0]["outcome"] == "fail", "one recorded run of the minimal world"
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["simulations"] == sum(1 for r in records if r.get("event") == "probe")
+    html = (pytester.path / "report.html").read_text()
+    assert "image/gif" in html and "minimal.gif" in html and "original.gif" in html
+    xml = (pytester.path / "junit.xml").read_text()
+    assert f"[[ATTACHMENT|{folder / 'minimal.gif'}]]" in xml and "original.gif" in xml
