@@ -9,7 +9,6 @@ simulated time; from the failure moment on the frame has a red border and the fa
 
 from __future__ import annotations
 
-import hashlib
 import math
 import time
 from collections.abc import Iterator, Sequence
@@ -20,6 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pytest_ddenv.media import model_rgba
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.robot import make_robot
@@ -41,9 +41,6 @@ HOLD_SECONDS = 1.5
 CHASE_DISTANCE, CHASE_HEIGHT = 4.5, 2.6
 """Camera: metres behind the robot, and above its base."""
 GROUND_RGBA = (0.78, 0.78, 0.74, 1.0)
-_PALETTE = ((0.55, 0.42, 0.30), (0.36, 0.50, 0.63), (0.52, 0.60, 0.36), (0.66, 0.46, 0.52), (0.45, 0.45, 0.58),
-            (0.70, 0.58, 0.34), (0.40, 0.58, 0.55))
-_DEFAULT_COLOR = (0.6, 0.6, 0.6, 1.0)
 _FAILURE_RED = (214, 39, 40)
 
 
@@ -81,13 +78,6 @@ def frame_times(run: Run, *, max_frames: int = MAX_FRAMES, min_step: float = MIN
     return sorted(i for i in indices if i < len(times))
 
 
-def _color(name: str, model_color: tuple[float, float, float, float]) -> list[float]:
-    if tuple(model_color) != _DEFAULT_COLOR:
-        return [float(v) for v in model_color]
-    index = int(hashlib.sha1(name.encode()).hexdigest(), 16) % len(_PALETTE)  # the same colour in every world
-    return [*_PALETTE[index], 1.0]
-
-
 class _Scene:
     """A render-only pybullet client holding the world and the robot."""
 
@@ -106,10 +96,10 @@ class _Scene:
         p, client = self.p, self.client
         with silenced():
             bodies = build_world(p, client, world)
-        colors = {model.name: model.color for model in world.models}
+        colors = {model.name: list(model_rgba(model)) for model in world.models}
         self.bodies = {name: body for body, name in bodies.items()}
         for body, name in bodies.items():
-            rgba = list(GROUND_RGBA) if name == GROUND_BODY_NAME else _color(name, colors[name])
+            rgba = list(GROUND_RGBA) if name == GROUND_BODY_NAME else colors[name]
             for link in range(-1, p.getNumJoints(body, physicsClientId=client)):
                 p.changeVisualShape(body, link, rgbaColor=rgba, textureUniqueId=-1, physicsClientId=client)
         start = world.scenario.start if world.scenario is not None else None

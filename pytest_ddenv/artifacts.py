@@ -328,6 +328,13 @@ def write_reduction(
     return summary
 
 
+def add_to_summary(paths: ArtifactPaths, summary: Mapping[str, Any], more: Mapping[str, Any]) -> dict[str, Any]:
+    """`summary` with `more` added, written again (atomically); returns it."""
+    updated = {**summary, **more}
+    write_text_atomic(paths.summary, json.dumps(updated, indent=2) + "\n")
+    return updated
+
+
 def write_stage_worlds(paths: ArtifactPaths, staged: StagesOutcome) -> dict[str, str]:
     """`simplified.yaml` (the world after the stages that change it, when they did) and `passing.yaml` (the
     nearest passing world, when found), each with an `.sdf` beside it when the world can be written as SDF;

@@ -672,7 +672,8 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     finally:
         progress.close()
     assert outcome.reduction is not None and outcome.summary is not None
-    summary = {**outcome.summary, "pictures": [str(p) for p in outcome.attachments if p.suffix == ".png"]}
+    summary = {**outcome.summary, "pictures": [str(p) for p in outcome.attachments if p.suffix == ".png"],
+               "media": [str(p) for p in outcome.attachments if p.suffix in (".gif", ".rrd")]}
     _emit(arguments, _reduction_text(arguments.world, outcome.reduction, summary, outcome.notes), {"ok": True, **summary})
     return EXIT_INTERRUPTED if interrupted else EXIT_OK
 
@@ -788,6 +789,7 @@ def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any], no
         *result_lines(reduction, summary, notes),
         f"artifacts: {Path(summary['files']['summary']).parent}",
         f"pictures: {', '.join(summary.get('pictures', [])) or '(none)'}",
+        *([f"animations and recording: {', '.join(summary['media'])}"] if summary.get("media") else []),
         f"replay: {summary['replay']}",
     ])
 

@@ -276,7 +276,11 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
     if interrupted is None and plan.media == "all":
         shown = [("original", world, recorded_original),
                  ("minimal", world.select(reduction.minimal), recorded_minimal)]
-        outcome.attachments += write_media(paths.directory, shown).paths
+        media = write_media(paths.directory, shown)
+        outcome.attachments += media.paths
+        if media.info:  # what was made and what it took, in the summary
+            outcome.summary = artifacts.add_to_summary(paths, summary, {"media": {
+                "files": media.info, "seconds": round(media.seconds, 3)}})
     outcome.attachments = [path for path in outcome.attachments if path.exists()]
     if interrupted is not None:
         interrupted.outcome = outcome  # type: ignore[attr-defined]

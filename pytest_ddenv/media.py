@@ -8,6 +8,7 @@ detail (`Run.detail`): the run that confirmed the failure, and one run of the mi
 
 from __future__ import annotations
 
+import hashlib
 import os
 import time
 import warnings
@@ -17,7 +18,12 @@ from pathlib import Path
 from typing import Any
 
 from pytest_ddenv.sim.run import Run
-from pytest_ddenv.world import World
+from pytest_ddenv.world import Model, World
+
+PALETTE = ((0.55, 0.42, 0.30), (0.36, 0.50, 0.63), (0.52, 0.60, 0.36), (0.66, 0.46, 0.52), (0.45, 0.45, 0.58),
+            (0.70, 0.58, 0.34), (0.40, 0.58, 0.55))
+"""Colours of the models left at the default grey, in the animations and the recording."""
+DEFAULT_COLOR = (0.6, 0.6, 0.6, 1.0)
 
 MEDIA_CHOICES = ("all", "pictures", "none")
 MEDIA_ENV = "DDENV_MEDIA"
@@ -75,7 +81,7 @@ def write_media(directory: Path, shown: Sequence[tuple[str, World, Run | None]])
 def _write_recording(path: Path, runs: Sequence[tuple[str, World, Run]], written: MediaWritten) -> None:
     from pytest_ddenv.recording import recording_available, write_recording
 
-    if not recording_available():
+    if not recording_available():  # the optional `viewer` extra is not installed
         return
     try:
         info = write_recording(path, runs)
@@ -84,6 +90,16 @@ def _write_recording(path: Path, runs: Sequence[tuple[str, World, Run]], written
         return
     written.paths.append(info.path)
     written.info[info.path.name] = info.to_dict()
+
+
+def model_rgba(model: Model) -> tuple[float, float, float, float]:
+    """The model's colour in the animations and the recording: its own, or when it is left at the default
+    grey one of `PALETTE` by its name (the same model has the same colour in every world)."""
+    if tuple(model.color) != DEFAULT_COLOR:
+        red, green, blue, alpha = (float(v) for v in model.color)
+        return red, green, blue, alpha
+    index = int(hashlib.sha1(model.name.encode()).hexdigest(), 16) % len(PALETTE)
+    return (*PALETTE[index], 1.0)
 
 
 def _models(world: World) -> str:

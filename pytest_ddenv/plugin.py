@@ -616,7 +616,7 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     html = item.config.pluginmanager.getplugin("html")
     if html is not None and hasattr(html, "extras"):
         extras = list(getattr(report, "extras", []))
-        for path in attachments:
+        for path in sorted(attachments, key=_html_order):  # the report shows the first image: the animation
             if path.endswith((".png", ".gif")):  # embedded: survives --self-contained-html and moves
                 content = base64.b64encode(Path(path).read_bytes()).decode("ascii")
                 kind = Path(path).suffix[1:]
@@ -626,6 +626,16 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
                 extras.append(html.extras.url(path, name=Path(path).name))
         report.extras = extras
     return report
+
+
+_HTML_FIRST = ("minimal.gif", "original.gif")
+
+
+def _html_order(path: str) -> int:
+    """Where a file goes among the HTML report's extras: the animations first (pytest-html shows images one
+    at a time, the first one open), then the rest in their own order."""
+    name = Path(path).name
+    return _HTML_FIRST.index(name) if name in _HTML_FIRST else len(_HTML_FIRST)
 
 
 def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pytest.Config) -> None:

@@ -25,7 +25,6 @@ written. See docs/recording.md.
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
 import time
@@ -38,7 +37,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_ddenv import geometry
-from pytest_ddenv.world import Model, Pose, Shape, World, load_heightmap, load_mesh, polyline_mesh, resolve_mesh_path
+from pytest_ddenv.media import model_rgba
+from pytest_ddenv.world import (
+    Model,
+    Pose,
+    Shape,
+    World,
+    load_heightmap,
+    load_mesh,
+    polyline_mesh,
+    resolve_mesh_path,
+)
 
 if TYPE_CHECKING:
     from pytest_ddenv.sim.run import Run, RunDetail
@@ -57,15 +66,12 @@ MAX_HEIGHTMAP_SAMPLES = 257
 triangles)."""
 GROUND_RGBA = (0.78, 0.78, 0.74, 1.0)
 ROBOT_RGBA = (0.95, 0.75, 0.1, 1.0)
+HEADING_RGBA = (0.15, 0.15, 0.15, 1.0)
 TRAJECTORY_RGBA = (0.12, 0.47, 0.71, 1.0)
 SCAN_RGBA = (0.17, 0.63, 0.17, 1.0)
 CONTACT_RGBA = (1.0, 0.5, 0.05, 1.0)
 FAILURE_RGBA = (0.84, 0.15, 0.16, 1.0)
 GOAL_RGBA = (0.2, 0.7, 0.3, 1.0)
-_PALETTE = ((0.55, 0.42, 0.30), (0.36, 0.50, 0.63), (0.52, 0.60, 0.36), (0.66, 0.46, 0.52), (0.45, 0.45, 0.58),
-            (0.70, 0.58, 0.34), (0.40, 0.58, 0.55))
-"""The colours of models left at the default grey (as in the animations)."""
-_DEFAULT_COLOR = (0.6, 0.6, 0.6, 1.0)
 
 
 class RecordingUnavailable(ImportError):
@@ -234,8 +240,8 @@ def _log_model(writer: _Writer, entity: str, model: Model, world: World, run: Ru
     if poses is not None and len(poses) == len(run.times):
         writer.columns(entity, run.times, rr.Transform3D.columns(translation=poses[:, :3], quaternion=poses[:, 3:]))
     else:
-        writer.static(entity, rr.Transform3D(translation=_position(body_pose), quaternion=_quaternion(body_pose)))
-    rgba = _model_rgba(model)
+        writer.static(entity, rr.Transform3D(translation=body_pose.position, quaternion=_quaternion(body_pose)))
+    rgba = model_rgba(model)
     for kind, archetype in _primitives(rr, shapes, rgba):
         writer.static(f"{entity}/{kind}", archetype)
     for index, shape in enumerate(shapes):
@@ -259,28 +265,28 @@ def _body_frame(model: Model) -> tuple[Pose, tuple[Shape, ...]]:
 def _primitives(rr: Any, shapes: Sequence[Shape], rgba: Sequence[float]) -> list[tuple[str, Any]]:
     """(entity name, archetype) of the model's boxes, cylinders, capsules and spheres, one batch per kind."""
     found: list[tuple[str, Any]] = []
-    boxes = [s for s in shapes if s.kind == "box" and s.size is not None]
+    boxes = [s for s in shapes if s.kind == "box"]
     if boxes:
         found.append(("boxes", rr.Boxes3D(
-            half_sizes=[[v / 2.0 for v in s.size] for s in boxes if s.size is not None],
-            centers=[_position(s.pose) for s in boxes], quaternions=[_quaternion(s.pose) for s in boxes],
+            half_sizes=[[v / 2.0 for v in s.size or (0.0, 0.0, 0.0)] for s in boxes],
+            centers=[s.pose.position for s in boxes], quaternions=[_quaternion(s.pose) for s in boxes],
             colors=[rgba], fill_mode="solid")))
     cylinders = [s for s in shapes if s.kind == "cylinder"]
     if cylinders:
         found.append(("cylinders", rr.Cylinders3D(
             lengths=[s.length for s in cylinders], radii=[s.radius for s in cylinders],
-            centers=[_position(s.pose) for s in cylinders], quaternions=[_quaternion(s.pose) for s in cylinders],
+            centers=[s.pose.position for s in cylinders], quaternions=[_quaternion(s.pose) for s in cylinders],
             colors=[rgba], fill_mode="solid")))
     capsules = [s for s in shapes if s.kind == "capsule"]
     if capsules:  # rerun's capsule runs from its origin along +z: start it half a length below the centre
-        starts = [_position(s.pose) - s.pose.rotation[:, 2] * float(s.length or 0.0) / 2.0 for s in capsules]
+        starts = [s.pose.position - s.pose.rotation[:, 2] * float(s.length or 0.0) / 2.0 for s in capsules]
         found.append(("capsules", rr.Capsules3D(
             lengths=[s.length for s in capsules], radii=[s.radius for s in capsules], translations=starts,
             quaternions=[_quaternion(s.pose) for s in capsules], colors=[rgba], fill_mode="solid")))
     spheres = [s for s in shapes if s.kind == "sphere"]
     if spheres:
         found.append(("spheres", rr.Ellipsoids3D(
-            half_sizes=[[s.radius] * 3 for s in spheres], centers=[_position(s.pose) for s in spheres],
+            half_sizes=[[s.radius] * 3 for s in spheres], centers=[s.pose.position for s in spheres],
             colors=[rgba], fill_mode="solid")))
     return found
 
@@ -320,7 +326,7 @@ def _log_robot(writer: _Writer, root: str, run: Run) -> None:
         half_sizes=[[length / 2.0, width / 2.0, FOOTPRINT_HEIGHT / 2.0]], colors=[ROBOT_RGBA], labels=[run.robot],
         fill_mode="solid"))
     writer.static(f"{root}/robot/heading", rr.Arrows3D(
-        origins=[[0.0, 0.0, FOOTPRINT_HEIGHT / 2.0]], vectors=[[length * 0.75, 0.0, 0.0]], colors=[FAILURE_RGBA],
+        origins=[[0.0, 0.0, FOOTPRINT_HEIGHT / 2.0]], vectors=[[length * 0.75, 0.0, 0.0]], colors=[HEADING_RGBA],
         radii=0.02))
     writer.static(f"{root}/trajectory/path", rr.LineStrips3D([poses[:, :3]], radii=0.02, colors=[TRAJECTORY_RGBA]))
     writer.static(f"{root}/trajectory/position", rr.Points3D.from_fields(radii=0.05, colors=[TRAJECTORY_RGBA]))
@@ -398,23 +404,11 @@ def quaternions(rpy: FloatArray) -> FloatArray:
     half = np.asarray(rpy, dtype=np.float64).reshape(-1, 3) / 2.0
     cr, cp, cy = np.cos(half).T
     sr, sp, sy = np.sin(half).T
-    return np.stack([sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy,
-                     cr * cp * cy + sr * sp * sy], axis=1)
+    result: FloatArray = np.stack([sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+                                   cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy], axis=1)
+    return result
 
 
 def _quaternion(pose: Pose) -> FloatArray:
-    return quaternions(np.array([[pose.roll, pose.pitch, pose.yaw]]))[0]
-
-
-def _position(pose: Pose) -> FloatArray:
-    return pose.position
-
-
-def _model_rgba(model: Model) -> tuple[float, float, float, float]:
-    """The model's colour; one of a palette, by name, when it is left at the default grey (as the animations
-    colour it: the same model has the same colour in every world)."""
-    if tuple(model.color) != _DEFAULT_COLOR:
-        red, green, blue, alpha = (float(v) for v in model.color)
-        return red, green, blue, alpha
-    index = int(hashlib.sha1(model.name.encode()).hexdigest(), 16) % len(_PALETTE)
-    return (*_PALETTE[index], 1.0)
+    quaternion: FloatArray = quaternions(np.array([[pose.roll, pose.pitch, pose.yaw]]))[0]
+    return quaternion

@@ -147,7 +147,8 @@ def test_a_reduction_leaves_animations_counted_runs_and_an_inline_html_animation
     recordings = [r for r in records if r.get("event") == "probe" and r.get("purpose") == "recording"]
     assert len(recordings) == 1 and recordings[0]["outcome"] == "fail", "one recorded run of the minimal world"
     summary = json.loads((folder / "summary.json").read_text())
-    assert summary["simulations"] == sum(1 for r in records if r.get("event") == "probe")
+    logged = sum(1 for r in records if r.get("event") == "probe")  # + speculative probes cancelled unlogged
+    assert summary["simulations"] >= logged and set(summary["media"]["files"]) >= {"original.gif", "minimal.gif"}
     html = (pytester.path / "report.html").read_text()
     assert "image/gif" in html and "minimal.gif" in html and "original.gif" in html
     xml = (pytester.path / "junit.xml").read_text()

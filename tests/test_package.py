@@ -47,6 +47,10 @@ def test_console_script_version_and_help() -> None:
         ("pytest_ddenv.scenario_job", ["pytest", "pytest_ddenv.plugin"]),
         ("pytest_ddenv.controllers", ["pybullet", "pytest", "pytest_ddenv.reduce"]),
         ("pytest_ddenv.report_text", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.plugin"]),
+        ("pytest_ddenv.detail", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.reduce"]),
+        ("pytest_ddenv.media", ["pybullet", "pytest", "rerun", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
+        ("pytest_ddenv.animate", ["pytest", "rerun", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
+        ("pytest_ddenv.recording", ["pybullet", "pytest", "rerun", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
     ],
 )
 def test_layers_import_only_what_comes_before_them(module: str, forbidden: list[str]) -> None:

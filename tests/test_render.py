@@ -220,6 +220,8 @@ def test_documentation_pictures_are_small() -> None:
     images = sorted((ROOT / "docs" / "images").glob("*.png"))
     for image in images:
         assert image.stat().st_size < 200_000, f"{image} is larger than 200 KB"
+    for animation in sorted((ROOT / "docs" / "images").glob("*.gif")):
+        assert animation.stat().st_size < 400_000, f"{animation} is larger than 400 KB"
 
 
 def test_probe_failure_poses_are_coloured_by_outcome_with_a_legend(worlds: dict[str, World]) -> None:
