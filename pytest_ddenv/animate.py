@@ -23,6 +23,7 @@ from pytest_ddenv.media import model_rgba
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.robot import make_robot
+from pytest_ddenv.reported import REPORTED
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.world import World
 
@@ -39,7 +40,9 @@ FPS = 8
 HOLD_SECONDS = 1.5
 """The last frame (the failure) is shown this long, so that a looping GIF pauses on it."""
 CHASE_DISTANCE, CHASE_HEIGHT = 4.5, 2.6
-"""Camera: metres behind the robot, and above its base."""
+"""Camera: metres behind the robot, and above its base, for a Husky-sized robot (scaled by the robot's
+length between half and twice these)."""
+HUSKY_LENGTH = 0.99
 GROUND_RGBA = (0.78, 0.78, 0.74, 1.0)
 _FAILURE_RED = (214, 39, 40)
 
@@ -81,18 +84,18 @@ def frame_times(run: Run, *, max_frames: int = MAX_FRAMES, min_step: float = MIN
 class _Scene:
     """A render-only pybullet client holding the world and the robot."""
 
-    def __init__(self, world: World) -> None:
+    def __init__(self, world: World, run: Run) -> None:
         with silenced():
             import pybullet as p
         self.p = p
         self.client = p.connect(p.DIRECT)
         try:
-            self._build(world)
+            self._build(world, run)
         except BaseException:
             p.disconnect(self.client)
             raise
 
-    def _build(self, world: World) -> None:
+    def _build(self, world: World, run: Run) -> None:
         p, client = self.p, self.client
         with silenced():
             bodies = build_world(p, client, world)
@@ -104,16 +107,17 @@ class _Scene:
                 p.changeVisualShape(body, link, rgbaColor=rgba, textureUniqueId=-1, physicsClientId=client)
         start = world.scenario.start if world.scenario is not None else None
         self.robot: int | None = None
-        if world.scenario is not None and start is not None:
+        if world.scenario is not None and start is not None and run.robot != REPORTED:
             try:
                 with silenced():
                     robot = make_robot(world.scenario.robot, world.source)
                     self.robot = robot.spawn(client, (start.x, start.y, 0.5), start.yaw)
             except Exception:  # noqa: BLE001 - a robot of the user's that cannot be made here: drawn as a box
                 self.robot = None
-        if self.robot is None:
-            shape = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.45, 0.3, 0.15], rgbaColor=[0.95, 0.75, 0.1, 1],
-                                        physicsClientId=client)
+        if self.robot is None:  # a run reported by a simulator of the user's, or a robot not known here
+            length, width = run.footprint
+            shape = p.createVisualShape(p.GEOM_BOX, halfExtents=[length / 2, width / 2, 0.15],
+                                        rgbaColor=[0.95, 0.75, 0.1, 1], physicsClientId=client)
             self.robot = p.createMultiBody(0.0, -1, shape, [0, 0, 0], physicsClientId=client)
         self.joints = p.getNumJoints(self.robot, physicsClientId=client)
 
@@ -163,26 +167,38 @@ def chase_headings(run: Run, indices: Sequence[int], smoothing: float = 1.5) -> 
 
 
 def render_frames(world: World, run: Run, *, title: str = "", width: int = WIDTH, height: int = HEIGHT,
-                  max_frames: int = MAX_FRAMES) -> Iterator[tuple[float, Frame]]:
-    """(simulated time, RGB frame) of the run, chase camera, with the time and the failure marked."""
+                  max_frames: int = MAX_FRAMES, failure_text: str = "") -> Iterator[tuple[float, Frame]]:
+    """(simulated time, RGB frame) of the run, chase camera, with the time and the failure marked: from
+    the time a failure predicate fired, else (`failure_text`: the test failed after the run, e.g. in an
+    `assert`) on the last frame."""
     indices = frame_times(run, max_frames=max_frames)
     headings = chase_headings(run, indices)
     failure_time = None if run.failure is None else float(run.failure.time)
-    scene = _Scene(world)
+    scene = _Scene(world, run)
+    scale = min(2.0, max(0.5, run.footprint[0] / HUSKY_LENGTH))  # a small robot is followed closer
     try:
         for index, heading in zip(indices, headings):
             scene.place(run, index)
             x, y, z = (float(v) for v in run.poses[index][:3])
-            eye = (x - CHASE_DISTANCE * math.cos(heading), y - CHASE_DISTANCE * math.sin(heading), z + CHASE_HEIGHT)
+            back = CHASE_DISTANCE * scale
+            eye = (x - back * math.cos(heading), y - back * math.sin(heading), z + CHASE_HEIGHT * scale)
             frame = scene.image(eye, (x, y, z), width, height)
             now = float(run.times[index])
-            failed = failure_time is not None and now >= failure_time - 1e-9
-            yield now, _annotate(frame, title, now, run if failed else None)
+            if failure_time is not None:
+                words = _failure_words(run) if now >= failure_time - 1e-9 else ""
+            else:
+                words = f"FAILED: {failure_text}" if failure_text and index == indices[-1] else ""
+            yield now, _annotate(frame, title, now, words)
     finally:
         scene.close()
 
 
-def _annotate(frame: Frame, title: str, now: float, failed_run: Run | None) -> Frame:
+def _failure_words(run: Run) -> str:
+    assert run.failure is not None
+    return f"FAILED: {run.failure.predicate} at t = {run.failure.time:.1f} s"
+
+
+def _annotate(frame: Frame, title: str, now: float, failure_words: str) -> Frame:
     from PIL import Image, ImageDraw
 
     image = Image.fromarray(frame)
@@ -190,23 +206,21 @@ def _annotate(frame: Frame, title: str, now: float, failed_run: Run | None) -> F
     width, height = image.size
     draw.rectangle((0, 0, width, 16), fill=(255, 255, 255))
     draw.text((4, 2), f"{title}   t = {now:5.1f} s" if title else f"t = {now:5.1f} s", fill=(0, 0, 0))
-    if failed_run is not None and failed_run.failure is not None:
-        failure = failed_run.failure
+    if failure_words:
         draw.rectangle((0, 0, width - 1, height - 1), outline=_FAILURE_RED, width=4)
-        words = f"FAILED: {failure.predicate} at t = {failure.time:.1f} s"
         draw.rectangle((0, height - 18, width, height), fill=_FAILURE_RED)
-        draw.text((6, height - 15), words, fill=(255, 255, 255))
+        draw.text((6, height - 15), failure_words[:60], fill=(255, 255, 255))
     return np.asarray(image, dtype=np.uint8)
 
 
 def write_animation(path: Path, world: World, run: Run, *, title: str = "", fps: int = FPS,
-                    max_frames: int = MAX_FRAMES) -> AnimationInfo:
+                    max_frames: int = MAX_FRAMES, failure_text: str = "") -> AnimationInfo:
     """Render `run` in `world` and write it as a looping GIF at `path` (atomically: a temporary file, then
-    renamed)."""
+    renamed). `failure_text`: see `render_frames`."""
     import imageio.v3 as iio
 
     started = time.perf_counter()
-    shown = list(render_frames(world, run, title=title, max_frames=max_frames))
+    shown = list(render_frames(world, run, title=title, max_frames=max_frames, failure_text=failure_text))
     frames = [frame for _, frame in shown] or [np.zeros((HEIGHT, WIDTH, 3), np.uint8)]
     durations = [1000.0 / fps] * (len(frames) - 1) + [1000.0 * HOLD_SECONDS]
     path = Path(path)

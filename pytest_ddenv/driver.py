@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 from pytest_ddenv import artifacts
 from pytest_ddenv.execution import Pool, ProbeDeadline, WorkerError, WorkerStartError
 from pytest_ddenv.markers import ReductionSpec
-from pytest_ddenv.media import DEFAULT_MEDIA, write_media
+from pytest_ddenv.media import DEFAULT_MEDIA, Shown, write_media
 from pytest_ddenv.probe import (
     FailureReference,
     ProbeResult,
@@ -240,14 +240,18 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
             threads.shutdown(wait=clean, cancel_futures=True)
     notes = list(dict.fromkeys([*notes, *reduction.notes]))
     extra["notes"] = notes
-    minimal_run = recorded_minimal = recorded_original = None
+    minimal_run = None
+    shown: list[Shown] = []  # the runs to animate and record
     if interrupted is None and plan.media != "none":
+        record = plan.media == "all"
+        minimal_world = world.select(reduction.minimal)
         minimal_run = calls.run_of(reduction.minimal, world, plan.reference_run)
-        if (minimal_run is None or plan.media == "all") and calls.may_start(spec.max_probes):
-            recorded_minimal = _minimal_run(calls, log, world.select(reduction.minimal), record=plan.media == "all")
-            minimal_run = minimal_run or recorded_minimal
-        if plan.media == "all":  # before the summary: its counts include every simulation
-            recorded_original = _recorded_original(plan, calls, log, confirmations)
+        if (minimal_run is None or record) and calls.may_start(spec.max_probes):
+            recorded, failed = _logged_run(calls, log, minimal_world, 0, "recording" if record else "picture", record)
+            minimal_run = minimal_run or recorded
+            shown = [Shown("minimal", minimal_world, recorded, failed)] if record else []
+        if record:  # before the summary: its counts include every simulation
+            shown.insert(0, Shown("original", world, *_recorded_original(plan, calls, log, confirmations)))
     staged: StagesOutcome | None = None
     if interrupted is None and len(spec.stages or DEFAULT_STAGES) > 1 and reduction.minimal:
         try:
@@ -273,10 +277,8 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
         outcome.attachments += [Path(path) for path in extra["stage_files"].values()]
     if interrupted is None and plan.media != "none":
         outcome.attachments += _pictures(world, reduction, paths, plan.reference_run, minimal_run, staged)
-    if interrupted is None and plan.media == "all":
-        shown = [("original", world, recorded_original),
-                 ("minimal", world.select(reduction.minimal), recorded_minimal)]
-        media = write_media(paths.directory, shown)
+    if interrupted is None and shown:
+        media = write_media(paths.directory, shown, failure_text=plan.reference.describe())
         outcome.attachments += media.paths
         if media.info:  # what was made and what it took, in the summary
             outcome.summary = artifacts.add_to_summary(paths, summary, {"media": {
@@ -480,33 +482,30 @@ def _schemas(spec: ReductionSpec, reference_run: Run | None) -> tuple[str, str, 
     return partition, priority, notes
 
 
-def _minimal_run(call: _Calls, log: ProbeLog, minimal: World, *, record: bool = False) -> Run | None:
-    """The minimal world's attempt-0 run, for the pictures (`record`: and the animations, with its full
-    detail); None if it cannot be had. Logged."""
-    return _logged_run(call, log, minimal, 0, "recording" if record else "picture", record)
-
-
-def _logged_run(call: _Calls, log: ProbeLog, world: World, attempt: int, purpose: str, record: bool) -> Run | None:
+def _logged_run(call: _Calls, log: ProbeLog, world: World, attempt: int, purpose: str,
+                record: bool) -> tuple[Run | None, bool]:
+    """A run of `world` for the pictures (`record`: and the animations, with its full detail), logged: the
+    run (None if it cannot be had) and whether it failed the same way."""
     try:
         result = call(world, attempt, record=record)
     except Exception:  # noqa: BLE001 - pictures are a convenience
         _log_run(log, purpose, world.names, attempt, None, "error")
-        return None
-    _log_run(log, purpose, world.names, attempt, result,
-             classify_result(result.error, call.reference, call.tolerance).value)
-    return result.run
+        return None, False
+    outcome = classify_result(result.error, call.reference, call.tolerance)
+    _log_run(log, purpose, world.names, attempt, result, outcome.value)
+    return result.run, outcome is Outcome.FAIL
 
 
 def _recorded_original(plan: ReductionPlan, call: _Calls, log: ProbeLog,
-                       confirmations: list[tuple[int, ProbeResult | None, str]]) -> Run | None:
+                       confirmations: list[tuple[int, ProbeResult | None, str]]) -> tuple[Run | None, bool]:
     """The original world's failing run with its full detail: the run that confirmed the failure, else one
-    more run (attempt 0, logged) when the budget allows."""
+    more run (attempt 0, logged) when the budget allows; and whether it failed the same way."""
     for _, result, verdict in confirmations:
         if verdict == Outcome.FAIL.value and result is not None and result.run is not None \
                 and result.run.detail is not None:
-            return result.run
+            return result.run, True
     if not call.may_start(plan.spec.max_probes):
-        return None
+        return None, False
     return _logged_run(call, log, plan.world, 0, "recording", True)
 
 

@@ -46,6 +46,17 @@ def media_choice(value: str | None, where: str) -> str:
     return text
 
 
+@dataclass(frozen=True)
+class Shown:
+    """A run to animate and record: its label (the file name), its world, the run (None: none could be
+    had) and whether it failed the same way as the reduced failure."""
+
+    label: str
+    world: World
+    run: Run | None
+    failed: bool
+
+
 @dataclass
 class MediaWritten:
     """The files `write_media` made and what each took (`info`: file name -> frames, bytes, seconds ...)."""
@@ -55,18 +66,23 @@ class MediaWritten:
     seconds: float = 0.0
 
 
-def write_media(directory: Path, shown: Sequence[tuple[str, World, Run | None]]) -> MediaWritten:
-    """`<label>.gif` for each (label, world, run) with a run, and one `recording.rrd` of them all (when
-    rerun-sdk is installed). Never raises: a medium that cannot be made is a warning (the reduction's files
-    are what matter)."""
+def write_media(directory: Path, shown: Sequence[Shown], *, failure_text: str = "") -> MediaWritten:
+    """`<label>.gif` for each run shown, and one `recording.rrd` of them all (when rerun-sdk is installed).
+    `failure_text` describes the reduced failure; the last frame of a run that failed the same way without
+    a predicate firing (a plain `assert` after the run) says it. Never raises: a medium that cannot be made
+    is a warning (the reduction's files are what matter)."""
     from pytest_ddenv.animate import write_animation
 
     started = time.perf_counter()
     written = MediaWritten()
-    runs = [(label, world, run) for label, world, run in shown if run is not None]
-    for label, world, run in runs:
+    runs = [(item.label, item.world, item.run) for item in shown if item.run is not None]
+    for item in shown:
+        if item.run is None:
+            continue
+        label, world, run = item.label, item.world, item.run
         try:
-            info = write_animation(directory / f"{label}.gif", world, run, title=f"{label} ({_models(world)})")
+            info = write_animation(directory / f"{label}.gif", world, run, title=f"{label} ({_models(world)})",
+                                   failure_text=failure_text if item.failed else "")
         except Exception as error:  # noqa: BLE001 - a convenience; never lose the reduction over one
             warnings.warn(f"ddenv: {label}.gif not written: {type(error).__name__}: {error}", stacklevel=1)
             continue

@@ -97,6 +97,16 @@ def test_frames_are_spread_over_the_run_and_include_the_failure() -> None:
     assert any(abs(run.times[i] - run.failure.time) < 0.06 for i in indices)
 
 
+def test_a_failure_found_after_the_run_is_marked_on_the_last_frame_only(tmp_path: Path) -> None:
+    world = World.load(ROOT / "worlds" / "ditch.yaml")
+    with recording_detail():
+        run = simulate(world, seed=0, timeout=6.0)  # no predicate: the test's own assert fails afterwards
+    assert run.failure is None
+    info = write_animation(tmp_path / "assert.gif", world, run, failure_text="AssertionError at test_x.py:12")
+    frames = read_gif(info.path)
+    assert border_is_red(frames[-1]) and not any(border_is_red(frame) for frame in frames[:-1])
+
+
 def test_a_run_without_detail_is_animated_with_the_models_where_they_started(tmp_path: Path) -> None:
     world, run = failing_run("ditch", detail=False)
     info = write_animation(tmp_path / "plain.gif", world, run)
