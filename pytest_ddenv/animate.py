@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pytest_ddenv.media import model_rgba
+from pytest_ddenv.media import GROUND_RGBA, ROBOT_RGBA, model_rgba
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.robot import make_robot
@@ -43,7 +43,6 @@ CHASE_DISTANCE, CHASE_HEIGHT = 4.5, 2.6
 """Camera: metres behind the robot, and above its base, for a Husky-sized robot (scaled by the robot's
 length between half and twice these)."""
 HUSKY_LENGTH = 0.99
-GROUND_RGBA = (0.78, 0.78, 0.74, 1.0)
 _FAILURE_RED = (214, 39, 40)
 
 
@@ -117,7 +116,7 @@ class _Scene:
         if self.robot is None:  # a run reported by a simulator of the user's, or a robot not known here
             length, width = run.footprint
             shape = p.createVisualShape(p.GEOM_BOX, halfExtents=[length / 2, width / 2, 0.15],
-                                        rgbaColor=[0.95, 0.75, 0.1, 1], physicsClientId=client)
+                                        rgbaColor=list(ROBOT_RGBA), physicsClientId=client)
             self.robot = p.createMultiBody(0.0, -1, shape, [0, 0, 0], physicsClientId=client)
         self.joints = p.getNumJoints(self.robot, physicsClientId=client)
 

@@ -25,6 +25,9 @@ PALETTE = ((0.55, 0.42, 0.30), (0.36, 0.50, 0.63), (0.52, 0.60, 0.36), (0.66, 0.
 """Colours of the models left at the default grey, in the animations and the recording."""
 DEFAULT_COLOR = (0.6, 0.6, 0.6, 1.0)
 
+GROUND_RGBA = (0.78, 0.78, 0.74, 1.0)
+ROBOT_RGBA = (0.95, 0.75, 0.1, 1.0)
+"""The ground, and a robot drawn as its footprint box, in the animations and the recording."""
 MEDIA_CHOICES = ("all", "pictures", "none")
 MEDIA_ENV = "DDENV_MEDIA"
 DEFAULT_MEDIA = "all"

@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_ddenv import geometry
-from pytest_ddenv.media import model_rgba
+from pytest_ddenv.media import GROUND_RGBA, ROBOT_RGBA, model_rgba
 from pytest_ddenv.world import (
     Model,
     Pose,
@@ -64,8 +64,6 @@ GROUND_MARGIN = 3.0
 MAX_HEIGHTMAP_SAMPLES = 257
 """A heightmap image is drawn with at most this many samples a side (a 1025 x 1025 image would be 2 M
 triangles)."""
-GROUND_RGBA = (0.78, 0.78, 0.74, 1.0)
-ROBOT_RGBA = (0.95, 0.75, 0.1, 1.0)
 HEADING_RGBA = (0.15, 0.15, 0.15, 1.0)
 TRAJECTORY_RGBA = (0.12, 0.47, 0.71, 1.0)
 SCAN_RGBA = (0.17, 0.63, 0.17, 1.0)
@@ -255,10 +253,10 @@ def _body_frame(model: Model) -> tuple[Pose, tuple[Shape, ...]]:
     polyline's centre of mass (see `pytest_ddenv.sim.builder`)."""
     shapes = model.shapes
     if len(shapes) == 1 and shapes[0].kind == "polyline" and model.dynamic:
-        from pytest_ddenv.sim.builder import _moved, _polyline_centre
+        from pytest_ddenv.sim.builder import moved_shape, polyline_centre
 
-        centre = _polyline_centre(shapes[0])
-        return model.pose.compose(centre), (_moved(shapes[0], centre),)
+        centre = polyline_centre(shapes[0])
+        return model.pose.compose(centre), (moved_shape(shapes[0], centre),)
     return model.pose, shapes
 
 

@@ -68,9 +68,9 @@ def _build_model(p: Any, client: int, model: Model, source: str | None, friction
         if len(shapes) == 1 and shapes[0].kind == "polyline" and not model.static:
             # the body's frame is its centre of mass (pybullet's rayTest misses parts of bodies whose inertial
             # frame is offset with baseInertialFramePosition)
-            centre = _polyline_centre(shapes[0])
+            centre = polyline_centre(shapes[0])
             pose = model.pose.compose(centre)
-            collision = _single_shape(p, client, _moved(shapes[0], centre), model, source)
+            collision = _single_shape(p, client, moved_shape(shapes[0], centre), model, source)
         else:
             collision = _collision_shape(p, client, model, source)
         mass = 0.0 if model.static else float(model.mass if model.mass is not None else 1.0)
@@ -176,7 +176,7 @@ def _polyline_shape(p: Any, shape: Shape, model: Model, source: str | None, fram
     return int(index)
 
 
-def _polyline_centre(shape: Shape) -> Pose:
+def polyline_centre(shape: Shape) -> Pose:
     """The centre of mass of a uniform polyline prism in its model's frame (unrotated)."""
     assert shape.points is not None and shape.height is not None
     centroid = polyline_polygon(shape.points).centroid  # type: ignore[attr-defined]
@@ -184,7 +184,7 @@ def _polyline_centre(shape: Shape) -> Pose:
     return Pose(centre.x, centre.y, centre.z)
 
 
-def _moved(shape: Shape, origin: Pose) -> Shape:
+def moved_shape(shape: Shape, origin: Pose) -> Shape:
     """`shape` in the frame of `origin`, a translation of its model's frame."""
     pose = dataclasses.replace(shape.pose, x=shape.pose.x - origin.x, y=shape.pose.y - origin.y,
                                z=shape.pose.z - origin.z)
