@@ -20,10 +20,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_ddenv.media import GROUND_RGBA, ROBOT_RGBA, model_rgba
+from pytest_ddenv.reported import REPORTED
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.robot import make_robot
-from pytest_ddenv.reported import REPORTED
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.world import World
 
@@ -176,7 +176,7 @@ def render_frames(world: World, run: Run, *, title: str = "", width: int = WIDTH
     scene = _Scene(world, run)
     scale = min(2.0, max(0.5, run.footprint[0] / HUSKY_LENGTH))  # a small robot is followed closer
     try:
-        for index, heading in zip(indices, headings):
+        for index, heading in zip(indices, headings, strict=True):
             scene.place(run, index)
             x, y, z = (float(v) for v in run.poses[index][:3])
             back = CHASE_DISTANCE * scale

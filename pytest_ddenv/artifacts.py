@@ -197,7 +197,8 @@ def prepare(directory: Path, problem_fingerprint: str, *, test_id: str = "") -> 
     try:
         paths.directory.mkdir(parents=True, exist_ok=True)
     except OSError as error:
-        raise ArtifactsError(f"cannot create the artifacts folder {paths.directory}: {error.strerror or error}") from error
+        raise ArtifactsError(f"cannot create the artifacts folder {paths.directory}: "
+                             f"{error.strerror or error}") from error
     header = problem_header(problem_fingerprint, test_id)
     if paths.log.exists():
         first, size = _first_record(paths.log)

@@ -65,6 +65,7 @@ class _Loader(_SafeLoader):  # type: ignore[valid-type,misc]
         sizes: dict[int, int] = {}
         stack: list[_Open] = []
         added = 0
+        node: yaml.Node
         while True:
             event = self.get_event()
             if isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
@@ -73,12 +74,14 @@ class _Loader(_SafeLoader):  # type: ignore[valid-type,misc]
                 node.end_mark = event.end_mark
                 sizes[id(node)] = size
             elif isinstance(event, yaml.AliasEvent):
-                node = anchors.get(event.anchor)  # type: ignore[assignment]
-                if node is None:
-                    raise _LimitError(f"alias *{event.anchor[:SHOWN_CHARACTERS]} names no anchor before it",
+                anchor = event.anchor or ""  # the parser gives every alias its anchor's name
+                aliased = anchors.get(anchor)
+                if aliased is None:
+                    raise _LimitError(f"alias *{anchor[:SHOWN_CHARACTERS]} names no anchor before it",
                                       event.start_mark)
+                node = aliased
                 if any(entry.node is node for entry in stack):
-                    raise _LimitError(f"alias *{event.anchor[:SHOWN_CHARACTERS]} is inside its own anchor's value "
+                    raise _LimitError(f"alias *{anchor[:SHOWN_CHARACTERS]} is inside its own anchor's value "
                                       "(a recursive structure); write the value out", event.start_mark, _path(stack))
                 size = sizes[id(node)]
                 added += size
@@ -88,11 +91,11 @@ class _Loader(_SafeLoader):  # type: ignore[valid-type,misc]
                                       event.start_mark, _path(stack))
             else:
                 node = self._node(event, anchors, stack)
-                if not isinstance(node, yaml.ScalarNode):
+                if isinstance(node, (yaml.SequenceNode, yaml.MappingNode)):
                     if len(stack) >= MAX_DEPTH:
                         raise _LimitError(f"lists and mappings nested more than {MAX_DEPTH} deep", event.start_mark,
                                           _path(stack))
-                    stack.append(_Open(node))  # type: ignore[arg-type]
+                    stack.append(_Open(node))
                     continue
                 size = sizes[id(node)] = 1
             if not stack:
@@ -108,7 +111,9 @@ class _Loader(_SafeLoader):  # type: ignore[valid-type,misc]
         if isinstance(event, yaml.ScalarEvent):
             tag = event.tag if event.tag not in (None, "!") else self.resolve(yaml.ScalarNode, event.value,
                                                                                event.implicit)
-            node: yaml.Node = yaml.ScalarNode(tag, event.value, event.start_mark, event.end_mark, style=event.style)
+            # The C parser's marks are yaml._yaml.Mark, which types-PyYAML's nodes leave out.
+            node: yaml.Node = yaml.ScalarNode(tag, event.value, event.start_mark, event.end_mark,  # type: ignore[arg-type]
+                                              style=event.style)
         else:
             kind = yaml.SequenceNode if isinstance(event, yaml.SequenceStartEvent) else yaml.MappingNode
             tag = event.tag if event.tag not in (None, "!") else self.resolve(kind, None, event.implicit)

@@ -218,7 +218,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_check(commands: Any, common: argparse.ArgumentParser) -> None:
-    check = commands.add_parser("check", parents=[common], help="load a world file and report its models, or the first error")
+    check = commands.add_parser("check", parents=[common],
+                                help="load a world file and report its models, or the first error")
     check.add_argument("world", help="world file (.yaml, .sdf)")
     add_world_options(check)
 
@@ -277,7 +278,8 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     )
     from pytest_ddenv.reduce.partition import PARTITION_ALIASES
 
-    reduce = commands.add_parser("reduce", parents=[common], help="reduce a failing world to the models the failure needs")
+    reduce = commands.add_parser("reduce", parents=[common],
+                                 help="reduce a failing world to the models the failure needs")
     reduce.add_argument("world", help="world file (.yaml, .sdf)")
     _add_predicate_option(reduce, required=True)
     _add_user_code_options(reduce)
@@ -326,7 +328,8 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
 def _add_replay(commands: Any, common: argparse.ArgumentParser) -> None:
     replay = commands.add_parser("replay", parents=[common],
                                  help="re-run a reduction's minimal world and check it still fails the same way")
-    replay.add_argument("artifacts", metavar="ARTIFACT_DIR", help="a folder written by ddenv reduce or pytest --ddenv-reduce")
+    replay.add_argument("artifacts", metavar="ARTIFACT_DIR",
+                        help="a folder written by ddenv reduce or pytest --ddenv-reduce")
     _add_predicate_option(replay, required=False)
     _add_user_code_options(replay)
     replay.add_argument("--runs", type=_positive_int, default=10, metavar="N",
@@ -376,7 +379,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("ddenv: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except Exception as error:
+    except Exception as error:  # noqa: BLE001 - the CLI's last resort: a bug is an internal-error exit, not a traceback
         _traceback_if(arguments.debug)
         hint = "" if arguments.debug else " (run with --debug for the traceback)"
         message = f"internal error: {type(error).__name__}: {error}{hint}"
@@ -482,7 +485,7 @@ def _cmd_run(arguments: argparse.Namespace) -> int:
         run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout, controller=controller)
     except DdenvError:
         raise
-    except Exception as error:  # the controller under test raised or misbehaved: the scenario failed
+    except Exception as error:  # noqa: BLE001 - the controller under test raised or misbehaved: the scenario failed
         return _run_raised(arguments, world, error)
     picture = None
     if not arguments.no_picture:
@@ -674,7 +677,8 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     assert outcome.reduction is not None and outcome.summary is not None
     summary = {**outcome.summary, "pictures": [str(p) for p in outcome.attachments if p.suffix == ".png"],
                "media": [str(p) for p in outcome.attachments if p.suffix in (".gif", ".rrd")]}
-    _emit(arguments, _reduction_text(arguments.world, outcome.reduction, summary, outcome.notes), {"ok": True, **summary})
+    _emit(arguments, _reduction_text(arguments.world, outcome.reduction, summary, outcome.notes),
+          {"ok": True, **summary})
     return EXIT_INTERRUPTED if interrupted else EXIT_OK
 
 

@@ -182,8 +182,8 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
             raise ProbeCancelled("budget: max_seconds")
         return observation
 
-    common: dict[str, Any] = {"test_id": plan.test_id, "problem_fingerprint": problem, "replay_command": plan.replay_command,
-                              "reference": plan.reference.to_dict()}
+    common: dict[str, Any] = {"test_id": plan.test_id, "problem_fingerprint": problem,
+                              "replay_command": plan.replay_command, "reference": plan.reference.to_dict()}
     extra = {**plan.summary_extra, "tolerance": spec.tolerance, "notes": notes, "world_notes": list(world.notes)}
 
     def counts(probes: int) -> dict[str, Any]:
@@ -215,7 +215,8 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
 
     left = spec.max_probes if spec.max_probes is None else max(0, spec.max_probes - calls.started)
     seconds = None if calls.deadline is None else max(0.0, calls.deadline - time.monotonic())
-    threads = concurrent.futures.ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-probe") if pool.size > 1 else None
+    threads = (concurrent.futures.ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-probe")
+               if pool.size > 1 else None)
     interrupted: ReductionInterrupted | None = None
     clean = False
     try:
@@ -300,7 +301,8 @@ def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _C
     limit, per_stage = stage_budget(model_cost, spec.stage_probes, left)
     started = calls.started
     policy = stage_policy(make_policy(spec.deflake, 0.95), reduction)
-    threads = concurrent.futures.ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-stage") if pool.size > 1 else None
+    threads = (concurrent.futures.ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-stage")
+               if pool.size > 1 else None)
 
     def wrap(inner: Probe) -> Probe:
         def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:

@@ -47,7 +47,8 @@ def to_local(points: FloatArray, translation: FloatArray, rotation: FloatArray) 
 def box_distance(local_points: FloatArray, size: FloatArray) -> FloatArray:
     """Distance from points (in the box frame) to a centred box of full `size`; 0 inside."""
     excess = np.maximum(np.abs(local_points) - size / 2.0, 0.0)
-    return np.linalg.norm(excess, axis=1)
+    distance: FloatArray = np.linalg.norm(excess, axis=1)
+    return distance
 
 
 def cylinder_distance(local_points: FloatArray, radius: float, length: float) -> FloatArray:
@@ -59,7 +60,8 @@ def cylinder_distance(local_points: FloatArray, radius: float, length: float) ->
 
 def sphere_distance(local_points: FloatArray, radius: float) -> FloatArray:
     """Distance from points (in the sphere frame) to a centred sphere; 0 inside."""
-    return np.maximum(np.linalg.norm(local_points, axis=1) - radius, 0.0)
+    centre_distance: FloatArray = np.linalg.norm(local_points, axis=1)
+    return np.maximum(centre_distance - radius, 0.0)
 
 
 def box_corners(size: FloatArray) -> FloatArray:

@@ -111,7 +111,7 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
     (wall-clock seconds per episode, default the fixture's) raises `ControllerTimeout` when exceeded.
     """
 
-    metadata: dict[str, Any] = {"render_modes": []}
+    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 - as gymnasium.Env declares it (ClassVar conflicts)
 
     def __init__(
         self,

@@ -346,7 +346,8 @@ class Collided:
         for contact in state.contacts:
             if contact.normal_force < self.min_force or contact.model == GROUND:
                 continue
-            if self.models is None and not contact.wheel or self.models is not None and contact.model in self.models:
+            if ((self.models is None and not contact.wheel)
+                    or (self.models is not None and contact.model in self.models)):
                 return signature(self.name, state, f"Link {contact.link} hit {contact.model} "
                                  f"({contact.normal_force:.0f} N).")
         return None

@@ -8,6 +8,7 @@ own (see pytest_worker.py), or, with one worker, by calling the test function ag
 from __future__ import annotations
 
 import base64
+import contextlib
 import dataclasses
 import inspect
 import math
@@ -59,37 +60,37 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     options: list[tuple[str, str, dict[str, Any]]] = [
         ("reduce", "when a robot scenario test fails, reduce its world to the models the failure needs",
          {"action": "store_true", "ini_type": "bool"}),
-        ("artifacts", "folder for minimal worlds, run logs and summaries (default: ddenv-artifacts); a relative "
-                      "path is relative to the folder pytest runs in (in an ini file: to that file's folder)",
+        ("artifacts", ("folder for minimal worlds, run logs and summaries (default: ddenv-artifacts); a relative "
+                      "path is relative to the folder pytest runs in (in an ini file: to that file's folder)"),
          {"metavar": "DIR"}),
-        ("deflake", "re-runs of a candidate that did not reproduce the failure: an integer, 'adaptive', or "
-                    "'auto' (calibrated on the original world's failure rate)",
+        ("deflake", ("re-runs of a candidate that did not reproduce the failure: an integer, 'adaptive', or "
+                    "'auto' (calibrated on the original world's failure rate)"),
          {"metavar": "N"}),
         ("max-probes", "stop a reduction after this many simulations (best world so far is kept)", {"metavar": "N"}),
         ("max-time", "stop a reduction after this many wall-clock seconds", {"metavar": "SECONDS"}),
         ("seed", "base seed of every robot run (default: the marker's seed, else 0)", {"metavar": "N"}),
-        ("workers", "simulation worker processes: a number, 'auto' for one per core (the default), or 1 to "
-         "simulate in the pytest process", {"metavar": "N"}),
-        ("executor", "where probes simulate: 'local' worker processes (default), 'dask' (a local dask cluster) "
-         "or tcp://HOST:PORT of a dask scheduler", {"metavar": "ADDRESS"}),
+        ("workers", ("simulation worker processes: a number, 'auto' for one per core (the default), or 1 to "
+         "simulate in the pytest process"), {"metavar": "N"}),
+        ("executor", ("where probes simulate: 'local' worker processes (default), 'dask' (a local dask cluster) "
+         "or tcp://HOST:PORT of a dask scheduler"), {"metavar": "ADDRESS"}),
         ("world", "run every robot test against this world file instead of its own (e.g. a minimal.yaml)",
          {"metavar": "PATH"}),
         ("model-path", "extra folders (separated by ':') searched for SDF <include>s of model://NAME",
          {"metavar": "DIRS"}),
-        ("probe-timeout", "wall-clock limit of one probe of a reduction: SECONDS, 'auto' (the default: max(60 s, "
+        ("probe-timeout", ("wall-clock limit of one probe of a reduction: SECONDS, 'auto' (the default: max(60 s, "
                           "10 x the longest of the original run and the slowest probe)) or 'none'; a probe past "
-                          "it is an error, not a verdict (default: $DDENV_PROBE_TIMEOUT, else auto)",
+                          "it is an error, not a verdict (default: $DDENV_PROBE_TIMEOUT, else auto)"),
          {"metavar": "SECONDS"}),
-        ("stages", "what to do after the model-level reduction, comma-separated: models (always), shapes, "
+        ("stages", ("what to do after the model-level reduction, comma-separated: models (always), shapes, "
                    "attributes, time, explain, passing, or 'all' (default: models,explain,passing; the marker's "
-                   "stages= when this is not given on the command line)", {"metavar": "LIST"}),
-        ("media", "what a reduction shows besides its files: 'all' (pictures, original.gif/minimal.gif "
+                   "stages= when this is not given on the command line)"), {"metavar": "LIST"}),
+        ("media", ("what a reduction shows besides its files: 'all' (pictures, original.gif/minimal.gif "
                   "animations, recording.rrd when rerun-sdk is installed), 'pictures' or 'none' (default: "
-                  "$DDENV_MEDIA, else all)", {"metavar": "WHAT"}),
-        ("stage-probes", "simulations each stage after the models may start (default: all of them together at "
-                         "most twice the model-level simulations)", {"metavar": "N"}),
-        ("run-timeout", "wall-clock seconds one robot_world.run() may take before it fails with ControllerTimeout "
-                        "(default 300): bounds a controller that is too slow", {"metavar": "SECONDS"}),
+                  "$DDENV_MEDIA, else all)"), {"metavar": "WHAT"}),
+        ("stage-probes", ("simulations each stage after the models may start (default: all of them together at "
+                         "most twice the model-level simulations)"), {"metavar": "N"}),
+        ("run-timeout", ("wall-clock seconds one robot_world.run() may take before it fails with ControllerTimeout "
+                        "(default 300): bounds a controller that is too slow"), {"metavar": "SECONDS"}),
     ]
     for name, help_text, extra in options:
         ini_name = f"ddenv_{name.replace('-', '_')}"
@@ -242,6 +243,24 @@ def _validate_options(config: pytest.Config) -> None:
     config.stash[_artifacts_key] = root
     if reduce:
         _open_log(config)
+
+
+def pytest_report_header(config: pytest.Config) -> str | None:
+    """One line to reproduce a session's reductions (as pytest-randomly prints its seed): whether reduction
+    is on, the seed, the workers, the executor, the media and the artifacts folder."""
+    if hasattr(config, "workerinput"):  # an xdist worker: the controller prints the header
+        return None
+    seed = _int_setting(config, "ddenv_seed", 0)
+    seed_text = "per marker (default 0)" if seed is None else str(seed)
+    if not _setting(config, "ddenv_reduce"):
+        return f"ddenv: reduction off (--ddenv-reduce to reduce failing robot tests), seed {seed_text}"
+    workers = _setting(config, "ddenv_workers") or "auto"
+    if workers == "auto":
+        workers = f"auto ({os.cpu_count() or 1} cores)"
+    executor = _setting(config, "ddenv_executor") or "local"
+    root = config.stash.get(_artifacts_key, None) or _artifacts_root(config)[0]
+    return (f"ddenv: reduction on, seed {seed_text}, workers {workers}, executor {executor}, "
+            f"media {_media_setting(config)}, artifacts {root}")
 
 
 def _open_log(config: pytest.Config) -> None:
@@ -586,19 +605,13 @@ class _ProgressLine:
         with self._suspended():
             self.reporter.rewrite(line, erase=True)
 
-    def _suspended(self) -> Any:
-        return self.capture.global_and_fixture_disabled() if self.capture is not None else _nullcontext()
+    def _suspended(self) -> contextlib.AbstractContextManager[None]:
+        if self.capture is None:
+            return contextlib.nullcontext()
+        return self.capture.global_and_fixture_disabled()  # type: ignore[no-any-return]
 
     def close(self) -> None:
         self.heartbeat.close()
-
-
-class _nullcontext:
-    def __enter__(self) -> None:
-        return None
-
-    def __exit__(self, *exc: object) -> None:
-        return None
 
 
 # -- reports -----------------------------------------------------------------------------------------------

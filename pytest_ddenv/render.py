@@ -116,11 +116,13 @@ class Footprint:
 
     @property
     def low(self) -> FloatArray:
-        return np.min([p.min(axis=0) for p in self.polygons], axis=0)
+        low: FloatArray = np.min([p.min(axis=0) for p in self.polygons], axis=0)
+        return low
 
     @property
     def high(self) -> FloatArray:
-        return np.max([p.max(axis=0) for p in self.polygons], axis=0)
+        high: FloatArray = np.max([p.max(axis=0) for p in self.polygons], axis=0)
+        return high
 
     @property
     def area(self) -> float:
@@ -226,7 +228,8 @@ def _shape_points(shape: Shape, source: str | None) -> FloatArray:
             top = float(load_heightmap(resolve_mesh_path(shape.mesh, source)).max()) * size_z
         except Exception:  # noqa: BLE001 - an unreadable image is drawn as its full box
             top = size_z
-        return geometry.box_corners(np.array([size_x, size_y, top])) + np.array([0.0, 0.0, top / 2.0])
+        corners: FloatArray = geometry.box_corners(np.array([size_x, size_y, top])) + np.array([0.0, 0.0, top / 2.0])
+        return corners
     try:
         mesh = load_mesh(resolve_mesh_path(shape.mesh, source), shape.scale)
         return np.asarray(mesh.vertices, dtype=np.float64)  # type: ignore[attr-defined]
@@ -764,7 +767,7 @@ def draw_progress(steps: Sequence[tuple[int, int]], *, probes: int | None = None
     from matplotlib.ticker import MaxNLocator
 
     plt = _pyplot()
-    figure = plt.figure(figsize=(PROGRESS_SIZE[0] / DPI, PROGRESS_SIZE[1] / DPI), dpi=DPI)
+    figure: Figure = plt.figure(figsize=(PROGRESS_SIZE[0] / DPI, PROGRESS_SIZE[1] / DPI), dpi=DPI)
     axes = figure.add_axes((0.08, 0.12, 0.62, 0.78))
     steps = [(int(p), int(s)) for p, s in steps] or [(0, 0)]
     total = max(probes if probes is not None else 0, steps[-1][0], max((p for p, _, _ in probe_sizes), default=0))

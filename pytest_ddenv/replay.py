@@ -209,8 +209,8 @@ def recorded_seeds(log: Path, minimal: Sequence[str], fallback: int) -> list[int
         except ValueError:
             continue
         if (isinstance(record, dict) and record.get("event") == "probe" and record.get("outcome") == "fail"
-                and "stage" not in record and sorted(record.get("candidate", ())) == wanted and isinstance(record.get("seed"), int)
-                and record["seed"] not in seeds):
+                and "stage" not in record and sorted(record.get("candidate", ())) == wanted
+                and isinstance(record.get("seed"), int) and record["seed"] not in seeds):
             seeds.append(record["seed"])
     return seeds or [fallback]
 
@@ -241,7 +241,7 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
             run = run_scenario(world, chosen, seed=run_seed, timeout=run_timeout, controller=controller)
         except DdenvError:
             raise
-        except Exception as error:  # the controller under test raised: another failure than the reference
+        except Exception as error:  # noqa: BLE001 - the controller under test raised: another failure than the reference
             results.append(ReplayRun(run_seed, Outcome.OTHER, None, f"{type(error).__name__}: {error}"))
             continue
         results.append(ReplayRun(run_seed, classify(run, reference, limit), run.failure, run=run))

@@ -102,7 +102,8 @@ def _velocities(times: np.ndarray, poses: np.ndarray) -> np.ndarray:
     return velocities
 
 
-def _times_of(world: World, models: Sequence[str] | Mapping[str, float], default: float, field: str) -> dict[str, float]:
+def _times_of(world: World, models: Sequence[str] | Mapping[str, float], default: float,
+              field: str) -> dict[str, float]:
     if isinstance(models, str):
         raise ScenarioError(f"report(): {field} must be a list of model names (or name -> time), not a string",
                             field=field)

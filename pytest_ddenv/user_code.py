@@ -78,5 +78,6 @@ def load_attribute(reference: str, *, option: str = "--controller") -> Any:
         try:
             value = value()
         except Exception as error:
-            raise UserCodeError(f"{option} {reference}: {attribute}() raised {type(error).__name__}: {error}") from error
+            raise UserCodeError(f"{option} {reference}: {attribute}() raised "
+                                f"{type(error).__name__}: {error}") from error
     return value

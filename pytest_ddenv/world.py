@@ -11,16 +11,19 @@ import functools
 import math
 import os
 import re
-from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
 from pytest_ddenv import geometry
 from pytest_ddenv.errors import WorldError, shown_path
 from pytest_ddenv.geometry import FloatArray
+
+if TYPE_CHECKING:
+    import shapely
 
 ShapeKind = Literal["box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap"]
 SHAPE_KINDS: tuple[ShapeKind, ...] = ("box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap")
@@ -331,7 +334,8 @@ class World:
     def centroid(self, name: str) -> FloatArray:
         """Centre of the model's axis-aligned bounds in the world frame."""
         low, high = self.bounds(name)
-        return (low + high) / 2.0
+        centre: FloatArray = (low + high) / 2.0
+        return centre
 
     def centroids(self, names: Sequence[str] | None = None) -> FloatArray:
         """Centroids (E, 3) of the named models (all models by default)."""
@@ -351,11 +355,6 @@ class World:
         for column, name in enumerate(chosen):
             result[:, column] = _model_geometry(self.model(name), self.source).distance(points)
         return result
-
-
-def model_names_matching(world: World, names: Collection[str]) -> tuple[str, ...]:
-    """The names of `world` that are in `names`, in the world's order."""
-    return tuple(name for name in world.names if name in names)
 
 
 @dataclass(frozen=True)
@@ -497,7 +496,7 @@ def load_mesh(path: Path, scale: tuple[float, float, float]) -> object:
     except Exception as error:  # trimesh raises many types for unreadable files
         raise WorldError(f"cannot read mesh file: {error}", source=str(path)) from error
     if math.prod(scale) != 1.0 or scale != (1.0, 1.0, 1.0):
-        loaded.apply_scale(np.array(scale))
+        loaded.apply_scale(np.array(scale))  # type: ignore[no-untyped-call]  # trimesh leaves it unannotated
     return loaded
 
 
@@ -524,7 +523,7 @@ def _mesh_distance(placed: _PlacedShape, local: FloatArray) -> FloatArray:
 
     assert placed.mesh_path is not None
     mesh = load_mesh(placed.mesh_path, placed.shape.scale)
-    _, distance, _ = trimesh.proximity.closest_point(mesh, local)
+    _, distance, _ = trimesh.proximity.closest_point(mesh, local)  # type: ignore[no-untyped-call]  # unannotated
     distance = np.asarray(distance, dtype=float)
     if getattr(mesh, "is_watertight", False):
         inside = mesh.contains(local)  # type: ignore[attr-defined]
@@ -537,7 +536,7 @@ HEIGHTMAP_MODES_16_BIT = ("I;16", "I;16L", "I;16B", "I;16N", "I")
 
 
 @functools.lru_cache(maxsize=256)
-def polyline_polygon(points: tuple[tuple[float, float], ...]) -> object:
+def polyline_polygon(points: tuple[tuple[float, float], ...]) -> shapely.Polygon:
     """The shapely Polygon of a polyline's outline (closed implicitly), cached."""
     import shapely
 
@@ -633,7 +632,7 @@ def _heightmap_distance(placed: _PlacedShape, local: FloatArray) -> FloatArray:
     outside = ~inside
     if outside.any():
         mesh = heightmap_mesh(placed.mesh_path, shape.size)
-        _, found, _ = trimesh.proximity.closest_point(mesh, local[outside])
+        _, found, _ = trimesh.proximity.closest_point(mesh, local[outside])  # type: ignore[no-untyped-call]  # unannotated
         distance[outside] = np.asarray(found, dtype=float)
     return distance
 

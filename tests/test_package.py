@@ -23,6 +23,16 @@ def test_pytest_header_lists_the_plugin(pytester: pytest.Pytester) -> None:
     result.assert_outcomes(passed=1)
 
 
+def test_pytest_header_says_how_to_reproduce_the_reductions(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile("def test_ok():\n    pass\n")
+    off = pytester.runpytest_subprocess()
+    off.stdout.fnmatch_lines(["ddenv: reduction off (--ddenv-reduce to reduce failing robot tests), seed per marker*"])
+    on = pytester.runpytest_subprocess("--ddenv-reduce", "--ddenv-seed", "7", "--ddenv-workers", "2",
+                                       "--ddenv-media", "none")
+    on.stdout.fnmatch_lines([f"ddenv: reduction on, seed 7, workers 2, executor local, media none, "
+                             f"artifacts {pytester.path / 'ddenv-artifacts'}"])
+
+
 def test_markers_are_registered(pytester: pytest.Pytester) -> None:
     result = pytester.runpytest("--markers")
     result.stdout.fnmatch_lines(["@pytest.mark.ddenv(*", "@pytest.mark.robot_failure(*"])

@@ -19,10 +19,7 @@ def _predicates():
 
 
 def _run(name: str):
-    path = WORLDS / f"{name}.yaml"
-    if not path.exists():
-        pytest.skip(f"{path} not there yet")
-    return simulate(World.load(path), seed=SEED, predicates=_predicates())
+    return simulate(World.load(WORLDS / f"{name}.yaml"), seed=SEED, predicates=_predicates())
 
 
 @pytest.mark.slow

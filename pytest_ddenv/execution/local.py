@@ -287,9 +287,9 @@ class LocalPool:
     seconds a probe may take before its worker is killed (in-process: interrupted, see the module
     docstring), 'auto' (max(`watchdog_floor`, `watchdog_factor` x the longest of the original run, see
     `expect`, and the slowest probe so far)) or None (never); by default $DDENV_PROBE_TIMEOUT, else 'auto'.
-    A hung probe is a `WorkerError`: an ERROR outcome, never a verdict. `context`: multiprocessing start method ('forkserver' where
-    available, else 'spawn'; 'fork' is refused: pybullet and fork do not mix). `fault_injection`: test-only
-    faults (see `Fault`); default from $DDENV_FAULT_INJECTION.
+    A hung probe is a `WorkerError`: an ERROR outcome, never a verdict. `context`: multiprocessing start method
+    ('forkserver' where available, else 'spawn'; 'fork' is refused: pybullet and fork do not mix).
+    `fault_injection`: test-only faults (see `Fault`); default from $DDENV_FAULT_INJECTION.
     """
 
     def __init__(
@@ -464,7 +464,8 @@ class LocalPool:
                     worker = self._start_worker()
                     continue
                 self._stats.add("errors")
-                raise WorkerError(f"probe of {what} failed twice: its worker died each time (last: {died.how})") from None
+                raise WorkerError(f"probe of {what} failed twice: its worker died each time "
+                                  f"(last: {died.how})") from None
             except _Hung:
                 self._forget(worker)
                 self._raise_if_closed(what)
@@ -474,7 +475,8 @@ class LocalPool:
                                         "killed") from None
                 self._stats.add("timeouts")
                 self._stats.add("errors")
-                raise WorkerError(f"probe of {what} ran past the {watchdog:g} s watchdog; its worker was killed") from None
+                raise WorkerError(f"probe of {what} ran past the {watchdog:g} s watchdog; "
+                                  "its worker was killed") from None
             except BaseException:  # interrupted mid-call: the worker's state is unknown
                 self._forget(worker)
                 self._stats.add("errors")

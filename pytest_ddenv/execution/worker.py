@@ -84,7 +84,7 @@ def worker_main(conn: Connection, job: Job) -> None:
     channel = PipeChannel(conn)
     try:
         job.serve(channel)
-    except BaseException as error:  # noqa: BLE001 - reported to the parent, which raises it
+    except BaseException as error:
         if not channel.said_ready:
             message = "".join(traceback.format_exception(error))
             try:

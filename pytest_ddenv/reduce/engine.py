@@ -394,7 +394,8 @@ class _Engine:
         prefetched on idle workers (see prefetch.py). A guess: a schema error here is left to the real round."""
         if self.verifying or not self.current:
             runs = self.rates.looks[0] if self.rates.looks else 0
-            return [(self.full(self.current), attempt) for attempt in range(self.minimal_runs, self.minimal_runs + runs)]
+            return [(self.full(self.current), attempt)
+                    for attempt in range(self.minimal_runs, self.minimal_runs + runs)]
         if self.granularity >= len(self.current):
             return self.prober.planned(self.verify_trials())
         try:

@@ -79,7 +79,8 @@ class ProbeLog:
     """The stage after the model-level reduction whose records this log reads (None: the model-level one);
     see `view`."""
 
-    def __init__(self, path: str | os.PathLike[str] | None = None, *, resume: bool = True, durable: bool = True) -> None:
+    def __init__(self, path: str | os.PathLike[str] | None = None, *, resume: bool = True,
+                 durable: bool = True) -> None:
         self.path: Path | None = Path(path) if path is not None else None
         self.records: list[dict[str, Any]] = []
         self.notes: list[str] = []
@@ -261,7 +262,7 @@ class ProbeLog:
 class _StageView(ProbeLog):
     """`ProbeLog.view`: one stage's records, written through the parent log (same file, same lock)."""
 
-    def __init__(self, parent: ProbeLog, stage: str) -> None:  # noqa: D107 - shares the parent's state
+    def __init__(self, parent: ProbeLog, stage: str) -> None:
         self.path = parent.path
         self.records = parent.records
         self.notes = []

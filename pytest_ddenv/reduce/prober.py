@@ -137,7 +137,7 @@ def call_probe(probe: Probe, candidate: Candidate, attempt: int, counters: Count
         return probe(candidate, attempt)
     except ProbeCancelled:
         raise
-    except Exception as error:
+    except Exception as error:  # noqa: BLE001 - a probe runs user code: whatever it raises is an ERROR outcome
         return Observation(
             Outcome.ERROR,
             detail=f"probe raised {type(error).__name__}: {error}",

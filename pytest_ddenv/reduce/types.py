@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_ddenv.errors import ReductionError
-from pytest_ddenv.outcome import Outcome
+from pytest_ddenv.outcome import Outcome as Outcome  # re-exported: the engine's callers import it from here
 from pytest_ddenv.reduce.rates import RateComparison
 
 FloatArray = NDArray[np.float64]

@@ -3,8 +3,8 @@
 `load_sdf(path, model_paths=..., skip_unsupported=...)` / `parse_sdf(text)` read a world (applying its first
 `<state>` block) or a single-model file; `World.notes` says what is not simulated. `dump_sdf(world)` writes a
 world Gazebo loads; `cut_models(path, removed)` is an SDF file with some of its models cut out, nothing else
-changed (the surgical export of a reduction). `collada_geometry(path)` is a Collada file without its materials, for trimesh. See
-docs/sdf.md for what is supported.
+changed (the surgical export of a reduction). `collada_geometry(path)` is a Collada file without its materials, for
+trimesh. See docs/sdf.md for what is supported.
 """
 
 from __future__ import annotations

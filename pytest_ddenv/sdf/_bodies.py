@@ -149,7 +149,8 @@ class BodyReader:
                     mu2 = values.child_number(bullet, "friction2", f"{where}/friction/bullet", model)
         for value, label in ((mu, "mu"), (mu2, "mu2")):
             if value is not None and value < 0:
-                raise values.error(f"friction must be >= 0, got {value}", element, model=model, field=f"{where}/{label}")
+                raise values.error(f"friction must be >= 0, got {value}", element, model=model,
+                                   field=f"{where}/{label}")
         restitution = None
         bounce = element.find("bounce")
         if bounce is not None:

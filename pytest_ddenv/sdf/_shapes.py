@@ -41,10 +41,6 @@ class Geometry:
     plane_size: tuple[float, float] = (1.0, 1.0)
     holes: int = 0  # polyline outlines inside another one (Gazebo cuts them out; here they are solid)
 
-    @property
-    def is_plane(self) -> bool:
-        return self.normal is not None
-
 
 class GeometryReader:
     def __init__(self, values: Values, search_paths: Sequence[Path]) -> None:
@@ -219,7 +215,7 @@ def _inside(inner: Shape, outer: Shape) -> bool:
 def _point_in_polygon(point: tuple[float, float], polygon: Sequence[tuple[float, float]]) -> bool:
     x, y = point
     inside = False
-    for (x1, y1), (x2, y2) in zip(polygon, (*polygon[1:], polygon[0])):
+    for (x1, y1), (x2, y2) in zip(polygon, (*polygon[1:], polygon[0]), strict=True):
         if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
             inside = not inside
     return inside

@@ -126,8 +126,8 @@ def _spans(text: str, *, depth: int) -> list[_Span]:
     def end(tag: str) -> None:
         _, begin = stack.pop()
         close = text.index(">", offset(parser.CurrentByteIndex)) + 1
-        path = tuple(name for name, _ in stack[depth:]) + (tag,)
-        if len(stack) == depth and tag in TOP_LEVEL or path in STATE_PATHS and len(stack) >= depth:
+        path = (*(name for name, _ in stack[depth:]), tag)
+        if (len(stack) == depth and tag in TOP_LEVEL) or (path in STATE_PATHS and len(stack) >= depth):
             spans.append(_Span(path, begin, close))
 
     parser.StartElementHandler = start

@@ -105,7 +105,8 @@ class TreeReader:
             static_from, static_element = "", None
         node = ModelNode(
             name=name, scoped=scoped, element=element, origin=origin, base_dir=base_dir,
-            static=(parent is not None and parent.static) or own, static_from=static_from, static_element=static_element,
+            static=(parent is not None and parent.static) or own, static_from=static_from,
+            static_element=static_element,
             frames=Frames(self.values, top, {"__model__", element.get("name") or "", name}),
             pose=pose if pose is not None else self.values.pose(element, "", top),
             placement=placement or (element.get("placement_frame") or "").strip(), level=level,
@@ -131,8 +132,10 @@ class TreeReader:
                 node.frames.add(label, Frame(pose, relative(relative_to), child))
                 node.links.append(LinkSpec(child, f"{node.scoped}{label}", label, node.frames, base_dir,
                                            node.static, node.static_from, node.static_element))
-                node.sensors.extend(f"{top}::{node.scoped}{label}::{s.get('name') or ''}" for s in child.iter("sensor"))
-                node.lights.extend(f"{top}::{node.scoped}{label}::{s.get('name') or ''}" for s in child.findall("light"))
+                node.sensors.extend(f"{top}::{node.scoped}{label}::{s.get('name') or ''}"
+                                    for s in child.iter("sensor"))
+                node.lights.extend(f"{top}::{node.scoped}{label}::{s.get('name') or ''}"
+                                   for s in child.findall("light"))
             elif child.tag == "frame":
                 pose, relative_to = values.pose(child, where, top)
                 attached = (child.get("attached_to") or "").strip()

@@ -46,7 +46,7 @@ class _LineTarget:
 
     def start(self, tag: str, attrs: dict[str, str]) -> ET.Element:
         element = self._builder.start(tag, attrs)
-        line = self.parser.parser.CurrentLineNumber if self.parser is not None else 0  # type: ignore[attr-defined]
+        line = self.parser.parser.CurrentLineNumber if self.parser is not None else 0
         self._lines.where[id(element)] = (self._source, int(line))
         self._lines.keep.append(element)  # ids stay unique while the elements live
         return element
@@ -69,7 +69,8 @@ def read_limited(path: Path, *, what: str = "world file") -> bytes:
 def parse_xml(data: bytes | str, source: str | None, lines: Lines) -> ET.Element:
     """Parse XML text; DTDs, entity declarations and external references are refused (WorldError)."""
     if len(data) > MAX_FILE_BYTES:
-        raise WorldError(f"XML text is larger than the {MAX_FILE_BYTES} byte limit; refusing to parse it", source=source)
+        raise WorldError(f"XML text is larger than the {MAX_FILE_BYTES} byte limit; refusing to parse it",
+                         source=source)
     text = lenient_text(data)
     target = _LineTarget(lines, source)
     parser = DefusedXMLParser(target=target, forbid_dtd=True, forbid_entities=True, forbid_external=True)
@@ -165,7 +166,7 @@ def _markup_follows(text: str, position: tuple[int, int] | None) -> bool:
 
 def _current_line(parser: DefusedXMLParser) -> int | None:
     try:
-        return int(parser.parser.CurrentLineNumber)  # type: ignore[attr-defined]
+        return int(parser.parser.CurrentLineNumber)
     except AttributeError:  # pragma: no cover - parser already torn down
         return None
 

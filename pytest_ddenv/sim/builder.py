@@ -95,7 +95,7 @@ def _build_model(p: Any, client: int, model: Model, source: str | None, friction
         )
     if not model.static:
         p.changeDynamics(body, -1, activationState=p.ACTIVATION_STATE_ENABLE_SLEEPING, physicsClientId=client)
-    return body
+    return int(body)
 
 
 def _anisotropy(model: Model) -> list[float]:
@@ -131,11 +131,11 @@ def _collision_shape(p: Any, client: int, model: Model, source: str | None) -> i
             lengths.append(0.0)
         positions.append([shape.pose.x, shape.pose.y, shape.pose.z])
         orientations.append(_quaternion(p, shape.pose.roll, shape.pose.pitch, shape.pose.yaw))
-    return p.createCollisionShapeArray(
+    return int(p.createCollisionShapeArray(
         shapeTypes=kinds, radii=radii, halfExtents=half_extents, lengths=lengths,
         collisionFramePositions=positions, collisionFrameOrientations=orientations,
         physicsClientId=client,
-    )
+    ))
 
 
 def _single_shape(p: Any, client: int, shape: Shape, model: Model, source: str | None) -> int:
@@ -146,13 +146,13 @@ def _single_shape(p: Any, client: int, shape: Shape, model: Model, source: str |
     }
     if shape.kind == "box":
         assert shape.size is not None
-        return p.createCollisionShape(p.GEOM_BOX, halfExtents=[v / 2.0 for v in shape.size], **frame)
+        return int(p.createCollisionShape(p.GEOM_BOX, halfExtents=[v / 2.0 for v in shape.size], **frame))
     if shape.kind == "cylinder":
-        return p.createCollisionShape(p.GEOM_CYLINDER, radius=shape.radius, height=shape.length, **frame)
+        return int(p.createCollisionShape(p.GEOM_CYLINDER, radius=shape.radius, height=shape.length, **frame))
     if shape.kind == "sphere":
-        return p.createCollisionShape(p.GEOM_SPHERE, radius=shape.radius, **frame)
+        return int(p.createCollisionShape(p.GEOM_SPHERE, radius=shape.radius, **frame))
     if shape.kind == "capsule":  # pybullet's height is the cylinder part, as SDF's <length>
-        return p.createCollisionShape(p.GEOM_CAPSULE, radius=shape.radius, height=shape.length, **frame)
+        return int(p.createCollisionShape(p.GEOM_CAPSULE, radius=shape.radius, height=shape.length, **frame))
     if shape.kind == "polyline":
         return _polyline_shape(p, shape, model, source, frame)
     if shape.kind == "heightmap":
@@ -179,7 +179,7 @@ def _polyline_shape(p: Any, shape: Shape, model: Model, source: str | None, fram
 def polyline_centre(shape: Shape) -> Pose:
     """The centre of mass of a uniform polyline prism in its model's frame (unrotated)."""
     assert shape.points is not None and shape.height is not None
-    centroid = polyline_polygon(shape.points).centroid  # type: ignore[attr-defined]
+    centroid = polyline_polygon(shape.points).centroid
     centre = shape.pose.compose(Pose(float(centroid.x), float(centroid.y), shape.height / 2.0))
     return Pose(centre.x, centre.y, centre.z)
 
@@ -241,7 +241,7 @@ def _mesh_shape(p: Any, client: int, shape: Shape, model: Model, source: str | N
             index = p.createCollisionShape(p.GEOM_MESH, vertices=vertices, **frame)
     if index < 0:
         raise WorldError(f"pybullet could not build the mesh {path}", source=source, model=model.name, field="mesh")
-    return index
+    return int(index)
 
 
 def _build_linked(p: Any, client: int, model: Model, source: str | None) -> tuple[int, list[int]]:

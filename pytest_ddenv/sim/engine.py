@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -46,7 +46,7 @@ class Simulator:
         with silenced():  # importing pybullet prints its build time on the C-level stdout
             import pybullet as p
 
-            self._client = p.connect(p.DIRECT)
+            self._client: int = p.connect(p.DIRECT)
         self._p = p
         if self._client < 0:  # pragma: no cover
             raise RuntimeError("could not start a pybullet DIRECT client")
@@ -55,7 +55,7 @@ class Simulator:
             from importlib.metadata import version
 
             self.pybullet_version = version("pybullet")
-        except Exception:  # pragma: no cover
+        except Exception:  # noqa: BLE001, S110 - any failure keeps getAPIVersion()  # pragma: no cover
             pass
 
     # -- lifecycle -------------------------------------------------------------------------------------
@@ -63,11 +63,11 @@ class Simulator:
         if self._client >= 0:
             try:
                 self._p.disconnect(physicsClientId=self._client)
-            except Exception:  # pragma: no cover - already gone
+            except Exception:  # noqa: BLE001, S110 - the client is already gone  # pragma: no cover
                 pass
             self._client = -1
 
-    def __enter__(self) -> Simulator:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -76,7 +76,7 @@ class Simulator:
     def __del__(self) -> None:  # pragma: no cover - best effort
         try:
             self.close()
-        except Exception:
+        except Exception:  # noqa: BLE001, S110 - a finalizer must not raise (at interpreter exit pybullet may be gone)
             pass
 
     @property
@@ -200,7 +200,7 @@ class Simulator:
         rays_from = [[x + c * a - s * b, y + s * a + c * b, top] for a, b in points]
         rays_to = [[fx, fy, -1000.0] for fx, fy, _ in rays_from]
         hits = p.rayTestBatch(rays_from, rays_to, numThreads=1, physicsClientId=client)
-        heights = [hit[3][2] for hit in hits if hit[0] >= 0]
+        heights: list[float] = [hit[3][2] for hit in hits if hit[0] >= 0]
         if not heights:
             where = f"({scenario.start.x:g}, {scenario.start.y:g})"
             raise ScenarioError(
@@ -221,7 +221,8 @@ class Simulator:
                 continue
             inside[name] = min(inside.get(name, 0.0), point[8])
         if inside:
-            names = ", ".join(f"{GROUND if n == GROUND_BODY_NAME else n} ({-d:.2f} m deep)" for n, d in sorted(inside.items()))
+            names = ", ".join(f"{GROUND if n == GROUND_BODY_NAME else n} ({-d:.2f} m deep)"
+                              for n, d in sorted(inside.items()))
             raise ScenarioError(f"the robot's start pose is inside {names}; move the start or the model(s)",
                                 source=world.source, field="scenario.start")
 

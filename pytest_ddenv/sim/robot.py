@@ -199,7 +199,7 @@ class WheeledRobot(Robot):
         count = len(self._wheels)
         p.setJointMotorControlArray(body, list(self._wheels), p.VELOCITY_CONTROL, targetVelocities=[0.0] * count,
                                     forces=[self.max_force] * count, physicsClientId=client)
-        return body
+        return int(body)
 
     @property
     def wheel_links(self) -> tuple[int, ...]:
@@ -256,7 +256,8 @@ class Husky(WheeledRobot):
 
     WHEELS = ("front_left_wheel", "front_right_wheel", "rear_left_wheel", "rear_right_wheel")
 
-    def __init__(self, urdf: str | None = None, *, implicit_cylinder: bool = True, merge_fixed_links: bool = True) -> None:
+    def __init__(self, urdf: str | None = None, *, implicit_cylinder: bool = True,
+                 merge_fixed_links: bool = True) -> None:
         if urdf is None:
             import pybullet_data
 

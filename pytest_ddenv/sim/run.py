@@ -79,10 +79,6 @@ class Run:
         return self.poses[:, :3]
 
     @property
-    def final_pose(self) -> FloatArray:
-        return self.poses[-1]
-
-    @property
     def yaw_rates(self) -> FloatArray:
         """(T,) angular velocity about the world z axis."""
         return self.velocities[:, 5]

@@ -73,8 +73,8 @@ def _measure(urdf: str, flags: int, left: tuple[str, ...], right: tuple[str, ...
         def mean_y(names: tuple[str, ...]) -> float:
             """Lateral position of the wheels' centres (their collision boxes: a wheel's shape may sit off its
             joint along the axle)."""
-            centres = [sum(p.getAABB(body, joints[n], physicsClientId=client)[k][1] for k in (0, 1)) / 2.0
-                       for n in names]
+            centres: list[float] = [sum(p.getAABB(body, joints[n], physicsClientId=client)[k][1] for k in (0, 1)) / 2.0
+                                    for n in names]
             return sum(centres) / len(centres)
 
         left_y, right_y = mean_y(left), mean_y(right)

@@ -97,7 +97,8 @@ def run(context: StageContext, models: Reduction, shapes: StageResult | None, *,
             decided = context.decide(STAGE, f"without {element}", final.without([element]), stage_begin=begin)
             if decided.runs:
                 counts = _summary(record for record in context.log.view(STAGE).own_records()
-                                  if record.get("event") == "probe" and record.get("candidate") == [f"without {element}"])
+                                  if record.get("event") == "probe"
+                                  and record.get("candidate") == [f"without {element}"])
                 source = "simulated: the final world without it"
         entry: dict[str, Any] = {"element": element, "kind": kind, "source": source if counts else "not run"}
         if counts is not None:

@@ -131,7 +131,8 @@ def _found(stage: str, context: StageContext, final: World, changes: dict[str, C
            incomplete: str | None = None) -> StageResult:
     world = applied(final, changes, chosen)
     text = "; ".join(chosen)
-    findings = [f"nearest passing world: {text} (passes {passes} of {runs} runs{', from the log' if source == 'log' else ''})"]
+    origin = ", from the log" if source == "log" else ""
+    findings = [f"nearest passing world: {text} (passes {passes} of {runs} runs{origin})"]
     return StageResult(stage, world, simulations=context.budget.started() - begin, findings=findings,
                        details={"difference": list(chosen), "passes": passes, "runs": runs, "source": source,
                                 "found": True}, incomplete=incomplete)
