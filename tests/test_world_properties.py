@@ -29,9 +29,10 @@ capsules = st.builds(lambda r, h, pose: Shape("capsule", radius=r, length=h, pos
 
 @st.composite
 def polylines(draw: st.DrawFn) -> Shape:
-    """A star-shaped outline around the local origin (every fan triangle from the origin is inside it)."""
+    """A star-shaped outline around the local origin (every fan triangle from the origin is inside it): the
+    angle between consecutive points stays below 180 degrees (for 3 points: (1 + 2 x 0.24) x 120 < 180)."""
     count = draw(st.integers(3, 8))
-    jitter = st.floats(-0.4, 0.4, allow_nan=False)
+    jitter = st.floats(-0.24, 0.24, allow_nan=False)
     angles = [2 * math.pi * (k + draw(jitter)) / count for k in range(count)]
     radii = [draw(st.floats(0.05, 3.0, allow_nan=False)) for _ in range(count)]
     points = tuple((r * math.cos(a), r * math.sin(a)) for r, a in zip(radii, angles, strict=True))
