@@ -14,6 +14,8 @@ import pytest
 
 from pytest_ddenv import World
 
+pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
+
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 
 

@@ -11,6 +11,8 @@ from pytest_ddenv.world import World
 
 from .conftest import reduce_with, run_of, stuck_job
 
+pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
+
 distributed = pytest.importorskip(
     "distributed", reason="dask.distributed is not installed (pip install 'pytest-ddenv[dask]')"
 )

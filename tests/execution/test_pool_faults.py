@@ -28,6 +28,8 @@ from pytest_ddenv.world import World
 from .conftest import reduce_with, run_of, stuck_job
 from .signal_cases import children, gone
 
+pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
+
 HANG_GUARD = 120.0
 """Seconds after which a test that should have ended long before gives up (a guard, not a speed check)."""
 CASES = Path(__file__).with_name("signal_cases.py")

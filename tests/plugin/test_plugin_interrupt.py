@@ -15,6 +15,8 @@ from pytest_ddenv import World
 
 from .conftest import SCENARIO_TEST
 
+pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
+
 SLOW_SCENARIO_TEST = SCENARIO_TEST.replace(
     'partition="model2model", priority="avg-trajectory"', 'partition="even", priority="sequential"'
 ).replace(

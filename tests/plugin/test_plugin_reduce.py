@@ -11,6 +11,8 @@ import pytest
 
 from pytest_ddenv import World
 
+pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
+
 
 def summary_of(pytester: pytest.Pytester) -> dict:
     (summary,) = Path(pytester.path, "ddenv-artifacts").glob("*/summary.json")

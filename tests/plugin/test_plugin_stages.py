@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
+
 
 def summary_of(pytester: pytest.Pytester) -> dict:
     (summary,) = Path(pytester.path, "ddenv-artifacts").glob("*/summary.json")

@@ -17,6 +17,8 @@ from pytest_ddenv.probe import FailureReference
 
 from .conftest import HANG_ONCE, PAUSE, YARD_WORLD, Project, records, scenario_test
 
+pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
+
 
 def probe_records(log: Path) -> list[dict]:
     return [r for r in records(log) if r.get("event") == "probe"]

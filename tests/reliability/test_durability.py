@@ -24,6 +24,8 @@ from .conftest import (
     wait_for,
 )
 
+pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
+
 
 def check_best_world_after_a_kill(project: Project) -> list[dict]:
     """What a killed reduction left: the best world so far, a provisional summary, a log of whole lines."""

@@ -22,6 +22,8 @@ from .conftest import (
     wait_for,
 )
 
+pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
+
 WALL_WORLD = (
     "format: 1\nname: wall\nscenario:\n  start: {x: 0.0, y: 0.0, yaw: 0.0}\n  goal: {x: 4.0, y: 0.0}\n"
     "  timeout: 20\nmodels:\n"

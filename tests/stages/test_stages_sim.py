@@ -13,6 +13,8 @@ from pytest_ddenv.oracle import PredicateSpec
 from pytest_ddenv.robot_world import RobotFailure, RobotWorld
 from pytest_ddenv.world import World
 
+pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
+
 LONG_WALL = textwrap.dedent(
     """\
     format: 1
