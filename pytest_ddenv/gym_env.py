@@ -75,6 +75,7 @@ from pytest_ddenv.sim.episode import Episode
 from pytest_ddenv.sim.robot import Robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
+from pytest_ddenv.validation import is_number
 
 if TYPE_CHECKING:
     from pytest_ddenv.robot_world import RobotWorld
@@ -365,7 +366,7 @@ def _goal_distance(episode: Episode) -> float:
 def _wall_limit(value: float | None) -> float | None:
     if value is None:
         return None
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+    if not is_number(value) or not value > 0:
         raise ScenarioError(f"max_wall_time must be a number of seconds > 0 or None, got {value!r}",
                             field="max_wall_time")
     return float(value)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.errors import DdenvError, shown
+from pytest_ddenv.validation import is_integer, is_number
 
 if TYPE_CHECKING:
     from pytest_ddenv.oracle import PredicateSpec
@@ -57,6 +58,7 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
         PRIORITIES,
         PRIORITY_ALIASES,
     )
+    from pytest_ddenv.reduce.partition import PARTITION_ALIASES
 
     if len(args) > 1:
         raise MarkerError("ddenv(...) takes at most one positional argument, the world file")
@@ -72,8 +74,10 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
     updates: dict[str, Any] = {}
     if "world" in values:
         updates["world"] = _string(values["world"], "world")
-    if "partition" in values:
-        updates["partition"] = _choice(values["partition"], "partition", PARTITIONS)
+    if "partition" in values:  # the spellings reduce() and `ddenv reduce --partition` accept
+        given = values["partition"]
+        partition = PARTITION_ALIASES.get(given, given) if isinstance(given, str) else given
+        updates["partition"] = _choice(partition, "partition", PARTITIONS, given=given)
     if "priority" in values:
         priority = PRIORITY_ALIASES.get(values["priority"], values["priority"])
         updates["priority"] = _choice(priority, "priority", PRIORITIES, given=values["priority"])
@@ -132,7 +136,7 @@ def parse_deflake(value: Any, where: str, policies: Sequence[str] | None = None)
     given = value
     if isinstance(value, str) and value.isdigit() and len(value) <= 20:
         value = int(value)
-    if isinstance(value, bool) or not isinstance(value, int) or value < 0 or (most is not None and value > most):
+    if not is_integer(value) or value < 0 or (most is not None and value > most):
         bound = "" if most is None else f" and <= {most}"
         raise MarkerError(f"{where}: expected an integer >= 0{bound} or one of {', '.join(policies)}, got "
                           f"{shown(given)}")
@@ -178,14 +182,14 @@ def _choice(value: Any, name: str, choices: Sequence[str], *, given: Any = None)
 
 
 def _integer(value: Any, name: str, *, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+    if not is_integer(value) or value < minimum:
         raise MarkerError(f"ddenv({name}=...): expected an integer >= {minimum}, got {shown(value)}")
     return value
 
 
 def _positive(value: Any, name: str) -> float:
     number = math.nan
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
+    if is_number(value):
         number = float(value) if isinstance(value, float) or value.bit_length() < 1000 else math.inf
     if not 0 < number < math.inf:
         raise MarkerError(f"ddenv({name}=...): expected a positive, finite number, got {shown(value)}")
@@ -193,7 +197,7 @@ def _positive(value: Any, name: str) -> float:
 
 
 def _budget(value: Any) -> dict[str, Any]:
-    if isinstance(value, int) and not isinstance(value, bool):
+    if is_integer(value):
         return {"max_probes": _integer(value, "budget", minimum=1)}
     if isinstance(value, Mapping) and value and set(value) <= {"probes", "seconds"}:
         budget: dict[str, Any] = {}

@@ -20,6 +20,7 @@ import numpy as np
 
 from pytest_ddenv.errors import ScenarioError, shown
 from pytest_ddenv.outcome import Outcome
+from pytest_ddenv.validation import is_finite_number
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.sim.run import Run
@@ -442,7 +443,7 @@ def _check_built_in_parameter(key: str, value: Any, where: str) -> None:
         return
     if key == "min_z" and value is None:
         return
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if not is_finite_number(value):
         raise ScenarioError(f"expected a finite number, got {shown(value)}", field=where)
     if key in _POSITIVE and value <= 0:
         raise ScenarioError(f"expected a number > 0, got {shown(value)}", field=where)

@@ -21,6 +21,7 @@ import numpy as np
 from pytest_ddenv import geometry
 from pytest_ddenv.errors import WorldError, shown_path
 from pytest_ddenv.geometry import FloatArray
+from pytest_ddenv.validation import is_finite_number, is_integer
 
 if TYPE_CHECKING:
     import shapely
@@ -757,8 +758,8 @@ def solver_iterations_problem(value: object) -> str | None:
     a float such as 1e3 counts when it is whole)."""
     from pytest_ddenv.errors import shown
 
-    whole = isinstance(value, int) or (isinstance(value, float) and math.isfinite(value) and value.is_integer())
-    if isinstance(value, bool) or not whole or not 1 <= value <= MAX_SOLVER_ITERATIONS:  # type: ignore[operator]
+    if not (is_integer(value) or (is_finite_number(value) and float(value).is_integer())) \
+            or not 1 <= value <= MAX_SOLVER_ITERATIONS:
         return f"expected a whole number from 1 to {MAX_SOLVER_ITERATIONS}, got {shown(value)}"
     return None
 

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from pytest_ddenv.errors import shown_path
+from pytest_ddenv.validation import is_flag
 from pytest_ddenv.world import DRIVE_KINDS, LaserMount, RobotDescription, is_file, resolve_relative
 
 ROBOT_KEYS = (
@@ -84,7 +85,7 @@ def _joint_names(reader: FieldReader, value: Any, field: str) -> tuple[str, ...]
 
 
 def _laser(reader: FieldReader, value: Any) -> bool | LaserMount:
-    if isinstance(value, bool):
+    if is_flag(value):
         return value
     if not isinstance(value, Mapping):
         raise reader.fail(f"{FIELD}.laser", f"expected true, false or a mapping {{height, min_range}}, got {value!r}")

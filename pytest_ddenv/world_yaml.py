@@ -23,6 +23,7 @@ from pytest_ddenv.errors import (
     shown,
     shown_path,
 )
+from pytest_ddenv.validation import is_flag, is_number
 from pytest_ddenv.world import (
     SHAPE_KINDS,
     Ground,
@@ -80,7 +81,7 @@ class _Reader:
         return value
 
     def number(self, value: Any, field: str, *, positive: bool = False, non_negative: bool = False) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if not is_number(value):
             raise self.fail(field, f"expected a number, got {_describe(value)}{_number_hint(value)}")
         try:
             number = float(value)
@@ -104,7 +105,7 @@ class _Reader:
         return Pose(*self.numbers(value, field, (3, 6)))
 
     def boolean(self, value: Any, field: str) -> bool:
-        if not isinstance(value, bool):
+        if not is_flag(value):
             raise self.fail(field, f"expected true or false, got {_describe(value)}")
         return value
 

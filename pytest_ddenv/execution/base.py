@@ -8,6 +8,8 @@ import threading
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, Protocol, Self, runtime_checkable
 
+from pytest_ddenv.validation import is_finite_number
+
 if TYPE_CHECKING:
     from pytest_ddenv.execution.request import Job
     from pytest_ddenv.world import World
@@ -160,8 +162,7 @@ def check_watchdog(watchdog: float | str | None) -> float | str | None:
             raise PoolConfigError(f"{where} must be a number of seconds > 0, 'auto' or 'none', got {text!r}") from None
     if watchdog is None or watchdog == "auto":
         return watchdog
-    if (isinstance(watchdog, bool) or not isinstance(watchdog, (int, float)) or not watchdog > 0
-            or not math.isfinite(watchdog)):
+    if not is_finite_number(watchdog) or not watchdog > 0:
         raise PoolConfigError(f"{where} must be a number of seconds > 0, 'auto' or None, got {watchdog!r}")
     return float(watchdog)
 

@@ -54,6 +54,7 @@ from pytest_ddenv.execution.request import (
     parse_faults,
 )
 from pytest_ddenv.execution.worker import worker_main
+from pytest_ddenv.validation import is_integer
 
 if TYPE_CHECKING:
     from pytest_ddenv.world import World
@@ -89,7 +90,7 @@ def resolve_workers(workers: int | str) -> int:
         return cpu_count()
     if isinstance(workers, str) and workers.strip().isdigit():
         workers = int(workers)
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+    if not is_integer(workers) or workers < 1:
         raise PoolConfigError(f"workers must be an integer >= 1 or 'auto', got {workers!r}")
     return workers
 

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol, runtime_checkable
 
 from pytest_ddenv.detail import recording_detail
 from pytest_ddenv.execution.errors import PoolConfigError
+from pytest_ddenv.validation import is_integer
 
 if TYPE_CHECKING:
     from pytest_ddenv.world import World
@@ -42,7 +43,7 @@ class Fault:
             raise PoolConfigError(f"unknown fault kind {self.kind!r}; valid kinds: {', '.join(FAULT_KINDS)}")
         for name in ("at", "tries"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            if not is_integer(value) or value < 1:
                 raise PoolConfigError(f"fault {name} must be an integer >= 1, got {value!r}")
 
 

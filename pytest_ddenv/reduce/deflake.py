@@ -26,6 +26,7 @@ from typing import Protocol
 
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.types import Outcome
+from pytest_ddenv.validation import is_integer, is_number
 
 DEFLAKE_POLICIES: tuple[str, ...] = ("adaptive", "auto")
 """Named policies; `deflake` also accepts a non-negative int (fixed re-runs, at most `MAX_DEFLAKE`)."""
@@ -171,7 +172,7 @@ def make_policy(deflake: int | str | DeflakePolicy, confidence: float) -> Deflak
     reduction reuse the rule it calibrated)."""
     if isinstance(deflake, (FixedReruns, ConfirmedRuns, SequentialTest)):
         return deflake
-    if not isinstance(confidence, (int, float)) or isinstance(confidence, bool) or not 0.5 < confidence < 1.0:
+    if not is_number(confidence) or not 0.5 < confidence < 1.0:
         raise ReductionError(f"confidence must be a number strictly between 0.5 and 1, got {confidence!r}")
     if isinstance(deflake, str) and deflake.strip().isdigit():
         digits = deflake.strip()
@@ -179,7 +180,7 @@ def make_policy(deflake: int | str | DeflakePolicy, confidence: float) -> Deflak
             raise ReductionError(f"deflake must be at most {MAX_DEFLAKE} re-runs per candidate, got a "
                                  f"{len(digits)}-digit number")
         deflake = int(digits)
-    if isinstance(deflake, int) and not isinstance(deflake, bool):
+    if is_integer(deflake):
         if deflake < 0:
             raise ReductionError(f"deflake must be >= 0 re-runs, 'adaptive' or 'auto', got {deflake}")
         if deflake > MAX_DEFLAKE:

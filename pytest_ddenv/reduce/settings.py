@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import concurrent.futures
-import numbers
 import os
 from collections.abc import Callable, Collection, MutableMapping, Sequence
 from dataclasses import dataclass
@@ -21,6 +20,7 @@ from pytest_ddenv.reduce.types import (
     ProgressEvent,
     Trace,
 )
+from pytest_ddenv.validation import is_integral, is_real
 
 GRANULARITIES: tuple[str, ...] = ("ddmin", "paper")
 COMPLEMENT_ORDERS: tuple[str, ...] = ("reverse", "priority")
@@ -55,7 +55,7 @@ class Settings:
 
 
 def _int(name: str, value: object, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or int(value) < minimum:
+    if not is_integral(value) or int(value) < minimum:
         raise ReductionError(f"{name} must be an int >= {minimum}, got {value!r}")
     return int(value)
 
@@ -119,7 +119,7 @@ def validate(
         if not callable(check):
             raise ReductionError(f"every precondition must be callable(candidate) -> str | None, got {check!r}")
     if max_seconds is not None and (
-        isinstance(max_seconds, bool) or not isinstance(max_seconds, numbers.Real) or not max_seconds >= 0
+        not is_real(max_seconds) or not max_seconds >= 0
     ):  # `not >= 0` also refuses NaN
         raise ReductionError(f"max_seconds must be None or a number >= 0, got {max_seconds!r}")
     if cache is not None and not isinstance(cache, MutableMapping):

@@ -13,6 +13,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 
 from pytest_ddenv.sdf._reader import DDENV_NS, collada_unit
+from pytest_ddenv.validation import is_flag
 from pytest_ddenv.world import (
     Ground,
     LaserMount,
@@ -170,8 +171,8 @@ def _model(parent: ET.Element, model: Model, source: str | None) -> None:
     if model.keep:
         _sub(element, _ddenv("keep"), "true")
     for name, value in model.tags.items():
-        kind = "bool" if isinstance(value, bool) else type(value).__name__
-        text = ("true" if value else "false") if isinstance(value, bool) else (
+        kind = "bool" if is_flag(value) else type(value).__name__
+        text = ("true" if value else "false") if is_flag(value) else (
             repr(value) if isinstance(value, float) else str(value))
         _sub(element, _ddenv("tag"), text, name=name, type=kind)
 

@@ -17,6 +17,8 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from pytest_ddenv.validation import is_real
+
 if TYPE_CHECKING:
     from pytest_ddenv.oracle import Contact
 
@@ -156,8 +158,7 @@ def check_command(value: Any, controller: object, time: float) -> AnyCommand:
         )
     numbers = (value.linear, value.angular) if isinstance(value, Command) else (value.left, value.right)
     for number in numbers:
-        if isinstance(number, bool) or not isinstance(number, (int, float, np.floating, np.integer)) \
-                or not math.isfinite(float(number)):
+        if not is_real(number) or not math.isfinite(float(number)):
             raise ControllerError(
                 f"controller {controller_name(controller)} returned {value!r} at t = {time:.2f} s; every "
                 "speed must be a finite number"

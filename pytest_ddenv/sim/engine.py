@@ -7,8 +7,6 @@ import time
 from collections.abc import Sequence
 from typing import Any, Self
 
-import numpy as np
-
 from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.oracle import GROUND, Predicate
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
@@ -26,6 +24,7 @@ from pytest_ddenv.sim.episode import Episode, noise_streams
 from pytest_ddenv.sim.robot import ROBOTS, Robot, make_robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
+from pytest_ddenv.validation import is_finite_number, is_integral
 from pytest_ddenv.world import RobotDescription, Scenario, World
 
 START_CLEARANCE = 0.01
@@ -97,7 +96,7 @@ class Simulator:
                 source=world.source, field="scenario.robot",
             )
         limit = scenario.timeout if timeout is None else timeout
-        if isinstance(limit, bool) or not isinstance(limit, (int, float)) or not math.isfinite(limit) or limit <= 0:
+        if not is_finite_number(limit) or limit <= 0:
             field = "scenario.timeout" if timeout is None else "timeout"
             raise ScenarioError(f"the time limit must be a finite number of seconds > 0, got {limit!r}",
                                 source=world.source, field=field)
@@ -126,7 +125,7 @@ class Simulator:
             raise RuntimeError("this Simulator is closed")
         scenario = self.check_scenario(world, timeout)
         limit = float(scenario.timeout if timeout is None else timeout)
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        if not is_integral(seed) or seed < 0:
             raise ScenarioError(f"the seed must be an integer >= 0, got {seed!r}", field="seed")
         for predicate in predicates:
             if not isinstance(predicate, Predicate):

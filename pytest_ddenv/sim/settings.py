@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 from pytest_ddenv.errors import ScenarioError
+from pytest_ddenv.validation import is_finite_number, is_integer
 
 
 @dataclass(frozen=True)
@@ -30,7 +31,7 @@ class NoiseSettings:
     def __post_init__(self) -> None:
         for item in fields(self):
             value = getattr(self, item.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            if not is_finite_number(value) or value < 0:
                 raise ScenarioError(f"noise standard deviation must be a finite number >= 0, got {value!r}",
                                     field=f"noise.{item.name}")
 
@@ -76,9 +77,9 @@ class RunSettings:
         for name in ("control_rate", "laser_rate", "laser_range", "laser_fov", "record_rate", "max_speed",
                      "turn_gain", "max_turn_rate"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+            if not is_finite_number(value) or value <= 0:
                 raise ScenarioError(f"expected a finite number > 0, got {value!r}", field=f"settings.{name}")
-        if isinstance(self.laser_rays, bool) or not isinstance(self.laser_rays, int) or self.laser_rays < 0:
+        if not is_integer(self.laser_rays) or self.laser_rays < 0:
             raise ScenarioError(f"expected an integer >= 0, got {self.laser_rays!r}", field="settings.laser_rays")
         if self.friction not in ("min", "product"):
             raise ScenarioError(f"expected 'min' or 'product', got {self.friction!r}", field="settings.friction")

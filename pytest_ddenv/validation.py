@@ -1,0 +1,48 @@
+"""What counts as a number, an integer or a flag in every input pytest-ddenv checks: one place for it.
+
+Python's `bool` is an `int`, numpy's scalars are not Python numbers, and a float can be NaN or infinite:
+each check below settles those cases once, so that a world file, a marker argument, an option and a keyword
+argument accept the same values. The callers raise their own error (`WorldError`, `MarkerError`,
+`pytest.UsageError`, ...) with the place they know (file, model, field, marker argument, option).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Any, TypeGuard
+
+
+def is_flag(value: Any) -> TypeGuard[bool]:
+    """True or False (not 1, 0 or "yes")."""
+    return isinstance(value, bool)
+
+
+def is_number(value: Any) -> TypeGuard[int | float]:
+    """A Python int or float, not a bool (NaN and infinities included: see `is_finite_number`)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def is_finite_number(value: Any) -> TypeGuard[int | float]:
+    """A Python int or float, not a bool, neither NaN nor infinite (an int too large for a float counts)."""
+    if not is_number(value):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return True
+
+
+def is_real(value: Any) -> TypeGuard[float]:
+    """A real number of any kind, numpy scalars included, not a bool (typed as float: it compares as one)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def is_integer(value: Any) -> TypeGuard[int]:
+    """A Python int, not a bool (and not a float, even 3.0)."""
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def is_integral(value: Any) -> TypeGuard[int]:
+    """An integer of any kind, numpy integers included, not a bool (typed as int: it computes as one)."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
