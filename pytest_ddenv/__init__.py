@@ -23,7 +23,7 @@ from pytest_ddenv.world import (
 )
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle import FailureSignature, Predicate, RobotState, predicate, register_predicate
+    from pytest_ddenv.predicates import FailureSignature, Predicate, RobotState, predicate, register_predicate
     from pytest_ddenv.robot_world import RobotFailure, RobotWorld
     from pytest_ddenv.sim import (
         Command,
@@ -56,11 +56,11 @@ _LAZY = {
     "WheelCommand": "pytest_ddenv.sim",
     "WheeledRobot": "pytest_ddenv.sim",
     "register_robot": "pytest_ddenv.sim",
-    "FailureSignature": "pytest_ddenv.oracle",
-    "Predicate": "pytest_ddenv.oracle",
-    "RobotState": "pytest_ddenv.oracle",
-    "register_predicate": "pytest_ddenv.oracle",
-    "predicate": "pytest_ddenv.oracle",
+    "FailureSignature": "pytest_ddenv.predicates",
+    "Predicate": "pytest_ddenv.predicates",
+    "RobotState": "pytest_ddenv.predicates",
+    "register_predicate": "pytest_ddenv.predicates",
+    "predicate": "pytest_ddenv.predicates",
     "RobotFailure": "pytest_ddenv.robot_world",
     "RobotWorld": "pytest_ddenv.robot_world",
 }

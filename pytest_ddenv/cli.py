@@ -27,7 +27,7 @@ from pytest_ddenv.cli_world import (
     with_scenario,
 )
 from pytest_ddenv.errors import DdenvError, shown
-from pytest_ddenv.oracle import PredicateSpec, check_predicate_models
+from pytest_ddenv.predicates import PredicateSpec, check_predicate_models
 from pytest_ddenv.progress import ProgressLine
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -141,7 +141,7 @@ def parse_predicate(text: str) -> PredicateSpec:
 
     Values are numbers, true/false, none, or [a,b,...] lists of names; validated by `oracle.make_predicate`.
     """
-    from pytest_ddenv.oracle import make_predicate
+    from pytest_ddenv.predicates import make_predicate
 
     name, _, rest = text.partition(":")
     if not name.strip():

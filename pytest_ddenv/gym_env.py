@@ -68,7 +68,7 @@ except ImportError as _missing:  # pragma: no cover - exercised without the extr
     raise ImportError("robot_world.make_env() needs gymnasium: pip install 'pytest-ddenv[gym]'") from _missing
 
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.oracle import Predicate
+from pytest_ddenv.predicates import Predicate
 from pytest_ddenv.sim import shared_simulator
 from pytest_ddenv.sim.control import AnyCommand, Command, ControllerError, ControllerTimeout, Observation, WheelCommand
 from pytest_ddenv.sim.episode import Episode

@@ -15,7 +15,7 @@ from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.validation import is_integer, is_number
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle import PredicateSpec
+    from pytest_ddenv.predicates import PredicateSpec
 
 DDENV_KEYWORDS = (
     "world", "partition", "priority", "n_partitions", "granularity", "deflake", "tolerance", "keep", "seed", "budget",
@@ -149,7 +149,7 @@ def parse_failure_markers(markers: Sequence[tuple[Sequence[Any], Mapping[str, An
     A marker holds a registered predicate's name with keyword parameters, a predicate object
     (`robot_failure(OnSlope(max_pitch=0.3))`) or a plain function of the state (`robot_failure(tipped)`).
     """
-    from pytest_ddenv.oracle import PREDICATES, predicate_spec
+    from pytest_ddenv.predicates import PREDICATES, predicate_spec
 
     specs = []
     for args, kwargs in markers:

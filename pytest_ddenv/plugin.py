@@ -35,7 +35,7 @@ from pytest_ddenv.robot_world import FIXTURE
 from pytest_ddenv.world import is_file
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle import PredicateSpec
+    from pytest_ddenv.predicates import PredicateSpec
     from pytest_ddenv.reduce import ProgressEvent
     from pytest_ddenv.robot_world import RobotWorld
     from pytest_ddenv.world import World
@@ -362,7 +362,7 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
 
 def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates: tuple[PredicateSpec, ...]) -> World:
     """The world a test runs in, checked against its markers (DdenvError naming the file and field)."""
-    from pytest_ddenv.oracle import check_predicate_models
+    from pytest_ddenv.predicates import check_predicate_models
     from pytest_ddenv.world import World
 
     item = request.node

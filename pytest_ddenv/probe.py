@@ -24,7 +24,7 @@ from pytest_ddenv.robot_world import RobotFailure
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle import FailureSignature
+    from pytest_ddenv.predicates import FailureSignature
     from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
     from pytest_ddenv.sim import Run
 

@@ -13,14 +13,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.errors import DdenvError
-from pytest_ddenv.oracle import PredicateSpec
+from pytest_ddenv.predicates import PredicateSpec
 from pytest_ddenv.reduce import Outcome
 from pytest_ddenv.robot_world import RobotFailure
 from pytest_ddenv.scenario_job import run_scenario
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:  # pragma: no cover
-    from pytest_ddenv.oracle import FailureSignature
+    from pytest_ddenv.predicates import FailureSignature
     from pytest_ddenv.probe import FailureReference
     from pytest_ddenv.sim import ControllerLike, Run
 
@@ -40,7 +40,7 @@ def predicates_to_json(predicates: Sequence[PredicateSpec]) -> list[dict[str, An
 def predicates_from_json(data: Any) -> tuple[PredicateSpec, ...]:
     """The inverse of `predicates_to_json`, validated by building each predicate. A predicate the test gave
     as an object is found by its name among the registered ones (`ddenv --import` the module registering it)."""
-    from pytest_ddenv.oracle import PREDICATES, predicate_spec
+    from pytest_ddenv.predicates import PREDICATES, predicate_spec
 
     if not isinstance(data, list):
         raise ArtifactError(f"'predicates' must be a list of {{name, params}}, got {data!r}")
@@ -175,7 +175,7 @@ def read_artifacts(directory: Path) -> tuple[dict[str, Any], World]:
 
 
 def recorded_signature(summary: Mapping[str, Any], where: Path) -> FailureSignature:
-    from pytest_ddenv.oracle import FailureSignature
+    from pytest_ddenv.predicates import FailureSignature
 
     signature = (summary.get("reference_failure") or {}).get("signature")
     if not isinstance(signature, Mapping):

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.oracle import FailureSignature
+from pytest_ddenv.predicates import FailureSignature
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
 from pytest_ddenv.world import World

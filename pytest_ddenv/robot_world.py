@@ -14,7 +14,7 @@ from pytest_ddenv.world import World
 
 if TYPE_CHECKING:
     from pytest_ddenv.gym_env import RobotEnv
-    from pytest_ddenv.oracle import FailureSignature, Predicate, PredicateSpec
+    from pytest_ddenv.predicates import FailureSignature, Predicate, PredicateSpec
     from pytest_ddenv.sim import ControllerLike, Run, RunSettings
 
 FIXTURE = "robot_world"

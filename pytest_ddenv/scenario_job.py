@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pytest_ddenv.execution import Channel, Handler, serve_requests
-from pytest_ddenv.oracle import PredicateSpec
+from pytest_ddenv.predicates import PredicateSpec
 from pytest_ddenv.probe import ProbeResult, describe_error
 from pytest_ddenv.robot_world import DEFAULT_MAX_WALL_TIME, RobotWorld
 from pytest_ddenv.sim import ControllerLike, Run, RunSettings

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from pytest_ddenv.oracle import Predicate
+from pytest_ddenv.predicates import Predicate
 from pytest_ddenv.sim.control import (
     Command,
     Controller,

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from pytest_ddenv.validation import is_real
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle import Contact
+    from pytest_ddenv.predicates import Contact
 
 FloatArray = NDArray[np.float64]
 

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from typing import Any, Self
 
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.oracle import GROUND, Predicate
+from pytest_ddenv.predicates import GROUND, Predicate
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.control import (
     AnyCommand,

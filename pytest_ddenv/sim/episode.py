@@ -18,7 +18,7 @@ import numpy as np
 
 from pytest_ddenv.detail import detail_requested
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.oracle import GROUND, Contact, FailureSignature, History, Predicate, RobotState
+from pytest_ddenv.predicates import GROUND, Contact, FailureSignature, History, Predicate, RobotState
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.control import AnyCommand, Command, LaserScan, Observation, wrap_angle
 from pytest_ddenv.sim.detail_recorder import DetailRecorder

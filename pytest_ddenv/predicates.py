@@ -1,0 +1,565 @@
+"""Failure predicates and failure signatures: what the simulation checks every control tick.
+
+Predicates are evaluated online by the simulator once per control tick on a `RobotState` snapshot. The
+first predicate that returns a `FailureSignature` decides the run (it stops early unless asked not to).
+The built-in predicates, the registry of a user's (`register_predicate`, `@predicate`) and `PredicateSpec`
+(a predicate as plain data, for markers, the command line and worker processes) are here too. Whether a
+signature is *the* failure being reduced is `pytest_ddenv.oracle`'s verdict, a layer above the simulation.
+
+Nothing of pybullet or pytest. Parameters are documented in docs/oracle.md.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from pytest_ddenv.errors import ScenarioError, shown
+from pytest_ddenv.validation import is_finite_number
+
+__all__ = [
+    "PREDICATES",
+    "Collided",
+    "Contact",
+    "FailureSignature",
+    "Fell",
+    "Flipped",
+    "FunctionPredicate",
+    "HighCentered",
+    "History",
+    "Predicate",
+    "PredicateSpec",
+    "RobotState",
+    "Stuck",
+    "Timeout",
+    "check_predicate",
+    "check_predicate_models",
+    "make_predicate",
+    "predicate",
+    "predicate_spec",
+    "register_predicate",
+    "signature",
+]
+
+GROUND = "<ground>"
+"""The name contacts with the world's ground plane carry (the ground is never a model)."""
+
+
+# -- the per-tick snapshot ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Contact:
+    """One contact of the robot with something, summed over the contact points of one (link, body) pair.
+
+    `model` is the model name, or `GROUND` for the ground plane. `link` is the robot link's name, `wheel`
+    whether that link is a wheel, `normal_force` the summed normal force in newtons.
+    """
+
+    model: str
+    link: str
+    wheel: bool
+    normal_force: float
+
+
+class History:
+    """The robot's past positions, one sample per control tick (read-only for predicates)."""
+
+    def __init__(self) -> None:
+        self._times: list[float] = []
+        self._positions: list[tuple[float, float, float]] = []
+
+    def append(self, time: float, position: tuple[float, float, float]) -> None:
+        self._times.append(time)
+        self._positions.append(position)
+
+    def __len__(self) -> int:
+        return len(self._times)
+
+    @property
+    def times(self) -> Sequence[float]:
+        return self._times
+
+    @property
+    def positions(self) -> Sequence[tuple[float, float, float]]:
+        return self._positions
+
+    def position_at(self, time: float) -> tuple[float, float, float] | None:
+        """The latest recorded position at or before `time`, or None if there is none."""
+        import bisect
+
+        index = bisect.bisect_right(self._times, time + 1e-9) - 1
+        return self._positions[index] if index >= 0 else None
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """What a predicate sees at one control tick (all in the world frame, SI units).
+
+    - `time`: simulated seconds since the robot was spawned; `timeout`: the run's time limit.
+    - `pose`: (x, y, z, roll, pitch, yaw) of the robot base; `velocity`: linear xyz + angular xyz.
+    - `start`: the pose the robot was spawned at (after start jitter).
+    - `goal`: the goal position (z may be None), `goal_distance`: planar distance to it (3D if goal z given).
+    - `contacts`: every (robot link, touched body) pair in contact now, with normal forces.
+    - `wheel_loads`: normal force on each wheel (FL, FR, RL, RR) from everything it touches.
+    - `weight`: the robot's weight in newtons (mass x gravity), to normalise loads.
+    - `history`: positions at every earlier control tick (and this one).
+    """
+
+    time: float
+    timeout: float
+    pose: tuple[float, float, float, float, float, float]
+    velocity: tuple[float, float, float, float, float, float]
+    start: tuple[float, float, float, float, float, float]
+    goal: tuple[float, float, float | None]
+    goal_distance: float
+    contacts: tuple[Contact, ...]
+    wheel_loads: tuple[float, ...]
+    weight: float
+    history: History
+
+    @property
+    def position(self) -> tuple[float, float, float]:
+        return self.pose[0], self.pose[1], self.pose[2]
+
+    @property
+    def tilt(self) -> float:
+        """Angle between the robot's up axis and the world's up axis (radians, 0 = level, pi = upside down)."""
+        roll, pitch = self.pose[3], self.pose[4]
+        return math.acos(max(-1.0, min(1.0, math.cos(roll) * math.cos(pitch))))
+
+    @property
+    def touched(self) -> tuple[str, ...]:
+        """Models (not the ground) in contact with any robot link now, sorted."""
+        return tuple(sorted({c.model for c in self.contacts if c.model != GROUND}))
+
+    @property
+    def chassis_contacts(self) -> tuple[Contact, ...]:
+        return tuple(c for c in self.contacts if not c.wheel)
+
+    @property
+    def chassis_load(self) -> float:
+        """Summed normal force on the non-wheel links (N)."""
+        return sum(c.normal_force for c in self.contacts if not c.wheel)
+
+
+# -- failure signatures ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class FailureSignature:
+    """What failed, when, where and touching what: the identity of a failure for the oracle."""
+
+    predicate: str
+    time: float
+    pose: tuple[float, ...]
+    touched: tuple[str, ...] = ()
+    detail: str = ""
+
+    @property
+    def position(self) -> tuple[float, float, float]:
+        return float(self.pose[0]), float(self.pose[1]), float(self.pose[2])
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "predicate": self.predicate,
+            "time": float(self.time),
+            "pose": [float(v) for v in self.pose],
+            "touched": list(self.touched),
+            "detail": self.detail,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> FailureSignature:
+        return cls(
+            predicate=str(data["predicate"]),
+            time=float(data["time"]),
+            pose=tuple(float(v) for v in data["pose"]),
+            touched=tuple(str(v) for v in data.get("touched", ())),
+            detail=str(data.get("detail", "")),
+        )
+
+    def explain(self) -> str:
+        x, y, z = self.position
+        roll, pitch, yaw = (math.degrees(v) for v in self.pose[3:6])
+        touching = ", ".join(self.touched) if self.touched else "no model (only the ground, or nothing)"
+        text = (
+            f"The '{self.predicate}' predicate fired at t = {self.time:.2f} s with the robot at "
+            f"({x:.2f}, {y:.2f}, {z:.2f}) m, roll {roll:.0f} deg, pitch {pitch:.0f} deg, yaw {yaw:.0f} deg, "
+            f"touching {touching}."
+        )
+        if self.detail:
+            text += f" {self.detail}"
+        return text
+
+
+# -- predicates --------------------------------------------------------------------------------------
+@runtime_checkable
+class Predicate(Protocol):
+    """A failure predicate: `reset()` before each run, `check(state)` once per control tick.
+
+    Return a `FailureSignature` (see `signature()`) to declare the failure, else None. Predicates may keep
+    state between ticks; `reset` must clear it so one instance can serve many runs.
+    """
+
+    name: str
+
+    def reset(self) -> None: ...
+
+    def check(self, state: RobotState) -> FailureSignature | None: ...
+
+
+def signature(name: str, state: RobotState, detail: str = "") -> FailureSignature:
+    """The signature of a failure detected now (helper for predicate authors)."""
+    return FailureSignature(name, float(state.time), tuple(float(v) for v in state.pose), state.touched, detail)
+
+
+@dataclass
+class Stuck:
+    """Less than `min_progress` m of planar displacement over the last `window` s (the paper's failure).
+
+    Ignores the first `window` seconds of the run, so the robot's start-up is never "stuck".
+    """
+
+    window: float = 5.0
+    min_progress: float = 0.2
+    name: str = field(default="stuck", init=False)
+
+    def reset(self) -> None:
+        pass
+
+    def check(self, state: RobotState) -> FailureSignature | None:
+        if state.time < self.window - 1e-9:
+            return None
+        before = state.history.position_at(state.time - self.window)
+        if before is None:
+            return None
+        moved = math.hypot(state.pose[0] - before[0], state.pose[1] - before[1])
+        if moved < self.min_progress:
+            return signature(self.name, state, f"Moved {moved:.3f} m in the last {self.window:g} s "
+                             f"(less than {self.min_progress:g} m).")
+        return None
+
+
+@dataclass
+class Flipped:
+    """Tilt (angle of the robot's up axis from vertical) above `max_tilt` rad for `duration` s."""
+
+    max_tilt: float = math.radians(60.0)
+    duration: float = 0.5
+    name: str = field(default="flipped", init=False)
+    _since: float | None = field(default=None, init=False, repr=False)
+
+    def reset(self) -> None:
+        self._since = None
+
+    def check(self, state: RobotState) -> FailureSignature | None:
+        if state.tilt <= self.max_tilt:
+            self._since = None
+            return None
+        if self._since is None:
+            self._since = state.time
+        if state.time - self._since >= self.duration - 1e-9:
+            return signature(self.name, state, f"Tilted {math.degrees(state.tilt):.0f} deg "
+                             f"(limit {math.degrees(self.max_tilt):.0f} deg).")
+        return None
+
+
+@dataclass
+class HighCentered:
+    """Chassis resting on something while the wheels carry too little of the robot's weight.
+
+    Fires when the non-wheel links carry at least `min_chassis_load` N and the four wheels together carry
+    less than `max_wheel_load` (a fraction of the robot's weight), continuously for `duration` s.
+    """
+
+    max_wheel_load: float = 0.5
+    min_chassis_load: float = 20.0
+    duration: float = 2.0
+    name: str = field(default="high_centered", init=False)
+    _since: float | None = field(default=None, init=False, repr=False)
+
+    def reset(self) -> None:
+        self._since = None
+
+    def check(self, state: RobotState) -> FailureSignature | None:
+        wheels = sum(state.wheel_loads)
+        chassis = state.chassis_load
+        if not (chassis >= self.min_chassis_load and wheels < self.max_wheel_load * state.weight):
+            self._since = None
+            return None
+        if self._since is None:
+            self._since = state.time
+        if state.time - self._since >= self.duration - 1e-9:
+            resting = ", ".join(sorted({c.model for c in state.chassis_contacts})) or "nothing"
+            return signature(self.name, state, f"Chassis carries {chassis:.0f} N (resting on {resting}); "
+                             f"wheels carry {wheels:.0f} N of {state.weight:.0f} N.")
+        return None
+
+
+@dataclass
+class Fell:
+    """The robot dropped more than `max_drop` m below its start height, or below the height `min_z`."""
+
+    max_drop: float = 0.5
+    min_z: float | None = None
+    name: str = field(default="fell", init=False)
+
+    def reset(self) -> None:
+        pass
+
+    def check(self, state: RobotState) -> FailureSignature | None:
+        z = state.pose[2]
+        drop = state.start[2] - z
+        if drop > self.max_drop:
+            return signature(self.name, state, f"Dropped {drop:.2f} m below its start height.")
+        if self.min_z is not None and z < self.min_z:
+            return signature(self.name, state, f"Below the height limit {self.min_z:g} m (z = {z:.2f}).")
+        return None
+
+
+@dataclass
+class Collided:
+    """Contact with a model: by default any model touching a non-wheel link (bumper, chassis).
+
+    With `models`, any contact (wheels included) with one of the named models. Contacts under
+    `min_force` N are ignored.
+    """
+
+    models: tuple[str, ...] | None = None
+    min_force: float = 1.0
+    name: str = field(default="collided", init=False)
+
+    def __post_init__(self) -> None:
+        if self.models is not None:
+            self.models = tuple(self.models)
+
+    def reset(self) -> None:
+        pass
+
+    def check(self, state: RobotState) -> FailureSignature | None:
+        for contact in state.contacts:
+            if contact.normal_force < self.min_force or contact.model == GROUND:
+                continue
+            if ((self.models is None and not contact.wheel)
+                    or (self.models is not None and contact.model in self.models)):
+                return signature(self.name, state, f"Link {contact.link} hit {contact.model} "
+                                 f"({contact.normal_force:.0f} N).")
+        return None
+
+
+@dataclass
+class Timeout:
+    """The goal was not reached within the run's time limit."""
+
+    name: str = field(default="timeout", init=False)
+
+    def reset(self) -> None:
+        pass
+
+    def check(self, state: RobotState) -> FailureSignature | None:
+        if state.time >= state.timeout - 1e-9:
+            return signature(self.name, state, f"Goal still {state.goal_distance:.2f} m away after "
+                             f"{state.timeout:g} s.")
+        return None
+
+
+PREDICATES: dict[str, Callable[..., Predicate]] = {
+    "stuck": Stuck,
+    "flipped": Flipped,
+    "high_centered": HighCentered,
+    "fell": Fell,
+    "collided": Collided,
+    "timeout": Timeout,
+}
+"""Predicates by name: the built-in ones and those added with `register_predicate`."""
+BUILT_IN = frozenset(PREDICATES)
+
+_NON_NEGATIVE = {"min_progress", "min_chassis_load", "min_force", "duration"}
+_POSITIVE = {"window", "max_tilt", "max_drop"}
+_FRACTIONS = {"max_wheel_load"}
+
+
+def register_predicate(name: str, factory: Callable[..., Predicate], *, replace: bool = False) -> None:
+    """Make `factory(**params)` available by name: `@pytest.mark.robot_failure(name, **params)`, the
+    `ddenv` command's `--predicate name:k=v` and `ddenv replay`. Register it in a module the test (or
+    `ddenv --import`) imports, so that every probe worker has it too."""
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ValueError(f"a predicate name must be an identifier, got {shown(name)}")
+    if name in BUILT_IN or (name in PREDICATES and not replace):
+        raise ValueError(f"a predicate named {shown(name)} is already registered"
+                         + ("" if name in BUILT_IN else " (pass replace=True)"))
+    if not callable(factory):
+        raise TypeError(f"register_predicate({shown(name)}, ...): the factory must be callable, got {shown(factory)}")
+    PREDICATES[name] = factory
+
+
+def make_predicate(name: str, /, **params: Any) -> Predicate:
+    """Build the predicate `name` with `params`, validating both eagerly (`ScenarioError` if wrong)."""
+    try:
+        factory = PREDICATES[name]
+    except (KeyError, TypeError):
+        raise ScenarioError(
+            f"unknown failure predicate {shown(name)}; valid predicates: {', '.join(sorted(PREDICATES))} (register "
+            "your own with pytest_ddenv.register_predicate)",
+            field="predicate",
+        ) from None
+    try:
+        signature_ = inspect.signature(factory)
+    except (TypeError, ValueError):  # a builtin or C callable: accept any keyword
+        signature_ = None
+    accepted = [] if signature_ is None else [p.name for p in signature_.parameters.values() if p.name != "name"]
+    takes_any = signature_ is None or any(p.kind is p.VAR_KEYWORD for p in signature_.parameters.values())
+    for key, value in params.items():
+        where = f"{name}.{key}"
+        if key not in accepted and not takes_any:
+            raise ScenarioError(
+                f"predicate {shown(name)} has no parameter {shown(key)}; valid parameters: "
+                f"{', '.join(accepted) or '(none)'}",
+                field=where,
+            )
+        if name in BUILT_IN:
+            _check_built_in_parameter(key, value, where)
+    if "models" in params and params["models"] is not None and name in BUILT_IN:
+        params = {**params, "models": tuple(params["models"])}
+    try:
+        predicate = factory(**params)
+    except (TypeError, ValueError) as error:
+        raise ScenarioError(f"predicate {shown(name)} could not be built: {error}", field=name) from None
+    check_predicate(predicate, f"the factory of predicate {shown(name)} returned {shown(predicate)}, which")
+    return predicate
+
+
+def _check_built_in_parameter(key: str, value: Any, where: str) -> None:
+    if key == "models":
+        if value is not None and (isinstance(value, str) or not all(isinstance(v, str) for v in value)):
+            raise ScenarioError("expected a list of model names or None", field=where)
+        return
+    if key == "min_z" and value is None:
+        return
+    if not is_finite_number(value):
+        raise ScenarioError(f"expected a finite number, got {shown(value)}", field=where)
+    if key in _POSITIVE and value <= 0:
+        raise ScenarioError(f"expected a number > 0, got {shown(value)}", field=where)
+    if key in _NON_NEGATIVE and value < 0:
+        raise ScenarioError(f"expected a number >= 0, got {shown(value)}", field=where)
+    if key in _FRACTIONS and not 0 <= value <= 1:
+        raise ScenarioError(f"expected a fraction between 0 and 1, got {shown(value)}", field=where)
+
+
+def check_predicate(value: Any, what: str = "") -> None:
+    """ScenarioError unless `value` follows the `Predicate` protocol (a str `name`, `reset()`, `check(state)`)."""
+    problems = []
+    if not isinstance(getattr(value, "name", None), str) or not getattr(value, "name", ""):
+        problems.append("a non-empty str attribute 'name'")
+    for method in ("reset", "check"):
+        if not callable(getattr(value, method, None)):
+            problems.append(f"a method {method}()")
+    if problems:
+        raise ScenarioError(f"{what or shown(value)} is not a failure predicate: it needs {', '.join(problems)}",
+                            field="predicate")
+
+
+@dataclass
+class FunctionPredicate:
+    """A plain function of the state as a predicate: it fails the run when it returns True (or a message, or
+    a `FailureSignature`), and passes on False or None. Named after the function."""
+
+    function: Callable[[RobotState], Any]
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        self.name = self.name or getattr(self.function, "__name__", "") or type(self.function).__name__
+
+    def reset(self) -> None:
+        pass
+
+    def check(self, state: RobotState) -> FailureSignature | None:
+        result = self.function(state)
+        if result is None or result is False or result is np.False_:
+            return None
+        if isinstance(result, FailureSignature):
+            return result
+        if result is True or result is np.True_:
+            return signature(self.name, state)
+        if isinstance(result, str):
+            return signature(self.name, state, result)
+        raise ScenarioError(f"predicate function {self.name} returned {type(result).__name__} {shown(result)} at "
+                            f"t = {state.time:.2f} s; expected True/False, a message, or a FailureSignature",
+                            field="predicate")
+
+
+def predicate(function: Callable[[RobotState], Any] | None = None, *, name: str = "") -> Any:
+    """Decorator: make a plain function of the `RobotState` a failure predicate (a `FunctionPredicate`).
+
+    Use it for functions given to the marker, `@pytest.mark.robot_failure(no_progress)`: pytest takes a bare
+    function passed alone to a marker for the function to decorate, so the marker needs the predicate
+    object. `@predicate(name="trapped")` names the failure (default: the function's name).
+    """
+    if function is None:
+        return lambda given: FunctionPredicate(given, name)
+    return FunctionPredicate(function, name)
+
+
+@dataclass(frozen=True)
+class PredicateSpec:
+    """A failure predicate as a test declares it: a registered `name` with `params`, or a ready predicate
+    object or function (`instance`, used as is). Specs by name travel between processes as plain data."""
+
+    name: str
+    params: Mapping[str, Any] = field(default_factory=dict)
+    instance: Predicate | None = field(default=None, compare=False)
+
+    def build(self) -> Predicate:
+        return self.instance if self.instance is not None else make_predicate(self.name, **dict(self.params))
+
+    def to_json(self) -> dict[str, Any]:
+        """As recorded in summary.json: {"name", "params"}, plus "object" (its repr) for an instance."""
+        data: dict[str, Any] = {"name": self.name, "params": dict(self.params)}
+        if self.instance is not None:
+            data["object"] = repr(self.instance)[:300]
+        return data
+
+
+def predicate_spec(value: Any, params: Mapping[str, Any] | None = None) -> PredicateSpec:
+    """A `PredicateSpec` from what a marker or a caller gives: a registered name (with `params`), a
+    `Predicate` object, or a function of the `RobotState`. Validated now (`ScenarioError` if wrong)."""
+    params = dict(params or {})
+    if isinstance(value, str):
+        make_predicate(value, **params)
+        return PredicateSpec(value, params)
+    if params:
+        raise ScenarioError(f"parameters {', '.join(params)} are only for a predicate given by name; build "
+                            f"{shown(value)} with them instead", field="predicate")
+    if inspect.isclass(value):
+        raise ScenarioError(f"{value.__name__} is a class; pass an instance, e.g. {value.__name__}(...)",
+                            field="predicate")
+    if hasattr(value, "check"):
+        check_predicate(value)
+        return PredicateSpec(value.name, {}, instance=value)
+    if callable(value):
+        wrapped = FunctionPredicate(value)
+        return PredicateSpec(wrapped.name, {}, instance=wrapped)
+    raise ScenarioError(f"{shown(value)} is not a failure predicate: expected a registered name "
+                        f"({', '.join(sorted(PREDICATES))}), an object with name, reset() and check(state), or "
+                        "a function of the state", field="predicate")
+
+
+def check_predicate_models(predicates: Sequence[PredicateSpec], names: Sequence[str], where: str) -> None:
+    """ScenarioError when a `collided(models=[...])` predicate names a model that `names` (the world's models,
+    `where` its file) does not hold: a typo would otherwise make the predicate silently never fire."""
+    known = set(names)
+    for spec in predicates:
+        if isinstance(spec.instance, Collided):
+            models = spec.instance.models
+        else:
+            models = spec.params.get("models") if spec.instance is None and spec.name == "collided" else None
+        unknown = [name for name in models or () if name not in known]
+        if unknown:
+            listing = ", ".join(list(names)[:12]) + (", ..." if len(names) > 12 else "")
+            what = "is not a model" if len(unknown) == 1 else "are not models"
+            raise ScenarioError(
+                f"the '{spec.name}' predicate names {', '.join(shown(n) for n in unknown[:5])}, which {what} of "
+                f"{where} (its models: {listing or 'none'})"
+            )
