@@ -18,7 +18,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from pytest_ddenv import __version__
+from pytest_ddenv import __version__, defaults
 from pytest_ddenv.cli_world import (
     UsageError,
     add_scenario_options,
@@ -69,6 +69,13 @@ def _positive_int(text: str) -> int:
     value = _non_negative_int(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {shown(text)}")
+    return value
+
+
+def _at_least_two(text: str) -> int:
+    value = _non_negative_int(text)
+    if value < 2:  # as reduce() and the marker: a first split into one part splits nothing
+        raise argparse.ArgumentTypeError(f"expected an integer >= 2, got {shown(text)}")
     return value
 
 
@@ -283,19 +290,21 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     reduce.add_argument("world", help="world file (.yaml, .sdf)")
     _add_predicate_option(reduce, required=True)
     _add_user_code_options(reduce)
-    reduce.add_argument("--partition", default="model2model", choices=[*PARTITIONS, *PARTITION_ALIASES],
+    reduce.add_argument("--partition", default=defaults.PARTITION, choices=[*PARTITIONS, *PARTITION_ALIASES],
                         help="partition schema (default model2model)")
-    reduce.add_argument("--priority", default="avg-trajectory-proximal", choices=[*PRIORITIES, *PRIORITY_ALIASES],
+    reduce.add_argument("--priority", default=defaults.PRIORITY, choices=[*PRIORITIES, *PRIORITY_ALIASES],
                         help="priority schema (default avg-trajectory-proximal)")
-    reduce.add_argument("--granularity", default="ddmin", choices=GRANULARITIES, help="default ddmin")
-    reduce.add_argument("--n-partitions", type=_positive_int, default=2, metavar="N", help="first split (default 2)")
-    reduce.add_argument("--deflake", default="auto", metavar="N|adaptive|auto",
+    reduce.add_argument("--granularity", default=defaults.GRANULARITY, choices=GRANULARITIES, help="default ddmin")
+    reduce.add_argument("--n-partitions", type=_at_least_two, default=defaults.N_PARTITIONS, metavar="N",
+                        help="first split (default 2)")
+    reduce.add_argument("--deflake", default=defaults.DEFLAKE, metavar="N|adaptive|auto",
                         help="re-runs of a candidate that does not fail, 'adaptive', or 'auto' (the default: a rule "
                              "calibrated on the original world's failure rate)")
-    reduce.add_argument("--tolerance", type=_positive_float, default=0.5, metavar="M",
+    reduce.add_argument("--tolerance", type=_positive_float, default=defaults.TOLERANCE, metavar="M",
                         help="same failure: failure position within this many metres (default 0.5)")
     reduce.add_argument("--keep", action="append", default=[], metavar="MODEL", help="never remove this model")
-    reduce.add_argument("--seed", type=_non_negative_int, default=0, help="seed of the runs and the schemas")
+    reduce.add_argument("--seed", type=_non_negative_int, default=defaults.SEED,
+                        help="seed of the runs and the schemas")
     reduce.add_argument("--timeout", type=_positive_float, help="simulated seconds per run (default: the world's)")
     add_scenario_options(reduce)
     add_world_options(reduce)

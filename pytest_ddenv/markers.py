@@ -11,6 +11,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from pytest_ddenv import defaults
 from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.validation import is_integer, is_number
 
@@ -32,14 +33,14 @@ class ReductionSpec:
     """What `@pytest.mark.ddenv(...)` says about a test (defaults when the marker is absent)."""
 
     world: str | None = None
-    partition: str = "model2model"
-    priority: str = "avg-trajectory-proximal"
-    n_partitions: int = 2
-    granularity: str = "ddmin"
-    deflake: int | str = "auto"
-    tolerance: float = 0.5
+    partition: str = defaults.PARTITION
+    priority: str = defaults.PRIORITY
+    n_partitions: int = defaults.N_PARTITIONS
+    granularity: str = defaults.GRANULARITY
+    deflake: int | str = defaults.DEFLAKE
+    tolerance: float = defaults.TOLERANCE
     keep: tuple[str, ...] = ()
-    seed: int = 0
+    seed: int = defaults.SEED
     max_probes: int | None = None
     max_seconds: float | None = None
     skip_unsupported: bool = False

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pytest_ddenv import defaults
 from pytest_ddenv.errors import shown
 from pytest_ddenv.outcome import Outcome
 from pytest_ddenv.predicates import (
@@ -74,7 +75,8 @@ __all__ = [
 
 
 # -- the oracle --------------------------------------------------------------------------------------
-def same_failure(failure: FailureSignature, reference: FailureSignature, tolerance: float = 0.5) -> bool:
+def same_failure(failure: FailureSignature, reference: FailureSignature,
+                 tolerance: float = defaults.TOLERANCE) -> bool:
     """Whether `failure` is the reference failure f (see `classify`)."""
     if failure.predicate != reference.predicate:
         return False
@@ -89,7 +91,7 @@ def same_failure(failure: FailureSignature, reference: FailureSignature, toleran
 def classify(
     run: Run | None,
     reference: FailureSignature,
-    tolerance: float = 0.5,
+    tolerance: float = defaults.TOLERANCE,
     *,
     error: BaseException | None = None,
 ) -> Outcome:

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pytest_ddenv import defaults
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.predicates import PredicateSpec
 from pytest_ddenv.reduce import Outcome
@@ -228,7 +229,7 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
     summary, world = read_artifacts(folder)
     reference = recorded_signature(summary, folder / "summary.json")
     chosen = tuple(predicates) if predicates else recorded_predicates(summary, reference)
-    limit = float(summary.get("tolerance", 0.5)) if tolerance is None else tolerance
+    limit = float(summary.get("tolerance", defaults.TOLERANCE)) if tolerance is None else tolerance
     run_timeout = timeout if timeout is not None else summary.get("timeout")
     seed = int(summary.get("scenario_seed", summary.get("seed", 0)))
     if recorded:

@@ -243,7 +243,8 @@ def test_reduce_a_world_that_does_not_fail(capsys: pytest.CaptureFixture[str], w
 @pytest.mark.parametrize(
     ("extra", "fragment"),
     [(["--deflake", "often"], "--deflake: expected an integer >= 0 and <= 100 or one of adaptive"),
-     (["--keep", "walll"], "--keep: no model named 'walll'")],
+     (["--keep", "walll"], "--keep: no model named 'walll'"),
+     (["--n-partitions", "1"], "--n-partitions: expected an integer >= 2, got '1'")],
 )
 def test_reduce_bad_options(capsys: pytest.CaptureFixture[str], worlds: dict[str, Path], extra: list[str],
                             fragment: str) -> None:

@@ -21,6 +21,7 @@ from collections.abc import Callable, Collection, MutableMapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from pytest_ddenv import defaults
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.context import Context, Verdict
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy
@@ -59,17 +60,17 @@ def reduce(
     *,
     geometry: Geometry | None = None,
     reference: Trace | None = None,
-    partition: str | Partitioner = "model2model",
-    priority: str | Prioritizer = "avg-trajectory-proximal",
-    n_partitions: int = 2,
-    granularity: str = "ddmin",
-    deflake: int | str | DeflakePolicy = "auto",
+    partition: str | Partitioner = defaults.PARTITION,
+    priority: str | Prioritizer = defaults.PRIORITY,
+    n_partitions: int = defaults.N_PARTITIONS,
+    granularity: str = defaults.GRANULARITY,
+    deflake: int | str | DeflakePolicy = defaults.DEFLAKE,
     confidence: float = 0.95,
     keep: Collection[str] = (),
     preconditions: Sequence[Precondition] = (),
     max_probes: int | None = None,
     max_seconds: float | None = None,
-    seed: int = 0,
+    seed: int = defaults.SEED,
     cache: MutableMapping[Any, Any] | None = None,
     executor: concurrent.futures.Executor | None = None,
     log: ProbeLog | str | os.PathLike[str] | None = None,
