@@ -11,7 +11,6 @@ import base64
 import contextlib
 import dataclasses
 import inspect
-import math
 import os
 import shlex
 import time
@@ -23,14 +22,11 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from pytest_ddenv.artifacts import folder_problem
 from pytest_ddenv.errors import DdenvError, shown
-from pytest_ddenv.execution.factory import executor_problem
 from pytest_ddenv.markers import (
-    MarkerError,
     ReductionSpec,
-    parse_deflake,
 )
+from pytest_ddenv.pytest_options import DdenvOptions, add_options, read_options
 from pytest_ddenv.robot_world import FIXTURE
 from pytest_ddenv.world import is_file
 
@@ -45,10 +41,9 @@ SECTION = "ddenv reduction"
 _spec_key = pytest.StashKey[tuple[ReductionSpec, "tuple[PredicateSpec, ...]"]]()
 _result_key = pytest.StashKey[dict[str, Any]]()
 _cluster_key = pytest.StashKey[Any]()
-_artifacts_key = pytest.StashKey[Path]()
+_options_key = pytest.StashKey[DdenvOptions]()
 _log_key = pytest.StashKey[Any]()
 """A text stream on the terminal pytest writes to, past output capture (for progress in CI logs)."""
-DEFAULT_ARTIFACTS = "ddenv-artifacts"
 _STATELESS_FIXTURES = {"request", "pytestconfig", "record_property", "record_xml_attribute", "tmp_path_factory"}
 
 
@@ -56,134 +51,15 @@ _STATELESS_FIXTURES = {"request", "pytestconfig", "record_property", "record_xml
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
-    group = parser.getgroup("ddenv", "robot world reduction (pytest-ddenv)")
-    options: list[tuple[str, str, dict[str, Any]]] = [
-        ("reduce", "when a robot scenario test fails, reduce its world to the models the failure needs",
-         {"action": "store_true", "ini_type": "bool"}),
-        ("artifacts", ("folder for minimal worlds, run logs and summaries (default: ddenv-artifacts); a relative "
-                      "path is relative to the folder pytest runs in (in an ini file: to that file's folder)"),
-         {"metavar": "DIR"}),
-        ("deflake", ("re-runs of a candidate that did not reproduce the failure: an integer, 'adaptive', or "
-                    "'auto' (calibrated on the original world's failure rate)"),
-         {"metavar": "N"}),
-        ("max-probes", "stop a reduction after this many simulations (best world so far is kept)", {"metavar": "N"}),
-        ("max-time", "stop a reduction after this many wall-clock seconds", {"metavar": "SECONDS"}),
-        ("seed", "base seed of every robot run (default: the marker's seed, else 0)", {"metavar": "N"}),
-        ("workers", ("simulation worker processes: a number, 'auto' for one per core (the default), or 1 to "
-         "simulate in the pytest process"), {"metavar": "N"}),
-        ("executor", ("where probes simulate: 'local' worker processes (default), 'dask' (a local dask cluster) "
-         "or tcp://HOST:PORT of a dask scheduler"), {"metavar": "ADDRESS"}),
-        ("world", "run every robot test against this world file instead of its own (e.g. a minimal.yaml)",
-         {"metavar": "PATH"}),
-        ("model-path", "extra folders (separated by ':') searched for SDF <include>s of model://NAME",
-         {"metavar": "DIRS"}),
-        ("probe-timeout", ("wall-clock limit of one probe of a reduction: SECONDS, 'auto' (the default: max(60 s, "
-                          "10 x the longest of the original run and the slowest probe)) or 'none'; a probe past "
-                          "it is an error, not a verdict (default: $DDENV_PROBE_TIMEOUT, else auto)"),
-         {"metavar": "SECONDS"}),
-        ("stages", ("what to do after the model-level reduction, comma-separated: models (always), shapes, "
-                   "attributes, time, explain, passing, or 'all' (default: models,explain,passing; the marker's "
-                   "stages= when this is not given on the command line)"), {"metavar": "LIST"}),
-        ("media", ("what a reduction shows besides its files: 'all' (pictures, original.gif/minimal.gif "
-                  "animations, recording.rrd when rerun-sdk is installed), 'pictures' or 'none' (default: "
-                  "$DDENV_MEDIA, else all)"), {"metavar": "WHAT"}),
-        ("stage-probes", ("simulations each stage after the models may start (default: all of them together at "
-                         "most twice the model-level simulations)"), {"metavar": "N"}),
-        ("run-timeout", ("wall-clock seconds one robot_world.run() may take before it fails with ControllerTimeout "
-                        "(default 300): bounds a controller that is too slow"), {"metavar": "SECONDS"}),
-    ]
-    for name, help_text, extra in options:
-        ini_name = f"ddenv_{name.replace('-', '_')}"
-        ini_type = extra.pop("ini_type", "string")
-        group.addoption(f"--ddenv-{name}", dest=ini_name, default=None, help=help_text, **extra)
-        parser.addini(ini_name, help_text, type=ini_type, default=False if ini_type == "bool" else "")
+    add_options(parser)
 
 
-def _setting(config: pytest.Config, name: str) -> Any:
-    """The command-line value of a setting, else its ini value (validated by `_validate_options`)."""
-    value = config.getoption(name)
-    return config.getini(name) if value in (None, False) else value
-
-
-def _where(config: pytest.Config, name: str) -> str:
-    """How the user gave a setting: `--ddenv-max-probes` on the command line, else `ddenv_max_probes in
-    pytest.ini` (or wherever the ini value came from)."""
-    if config.getoption(name) not in (None, False):
-        return "--" + name.replace("_", "-")
-    return f"{name} in {config.inipath.name}" if config.inipath is not None else f"ini option {name}"
-
-
-def _int_setting(config: pytest.Config, name: str, minimum: int) -> int | None:
-    value = _setting(config, name)
-    if value in (None, ""):
-        return None
-    try:
-        number = int(value)
-    except (TypeError, ValueError):
-        number = minimum - 1
-    if number < minimum:
-        raise pytest.UsageError(f"{_where(config, name)}: expected an integer >= {minimum}, got {shown(value)}")
-    return number
-
-
-def _media_setting(config: pytest.Config) -> str:
-    """--ddenv-media, else the ini value, else $DDENV_MEDIA, else all."""
-    from pytest_ddenv.media import MediaChoiceError, media_choice
-
-    value = _setting(config, "ddenv_media")
-    try:
-        return media_choice(value, _where(config, "ddenv_media"))
-    except MediaChoiceError as error:
-        raise pytest.UsageError(str(error)) from None
-
-
-def _seconds_setting(config: pytest.Config, name: str) -> float | None:
-    value = _setting(config, name)
-    if value in (None, ""):
-        return None
-    try:
-        seconds = float(value)
-    except ValueError:
-        seconds = -1.0
-    if not (math.isfinite(seconds) and seconds > 0):  # nan, inf, 0 and negative numbers are refused
-        raise pytest.UsageError(f"{_where(config, name)}: expected a positive, finite number of seconds, got "
-                                f"{shown(value)}")
-    return seconds
-
-
-def _stages_setting(config: pytest.Config, marker: tuple[str, ...] | None) -> tuple[str, ...] | None:
-    """--ddenv-stages, else the marker's stages=, else the ini value (None: the default stages)."""
-    from pytest_ddenv.markers import parse_stage_list
-
-    given = config.getoption("ddenv_stages")
-    value = given if given not in (None, "") else (None if marker is not None else config.getini("ddenv_stages"))
-    if value in (None, ""):
-        return marker
-    try:
-        return parse_stage_list(value, _where(config, "ddenv_stages"))
-    except MarkerError as error:
-        raise pytest.UsageError(str(error)) from None
-
-
-def _watchdog_setting(config: pytest.Config) -> Any:
-    """`--ddenv-probe-timeout` as the pools' `watchdog` argument: seconds, 'auto', None, or DEFAULT (unset:
-    $DDENV_PROBE_TIMEOUT, else auto)."""
-    from pytest_ddenv.execution.base import DEFAULT
-
-    value = _setting(config, "ddenv_probe_timeout")
-    if value in (None, ""):
-        return DEFAULT
-    text = str(value).strip().lower()
-    if text in ("auto", "none"):
-        return None if text == "none" else "auto"
-    try:
-        seconds = float(text)
-    except ValueError:
-        seconds = -1.0
-    if not (math.isfinite(seconds) and seconds > 0):
-        raise pytest.UsageError(f"{_where(config, 'ddenv_probe_timeout')}: expected a positive, finite number of "
-                                f"seconds, 'auto' or 'none', got {shown(value)}")
-    return seconds
+def _options(config: pytest.Config) -> DdenvOptions:
+    """The session's checked settings (read once, in `pytest_configure`)."""
+    options = config.stash.get(_options_key, None)
+    if options is None:  # a config that did not go through pytest_configure (unusual): read them now
+        options = config.stash[_options_key] = read_options(config)
+    return options
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -198,50 +74,8 @@ def pytest_configure(config: pytest.Config) -> None:
         "robot_failure(NAME, **params): a failure predicate checked while the robot runs "
         "(stuck, flipped, high_centered, fell, collided, timeout); stackable.",
     )
-    _validate_options(config)
-
-
-def _validate_options(config: pytest.Config) -> None:
-    """Every ddenv setting, checked now: a bad value is a usage error before any test runs, never an error
-    in place of a test's own failure at the end."""
-    try:
-        reduce = bool(_setting(config, "ddenv_reduce"))
-    except pytest.UsageError as error:
-        raise pytest.UsageError(f"{_where(config, 'ddenv_reduce')}: expected true or false (or 1/0, yes/no, "
-                                f"on/off): {error}") from None
-    _int_setting(config, "ddenv_max_probes", 1)
-    _int_setting(config, "ddenv_stage_probes", 1)
-    _media_setting(config)
-    _stages_setting(config, None)
-    _int_setting(config, "ddenv_seed", 0)
-    _seconds_setting(config, "ddenv_max_time")
-    _seconds_setting(config, "ddenv_run_timeout")
-    _watchdog_setting(config)
-    deflake = _setting(config, "ddenv_deflake")
-    if deflake not in (None, ""):
-        try:
-            parse_deflake(deflake, _where(config, "ddenv_deflake"))
-        except MarkerError as error:
-            raise pytest.UsageError(str(error)) from None
-    workers = _setting(config, "ddenv_workers")
-    if workers not in (None, "", "auto"):
-        _int_setting(config, "ddenv_workers", 1)
-    executor = _setting(config, "ddenv_executor")
-    problem = executor_problem(str(executor)) if executor not in (None, "") else None
-    if problem is not None:
-        raise pytest.UsageError(f"{_where(config, 'ddenv_executor')}: {problem}")
-    world = _setting(config, "ddenv_world")
-    if world not in (None, "") and not Path(world).is_file():
-        raise pytest.UsageError(f"{_where(config, 'ddenv_world')}: no such file: {world}")
-    for folder in _model_paths(config):
-        if not Path(folder).expanduser().is_dir():
-            raise pytest.UsageError(f"{_where(config, 'ddenv_model_path')}: no such folder: {folder}")
-    root, given = _artifacts_root(config)
-    problem = folder_problem(root) if given or reduce else None
-    if problem is not None:
-        raise pytest.UsageError(f"{_where(config, 'ddenv_artifacts')}: {problem}")
-    config.stash[_artifacts_key] = root
-    if reduce:
+    options = config.stash[_options_key] = read_options(config)
+    if options.reduce:
         _open_log(config)
 
 
@@ -250,17 +84,15 @@ def pytest_report_header(config: pytest.Config) -> str | None:
     is on, the seed, the workers, the executor, the media and the artifacts folder."""
     if hasattr(config, "workerinput"):  # an xdist worker: the controller prints the header
         return None
-    seed = _int_setting(config, "ddenv_seed", 0)
-    seed_text = "per marker (default 0)" if seed is None else str(seed)
-    if not _setting(config, "ddenv_reduce"):
+    options = _options(config)
+    seed_text = "per marker (default 0)" if options.seed is None else str(options.seed)
+    if not options.reduce:
         return f"ddenv: reduction off (--ddenv-reduce to reduce failing robot tests), seed {seed_text}"
-    workers = _setting(config, "ddenv_workers") or "auto"
+    workers = options.workers or "auto"
     if workers == "auto":
         workers = f"auto ({os.cpu_count() or 1} cores)"
-    executor = _setting(config, "ddenv_executor") or "local"
-    root = config.stash.get(_artifacts_key, None) or _artifacts_root(config)[0]
-    return (f"ddenv: reduction on, seed {seed_text}, workers {workers}, executor {executor}, "
-            f"media {_media_setting(config)}, artifacts {root}")
+    return (f"ddenv: reduction on, seed {seed_text}, workers {workers}, executor {options.executor or 'local'}, "
+            f"media {options.media}, artifacts {options.artifacts}")
 
 
 def _open_log(config: pytest.Config) -> None:
@@ -278,24 +110,6 @@ def _open_log(config: pytest.Config) -> None:
         return
     config.stash[_log_key] = os.fdopen(descriptor, "w", encoding=sys.stdout.encoding or "utf-8",
                                        errors="replace")
-
-
-def _artifacts_root(config: pytest.Config) -> tuple[Path, bool]:
-    """Where reductions write (and whether the user chose it): a relative --ddenv-artifacts is relative to
-    the folder pytest was started in, a relative ini value to the ini file's folder."""
-    option = config.getoption("ddenv_artifacts")
-    invocation = Path(config.invocation_params.dir)
-    if option not in (None, ""):
-        return invocation / Path(str(option)).expanduser(), True
-    ini = str(config.getini("ddenv_artifacts") or "")
-    if ini:
-        base = config.inipath.parent if config.inipath is not None else invocation
-        return base / Path(ini).expanduser(), True
-    return invocation / DEFAULT_ARTIFACTS, False
-
-
-def _model_paths(config: pytest.Config) -> tuple[str, ...]:
-    return tuple(p for p in str(_setting(config, "ddenv_model_path") or "").split(os.pathsep) if p)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -343,8 +157,9 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
 
     item = request.node
     spec, predicates = item.stash.get(_spec_key, (ReductionSpec(), ()))
-    seed = _int_setting(request.config, "ddenv_seed", 0)
-    timeout = _seconds_setting(request.config, "ddenv_run_timeout") or DEFAULT_MAX_WALL_TIME
+    options = _options(request.config)
+    seed = options.seed
+    timeout = options.run_timeout or DEFAULT_MAX_WALL_TIME
     binding = request.config.stash.get(PROBE_BINDING, None)
     if binding is not None:
         binding.robot_world = RobotWorld(binding.world, predicates=predicates, seed=spec.seed if seed is None else seed,
@@ -366,9 +181,9 @@ def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates:
     from pytest_ddenv.world import World
 
     item = request.node
-    options: dict[str, Any] = {"model_paths": list(_model_paths(request.config)),
+    options: dict[str, Any] = {"model_paths": list(_options(request.config).model_paths),
                                "skip_unsupported": spec.skip_unsupported}
-    override = _setting(request.config, "ddenv_world")
+    override = _options(request.config).world
     param = getattr(request, "param", None)
     if override:
         world = World.load(override, **options)
@@ -429,7 +244,7 @@ def _bind_probe(item: pytest.Function) -> None:
 
 def _should_reduce(item: pytest.Function, error: BaseException) -> bool:
     config = item.config
-    if not _setting(config, "ddenv_reduce") or config.getoption("usepdb", False):
+    if not _options(config).reduce or config.getoption("usepdb", False):
         return False
     if FIXTURE not in item.fixturenames or item.get_closest_marker("xfail") is not None:
         return False
@@ -448,10 +263,11 @@ def _probe_pool(item: pytest.Function) -> Any:
 
     config = item.config
     default = "1" if hasattr(config, "workerinput") else "auto"  # xdist already uses every core
-    workers = _setting(config, "ddenv_workers") or default
+    options = _options(config)
+    workers = options.workers or default
     count = int(workers) if str(workers).isdigit() else workers
-    executor = check_executor(_setting(config, "ddenv_executor") or None)
-    watchdog = _watchdog_setting(config)
+    executor = check_executor(options.executor)
+    watchdog = options.watchdog
     if executor is None:
         return make_pool(PytestJob.of(item), count, in_process=ItemHandler(item), watchdog=watchdog)
     cluster = config.stash.get(_cluster_key, None)
@@ -477,25 +293,25 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
     from pytest_ddenv.reduction_session import ReductionSession
 
     spec, _ = item.stash.get(_spec_key, (ReductionSpec(), ()))
-    deflake = _setting(item.config, "ddenv_deflake")
+    options = _options(item.config)
     spec = dataclasses.replace(
         spec,
-        deflake=spec.deflake if deflake in (None, "") else parse_deflake(deflake, "--ddenv-deflake"),
-        max_probes=_int_setting(item.config, "ddenv_max_probes", 1) or spec.max_probes,
-        max_seconds=_seconds_setting(item.config, "ddenv_max_time") or spec.max_seconds,
-        stages=_stages_setting(item.config, spec.stages),
-        stage_probes=_int_setting(item.config, "ddenv_stage_probes", 1),
+        deflake=spec.deflake if options.deflake is None else options.deflake,
+        max_probes=options.max_probes or spec.max_probes,
+        max_seconds=options.max_seconds or spec.max_seconds,
+        stages=options.stages_for(spec.stages),
+        stage_probes=options.stage_probes,
     )
     progress = _ProgressLine(item.config)
     session = ReductionSession(
         item=item,
         error=error,
         spec=spec,
-        artifacts_root=item.config.stash.get(_artifacts_key, None) or _artifacts_root(item.config)[0],
+        artifacts_root=options.artifacts,
         progress=progress,
         replay=replay_command,
-        model_paths=_model_paths(item.config),
-        media=_media_setting(item.config),
+        model_paths=options.model_paths,
+        media=options.media,
     )
     try:
         with _probe_pool(item) as pool:
