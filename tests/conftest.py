@@ -3,6 +3,10 @@
 # process"). pytest-ddenv imports scipy.stats (the failure-rate test; numpy.fft under it) lazily, so it is
 # imported here, once, before any such run.
 import scipy.stats  # noqa: F401
+import yaml  # noqa: F401  # likewise: its C parser (yaml._yaml) outlives a re-import of the yaml package
+
+# For the same reason a test must not import a heavy package (dask.distributed, ...) only to check that it is
+# installed while a pytester snapshot is active: use importlib.util.find_spec.
 
 pytest_plugins = ["pytester"]
 
