@@ -61,6 +61,7 @@ def test_console_script_version_and_help() -> None:
         ("pytest_ddenv.scenario_job", ["pytest", "pytest_ddenv.plugin"]),
         ("pytest_ddenv.controllers", ["pybullet", "pytest", "pytest_ddenv.reduce"]),
         ("pytest_ddenv.report_text", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.plugin"]),
+        ("pytest_ddenv.plugin", ["pybullet", "pytest_ddenv.sim", "sklearn", "matplotlib", "scipy", "trimesh"]),
         ("pytest_ddenv.detail", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.reduce"]),
         ("pytest_ddenv.media", ["pybullet", "pytest", "rerun", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
         ("pytest_ddenv.animate", ["pytest", "rerun", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),

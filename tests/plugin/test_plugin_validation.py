@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import pytest
 
-from pytest_ddenv.plugin import replay_command  # noqa: F401  (importable without pybullet work)
-
 
 @pytest.mark.parametrize(
     ("marker", "message"),
