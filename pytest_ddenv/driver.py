@@ -136,31 +136,37 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
     expect = getattr(pool, "expect", None)
     if plan.reference_run is not None and callable(expect):  # the watchdog scales with the original run
         expect(float(getattr(plan.reference_run, "wall_time", 0.0) or 0.0))
+    ahead = None
     if not getattr(pool, "in_process", False):  # this process waits for the workers: import meanwhile
-        threading.Thread(target=_import_ahead, name="ddenv-import-ahead", daemon=True).start()
-    calls = _Calls(pool, plan.reference, spec.tolerance, deadline)
-    with _sigterm_as_interrupt():
-        confirmations: list[tuple[int, ProbeResult | None, str]] = []
-        if not plan.confirmed:
-            failed = _confirm(plan, calls, note, confirmations)
-            if failed is not None:
-                return failed
-        partition, priority, notes = _schemas(spec, plan.reference_run)
-        for text in notes:
-            note(text)
-        settings = {key: value for key, value in plan.fingerprint.items() if key not in BUDGETS}
-        problem = artifacts.fingerprint(world, {**settings, "partition": partition, "priority": priority},
-                                        plan.test_source)
-        with artifacts.FolderLock(plan.artifacts):
-            paths, prepared = artifacts.prepare(plan.artifacts, problem, test_id=plan.test_id)
-            log = ProbeLog(paths.log)
-            for text in prepared + log.notes:
+        ahead = threading.Thread(target=_import_ahead, name="ddenv-import-ahead", daemon=True)
+        ahead.start()
+    try:
+        calls = _Calls(pool, plan.reference, spec.tolerance, deadline)
+        with _sigterm_as_interrupt():
+            confirmations: list[tuple[int, ProbeResult | None, str]] = []
+            if not plan.confirmed:
+                failed = _confirm(plan, calls, note, confirmations)
+                if failed is not None:
+                    return failed
+            partition, priority, notes = _schemas(spec, plan.reference_run)
+            for text in notes:
                 note(text)
-            try:
-                return _reduce_locked(plan, pool, calls, paths, log, problem, partition, priority,
-                                      notes + prepared + log.notes, confirmations, on_progress)
-            finally:
-                log.close()
+            settings = {key: value for key, value in plan.fingerprint.items() if key not in BUDGETS}
+            problem = artifacts.fingerprint(world, {**settings, "partition": partition, "priority": priority},
+                                            plan.test_source)
+            with artifacts.FolderLock(plan.artifacts):
+                paths, prepared = artifacts.prepare(plan.artifacts, problem, test_id=plan.test_id)
+                log = ProbeLog(paths.log)
+                for text in prepared + log.notes:
+                    note(text)
+                try:
+                    return _reduce_locked(plan, pool, calls, paths, log, problem, partition, priority,
+                                          notes + prepared + log.notes, confirmations, on_progress)
+                finally:
+                    log.close()
+    finally:
+        if ahead is not None:  # never leave it importing while the caller goes on (see IMPORT_AHEAD_WAIT)
+            ahead.join(IMPORT_AHEAD_WAIT)
 
 
 def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifacts.ArtifactPaths, log: ProbeLog,
@@ -414,6 +420,13 @@ def _log_run(log: ProbeLog, purpose: str, names: tuple[str, ...], attempt: int, 
 HEAVY_IMPORTS = ("sklearn.cluster", "sklearn.linear_model", "matplotlib.pyplot", "matplotlib.collections")
 """What the schemas and the pictures import on first use (about 1.5 s together): imported while the first
 probes run in the workers, so that the engine's first round does not wait for scikit-learn."""
+
+
+IMPORT_AHEAD_WAIT = 60.0
+"""Seconds `run_reduction` waits at its end for the import-ahead thread. CPython 3.11 before 3.11.8 can fail
+with "SystemError: AST constructor recursion depth mismatch" when two threads compile source at once (a
+fresh install has no .pyc files yet): a reduction that ends early (a failure that does not reproduce) must
+not leave the thread compiling while pytest goes on importing (and rewriting) its own plugins."""
 
 
 def _import_ahead() -> None:
