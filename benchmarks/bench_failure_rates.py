@@ -126,7 +126,7 @@ def reduce_as_the_driver(problem: Problem, *, partition: str, priority: str, def
         reduction = reduce(
             problem.world.names, probe, geometry=problem.world, reference=problem.reference_trace,
             partition=partition, priority=priority, deflake=deflake, keep=problem.keep,
-            preconditions=problem.preconditions(), seed=seed, executor=executor,
+            preconditions=problem.preconditions(), seed=seed, executor=executor, workers=workers,
         )
     finally:
         if executor is not None:

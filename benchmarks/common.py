@@ -311,7 +311,7 @@ def ddenv_reduce(problem: Problem, *, partition: str, priority: str, deflake: in
             problem.world.names, probe, geometry=problem.world, reference=problem.reference_trace,
             partition=partition, priority=priority, deflake=deflake, keep=problem.keep,
             preconditions=problem.preconditions(), seed=problem.seed if seed is None else seed, executor=executor,
-            max_seconds=max_seconds, failure_rate_runs=0,
+            workers=workers, max_seconds=max_seconds, failure_rate_runs=0,
         )
     finally:
         if executor is not None:

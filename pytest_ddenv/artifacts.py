@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING, Any, Self
 
 from pytest_ddenv.errors import DdenvError, ReductionError
 from pytest_ddenv.reduce import Reduction
-from pytest_ddenv.reduce.log import LOG_FORMAT, sync_directory, write_failure
+from pytest_ddenv.reduce.log import LOG_FORMAT, parse_record, sync_directory, write_failure
+from pytest_ddenv.reduction_report import ReductionReport, ReportFiles, identity_json
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:
@@ -35,7 +36,6 @@ try:
 except ImportError:  # pragma: no cover - not POSIX: no folder lock
     fcntl = None  # type: ignore[assignment]
 
-SUMMARY_FORMAT = 1
 LOCK_NAME = ".ddenv.lock"
 """The lock file of an artifacts folder (holds the pid of the reduction that has it)."""
 STALE_OUTPUTS = ("minimal.sdf", "reduction.png", "progress.png")
@@ -237,11 +237,7 @@ def _first_record(path: Path) -> tuple[dict[str, Any] | None, int]:
         size = path.stat().st_size
     except OSError:
         return None, 0
-    try:
-        record = json.loads(line.decode("utf-8"))
-    except ValueError:
-        return None, size
-    return (record if isinstance(record, dict) else None), size
+    return parse_record(line.decode("utf-8", errors="replace")), size
 
 
 def _free_name(directory: Path, pattern: str) -> Path:
@@ -297,43 +293,25 @@ def read_summary(path: Path) -> dict[str, Any] | None:
     return data if isinstance(data, dict) else None
 
 
-def write_reduction(
-    paths: ArtifactPaths,
-    world: World,
-    reduction: Reduction,
-    *,
-    test_id: str,
-    replay_command: str,
-    problem_fingerprint: str,
-    reference: dict[str, Any],
-    extra: dict[str, Any] | None = None,
-    model_paths: Sequence[str | Path] = (),
-) -> dict[str, Any]:
-    """Write the minimal world and the summary; returns the summary (plain JSON-able dict).
+def write_minimal_world(paths: ArtifactPaths, world: World, reduction: Reduction, *,
+                        model_paths: Sequence[str | Path] = ()) -> tuple[ReportFiles, str | None]:
+    """Write the minimal world (`minimal.yaml`, and `minimal.sdf` for a world read from SDF); returns the
+    reduction's files and how `minimal.sdf` was made (None: not written).
 
     `minimal.sdf` of a world read from an SDF file is that file with the removed models cut out (see
     `write_minimal_sdf`); `model_paths` are those the world was read with (to name its includes again).
     """
     minimal = world.select(reduction.minimal)
     write_text_atomic(paths.minimal_yaml, minimal.to_yaml(relative_to=paths.directory))
-    files = {"minimal_yaml": str(paths.minimal_yaml), "log": str(paths.log), "summary": str(paths.summary)}
     how = write_minimal_sdf(paths.minimal_sdf, world, minimal, reduction.removed, model_paths)
-    if how is not None:
-        files["minimal_sdf"] = str(paths.minimal_sdf)
-    summary = summary_of(world, reduction, test_id=test_id, replay_command=replay_command, reference=reference)
-    summary["fingerprint"] = problem_fingerprint
-    summary["files"] = files
-    summary["minimal_sdf"] = how
-    summary.update(extra or {})
-    write_text_atomic(paths.summary, json.dumps(summary, indent=2) + "\n")
-    return summary
+    files = ReportFiles(paths.minimal_yaml, paths.log, paths.summary,
+                        minimal_sdf=paths.minimal_sdf if how is not None else None)
+    return files, how
 
 
-def add_to_summary(paths: ArtifactPaths, summary: Mapping[str, Any], more: Mapping[str, Any]) -> dict[str, Any]:
-    """`summary` with `more` added, written again (atomically); returns it."""
-    updated = {**summary, **more}
-    write_text_atomic(paths.summary, json.dumps(updated, indent=2) + "\n")
-    return updated
+def write_summary(paths: ArtifactPaths, report: ReductionReport) -> None:
+    """Write `summary.json` (atomically) from the reduction's report."""
+    write_text_atomic(paths.summary, json.dumps(report.to_json(), indent=2) + "\n")
 
 
 def write_stage_worlds(paths: ArtifactPaths, staged: StagesOutcome) -> dict[str, str]:
@@ -367,25 +345,17 @@ def write_progress(paths: ArtifactPaths, world: World, best: Sequence[str], *, t
     ``"incomplete_reason": "in progress"``): what a reduction stopped at any moment leaves behind."""
     minimal = world.select(best)
     write_text_atomic(paths.minimal_yaml, minimal.to_yaml(relative_to=paths.directory))
-    chosen = set(best)
     summary = {
-        "format": SUMMARY_FORMAT,
-        "test": test_id,
-        "world": world.source or world.name,
+        **identity_json(test_id, world.source or world.name, world.names, minimal.names),
         "complete": False,
         "incomplete_reason": "in progress",
         "provisional": True,
         "one_minimal": False,
-        "original_size": len(world),
-        "minimal_size": len(minimal),
-        "reduction_percent": round(100.0 * (1 - len(minimal) / max(len(world), 1)), 1),
-        "minimal_models": list(minimal.names),
-        "removed_models": [name for name in world.names if name not in chosen],
         **dict(counts),
         "reference_failure": reference,
         "replay": replay_command,
         "fingerprint": problem_fingerprint,
-        "files": {"minimal_yaml": str(paths.minimal_yaml), "log": str(paths.log), "summary": str(paths.summary)},
+        "files": ReportFiles(paths.minimal_yaml, paths.log, paths.summary).to_json(),
         **dict(extra or {}),
     }
     write_text_atomic(paths.summary, json.dumps(summary, indent=2) + "\n")
@@ -432,62 +402,6 @@ def _check_cut(text: str, source: Path, minimal: World, model_paths: Sequence[st
             m.name for m, n in zip(reread.models, minimal.models, strict=False) if m != n)
         raise SurgeryError(f"the cut file does not give the minimal world ({', '.join(changed[:5])} differ)",
                            source=source)
-
-
-def summary_of(
-    world: World, reduction: Reduction, *, test_id: str, replay_command: str, reference: dict[str, Any]
-) -> dict[str, Any]:
-    removed = [name for name in reduction.original if name not in set(reduction.minimal)]
-    fails, runs = reduction.failure_rate
-    return {
-        "format": SUMMARY_FORMAT,
-        "test": test_id,
-        "world": world.source or world.name,
-        "complete": reduction.incomplete_reason is None,
-        "incomplete_reason": reduction.incomplete_reason,
-        "one_minimal": reduction.one_minimal,
-        "original_size": reduction.original_size,
-        "minimal_size": reduction.minimal_size,
-        "reduction_percent": round(100.0 * (1 - reduction.minimal_size / max(reduction.original_size, 1)), 1),
-        "minimal_models": list(reduction.minimal),
-        "removed_models": removed,
-        "kept_models": list(reduction.kept),
-        "probes": reduction.probes,
-        "resumed_probes": reduction.resumed_probes,
-        "simulations": reduction.simulations,
-        "cache_hits": reduction.cache_hits,
-        "skipped": reduction.skipped,
-        "errors": reduction.errors,
-        "errored_candidates": reduction.errored,
-        "steps": [list(step) for step in reduction.steps],
-        "failure_rate": {"fails": fails, "runs": runs},
-        "original_failure_rate": (
-            None if reduction.original_failure_rate is None
-            else {"fails": reduction.original_failure_rate[0], "runs": reduction.original_failure_rate[1]}
-        ),
-        "rate_check": None if reduction.rate_check is None else {
-            "decision": reduction.rate_check.decision,
-            "p_value": round(reduction.rate_check.p_value, 6),
-            "level_per_look": round(reduction.rate_check.level, 6),
-            "backoffs": reduction.rate_backoffs,
-        },
-        "needed_models": list(reduction.needed),
-        "precondition_kept": [{"model": name, "reason": reason} for name, reason in reduction.precondition_kept],
-        "without_precondition_kept": (
-            None if reduction.without_precondition_kept is None
-            else dict(zip(("fails", "runs"), reduction.without_precondition_kept, strict=True))
-        ),
-        "wall_time": round(reduction.wall_time, 3),
-        "schemas": {
-            "partition": reduction.partition,
-            "priority": reduction.priority,
-            "granularity": reduction.granularity,
-            "deflake": reduction.deflake,
-        },
-        "seed": reduction.seed,
-        "reference_failure": reference,
-        "replay": replay_command,
-    }
 
 
 def folder_problem(folder: Path) -> str | None:

@@ -31,7 +31,7 @@ from pytest_ddenv.predicates import PredicateSpec, check_predicate_models
 from pytest_ddenv.progress import ProgressLine
 
 if TYPE_CHECKING:  # pragma: no cover
-    from pytest_ddenv.reduce import Reduction
+    from pytest_ddenv.reduction_report import ReductionReport
     from pytest_ddenv.sim import Run
     from pytest_ddenv.world import World
 
@@ -613,6 +613,7 @@ def _robot_footprint(world: World) -> tuple[float, float] | None:
 def _read_runs(path: Path) -> tuple[list[Run], list[list[float]], list[str]]:
     """Runs (`ddenv run --record` lines), failure poses (probe-log lines) and each pose's outcome ("fail":
     the same failure as the reduced one, "other": another failure) of a JSON-lines file."""
+    from pytest_ddenv.reduce.log import numbered_records
     from pytest_ddenv.sim import Run
 
     if not path.is_file():
@@ -620,19 +621,15 @@ def _read_runs(path: Path) -> tuple[list[Run], list[list[float]], list[str]]:
     runs: list[Run] = []
     poses: list[list[float]] = []
     outcomes: list[str] = []
-    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
-        if not line.strip():
-            continue
-        try:
-            record = json.loads(line)
-        except ValueError:
-            raise UsageError(f"{path}:{number}: not a JSON line") from None
-        if isinstance(record, dict) and "poses" in record:
+    for number, record in numbered_records(path):
+        if record is None:
+            raise UsageError(f"{path}:{number}: not a JSON line")
+        if "poses" in record:
             try:
                 runs.append(Run.from_dict(record))
             except (KeyError, TypeError, ValueError) as error:
                 raise UsageError(f"{path}:{number}: not a recorded run ({error})") from None
-        elif isinstance(record, dict) and record.get("event") == "probe":
+        elif record.get("event") == "probe":
             pose = (record.get("signature") or {}).get("pose")
             if isinstance(pose, list) and len(pose) >= 3:
                 poses.append([float(v) for v in pose])
@@ -683,11 +680,11 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
                                            progress)
     finally:
         progress.close()
-    assert outcome.reduction is not None and outcome.summary is not None
-    summary = {**outcome.summary, "pictures": [str(p) for p in outcome.attachments if p.suffix == ".png"],
-               "media": [str(p) for p in outcome.attachments if p.suffix in (".gif", ".rrd")]}
-    _emit(arguments, _reduction_text(arguments.world, outcome.reduction, summary, outcome.notes),
-          {"ok": True, **summary})
+    assert outcome.report is not None
+    pictures = [str(p) for p in outcome.attachments if p.suffix == ".png"]
+    media = [str(p) for p in outcome.attachments if p.suffix in (".gif", ".rrd")]
+    _emit(arguments, _reduction_text(arguments.world, outcome.report, pictures, media),
+          {"ok": True, **outcome.report.to_json(), "pictures": pictures, "media": media})
     return EXIT_INTERRUPTED if interrupted else EXIT_OK
 
 
@@ -760,7 +757,7 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
                      "controller": arguments.controller, "imports": list(arguments.imports)},
         confirmed=True, media=arguments.media,
         model_paths=tuple(folder for value in arguments.model_paths for folder in value.split(os.pathsep) if folder),
-        summary_extra={"predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
+        run_settings={"predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
                        "scenario_seed": arguments.seed, "command": command, "controller": arguments.controller,
                        "imports": list(arguments.imports)},
     )
@@ -793,17 +790,18 @@ def _command_line(arguments: argparse.Namespace) -> list[str]:
     return words
 
 
-def _reduction_text(path: str, reduction: Reduction, summary: dict[str, Any], notes: Sequence[str] = ()) -> str:
+def _reduction_text(path: str, report: ReductionReport, pictures: Sequence[str], media: Sequence[str]) -> str:
     from pytest_ddenv.report_text import result_lines, status_of
 
+    reduction = report.reduction
     return "\n".join([
         (f"{path}: {reduction.original_size} -> {reduction.minimal_size} models "
-         f"({summary['reduction_percent']}% removed), {status_of(reduction)}"),
-        *result_lines(reduction, summary, notes),
-        f"artifacts: {Path(summary['files']['summary']).parent}",
-        f"pictures: {', '.join(summary.get('pictures', [])) or '(none)'}",
-        *([f"animations and recording: {', '.join(summary['media'])}"] if summary.get("media") else []),
-        f"replay: {summary['replay']}",
+         f"({report.reduction_percent}% removed), {status_of(reduction)}"),
+        *result_lines(report),
+        f"artifacts: {report.files.folder}",
+        f"pictures: {', '.join(pictures) or '(none)'}",
+        *([f"animations and recording: {', '.join(media)}"] if media else []),
+        f"replay: {report.replay}",
     ])
 
 

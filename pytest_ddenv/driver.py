@@ -47,6 +47,7 @@ from pytest_ddenv.reduce import (
 )
 from pytest_ddenv.reduce.deflake import make_policy
 from pytest_ddenv.reduce.types import Probe
+from pytest_ddenv.reduction_report import Cost, ReductionReport
 from pytest_ddenv.stages import (
     DEFAULT_STAGES,
     Budget,
@@ -89,7 +90,8 @@ class ReductionPlan:
     fingerprint: Mapping[str, Any]
     test_source: str = ""
     confirmed: bool = False
-    summary_extra: Mapping[str, Any] = field(default_factory=dict)
+    run_settings: Mapping[str, Any] = field(default_factory=dict)
+    """The caller's own entries of `summary.json` (predicates, noise seed, command line ...)."""
     model_paths: tuple[str, ...] = ()
     """The folders the world's SDF `model://` includes were found in (to cut `minimal.sdf` from the file)."""
     media: str = DEFAULT_MEDIA
@@ -104,13 +106,15 @@ class ReductionOutcome:
 
     status: str
     message: str = ""
-    reduction: Reduction | None = None
-    summary: dict[str, Any] | None = None
+    report: ReductionReport | None = None
+    """The result of a reduction (status "reduced"), also written as `summary.json`."""
     attachments: list[Path] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
     interrupted: ReductionInterrupted | None = None
     minimal_run: Run | None = None
-    stages: StagesOutcome | None = None
+
+    @property
+    def reduction(self) -> Reduction | None:
+        return None if self.report is None else self.report.reduction
 
 
 Note = Callable[[str], None]
@@ -173,128 +177,159 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
                    problem: str, partition: str, priority: str, notes: list[str],
                    confirmations: list[tuple[int, ProbeResult | None, str]],
                    on_progress: Callable[[ProgressEvent], None] | None) -> ReductionOutcome:
-    spec, world = plan.spec, plan.world
-    history = artifacts.usage_of(log.records)
-    log.write({"event": "session", "pid": os.getpid(), "time": time.strftime("%Y-%m-%dT%H:%M:%S")})
+    """The reduction once its folder is locked and its log open, in its phases: the model-level reduction,
+    the runs to show, the stages, the files (`_Locked`)."""
+    locked = _Locked(plan, pool, calls, paths, log, problem, notes, on_progress)
     for attempt, result, verdict in confirmations:
-        _log_run(log, "confirmation", world.names, attempt, result, verdict)
-    keep = (set(spec.keep) & set(world.names)) | {m.name for m in world.models if m.keep}
-    inner = make_probe(world, calls, plan.reference, tolerance=spec.tolerance)
-
-    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
-        calls.local.cancelled = False
-        observation = inner(candidate, attempt)
-        if calls.local.cancelled:  # stopped at the time budget's deadline: not an outcome
-            raise ProbeCancelled("budget: max_seconds")
-        return observation
-
-    common: dict[str, Any] = {"test_id": plan.test_id, "problem_fingerprint": problem,
-                              "replay_command": plan.replay_command, "reference": plan.reference.to_dict()}
-    extra = {**plan.summary_extra, "tolerance": spec.tolerance, "notes": notes, "world_notes": list(world.notes)}
-
-    def counts(probes: int) -> dict[str, Any]:
-        stats = pool.stats
-        return {"probes": probes, "simulations": history.simulations + stats.simulations,
-                "cpu_seconds": round(history.cpu_seconds + stats.cpu_seconds, 3),
-                "this_run": {"simulations": stats.simulations, "cpu_seconds": round(stats.cpu_seconds, 3)},
-                "workers": stats.to_dict()}
-
-    def usage(final: bool = False) -> None:
-        stats = pool.stats
-        log.write({"event": "usage", "simulations": stats.simulations, "cpu_seconds": round(stats.cpu_seconds, 6),
-                   "final": final})
-
-    best = _last_step(log.own_records()) or world.names
-    fresh = log.started_with() is None
-
-    def progress(event: ProgressEvent) -> None:
-        nonlocal best
-        if (event.kind == "start" and fresh) or (event.kind == "step" and event.candidate is not None):
-            if event.kind == "step":
-                assert event.candidate is not None
-                best = event.candidate
-                calls.pin(best)
-            artifacts.write_progress(paths, world, best, counts=counts(event.probes), extra=extra, **common)
-            usage()
-        if on_progress is not None:
-            on_progress(event)
-
-    left = spec.max_probes if spec.max_probes is None else max(0, spec.max_probes - calls.started)
-    seconds = None if calls.deadline is None else max(0.0, calls.deadline - time.monotonic())
-    threads = (concurrent.futures.ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-probe")
-               if pool.size > 1 else None)
-    interrupted: ReductionInterrupted | None = None
-    clean = False
-    try:
-        reduction = reduce(
-            world.names, probe, geometry=world,
-            reference=trace_of(plan.reference_run) if plan.reference_run is not None else None,
-            partition=partition, priority=priority, n_partitions=spec.n_partitions,
-            granularity=spec.granularity, deflake=spec.deflake, keep=tuple(sorted(keep)),
-            preconditions=(keeps_start_support(world),), max_probes=left,
-            max_seconds=seconds, seed=spec.seed, log=log, on_progress=progress,
-            executor=threads,
-        )
-        clean = True
-    except ReductionInterrupted as stop:
-        interrupted, reduction = stop, stop.reduction
-        pool.close()  # first: probe threads blocked on workers return at once
-    except BaseException:
-        pool.close()  # a crash (a full disk, a bug): free the probe threads, then let it through
-        raise
-    finally:
-        if threads is not None:
-            threads.shutdown(wait=clean, cancel_futures=True)
-    notes = list(dict.fromkeys([*notes, *reduction.notes]))
-    extra["notes"] = notes
-    minimal_run = None
-    shown: list[Shown] = []  # the runs to animate and record
-    if interrupted is None and plan.media != "none":
-        record = plan.media == "all"
-        minimal_world = world.select(reduction.minimal)
-        minimal_run = calls.run_of(reduction.minimal, world, plan.reference_run)
-        if (minimal_run is None or record) and calls.may_start(spec.max_probes):
-            recorded, failed = _logged_run(calls, log, minimal_world, 0, "recording" if record else "picture", record)
-            minimal_run = minimal_run or recorded
-            shown = [Shown("minimal", minimal_world, recorded, failed)] if record else []
-        if record:  # before the summary: its counts include every simulation
-            shown.insert(0, Shown("original", world, *_recorded_original(plan, calls, log, confirmations)))
+        _log_run(log, "confirmation", plan.world.names, attempt, result, verdict)
+    reduction, interrupted = locked.reduce_models(partition, priority)
+    locked.notes = list(dict.fromkeys([*locked.notes, *reduction.notes]))
+    minimal_run, shown = (None, []) if interrupted is not None else locked.runs_to_show(reduction, confirmations)
     staged: StagesOutcome | None = None
-    if interrupted is None and len(spec.stages or DEFAULT_STAGES) > 1 and reduction.minimal:
+    if interrupted is None and len(plan.spec.stages or DEFAULT_STAGES) > 1 and reduction.minimal:
         try:
             staged = _run_stages(plan, pool, reduction, calls, log, paths, minimal_run)
         except KeyboardInterrupt as stop:
             pool.close()
             interrupted = ReductionInterrupted(reduction)
             interrupted.__cause__ = stop
-        if staged is not None:
-            extra["stages"] = staged.to_dict()
-            extra["stage_files"] = artifacts.write_stage_worlds(paths, staged)
-    usage(final=True)
-    summary = artifacts.write_reduction(
-        paths, world, reduction, model_paths=plan.model_paths,
-        extra={**extra, **counts(reduction.probes), "resumed_runs": history.runs,
-               "cpu_seconds_complete": history.complete},
-        **common,
-    )
-    outcome = ReductionOutcome("reduced", reduction=reduction, summary=summary, notes=notes,
-                               attachments=[paths.minimal_yaml, paths.log, paths.summary], interrupted=interrupted,
-                               minimal_run=minimal_run, stages=staged)
-    if staged is not None:
-        outcome.attachments += [Path(path) for path in extra["stage_files"].values()]
-    if interrupted is None and plan.media != "none":
-        outcome.attachments += _pictures(world, reduction, paths, plan.reference_run, minimal_run, staged)
-    if interrupted is None and shown:
-        media = write_media(paths.directory, shown, failure_text=plan.reference.describe())
-        outcome.attachments += media.paths
-        if media.info:  # what was made and what it took, in the summary
-            outcome.summary = artifacts.add_to_summary(paths, summary, {"media": {
-                "files": media.info, "seconds": round(media.seconds, 3)}})
-    outcome.attachments = [path for path in outcome.attachments if path.exists()]
+    outcome = locked.write(reduction, staged, interrupted, minimal_run, shown)
     if interrupted is not None:
         interrupted.outcome = outcome  # type: ignore[attr-defined]
         raise interrupted
     return outcome
+
+
+class _Locked:
+    """One reduction in its locked folder: its log, its usage and the files it writes."""
+
+    def __init__(self, plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifacts.ArtifactPaths,
+                 log: ProbeLog, problem: str, notes: list[str],
+                 on_progress: Callable[[ProgressEvent], None] | None) -> None:
+        self.plan, self.pool, self.calls, self.paths, self.log = plan, pool, calls, paths, log
+        self.problem = problem
+        self.notes = notes
+        self.on_progress = on_progress
+        self.history = artifacts.usage_of(log.records)  # the earlier runs of this reduction, if resumed
+        log.write({"event": "session", "pid": os.getpid(), "time": time.strftime("%Y-%m-%dT%H:%M:%S")})
+        self.best = _last_step(log.own_records()) or plan.world.names
+        self.fresh = log.started_with() is None
+
+    def cost(self, probes: int) -> Cost:
+        stats = self.pool.stats
+        return Cost(probes, self.history.simulations + stats.simulations, self.history.cpu_seconds + stats.cpu_seconds,
+                    stats.simulations, stats.cpu_seconds, stats.to_dict(), resumed_runs=self.history.runs,
+                    cpu_seconds_complete=self.history.complete)
+
+    def record_usage(self, final: bool = False) -> None:
+        stats = self.pool.stats
+        self.log.write({"event": "usage", "simulations": stats.simulations,
+                        "cpu_seconds": round(stats.cpu_seconds, 6), "final": final})
+
+    def progress(self, event: ProgressEvent) -> None:
+        """At the start and at every accepted step: the best world so far and a provisional summary."""
+        if (event.kind == "start" and self.fresh) or (event.kind == "step" and event.candidate is not None):
+            if event.kind == "step":
+                assert event.candidate is not None
+                self.best = event.candidate
+                self.calls.pin(self.best)
+            plan = self.plan
+            artifacts.write_progress(
+                self.paths, plan.world, self.best, test_id=plan.test_id, problem_fingerprint=self.problem,
+                replay_command=plan.replay_command, reference=plan.reference.to_dict(),
+                counts=self.cost(event.probes).to_json(),
+                extra={**plan.run_settings, "tolerance": plan.spec.tolerance, "notes": self.notes,
+                       "world_notes": list(plan.world.notes)})
+            self.record_usage()
+        if self.on_progress is not None:
+            self.on_progress(event)
+
+    def reduce_models(self, partition: str, priority: str) -> tuple[Reduction, ReductionInterrupted | None]:
+        """The engine's reduction of the models (the best so far when interrupted)."""
+        plan, calls, pool = self.plan, self.calls, self.pool
+        spec, world = plan.spec, plan.world
+        keep = (set(spec.keep) & set(world.names)) | {m.name for m in world.models if m.keep}
+        inner = make_probe(world, calls, plan.reference, tolerance=spec.tolerance)
+
+        def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
+            calls.local.cancelled = False
+            observation = inner(candidate, attempt)
+            if calls.local.cancelled:  # stopped at the time budget's deadline: not an outcome
+                raise ProbeCancelled("budget: max_seconds")
+            return observation
+
+        left = spec.max_probes if spec.max_probes is None else max(0, spec.max_probes - calls.started)
+        seconds = None if calls.deadline is None else max(0.0, calls.deadline - time.monotonic())
+        threads = (concurrent.futures.ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-probe")
+                   if pool.size > 1 else None)
+        clean = False
+        try:
+            reduction = reduce(
+                world.names, probe, geometry=world,
+                reference=trace_of(plan.reference_run) if plan.reference_run is not None else None,
+                partition=partition, priority=priority, n_partitions=spec.n_partitions,
+                granularity=spec.granularity, deflake=spec.deflake, keep=tuple(sorted(keep)),
+                preconditions=(keeps_start_support(world),), max_probes=left,
+                max_seconds=seconds, seed=spec.seed, log=self.log, on_progress=self.progress,
+                executor=threads, workers=pool.size,
+            )
+            clean = True
+            return reduction, None
+        except ReductionInterrupted as stop:
+            pool.close()  # first: probe threads blocked on workers return at once
+            return stop.reduction, stop
+        except BaseException:
+            pool.close()  # a crash (a full disk, a bug): free the probe threads, then let it through
+            raise
+        finally:
+            if threads is not None:
+                threads.shutdown(wait=clean, cancel_futures=True)
+
+    def runs_to_show(self, reduction: Reduction, confirmations: list[tuple[int, ProbeResult | None, str]]
+                     ) -> tuple[Run | None, list[Shown]]:
+        """The minimal world's failing run for the pictures, and the runs to animate and record (run now,
+        before the summary, so that its counts include every simulation)."""
+        plan, calls = self.plan, self.calls
+        if plan.media == "none":
+            return None, []
+        record = plan.media == "all"
+        minimal_world = plan.world.select(reduction.minimal)
+        minimal_run = calls.run_of(reduction.minimal, plan.world, plan.reference_run)
+        shown: list[Shown] = []
+        if (minimal_run is None or record) and calls.may_start(plan.spec.max_probes):
+            purpose = "recording" if record else "picture"
+            recorded, failed = _logged_run(calls, self.log, minimal_world, 0, purpose, record)
+            minimal_run = minimal_run or recorded
+            shown = [Shown("minimal", minimal_world, recorded, failed)] if record else []
+        if record:
+            shown.insert(0, Shown("original", plan.world, *_recorded_original(plan, calls, self.log, confirmations)))
+        return minimal_run, shown
+
+    def write(self, reduction: Reduction, staged: StagesOutcome | None, interrupted: ReductionInterrupted | None,
+              minimal_run: Run | None, shown: list[Shown]) -> ReductionOutcome:
+        """The minimal world, the summary, the stage worlds, the pictures and the media."""
+        plan, paths = self.plan, self.paths
+        self.record_usage(final=True)
+        files, how = artifacts.write_minimal_world(paths, plan.world, reduction, model_paths=plan.model_paths)
+        report = ReductionReport(
+            test=plan.test_id, world=plan.world.source or plan.world.name, reduction=reduction,
+            reference_failure=plan.reference.to_dict(), replay=plan.replay_command, fingerprint=self.problem,
+            files=files, cost=self.cost(reduction.probes), tolerance=plan.spec.tolerance, minimal_sdf=how,
+            notes=tuple(self.notes), world_notes=tuple(plan.world.notes), stages=staged,
+            stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
+            run_settings=plan.run_settings)
+        artifacts.write_summary(paths, report)
+        attachments = [paths.minimal_yaml, paths.log, paths.summary, *map(Path, report.stage_files.values())]
+        if interrupted is None and plan.media != "none":
+            attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
+        if interrupted is None and shown:
+            media = write_media(paths.directory, shown, failure_text=plan.reference.describe())
+            attachments += media.paths
+            if media.info:  # what was made and what it took, in the summary
+                report = report.with_media(media.info, media.seconds)
+                artifacts.write_summary(paths, report)
+        return ReductionOutcome("reduced", report=report, attachments=[path for path in attachments if path.exists()],
+                                interrupted=interrupted, minimal_run=minimal_run)
 
 
 def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _Calls, log: ProbeLog,
@@ -323,7 +358,7 @@ def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _C
     context = StageContext(
         base=plan.world.select(reduction.minimal), call=calls, reference=plan.reference, tolerance=spec.tolerance,
         log=log, policy=policy, seed=spec.seed, budget=Budget(limit, lambda: calls.started, started, per_stage),
-        executor=threads, wrap=wrap,
+        executor=threads, workers=pool.size, wrap=wrap,
     )
     try:
         return run_stages(spec.stages or DEFAULT_STAGES, context, reduction, minimal_run=minimal_run,
@@ -436,7 +471,7 @@ def _import_ahead() -> None:
         if module.startswith("matplotlib"):
             import matplotlib
 
-            matplotlib.use("Agg")  # as render.py does: no display
+            matplotlib.use("Agg")  # as render/canvas.py does: no display
         try:
             importlib.import_module(module)
         except ImportError:  # pragma: no cover - the dependencies are installed with the package

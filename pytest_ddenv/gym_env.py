@@ -71,11 +71,12 @@ from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.predicates import Predicate
 from pytest_ddenv.sim import shared_simulator
 from pytest_ddenv.sim.control import AnyCommand, Command, ControllerError, ControllerTimeout, Observation, WheelCommand
+from pytest_ddenv.sim.engine import wall_limit
 from pytest_ddenv.sim.episode import Episode
 from pytest_ddenv.sim.robot import Robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
-from pytest_ddenv.validation import is_number
+from pytest_ddenv.validation import expected
 
 if TYPE_CHECKING:
     from pytest_ddenv.robot_world import RobotWorld
@@ -125,15 +126,15 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
         render_mode: str | None = None,
     ) -> None:
         if render_mode is not None:
-            raise ValueError(f"RobotEnv renders nothing: render_mode must be None, got {render_mode!r} "
+            raise ValueError(f"{expected('None', render_mode, 'render_mode')}; RobotEnv renders nothing "
                              "(pictures of a run: pytest_ddenv.render)")
         if settings is not None and not isinstance(settings, RunSettings):
-            raise TypeError(f"settings must be a RunSettings, got {type(settings).__name__}")
+            raise TypeError(expected("a RunSettings", settings, "settings"))
         self.robot_world = robot_world
         self.settings = settings if settings is not None else RunSettings()
         self.timeout = timeout
         self.wheel_actions = bool(wheel_actions)
-        self.max_wall_time = _wall_limit(robot_world.max_wall_time if max_wall_time is None else max_wall_time)
+        self.max_wall_time = wall_limit(robot_world.max_wall_time if max_wall_time is None else max_wall_time)
         self.render_mode = None
         self.last_observation: Observation | None = None
         self._episode: Episode | None = None
@@ -260,8 +261,8 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
         """The command for `action` (a standstill once the goal is reached, as in `robot_world.run()`)."""
         values = _action_values(action, "wheel speeds (left, right)" if self.wheel_actions else "(linear, angular)")
         if not all(math.isfinite(v) for v in values):
-            raise ControllerError(f"the policy's action {list(values)!r} at t = {episode.time:.2f} s is not finite; "
-                                  "every action value must be a finite number")
+            raise ControllerError(expected("finite numbers", list(values),
+                                           f"the policy's action at t = {episode.time:.2f} s"))
         if episode.reached:
             return Command(0.0, 0.0)
         if self.wheel_actions:
@@ -350,9 +351,9 @@ def _action_values(action: ArrayLike, meaning: str) -> tuple[float, float]:
     try:
         array = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError) as error:
-        raise ValueError(f"an action must be 2 numbers {meaning}, got {action!r}") from error
+        raise ValueError(expected(f"2 numbers {meaning}", action, "action")) from error
     if array.shape != (2,):
-        raise ValueError(f"an action must have shape (2,): {meaning}; got shape {array.shape}")
+        raise ValueError(expected(f"2 numbers {meaning}", action, "action", got=f"an array of shape {array.shape}"))
     return float(array[0]), float(array[1])
 
 
@@ -361,13 +362,3 @@ def _goal_distance(episode: Episode) -> float:
     goal = episode.scenario.goal
     pose = episode.pose
     return float(math.hypot(pose[0] - goal[0], pose[1] - goal[1]))
-
-
-def _wall_limit(value: float | None) -> float | None:
-    if value is None:
-        return None
-    if not is_number(value) or not value > 0:
-        raise ScenarioError(f"max_wall_time must be a number of seconds > 0 or None, got {value!r}",
-                            field="max_wall_time")
-    return float(value)
-

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv import defaults
 from pytest_ddenv.errors import DdenvError, shown
-from pytest_ddenv.validation import is_integer, is_number
+from pytest_ddenv.validation import expected, is_integer, is_number
 
 if TYPE_CHECKING:
     from pytest_ddenv.predicates import PredicateSpec
@@ -95,7 +95,7 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
         if isinstance(keep, str):
             keep = (keep,)
         if not isinstance(keep, (list, tuple, set, frozenset)) or not all(isinstance(k, str) for k in keep):
-            raise MarkerError(f"ddenv(keep=...): expected a list of model names, got {shown(keep)}")
+            raise MarkerError(expected("a list of model names", keep, "ddenv(keep=...)"))
         updates["keep"] = tuple(keep)
     if "seed" in values:
         updates["seed"] = _integer(values["seed"], "seed", minimum=0)
@@ -103,8 +103,7 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
         updates.update(_budget(values["budget"]))
     if "skip_unsupported" in values:
         if not isinstance(values["skip_unsupported"], bool):
-            raise MarkerError("ddenv(skip_unsupported=...): expected True or False, got "
-                              f"{shown(values['skip_unsupported'])}")
+            raise MarkerError(expected("True or False", values["skip_unsupported"], "ddenv(skip_unsupported=...)"))
         updates["skip_unsupported"] = values["skip_unsupported"]
     if "stages" in values:
         updates["stages"] = parse_stage_list(values["stages"], "ddenv(stages=...)")
@@ -116,7 +115,7 @@ def parse_stage_list(value: Any, where: str) -> tuple[str, ...]:
     from pytest_ddenv.stages import StagesError, parse_stages
 
     if not isinstance(value, (str, list, tuple)):
-        raise MarkerError(f"{where}: expected a comma-separated string or a list of stage names, got {shown(value)}")
+        raise MarkerError(expected("a comma-separated string or a list of stage names", value, where))
     try:
         return parse_stages(value)
     except StagesError as error:
@@ -139,8 +138,7 @@ def parse_deflake(value: Any, where: str, policies: Sequence[str] | None = None)
         value = int(value)
     if not is_integer(value) or value < 0 or (most is not None and value > most):
         bound = "" if most is None else f" and <= {most}"
-        raise MarkerError(f"{where}: expected an integer >= 0{bound} or one of {', '.join(policies)}, got "
-                          f"{shown(given)}")
+        raise MarkerError(expected(f"an integer >= 0{bound} or one of {', '.join(policies)}", given, where))
     return value
 
 
@@ -169,7 +167,7 @@ def parse_failure_markers(markers: Sequence[tuple[Sequence[Any], Mapping[str, An
 
 def _string(value: Any, name: str) -> str:
     if not isinstance(value, str) or not value:
-        raise MarkerError(f"ddenv({name}=...): expected a non-empty string, got {shown(value)}")
+        raise MarkerError(expected("a non-empty string", value, f"ddenv({name}=...)"))
     return value
 
 
@@ -184,7 +182,7 @@ def _choice(value: Any, name: str, choices: Sequence[str], *, given: Any = None)
 
 def _integer(value: Any, name: str, *, minimum: int) -> int:
     if not is_integer(value) or value < minimum:
-        raise MarkerError(f"ddenv({name}=...): expected an integer >= {minimum}, got {shown(value)}")
+        raise MarkerError(expected(f"an integer >= {minimum}", value, f"ddenv({name}=...)"))
     return value
 
 
@@ -193,7 +191,7 @@ def _positive(value: Any, name: str) -> float:
     if is_number(value):
         number = float(value) if isinstance(value, float) or value.bit_length() < 1000 else math.inf
     if not 0 < number < math.inf:
-        raise MarkerError(f"ddenv({name}=...): expected a positive, finite number, got {shown(value)}")
+        raise MarkerError(expected("a positive, finite number", value, f"ddenv({name}=...)"))
     return number
 
 
@@ -207,5 +205,4 @@ def _budget(value: Any) -> dict[str, Any]:
         if "seconds" in value:
             budget["max_seconds"] = _positive(value["seconds"], "budget")
         return budget
-    raise MarkerError("ddenv(budget=...): expected a probe count or {'probes': N, 'seconds': S}, got "
-                      f"{shown(value)}")
+    raise MarkerError(expected("a probe count or {'probes': N, 'seconds': S}", value, "ddenv(budget=...)"))

@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pytest_ddenv import defaults
-from pytest_ddenv.errors import shown
 from pytest_ddenv.outcome import Outcome
 from pytest_ddenv.predicates import (
     BUILT_IN,
@@ -41,6 +40,7 @@ from pytest_ddenv.predicates import (
     register_predicate,
     signature,
 )
+from pytest_ddenv.validation import expected
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.sim.run import Run
@@ -107,7 +107,7 @@ def classify(
     - OTHER: any other failure.
     """
     if tolerance < 0 or not math.isfinite(tolerance):
-        raise ValueError(f"tolerance must be a finite number >= 0, got {shown(tolerance)}")
+        raise ValueError(expected("a finite number >= 0", tolerance, "tolerance"))
     if error is not None or run is None:
         return Outcome.ERROR
     failure = run.failure

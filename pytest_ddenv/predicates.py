@@ -20,7 +20,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from pytest_ddenv.errors import ScenarioError, shown
-from pytest_ddenv.validation import is_finite_number
+from pytest_ddenv.validation import expected, is_finite_number
 
 __all__ = [
     "PREDICATES",
@@ -386,12 +386,12 @@ def register_predicate(name: str, factory: Callable[..., Predicate], *, replace:
     `ddenv` command's `--predicate name:k=v` and `ddenv replay`. Register it in a module the test (or
     `ddenv --import`) imports, so that every probe worker has it too."""
     if not isinstance(name, str) or not name.isidentifier():
-        raise ValueError(f"a predicate name must be an identifier, got {shown(name)}")
+        raise ValueError(expected("an identifier", name, "register_predicate(name=...)"))
     if name in BUILT_IN or (name in PREDICATES and not replace):
         raise ValueError(f"a predicate named {shown(name)} is already registered"
                          + ("" if name in BUILT_IN else " (pass replace=True)"))
     if not callable(factory):
-        raise TypeError(f"register_predicate({shown(name)}, ...): the factory must be callable, got {shown(factory)}")
+        raise TypeError(expected("a callable factory", factory, f"register_predicate({shown(name)}, ...)"))
     PREDICATES[name] = factory
 
 
@@ -434,18 +434,18 @@ def make_predicate(name: str, /, **params: Any) -> Predicate:
 def _check_built_in_parameter(key: str, value: Any, where: str) -> None:
     if key == "models":
         if value is not None and (isinstance(value, str) or not all(isinstance(v, str) for v in value)):
-            raise ScenarioError("expected a list of model names or None", field=where)
+            raise ScenarioError(expected("a list of model names or None", value), field=where)
         return
     if key == "min_z" and value is None:
         return
     if not is_finite_number(value):
-        raise ScenarioError(f"expected a finite number, got {shown(value)}", field=where)
+        raise ScenarioError(expected("a finite number", value), field=where)
     if key in _POSITIVE and value <= 0:
-        raise ScenarioError(f"expected a number > 0, got {shown(value)}", field=where)
+        raise ScenarioError(expected("a number > 0", value), field=where)
     if key in _NON_NEGATIVE and value < 0:
-        raise ScenarioError(f"expected a number >= 0, got {shown(value)}", field=where)
+        raise ScenarioError(expected("a number >= 0", value), field=where)
     if key in _FRACTIONS and not 0 <= value <= 1:
-        raise ScenarioError(f"expected a fraction between 0 and 1, got {shown(value)}", field=where)
+        raise ScenarioError(expected("a fraction between 0 and 1", value), field=where)
 
 
 def check_predicate(value: Any, what: str = "") -> None:

@@ -16,9 +16,9 @@ from typing import Any
 import pytest
 
 from pytest_ddenv.artifacts import folder_problem
-from pytest_ddenv.errors import shown
 from pytest_ddenv.execution.factory import executor_problem
 from pytest_ddenv.markers import MarkerError, parse_deflake
+from pytest_ddenv.validation import expected
 
 DEFAULT_ARTIFACTS = "ddenv-artifacts"
 
@@ -122,7 +122,7 @@ def _int_setting(config: pytest.Config, name: str, minimum: int) -> int | None:
     except (TypeError, ValueError):
         number = minimum - 1
     if number < minimum:
-        raise pytest.UsageError(f"{_where(config, name)}: expected an integer >= {minimum}, got {shown(value)}")
+        raise pytest.UsageError(expected(f"an integer >= {minimum}", value, _where(config, name)))
     return number
 
 
@@ -137,17 +137,23 @@ def _media_setting(config: pytest.Config) -> str:
         raise pytest.UsageError(str(error)) from None
 
 
+def _positive_seconds(value: Any) -> float | None:
+    """`value` (a number or its text) as a positive, finite number of seconds; None if it is not one (nan, inf,
+    0, a negative number, a word)."""
+    try:
+        seconds = float(value)
+    except (TypeError, ValueError):
+        return None
+    return seconds if math.isfinite(seconds) and seconds > 0 else None
+
+
 def _seconds_setting(config: pytest.Config, name: str) -> float | None:
     value = _setting(config, name)
     if value in (None, ""):
         return None
-    try:
-        seconds = float(value)
-    except ValueError:
-        seconds = -1.0
-    if not (math.isfinite(seconds) and seconds > 0):  # nan, inf, 0 and negative numbers are refused
-        raise pytest.UsageError(f"{_where(config, name)}: expected a positive, finite number of seconds, got "
-                                f"{shown(value)}")
+    seconds = _positive_seconds(value)
+    if seconds is None:
+        raise pytest.UsageError(expected("a positive, finite number of seconds", value, _where(config, name)))
     return seconds
 
 
@@ -173,13 +179,10 @@ def _watchdog_setting(config: pytest.Config) -> Any:
     text = str(value).strip().lower()
     if text in ("auto", "none"):
         return None if text == "none" else "auto"
-    try:
-        seconds = float(text)
-    except ValueError:
-        seconds = -1.0
-    if not (math.isfinite(seconds) and seconds > 0):
-        raise pytest.UsageError(f"{_where(config, 'ddenv_probe_timeout')}: expected a positive, finite number of "
-                                f"seconds, 'auto' or 'none', got {shown(value)}")
+    seconds = _positive_seconds(text)
+    if seconds is None:
+        raise pytest.UsageError(expected("a positive, finite number of seconds, 'auto' or 'none'", value,
+                                         _where(config, "ddenv_probe_timeout")))
     return seconds
 
 

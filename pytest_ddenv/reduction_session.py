@@ -8,7 +8,7 @@ test's probes (worker processes that collected the test, or this process).
 from __future__ import annotations
 
 import inspect
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -27,7 +27,7 @@ from pytest_ddenv.robot_world import FIXTURE, RobotWorld
 
 if TYPE_CHECKING:
     from pytest_ddenv.execution import Pool
-    from pytest_ddenv.reduce import Reduction
+    from pytest_ddenv.reduction_report import ReductionReport
 
 Progress = Callable[..., None]
 
@@ -57,7 +57,7 @@ class ReductionSession:
             reference_run=robot_world.runs[-1] if robot_world.runs else None, spec=self.spec, artifacts=folder,
             replay_command=self.replay(self.item, folder / "minimal.yaml"),
             fingerprint={**self.spec.__dict__, "test": self.item.nodeid}, test_source=test_source,
-            summary_extra={
+            run_settings={
                 "predicates": [spec.to_json() for spec in robot_world.predicates],
                 "scenario_seed": robot_world.seed,
             },
@@ -88,34 +88,32 @@ class ReductionSession:
             line = f"{self.item.nodeid}: {outcome.message.splitlines()[0]}"
             return {"text": outcome.message + "\n", "line": line, "attachments": [],
                     "reproducible": outcome.status != "not-reproducible", "status": outcome.status}
-        reduction, summary = outcome.reduction, outcome.summary
-        assert reduction is not None and summary is not None
-        return describe_reduction(self.item.nodeid, reduction, summary, outcome)
+        assert outcome.report is not None
+        return describe_reduction(self.item.nodeid, outcome.report, outcome.attachments)
 
 
-def describe_reduction(test_id: str, reduction: Reduction, summary: dict[str, Any],
-                       outcome: ReductionOutcome) -> dict[str, Any]:
+def describe_reduction(test_id: str, report: ReductionReport, attachments: Sequence[Path]) -> dict[str, Any]:
     """The report section, the terminal line and the attachments of a reduction."""
+    reduction = report.reduction
     fails, runs = reduction.failure_rate
     status = status_of(reduction)
-    folder = _shown_path(Path(summary["files"]["summary"]).parent)
-    simulations = summary.get("simulations", reduction.simulations)
+    folder = _shown_path(report.files.folder)
     lines = [
-        f"world: {summary['world']}",
+        f"world: {report.world}",
         (f"reduced {reduction.original_size} -> {reduction.minimal_size} models "
-         f"({summary['reduction_percent']}%), {status}"),
-        *result_lines(reduction, summary, outcome.notes),
+         f"({report.reduction_percent}%), {status}"),
+        *result_lines(report),
         f"artifacts: {folder}",
-        f"replay: {summary['replay']}",
+        f"replay: {report.replay}",
     ]
     line = (
         f"{test_id}: {reduction.original_size} -> {reduction.minimal_size} models "
-        f"({summary['reduction_percent']:.0f}%), {reduction.probes} probes, {simulations} simulations, "
+        f"({report.reduction_percent:.0f}%), {reduction.probes} probes, {report.cost.simulations} simulations, "
         f"{reduction.wall_time:.0f} s, "
         f"fails {fails}/{runs}{'' if reduction.one_minimal else ', ' + status} -> {folder}"
     )
-    return {"text": "\n".join(lines) + "\n", "line": line, "attachments": [str(p) for p in outcome.attachments],
-            "summary": summary, "reproducible": True, "status": "reduced"}
+    return {"text": "\n".join(lines) + "\n", "line": line, "attachments": [str(p) for p in attachments],
+            "summary": report.to_json(), "reproducible": True, "status": "reduced"}
 
 
 def _shown_path(path: Path) -> Path:

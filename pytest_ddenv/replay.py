@@ -16,8 +16,10 @@ from pytest_ddenv import defaults
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.predicates import PredicateSpec
 from pytest_ddenv.reduce import Outcome
+from pytest_ddenv.reduce.log import read_records
 from pytest_ddenv.robot_world import RobotFailure
 from pytest_ddenv.scenario_job import run_scenario
+from pytest_ddenv.validation import expected
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -44,7 +46,7 @@ def predicates_from_json(data: Any) -> tuple[PredicateSpec, ...]:
     from pytest_ddenv.predicates import PREDICATES, predicate_spec
 
     if not isinstance(data, list):
-        raise ArtifactError(f"'predicates' must be a list of {{name, params}}, got {data!r}")
+        raise ArtifactError(expected("a list of {name, params}", data, "'predicates'"))
     specs = []
     for item in data:
         if not isinstance(item, Mapping) or not isinstance(item.get("name"), str):
@@ -200,16 +202,8 @@ def recorded_seeds(log: Path, minimal: Sequence[str], fallback: int) -> list[int
     """Seeds of the logged runs of the minimal world that failed the same way, else [fallback]."""
     wanted = sorted(minimal)
     seeds: list[int] = []
-    try:
-        lines = log.read_text(encoding="utf-8").splitlines()
-    except OSError:
-        lines = []
-    for line in lines:
-        try:
-            record = json.loads(line)
-        except ValueError:
-            continue
-        if (isinstance(record, dict) and record.get("event") == "probe" and record.get("outcome") == "fail"
+    for record in read_records(log):
+        if (record.get("event") == "probe" and record.get("outcome") == "fail"
                 and "stage" not in record and sorted(record.get("candidate", ())) == wanted
                 and isinstance(record.get("seed"), int) and record["seed"] not in seeds):
             seeds.append(record["seed"])

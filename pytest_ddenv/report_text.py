@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from pytest_ddenv.reduce.types import Reduction
+from pytest_ddenv.reduction_report import ReductionReport
 
 
 def status_of(reduction: Reduction) -> str:
@@ -20,9 +20,10 @@ def listing(names: Sequence[str], limit: int = 12) -> str:
     return shown if len(names) <= limit else f"{shown}, ... and {len(names) - limit} more (see summary.json)"
 
 
-def result_lines(reduction: Reduction, summary: dict[str, Any], notes: Sequence[str]) -> list[str]:
+def result_lines(report: ReductionReport) -> list[str]:
     """From the minimal world to the notes: what was kept and why, what it cost, how often it fails."""
-    removed = summary["removed_models"]
+    reduction = report.reduction
+    removed = report.removed_models
     earlier = f" ({reduction.resumed_probes} in earlier runs)" if reduction.resumed_probes else ""
     return [
         f"minimal world: {', '.join(reduction.minimal) or '(no models)'}",
@@ -30,13 +31,13 @@ def result_lines(reduction: Reduction, summary: dict[str, Any], notes: Sequence[
         f"removed ({len(removed)}): {listing(removed)}",
         (f"probes: {reduction.probes} decided{earlier}, {reduction.cache_hits} from cache, "
          f"{reduction.skipped} skipped, {reduction.errors} errors; {reduction.wall_time:.1f} s"),
-        (f"simulations run: {summary.get('simulations', reduction.simulations)} (confirmation, fresh-run, "
-         f"speculative and picture runs included; {summary.get('cpu_seconds', 0.0):.1f} s of worker CPU)"),
+        (f"simulations run: {report.cost.simulations} (confirmation, fresh-run, "
+         f"speculative and picture runs included; {report.cost.cpu_seconds:.1f} s of worker CPU)"),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
         failure_rate_line(reduction),
-        *stage_lines(summary),
-        *(f"note: {text}" for text in notes),
-        *(f"not simulated: {text}" for text in summary.get("world_notes", [])),
+        *stage_lines(report),
+        *(f"note: {text}" for text in report.notes),
+        *(f"not simulated: {text}" for text in report.world_notes),
     ]
 
 
@@ -79,29 +80,27 @@ def needed_lines(reduction: Reduction) -> list[str]:
     return lines
 
 
-def stage_lines(summary: dict[str, Any]) -> list[str]:
+def stage_lines(report: ReductionReport) -> list[str]:
     """What the stages after the models found (`--ddenv-stages`), one line per finding."""
-    staged = summary.get("stages")
-    if not staged:
+    staged = report.stages
+    if staged is None:
         return []
     lines: list[str] = []
-    for result in staged["results"]:
-        cost = f"{result['simulations']} simulations" + (f", incomplete ({result['incomplete']})"
-                                                         if result.get("incomplete") else "")
-        lines.append(f"stage {result['stage']} ({cost}):")
-        lines += [f"  {finding}" for finding in result["findings"]]
-    rate = staged.get("final_failure_rate")
-    if rate is not None:
-        line = f"simplified world fails {rate[0]}/{rate[1]} fresh runs"
-        reference = staged.get("minimal_failure_rate")
-        if reference:
-            line += f" (minimal world: {reference[0]}/{reference[1]})"
-        if staged.get("final_rate_errors"):
-            line += f" (warning: {staged['final_rate_errors']} more runs errored)"
-        if staged.get("final_rate_below"):
+    for result in staged.results:
+        cost = f"{result.simulations} simulations" + (f", incomplete ({result.incomplete})" if result.incomplete
+                                                      else "")
+        lines.append(f"stage {result.stage} ({cost}):")
+        lines += [f"  {finding}" for finding in result.findings]
+    if staged.final_rate is not None:
+        fails, runs = staged.final_rate
+        line = f"simplified world fails {fails}/{runs} fresh runs"
+        if staged.minimal_rate:
+            line += f" (minimal world: {staged.minimal_rate[0]}/{staged.minimal_rate[1]})"
+        if staged.final_errors:
+            line += f" (warning: {staged.final_errors} more runs errored)"
+        if staged.rate_below:
             line += " (warning: significantly less often than the minimal world)"
         lines.append(line)
-    files = summary.get("stage_files") or {}
-    if files:
-        lines.append("stage worlds: " + ", ".join(Path(path).name for path in files.values()))
+    if report.stage_files:
+        lines.append("stage worlds: " + ", ".join(Path(path).name for path in report.stage_files.values()))
     return lines

@@ -11,6 +11,7 @@ from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.predicates import FailureSignature
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
+from pytest_ddenv.validation import expected
 from pytest_ddenv.world import World
 
 REPORTED = "reported"
@@ -35,17 +36,17 @@ def reported_run(
     stamps = _array(times, "times").reshape(-1)
     count = len(stamps)
     if count == 0:
-        raise ScenarioError("report(): times is empty; report at least one sample", field="times")
+        raise ScenarioError(expected("at least one sample", times, "report(times=...)"), field="times")
     if np.any(np.diff(stamps) < 0):
-        raise ScenarioError("report(): times must not decrease", field="times")
+        raise ScenarioError(expected("times that do not decrease", stamps.tolist(), "report(times=...)"), field="times")
     full = _poses(_array(poses, "poses"), count)
     end = float(stamps[-1])
     failure = None
     if failure_pose is not None:
         where = _array(failure_pose, "failure_pose").reshape(-1)
         if where.shape[0] not in (2, 3, 6):
-            raise ScenarioError(f"report(): failure_pose needs 2, 3 or 6 numbers (x, y[, z ...]), got {where.shape[0]}",
-                                field="failure_pose")
+            raise ScenarioError(expected("2, 3 or 6 numbers (x, y[, z ...])", where.tolist(),
+                                         "report(failure_pose=...)"), field="failure_pose")
         pose = np.zeros(6)
         pose[: min(3, len(where))] = where[:3]
         if len(where) == 6:
@@ -69,16 +70,17 @@ def _array(value: Any, field: str) -> np.ndarray:
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ScenarioError(f"report(): {field} must be numbers, got {type(value).__name__}", field=field) from None
+        raise ScenarioError(expected("numbers", value, f"report({field}=...)"), field=field) from None
     if not np.all(np.isfinite(array)):
-        raise ScenarioError(f"report(): {field} contains NaN or infinite values", field=field)
+        raise ScenarioError(expected("finite numbers", value, f"report({field}=...)", got="NaN or infinite values"),
+                            field=field)
     return array
 
 
 def _poses(poses: np.ndarray, count: int) -> np.ndarray:
     if poses.ndim != 2 or poses.shape[0] != count or poses.shape[1] not in (2, 3, 6):
-        raise ScenarioError(f"report(): poses must have shape ({count}, 2), ({count}, 3) or ({count}, 6) to match "
-                            f"times, got {poses.shape}", field="poses")
+        raise ScenarioError(expected(f"shape ({count}, 2), ({count}, 3) or ({count}, 6) to match times", poses,
+                                     "report(poses=...)", got=f"shape {poses.shape}"), field="poses")
     full = np.zeros((count, 6))
     if poses.shape[1] == 6:
         full[:] = poses
@@ -105,10 +107,10 @@ def _velocities(times: np.ndarray, poses: np.ndarray) -> np.ndarray:
 def _times_of(world: World, models: Sequence[str] | Mapping[str, float], default: float,
               field: str) -> dict[str, float]:
     if isinstance(models, str):
-        raise ScenarioError(f"report(): {field} must be a list of model names (or name -> time), not a string",
-                            field=field)
+        raise ScenarioError(expected("a list of model names (or name -> time), not a string", models,
+                                     f"report({field}=...)"), field=field)
     times = dict(models) if isinstance(models, Mapping) else {name: default for name in models}
     unknown = sorted(set(times) - set(world.names))
     if unknown:
-        raise ScenarioError(f"report(): {field} names model(s) not in the world: {', '.join(unknown)}", field=field)
+        raise ScenarioError(f"report({field}=...): model(s) not in the world: {', '.join(unknown)}", field=field)
     return {str(name): float(when) for name, when in times.items()}

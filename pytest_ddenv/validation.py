@@ -3,7 +3,8 @@
 Python's `bool` is an `int`, numpy's scalars are not Python numbers, and a float can be NaN or infinite:
 each check below settles those cases once, so that a world file, a marker argument, an option and a keyword
 argument accept the same values. The callers raise their own error (`WorldError`, `MarkerError`,
-`pytest.UsageError`, ...) with the place they know (file, model, field, marker argument, option).
+`pytest.UsageError`, ...) with the place they know (file, model, field, marker argument, option), and
+`expected` words that error the same way everywhere: "{where}: expected {what}, got {value}".
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from __future__ import annotations
 import math
 import numbers
 from typing import Any, TypeGuard
+
+from pytest_ddenv.errors import shown
 
 
 def is_flag(value: Any) -> TypeGuard[bool]:
@@ -46,3 +49,14 @@ def is_integer(value: Any) -> TypeGuard[int]:
 def is_integral(value: Any) -> TypeGuard[int]:
     """An integer of any kind, numpy integers included, not a bool (typed as int: it computes as one)."""
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def expected(what: str, value: object, where: str = "", *, got: str | None = None) -> str:
+    """The message for a value that is not what it should be: ``"{where}: expected {what}, got {value}"``.
+
+    `value` is shown clipped (`errors.shown`), or `got` says what it was instead where a description tells
+    more ("a 5000-digit number"). `where` names the place: the argument, option, marker argument or field;
+    leave it out when the error names the place itself (`WorldError(field=...)`).
+    """
+    message = f"expected {what}, got {shown(value) if got is None else got}"
+    return f"{where}: {message}" if where else message

@@ -11,7 +11,7 @@ import math
 import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import yaml
 
@@ -23,7 +23,7 @@ from pytest_ddenv.errors import (
     shown,
     shown_path,
 )
-from pytest_ddenv.validation import is_flag, is_number
+from pytest_ddenv.validation import expected, is_flag, is_number
 from pytest_ddenv.world import (
     SHAPE_KINDS,
     Ground,
@@ -67,9 +67,13 @@ class _Reader:
     def fail(self, field: str | None, message: str) -> WorldError:
         return self.error_type(message, source=self.source, model=self.model, field=field)
 
+    def wrong(self, field: str | None, what: str, value: Any, hint: str = "") -> WorldError:
+        """`value` at `field` is not `what`: "expected {what}, got {value, described}" (and `hint`)."""
+        return self.fail(field, expected(what, value, got=_describe(value)) + hint)
+
     def mapping(self, value: Any, field: str, allowed: tuple[str, ...]) -> Mapping[str, Any]:
         if not isinstance(value, Mapping):
-            raise self.fail(field, f"expected a mapping of {', '.join(allowed)}, got {_describe(value)}")
+            raise self.wrong(field, f"a mapping of {', '.join(allowed)}", value)
         for key in value:
             if key not in allowed:
                 name = key if isinstance(key, str) and not text_problem(key) else shown(key)
@@ -82,23 +86,22 @@ class _Reader:
 
     def number(self, value: Any, field: str, *, positive: bool = False, non_negative: bool = False) -> float:
         if not is_number(value):
-            raise self.fail(field, f"expected a number, got {_describe(value)}{_number_hint(value)}")
+            raise self.wrong(field, "a number", value, _number_hint(value))
         try:
             number = float(value)
         except OverflowError:  # an integer of hundreds of digits
             number = math.inf
         if not math.isfinite(number):
-            raise self.fail(field, f"expected a finite number, got {shown(value)}")
+            raise self.fail(field, expected("a finite number", value))
         if positive and number <= 0:
-            raise self.fail(field, f"expected a positive number, got {number}")
+            raise self.fail(field, expected("a positive number", number))
         if non_negative and number < 0:
-            raise self.fail(field, f"expected a number >= 0, got {number}")
+            raise self.fail(field, expected("a number >= 0", number))
         return number
 
     def numbers(self, value: Any, field: str, counts: tuple[int, ...], *, positive: bool = False) -> list[float]:
         if not isinstance(value, (list, tuple)) or len(value) not in counts:
-            expected = " or ".join(str(c) for c in counts)
-            raise self.fail(field, f"expected a list of {expected} numbers, got {_describe(value)}")
+            raise self.wrong(field, f"a list of {' or '.join(str(c) for c in counts)} numbers", value)
         return [self.number(item, f"{field}[{i}]", positive=positive) for i, item in enumerate(value)]
 
     def pose(self, value: Any, field: str) -> Pose:
@@ -106,14 +109,14 @@ class _Reader:
 
     def boolean(self, value: Any, field: str) -> bool:
         if not is_flag(value):
-            raise self.fail(field, f"expected true or false, got {_describe(value)}")
+            raise self.wrong(field, "true or false", value)
         return value
 
     def text(self, value: Any, field: str) -> str:
         if not isinstance(value, str) or not value.strip():
             hint = (" (text that reads as a number or true/false must be quoted, e.g. '1e5')"
                     if isinstance(value, (int, float)) else "")
-            raise self.fail(field, f"expected a non-empty string, got {_describe(value)}{hint}")
+            raise self.wrong(field, "a non-empty string", value, hint)
         problem = text_problem(value)
         if problem is not None:
             raise self.fail(field, f"{problem}, got {shown(value)}")
@@ -179,7 +182,7 @@ def parse_yaml(text: str, *, source: str | os.PathLike[str] | None = None) -> Wo
     name = reader.name(root["name"], "name") if "name" in root else (Path(source_name).stem if source_name else "")
     models_value = root.get("models") or []
     if not isinstance(models_value, list):
-        raise reader.fail("models", f"expected a list of models, got {_describe(models_value)}")
+        raise reader.wrong("models", "a list of models", models_value)
     models = []
     seen: dict[str, int] = {}
     for index, item in enumerate(models_value):
@@ -204,15 +207,15 @@ def parse_yaml(text: str, *, source: str | os.PathLike[str] | None = None) -> Wo
 
 def _root(reader: _Reader, document: Any) -> Mapping[str, Any]:
     """The top-level mapping, or a WorldError that says when the file is no world file at all."""
-    expected = f"a world file is a YAML mapping that starts with 'format: {FORMAT_VERSION}'"
+    world_file = f"a world file is a YAML mapping that starts with 'format: {FORMAT_VERSION}'"
     if document is None:
-        raise reader.fail(None, f"the file is empty (or only comments); {expected}")
+        raise reader.fail(None, f"the file is empty (or only comments); {world_file}")
     if not isinstance(document, Mapping):
-        raise reader.fail(None, f"not a world file: {expected}; this file holds {_describe(document)}")
+        raise reader.fail(None, f"not a world file: {world_file}; this file holds {_describe(document)}")
     unknown = [key for key in document if key not in TOP_LEVEL_KEYS]
     if "format" not in document and unknown:
         keys = ", ".join(shown(key) for key in unknown[:5]) + (", ..." if len(unknown) > 5 else "")
-        raise reader.fail(None, f"not a world file: no 'format' key and unknown keys {keys}; {expected}")
+        raise reader.fail(None, f"not a world file: no 'format' key and unknown keys {keys}; {world_file}")
     root = reader.mapping(document, "", TOP_LEVEL_KEYS)
     if "format" not in root:
         raise reader.fail("format", f"missing; this reader expects 'format: {FORMAT_VERSION}'")
@@ -237,7 +240,7 @@ def _parse_model(reader: _Reader, item: Any, index: int) -> Model:
     elif "shapes" in data:
         raw_shapes = data["shapes"]
         if not isinstance(raw_shapes, list) or not raw_shapes:
-            raise reader.fail("shapes", f"expected a non-empty list of shapes, got {_describe(raw_shapes)}")
+            raise reader.wrong("shapes", "a non-empty list of shapes", raw_shapes)
         shapes = tuple(_parse_shape(reader, raw, f"shapes[{i}]") for i, raw in enumerate(raw_shapes))
     else:
         raise reader.fail("shapes", f"missing; give 'shapes' or one of {', '.join(SHAPE_KINDS)}")
@@ -251,7 +254,7 @@ def _parse_model(reader: _Reader, item: Any, index: int) -> Model:
     mu = reader.number(data.get("mu", 1.0), "mu", non_negative=True)
     color = reader.numbers(data.get("color", [0.6, 0.6, 0.6, 1.0]), "color", (3, 4))
     if any(not 0.0 <= c <= 1.0 for c in color):
-        raise reader.fail("color", f"expected components between 0 and 1, got {color}")
+        raise reader.fail("color", expected("components between 0 and 1", color))
     model = Model(
         name=name,
         shapes=shapes,
@@ -289,20 +292,10 @@ def _parse_shape(reader: _Reader, raw: Any, field: str) -> Shape:
         size = reader.numbers(value, where, (3,), positive=True)
         return Shape("box", size=(size[0], size[1], size[2]), pose=pose)
     if kind == "cylinder":
-        spec = reader.mapping(value, where, ("radius", "length"))
-        for key in ("radius", "length"):
-            if key not in spec:
-                raise reader.fail(f"{where}.{key}", "missing; a cylinder needs radius and length (m)")
-        return Shape(
-            "cylinder",
-            radius=reader.number(spec["radius"], f"{where}.radius", positive=True),
-            length=reader.number(spec["length"], f"{where}.length", positive=True),
-            pose=pose,
-        )
+        return _radius_and_length(reader, value, where, pose, "cylinder", "a cylinder needs radius and length (m)")
     if kind == "sphere":
         spec = reader.mapping(value, where, ("radius",))
-        if "radius" not in spec:
-            raise reader.fail(f"{where}.radius", "missing; a sphere needs a radius (m)")
+        _required(reader, spec, where, ("radius",), "a sphere needs a radius (m)")
         return Shape("sphere", radius=reader.number(spec["radius"], f"{where}.radius", positive=True), pose=pose)
     if kind in _SHAPE_PARSERS:
         return _SHAPE_PARSERS[kind](reader, value, where, pose)
@@ -329,16 +322,22 @@ def _required(reader: _Reader, spec: Mapping[str, Any], where: str, keys: tuple[
             raise reader.fail(f"{where}.{key}", f"missing; {what}")
 
 
-def _parse_capsule(reader: _Reader, value: Any, where: str, pose: Pose) -> Shape:
+def _radius_and_length(reader: _Reader, value: Any, where: str, pose: Pose, kind: Literal["cylinder", "capsule"],
+                       needs: str) -> Shape:
+    """A cylinder or capsule: `needs` says what is missing when radius or length is."""
     spec = reader.mapping(value, where, ("radius", "length"))
-    _required(reader, spec, where, ("radius", "length"),
-              "a capsule needs radius and length (m, the cylinder part between the half-spheres)")
+    _required(reader, spec, where, ("radius", "length"), needs)
     return Shape(
-        "capsule",
+        kind,
         radius=reader.number(spec["radius"], f"{where}.radius", positive=True),
         length=reader.number(spec["length"], f"{where}.length", positive=True),
         pose=pose,
     )
+
+
+def _parse_capsule(reader: _Reader, value: Any, where: str, pose: Pose) -> Shape:
+    return _radius_and_length(reader, value, where, pose, "capsule",
+                              "a capsule needs radius and length (m, the cylinder part between the half-spheres)")
 
 
 def _parse_polyline(reader: _Reader, value: Any, where: str, pose: Pose) -> Shape:
@@ -347,7 +346,7 @@ def _parse_polyline(reader: _Reader, value: Any, where: str, pose: Pose) -> Shap
               "a polyline needs points (the outline [[x, y], ...]) and height (m)")
     raw = spec["points"]
     if not isinstance(raw, list):
-        raise reader.fail(f"{where}.points", f"expected a list of [x, y] points, got {_describe(raw)}")
+        raise reader.wrong(f"{where}.points", "a list of [x, y] points", raw)
     points = []
     for index, point in enumerate(raw):
         x, y = reader.numbers(point, f"{where}.points[{index}]", (2,))
@@ -376,11 +375,11 @@ _SHAPE_PARSERS: dict[str, Callable[[_Reader, Any, str, Pose], Shape]] = {
 
 def _parse_tags(reader: _Reader, value: Any) -> dict[str, TagValue]:
     if not isinstance(value, Mapping):
-        raise reader.fail("tags", f"expected a mapping of tag names to values, got {_describe(value)}")
+        raise reader.wrong("tags", "a mapping of tag names to values", value)
     tags: dict[str, TagValue] = {}
     for key, tag in value.items():
         if not isinstance(key, str) or not isinstance(tag, (str, int, float, bool)):
-            raise reader.fail(f"tags.{shown(key)}", f"expected a string key and a scalar value, got {_describe(tag)}")
+            raise reader.wrong(f"tags.{shown(key)}", "a string key and a scalar value", tag)
         reader.name(key, f"tags.{shown(key)}")
         problem = text_problem(tag, allowed="\t\n") if isinstance(tag, str) else None
         if problem is not None:

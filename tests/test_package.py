@@ -84,8 +84,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("reduction", ("reduce",)),
     ("execution", ("execution",)),
     ("probes, stages, driver, presentation", ("probe", "stages", "markers", "driver", "artifacts", "render",
-                                             "media", "animate", "recording", "report_text", "progress",
-                                             "replay", "scenario_job", "user_code")),
+                                             "media", "animate", "recording", "reduction_report", "report_text",
+                                             "progress", "replay", "scenario_job", "user_code")),
     ("front ends and pytest glue", ("plugin", "pytest_options", "reduction_session", "pytest_worker", "cli",
                                     "cli_world")),
 ]

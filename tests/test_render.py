@@ -14,6 +14,8 @@ from pytest_ddenv import render
 from pytest_ddenv.artifacts import ArtifactPaths
 from pytest_ddenv.oracle import FailureSignature
 from pytest_ddenv.reduce import Reduction
+from pytest_ddenv.render.artifact_data import reference_pose, reference_text
+from pytest_ddenv.render.canvas import pyplot
 from pytest_ddenv.sim import Run, RunSettings
 from pytest_ddenv.world import World
 
@@ -236,7 +238,7 @@ def test_probe_failure_poses_are_coloured_by_outcome_with_a_legend(worlds: dict[
         labels = [text.get_text() for text in axes.get_legend().get_texts()]
         assert "probe failed the same way (2)" in labels and "probe failed another way (1)" in labels
     finally:
-        render._pyplot().close(figure)
+        pyplot().close(figure)
     with pytest.raises(ValueError, match="2 entries for 3 failure poses"):
         render.draw_world(worlds["ditch"], failure_poses=poses, failure_outcomes=["fail", "other"])
 
@@ -266,17 +268,28 @@ def test_a_failure_found_by_an_assert_is_labelled_in_its_own_words(worlds: dict[
     summary = tmp_path / "summary.json"
     summary.write_text(json.dumps({"reference_failure": {"exception_type": "AssertionError",
                                                          "location": "test_x.py:12", "signature": None}}))
-    text = render._reference_text(summary)
+    text = reference_text(summary)
     assert text == "AssertionError at test_x.py:12"
     figure = render.draw_reduction(world, world.names[:2], original_run=run, minimal_run=run, failure_text=text)
     try:
         labels = " ".join(t.get_text() for t in figure.axes[0].get_legend().get_texts()).replace("\n", " ")
         assert labels.count("AssertionError at test_x.py:12") == 2 and "no failure" not in labels
     finally:
-        render._pyplot().close(figure)
+        pyplot().close(figure)
     summary.write_text(json.dumps({"reference_failure": {"exception_type": "RobotFailure", "location": "x:1",
                                                          "signature": {"predicate": "stuck"}}}))
-    assert render._reference_text(summary) is None  # a predicate's failure keeps the run's own words
+    assert reference_text(summary) is None  # a predicate's failure keeps the run's own words
+
+
+def test_the_reference_failure_pose_is_read_from_the_summary(tmp_path: Path) -> None:
+    summary = tmp_path / "summary.json"
+    assert reference_pose(summary) is None  # no summary.json
+    summary.write_text(json.dumps({"reference_failure": {"signature": {"pose": [1, 2, 0.1, 0, 0, 3]}}}))
+    assert reference_pose(summary) == [1.0, 2.0, 0.1, 0.0, 0.0, 3.0]
+    for damaged in ("{", "[]", '{"reference_failure": []}', '{"reference_failure": {"signature": null}}',
+                    '{"reference_failure": {"signature": {"pose": "x y"}}}'):
+        summary.write_text(damaged)
+        assert reference_pose(summary) is None, damaged
 
 
 def test_terrain_is_neutral_unless_its_friction_differs(worlds: dict[str, World]) -> None:
@@ -308,7 +321,7 @@ def test_a_world_of_terrain_only_is_framed_on_its_scenario_and_runs(worlds: dict
         assert high - low < 15.0  # the start, the goal and the run; not the 40 m of terrain
         assert low < -3.0 and high > 3.7  # the start (x = -3) and the goal (x = 3.75) are in view
     finally:
-        render._pyplot().close(figure)
+        pyplot().close(figure)
 
 
 @pytest.mark.parametrize("name", SCENARIOS)
@@ -345,4 +358,4 @@ def test_failure_poses_without_a_run_are_outlined_with_the_worlds_own_robot() ->
         assert np.allclose(xy[:, 0].max() - xy[:, 0].min(), footprint[0])  # yaw 0: its length along x
         assert np.allclose(xy[:, 1].max() - xy[:, 1].min(), footprint[1])
     finally:
-        render._pyplot().close(figure)
+        pyplot().close(figure)

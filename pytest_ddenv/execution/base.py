@@ -8,7 +8,7 @@ import threading
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, Protocol, Self, runtime_checkable
 
-from pytest_ddenv.validation import is_finite_number
+from pytest_ddenv.validation import expected, is_finite_number
 
 if TYPE_CHECKING:
     from pytest_ddenv.execution.request import Job
@@ -159,11 +159,11 @@ def check_watchdog(watchdog: float | str | None) -> float | str | None:
         try:
             watchdog = float(text)
         except ValueError:
-            raise PoolConfigError(f"{where} must be a number of seconds > 0, 'auto' or 'none', got {text!r}") from None
+            raise PoolConfigError(expected("a number of seconds > 0, 'auto' or 'none'", text, where)) from None
     if watchdog is None or watchdog == "auto":
         return watchdog
     if not is_finite_number(watchdog) or not watchdog > 0:
-        raise PoolConfigError(f"{where} must be a number of seconds > 0, 'auto' or None, got {watchdog!r}")
+        raise PoolConfigError(expected("a number of seconds > 0, 'auto' or None", watchdog, where))
     return float(watchdog)
 
 

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from pytest_ddenv.errors import shown
 from pytest_ddenv.execution.base import Pool
 from pytest_ddenv.execution.dask_pool import DaskCluster, DaskPool
 from pytest_ddenv.execution.errors import PoolConfigError
 from pytest_ddenv.execution.local import LocalPool, resolve_workers
 from pytest_ddenv.execution.request import Handler, Job
+from pytest_ddenv.validation import expected
 
 
 def executor_problem(executor: str) -> str | None:
@@ -19,15 +19,15 @@ def executor_problem(executor: str) -> str | None:
 
     if executor in ("local", "dask"):
         return None
-    expected = "expected 'local', 'dask' or a dask scheduler address tcp://HOST:PORT (or tls://HOST:PORT)"
+    forms = "'local', 'dask' or a dask scheduler address tcp://HOST:PORT (or tls://HOST:PORT)"
     try:
         parts = urlsplit(executor)
         port = parts.port
     except ValueError:  # a port that is not a number from 0 to 65535
-        return f"{expected}, got {shown(executor)}"
+        return expected(forms, executor)
     if parts.scheme not in ("tcp", "tls") or not parts.hostname or not port or parts.path not in ("", "/") or (
             parts.query or parts.fragment or parts.username):
-        return f"{expected}, got {shown(executor)}"
+        return expected(forms, executor)
     return None
 
 
@@ -35,9 +35,9 @@ def check_executor(executor: str | None) -> str | None:
     """None for local worker processes, else "dask" or a scheduler address (PoolConfigError if invalid)."""
     if executor in (None, "", "local"):
         return None
-    problem = executor_problem(executor) if isinstance(executor, str) else f"expected a string, got {executor!r}"
+    problem = executor_problem(executor) if isinstance(executor, str) else expected("a string", executor)
     if problem is not None:
-        raise PoolConfigError(f"unknown executor: {problem}")
+        raise PoolConfigError(f"executor: {problem}")
     return executor
 
 

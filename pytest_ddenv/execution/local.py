@@ -54,7 +54,7 @@ from pytest_ddenv.execution.request import (
     parse_faults,
 )
 from pytest_ddenv.execution.worker import worker_main
-from pytest_ddenv.validation import is_integer
+from pytest_ddenv.validation import expected, is_integer
 
 if TYPE_CHECKING:
     from pytest_ddenv.world import World
@@ -91,7 +91,7 @@ def resolve_workers(workers: int | str) -> int:
     if isinstance(workers, str) and workers.strip().isdigit():
         workers = int(workers)
     if not is_integer(workers) or workers < 1:
-        raise PoolConfigError(f"workers must be an integer >= 1 or 'auto', got {workers!r}")
+        raise PoolConfigError(expected("an integer >= 1 or 'auto'", workers, "workers"))
     return workers
 
 
@@ -145,7 +145,6 @@ class _Alarm:
         self.seconds = seconds
         self.active = False
         self.armed = False
-        self.fired = False
         self.previous: Any = None
 
     def usable(self) -> bool:
@@ -158,7 +157,6 @@ class _Alarm:
 
     def _fire(self, signum: int, frame: object) -> None:
         if self.armed:
-            self.fired = True
             raise ProbeTimeout(f"the probe ran past {self.seconds:g} s")
 
     def __enter__(self) -> Self:

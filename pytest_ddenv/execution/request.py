@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol, runtime_checkable
 
 from pytest_ddenv.detail import recording_detail
 from pytest_ddenv.execution.errors import PoolConfigError
-from pytest_ddenv.validation import is_integer
+from pytest_ddenv.validation import expected, is_integer
 
 if TYPE_CHECKING:
     from pytest_ddenv.world import World
@@ -44,7 +44,7 @@ class Fault:
         for name in ("at", "tries"):
             value = getattr(self, name)
             if not is_integer(value) or value < 1:
-                raise PoolConfigError(f"fault {name} must be an integer >= 1, got {value!r}")
+                raise PoolConfigError(expected("an integer >= 1", value, f"fault {name}"))
 
 
 def parse_faults(value: str | Sequence[Fault] | None) -> tuple[Fault, ...]:
@@ -54,7 +54,7 @@ def parse_faults(value: str | Sequence[Fault] | None) -> tuple[Fault, ...]:
     if not isinstance(value, str):
         faults = tuple(value)
         if not all(isinstance(f, Fault) for f in faults):
-            raise PoolConfigError(f"fault_injection must be Fault objects or text like 'crash@3', got {value!r}")
+            raise PoolConfigError(expected("Fault objects or text like 'crash@3'", value, "fault_injection"))
         return faults
     faults_list: list[Fault] = []
     for item in filter(None, (part.strip() for part in value.split(","))):

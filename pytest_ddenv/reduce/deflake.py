@@ -26,7 +26,7 @@ from typing import Protocol
 
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.types import Outcome
-from pytest_ddenv.validation import is_integer, is_number
+from pytest_ddenv.validation import expected, is_integer, is_number
 
 DEFLAKE_POLICIES: tuple[str, ...] = ("adaptive", "auto")
 """Named policies; `deflake` also accepts a non-negative int (fixed re-runs, at most `MAX_DEFLAKE`)."""
@@ -173,20 +173,20 @@ def make_policy(deflake: int | str | DeflakePolicy, confidence: float) -> Deflak
     if isinstance(deflake, (FixedReruns, ConfirmedRuns, SequentialTest)):
         return deflake
     if not is_number(confidence) or not 0.5 < confidence < 1.0:
-        raise ReductionError(f"confidence must be a number strictly between 0.5 and 1, got {confidence!r}")
+        raise ReductionError(expected("a number strictly between 0.5 and 1", confidence, "confidence"))
+    most = f"at most {MAX_DEFLAKE} re-runs per candidate"
     if isinstance(deflake, str) and deflake.strip().isdigit():
         digits = deflake.strip()
         if len(digits) > 20:  # int() of 5000 digits raises ValueError; it is out of bounds anyway
-            raise ReductionError(f"deflake must be at most {MAX_DEFLAKE} re-runs per candidate, got a "
-                                 f"{len(digits)}-digit number")
+            raise ReductionError(expected(most, digits, "deflake", got=f"a {len(digits)}-digit number"))
         deflake = int(digits)
     if is_integer(deflake):
         if deflake < 0:
-            raise ReductionError(f"deflake must be >= 0 re-runs, 'adaptive' or 'auto', got {deflake}")
+            raise ReductionError(expected("an integer >= 0 (re-runs), 'adaptive' or 'auto'", deflake, "deflake"))
         if deflake > MAX_DEFLAKE:
-            shown = str(deflake) if deflake.bit_length() <= 64 else f"a {deflake.bit_length()}-bit number"
+            size = str(deflake) if deflake.bit_length() <= 64 else f"a {deflake.bit_length()}-bit number"
             raise ReductionError(
-                f"deflake must be at most {MAX_DEFLAKE} re-runs per candidate, got {shown}; for a very flaky "
+                f"{expected(most, deflake, 'deflake', got=size)}; for a very flaky "
                 "failure use deflake='auto' (calibrated on the original world) or 'adaptive'"
             )
         return FixedReruns(deflake)
@@ -195,5 +195,5 @@ def make_policy(deflake: int | str | DeflakePolicy, confidence: float) -> Deflak
     if deflake == "auto":
         return CalibratedReruns(confidence=float(confidence))
     raise ReductionError(
-        f"deflake must be a non-negative int (fixed re-runs) or one of {', '.join(DEFLAKE_POLICIES)}, got {deflake!r}"
+        expected(f"an integer >= 0 (fixed re-runs) or one of {', '.join(DEFLAKE_POLICIES)}", deflake, "deflake")
     )

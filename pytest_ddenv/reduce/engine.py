@@ -23,15 +23,17 @@ from typing import Any
 
 from pytest_ddenv import defaults
 from pytest_ddenv.errors import ReductionError
+from pytest_ddenv.reduce.budget import Budget, BudgetExhausted
 from pytest_ddenv.reduce.context import Context, Verdict
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy
 from pytest_ddenv.reduce.log import LOG_FORMAT, ProbeLog
 from pytest_ddenv.reduce.partition import Partitioner
 from pytest_ddenv.reduce.priority import Prioritizer
-from pytest_ddenv.reduce.prober import Budget, BudgetExhausted, Prober, Trial
+from pytest_ddenv.reduce.prober import Prober
 from pytest_ddenv.reduce.rate_check import RateChecker
 from pytest_ddenv.reduce.rates import RateComparison
 from pytest_ddenv.reduce.settings import Settings, validate
+from pytest_ddenv.reduce.trial import Trial
 from pytest_ddenv.reduce.types import (
     Candidate,
     Decision,
@@ -44,6 +46,7 @@ from pytest_ddenv.reduce.types import (
     ReductionInterrupted,
     Trace,
 )
+from pytest_ddenv.validation import is_integral
 
 MAX_BACKOFFS = 3
 """How many times a reduction backs off from a minimal world that fails significantly less often than the
@@ -73,6 +76,7 @@ def reduce(
     seed: int = defaults.SEED,
     cache: MutableMapping[Any, Any] | None = None,
     executor: concurrent.futures.Executor | None = None,
+    workers: int | None = None,
     log: ProbeLog | str | os.PathLike[str] | None = None,
     failure_rate_runs: int = 20,
     on_progress: Callable[[ProgressEvent], None] | None = None,
@@ -83,9 +87,10 @@ def reduce(
     `elements` are the names of the world's elements (original order; the original world is assumed to
     fail with f: its run is `reference`, attempt 0). `probe(candidate, attempt)` simulates a sub-world
     (names in original order, `keep` elements included) and returns an Observation. See docs/algorithm.md
-    for every option. Raises ReductionError for invalid arguments and ReductionInterrupted (carrying the
-    partial `.reduction`) on KeyboardInterrupt; budgets end the reduction early with the best world so far
-    and ``incomplete_reason`` set.
+    for every option. `workers` is how many probes a round keeps running at once on `executor` (pass the
+    number of workers it has; default: the number of CPUs; ignored without one). Raises ReductionError for
+    invalid arguments and ReductionInterrupted (carrying the partial `.reduction`) on KeyboardInterrupt;
+    budgets end the reduction early with the best world so far and ``incomplete_reason`` set.
     """
     settings = validate(
         elements,
@@ -110,7 +115,17 @@ def reduce(
         failure_rate_runs=failure_rate_runs,
         on_progress=on_progress,
     )
-    return _Engine(settings).run()
+    return _Engine(settings, probe_window(workers)).run()
+
+
+def probe_window(workers: int | None) -> int:
+    """How many probes a round keeps running at once on the executor: `workers` (an int >= 1), by default
+    the number of CPUs (the executor's own worker count is not public)."""
+    if workers is None:
+        return os.cpu_count() or 2
+    if not is_integral(workers) or int(workers) < 1:
+        raise ReductionError(f"workers: expected None or an integer >= 1, got {workers!r}")
+    return int(workers)
 
 
 Part = tuple[str, ...]
@@ -149,7 +164,8 @@ class _Plan:
 class _Engine:
     """The state of one reduction."""
 
-    def __init__(self, settings: Settings) -> None:
+    def __init__(self, settings: Settings, workers: int) -> None:
+        """`workers`: how many probes a round keeps running at once on `settings.executor`."""
         self.settings = settings
         self.started_at = time.monotonic()
         self.log = self._open_log(settings)
@@ -183,23 +199,24 @@ class _Engine:
             preloaded=preloaded,
             budget=Budget(settings.max_probes, settings.max_seconds, self.started_at),
             executor=settings.executor,
+            workers=workers,
             log=self.log,
             context=self.context,
             elapsed=self.elapsed,
             on_probe=lambda candidate, outcome: self.emit("probe", candidate=candidate, outcome=outcome),
+            lookahead=self.lookahead if settings.executor is not None else None,
         )
         self.steps: list[tuple[int, int]] = [(0, len(settings.elements))]
         self.chain: list[_Step] = [_Step(settings.elements, 1, settings.reference)]
         """The accepted worlds since the original (or since the last back-off's good world), in order."""
-        self.rates = RateChecker(self.prober, self.log, settings.elements, settings.failure_rate_runs, self.write)
+        self.rates = RateChecker(self.prober.extra_runs, self.log, settings.elements, settings.failure_rate_runs,
+                                 self.write)
         self.rate_check: RateComparison | None = None
         self.backoffs = 0
         self.backoff_notes: list[str] = []
         self.precondition_check: tuple[int, int] | None = None
         self.verifying = False
         self.calibration: tuple[int, int] | None = None
-        if settings.executor is not None:
-            self.prober.lookahead = self.lookahead
 
     # -- driver -------------------------------------------------------------------------------------------
 
@@ -479,7 +496,7 @@ class _Engine:
         """Cheap information: does the minimal world without its precondition-kept elements still fail?
         A few runs (the first look), preconditions bypassed, within the budget."""
         kept = {name for name, _ in self.precondition_kept()}
-        if not kept or not self.rates.looks or self.prober.budget.exhausted(self.prober.counters.started):
+        if not kept or not self.rates.looks or self.prober.exhausted():
             return
         world = self.full(tuple(name for name in self.current if name not in kept))
         rate = self.rates.rate(world, 0, min(3, self.rates.looks[0]))

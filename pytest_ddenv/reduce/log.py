@@ -9,7 +9,9 @@ identical for two reductions with the same inputs and seed.
 
 A log is also a cache: `ProbeLog.load(path)` (or ``reduce(..., log=path)`` on an existing file) reads the
 verdicts it holds, and the new reduction appends to the same file without simulating those candidates
-again. Runs of a candidate that was being decided when the reduction stopped are reused too.
+again. Runs of a candidate that was being decided when the reduction stopped are reused too. To read a log
+without changing it (the pictures, ``ddenv replay --recorded``, ``ddenv show --runs``): `read_records`, or
+`numbered_records` to name the damaged lines.
 
 A log survives a crash at any moment: each line is written with one `write` on a file opened for appending
 and fsynced before the reduction goes on, so after a `kill -9`, an out-of-memory kill or a power cut the file
@@ -29,7 +31,7 @@ import json
 import math
 import os
 import threading
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Iterator, Mapping
 from pathlib import Path
 from typing import Any, Self
 
@@ -236,14 +238,8 @@ class ProbeLog:
             )
         records: list[dict[str, Any]] = []
         ignored: list[int] = []
-        for number, line in enumerate(data[:complete].decode("utf-8", errors="replace").split("\n"), start=1):
-            if not line.strip():
-                continue
-            try:
-                record = json.loads(line)
-            except json.JSONDecodeError:
-                record = None
-            if not isinstance(record, dict) or "event" not in record:
+        for number, record in _numbered(data[:complete].decode("utf-8", errors="replace")):
+            if record is None or "event" not in record:
                 if not records:
                     raise ReductionError(
                         f"{path}:{number}: not a probe-log record, so this file is not a pytest-ddenv run log; "
@@ -257,6 +253,40 @@ class ProbeLog:
             self.notes.append(f"{path.name}: line(s) {shown} are not records (damaged) and were ignored; the "
                               "candidates they decided are decided again")
         return records
+
+
+def parse_record(line: str) -> dict[str, Any] | None:
+    """The record one line of a JSON-lines file holds: its JSON object, or None when the line is blank, damaged
+    (cut short, invalid JSON) or holds another JSON value."""
+    try:
+        record = json.loads(line)
+    except ValueError:
+        return None
+    return record if isinstance(record, dict) else None
+
+
+def numbered_records(path: Path) -> Iterator[tuple[int, dict[str, Any] | None]]:
+    """(line number from 1, record) for every non-blank line of the JSON-lines file at `path`: a run log
+    (`ProbeLog`) or a file of ``ddenv run --record`` lines. The record is None for a line that holds no JSON
+    object (`parse_record`), so a caller can name the line. Read-only: a torn last line (a writer still
+    writing, or a crash) is reported as None, never cut off (repairing is `ProbeLog`'s job). Bytes that are
+    not UTF-8 damage their line only. Raises OSError when the file cannot be read."""
+    return _numbered(path.read_bytes().decode("utf-8", errors="replace"))
+
+
+def read_records(path: Path) -> list[dict[str, Any]]:
+    """The records of the JSON-lines file at `path` in order, blank and damaged lines skipped; [] when it is
+    missing or cannot be read. Read-only (see `numbered_records`)."""
+    try:
+        return [record for _, record in numbered_records(path) if record is not None]
+    except OSError:
+        return []
+
+
+def _numbered(text: str) -> Iterator[tuple[int, dict[str, Any] | None]]:
+    for number, line in enumerate(text.split("\n"), start=1):
+        if line.strip():
+            yield number, parse_record(line)
 
 
 class _StageView(ProbeLog):

@@ -13,8 +13,8 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
+from pytest_ddenv.reduce.extra_runs import ExtraRuns
 from pytest_ddenv.reduce.log import ProbeLog
-from pytest_ddenv.reduce.prober import Prober
 from pytest_ddenv.reduce.rates import LOOKS, Rate, RateComparison, compare
 from pytest_ddenv.reduce.types import Candidate, Outcome
 
@@ -27,9 +27,9 @@ def looks_up_to(max_runs: int) -> tuple[int, ...]:
 class RateChecker:
     """Runs worlds on fresh attempts and compares each with the original world (whose runs are shared)."""
 
-    def __init__(self, prober: Prober, log: ProbeLog | None, original: Candidate, max_runs: int,
+    def __init__(self, extra_runs: ExtraRuns, log: ProbeLog | None, original: Candidate, max_runs: int,
                  write: Callable[[dict[str, Any]], None]) -> None:
-        self.prober = prober
+        self.extra_runs = extra_runs
         self.log = log
         self.original = original
         self.looks = looks_up_to(max_runs)
@@ -38,7 +38,7 @@ class RateChecker:
         """world -> attempt -> outcome of its fresh runs so far (ERROR runs included; they are not counted)."""
 
     def record_of(self, world: Candidate) -> dict[int, Outcome]:
-        """The outcomes of `world`'s fresh runs, to be filled by Prober.measure(into=...)."""
+        """The outcomes of `world`'s fresh runs, to be filled by ExtraRuns.measure(into=...)."""
         return self.outcomes.setdefault(frozenset(world), {})
 
     def rate(self, world: Candidate, first: int, target: int) -> Rate:
@@ -48,7 +48,7 @@ class RateChecker:
         end = first + target
         for _ in range(2):
             known = {**self._logged(world), **outcomes}
-            self.prober.measure(world, first, end - first, known=known, into=outcomes)
+            self.extra_runs.measure(world, first, end - first, known=known, into=outcomes)
             present = [outcome for attempt, outcome in outcomes.items() if first <= attempt < end]
             counted = [outcome for outcome in present if outcome is not Outcome.ERROR]
             if len(counted) >= target or len(present) < end - first:

@@ -20,7 +20,7 @@ from pytest_ddenv.reduce.types import (
     ProgressEvent,
     Trace,
 )
-from pytest_ddenv.validation import is_integral, is_real
+from pytest_ddenv.validation import expected, is_integral, is_real
 
 GRANULARITIES: tuple[str, ...] = ("ddmin", "paper")
 COMPLEMENT_ORDERS: tuple[str, ...] = ("reverse", "priority")
@@ -56,13 +56,13 @@ class Settings:
 
 def _int(name: str, value: object, minimum: int) -> int:
     if not is_integral(value) or int(value) < minimum:
-        raise ReductionError(f"{name} must be an int >= {minimum}, got {value!r}")
+        raise ReductionError(expected(f"an integer >= {minimum}", value, name))
     return int(value)
 
 
 def _choice(name: str, value: object, choices: tuple[str, ...]) -> str:
     if value not in choices:
-        raise ReductionError(f"{name} must be one of {', '.join(choices)}, got {value!r}")
+        raise ReductionError(expected(f"one of {', '.join(choices)}", value, name))
     return str(value)
 
 
@@ -91,45 +91,14 @@ def validate(
     on_progress: Callable[[ProgressEvent], None] | None,
 ) -> Settings:
     """Check every argument; raise ReductionError naming the argument, the value and what is allowed."""
-    if isinstance(elements, (str, bytes)) or not isinstance(elements, Sequence):
-        raise ReductionError(f"elements must be a sequence of element names, got {type(elements).__name__}")
-    names = tuple(elements)
-    for name in names:
-        if not isinstance(name, str) or not name:
-            raise ReductionError(f"every element must be a non-empty str name, got {name!r}")
-    duplicates = sorted({name for name in names if names.count(name) > 1}) if len(set(names)) != len(names) else []
-    if duplicates:
-        raise ReductionError(f"element names must be unique; repeated: {', '.join(duplicates)}")
+    names = _elements(elements)
     if not callable(probe):
-        raise ReductionError(f"probe must be a callable probe(candidate, attempt) -> Observation, got {probe!r}")
-    if isinstance(keep, str):
-        raise ReductionError(f"keep must be a collection of element names, not the string {keep!r}")
-    kept = frozenset(keep)
-    unknown = sorted(kept - set(names))
-    if unknown:
-        raise ReductionError(f"keep names elements that are not in the world: {', '.join(unknown)}")
-    if geometry is not None and not (
-        callable(getattr(geometry, "centroids", None)) and callable(getattr(geometry, "distances", None))
-    ):
-        raise ReductionError("geometry must provide centroids(names) and distances(points, names), or be None")
-    if reference is not None and not isinstance(reference, Trace):
-        raise ReductionError(f"reference must be a Trace or None, got {type(reference).__name__}")
-    checks = tuple(preconditions)
-    for check in checks:
-        if not callable(check):
-            raise ReductionError(f"every precondition must be callable(candidate) -> str | None, got {check!r}")
-    if max_seconds is not None and (
-        not is_real(max_seconds) or not max_seconds >= 0
-    ):  # `not >= 0` also refuses NaN
-        raise ReductionError(f"max_seconds must be None or a number >= 0, got {max_seconds!r}")
-    if cache is not None and not isinstance(cache, MutableMapping):
-        raise ReductionError(f"cache must be None or a MutableMapping, got {type(cache).__name__}")
-    if executor is not None and not callable(getattr(executor, "submit", None)):
-        raise ReductionError(f"executor must be None or a concurrent.futures.Executor, got {executor!r}")
-    if log is not None and not isinstance(log, (ProbeLog, str, os.PathLike)):
-        raise ReductionError(f"log must be None, a path or a ProbeLog, got {type(log).__name__}")
-    if on_progress is not None and not callable(on_progress):
-        raise ReductionError(f"on_progress must be None or callable(ProgressEvent), got {on_progress!r}")
+        raise ReductionError(expected("a callable probe(candidate, attempt) -> Observation", probe, "probe"))
+    kept = _keep(keep, names)
+    _check_inputs(geometry, reference)
+    checks = _preconditions(preconditions)
+    seconds = _max_seconds(max_seconds)
+    _check_services(cache, executor, log, on_progress)
     return Settings(
         elements=names,
         keep=kept,
@@ -144,7 +113,7 @@ def validate(
         policy=make_policy(deflake, confidence),
         preconditions=checks,
         max_probes=None if max_probes is None else _int("max_probes", max_probes, 0),
-        max_seconds=None if max_seconds is None else float(max_seconds),
+        max_seconds=seconds,
         seed=_int("seed", seed, 0),
         cache=cache,
         executor=executor,
@@ -152,3 +121,73 @@ def validate(
         failure_rate_runs=_int("failure_rate_runs", failure_rate_runs, 0),
         on_progress=on_progress,
     )
+
+
+def _elements(elements: Sequence[str]) -> tuple[str, ...]:
+    """The element names: a sequence of distinct, non-empty strings."""
+    if isinstance(elements, (str, bytes)) or not isinstance(elements, Sequence):
+        raise ReductionError(expected("a sequence of element names", elements, "elements"))
+    names = tuple(elements)
+    for name in names:
+        if not isinstance(name, str) or not name:
+            raise ReductionError(expected("non-empty str names", name, "elements"))
+    duplicates = sorted({name for name in names if names.count(name) > 1}) if len(set(names)) != len(names) else []
+    if duplicates:
+        raise ReductionError(expected("distinct element names", names, "elements",
+                                      got=f"{', '.join(duplicates)} more than once"))
+    return names
+
+
+def _keep(keep: Collection[str], names: tuple[str, ...]) -> frozenset[str]:
+    """The elements no candidate drops: a collection of names among `names`."""
+    if isinstance(keep, str):
+        raise ReductionError(expected("a collection of element names, not a string", keep, "keep"))
+    kept = frozenset(keep)
+    unknown = sorted(kept - set(names))
+    if unknown:
+        raise ReductionError(f"keep names elements that are not in the world: {', '.join(unknown)}")
+    return kept
+
+
+def _check_inputs(geometry: Geometry | None, reference: Trace | None) -> None:
+    """What the partition and priority rules read: the world's geometry and the reference run's trace."""
+    if geometry is not None and not (
+        callable(getattr(geometry, "centroids", None)) and callable(getattr(geometry, "distances", None))
+    ):
+        raise ReductionError(expected("None or an object with centroids(names) and distances(points, names)",
+                                      geometry, "geometry"))
+    if reference is not None and not isinstance(reference, Trace):
+        raise ReductionError(expected("a Trace or None", reference, "reference"))
+
+
+def _preconditions(preconditions: Sequence[Precondition]) -> tuple[Precondition, ...]:
+    checks = tuple(preconditions)
+    for check in checks:
+        if not callable(check):
+            raise ReductionError(expected("callables check(candidate) -> str | None", check, "preconditions"))
+    return checks
+
+
+def _max_seconds(max_seconds: float | None) -> float | None:
+    if max_seconds is None:
+        return None
+    if not is_real(max_seconds) or not max_seconds >= 0:  # `not >= 0` also refuses NaN
+        raise ReductionError(expected("None or a number >= 0", max_seconds, "max_seconds"))
+    return float(max_seconds)
+
+
+def _check_services(
+    cache: MutableMapping[Any, Any] | None,
+    executor: concurrent.futures.Executor | None,
+    log: ProbeLog | str | os.PathLike[str] | None,
+    on_progress: Callable[[ProgressEvent], None] | None,
+) -> None:
+    """The optional helpers a reduction calls: its cache, executor, probe log and progress callback."""
+    if cache is not None and not isinstance(cache, MutableMapping):
+        raise ReductionError(expected("None or a MutableMapping", cache, "cache"))
+    if executor is not None and not callable(getattr(executor, "submit", None)):
+        raise ReductionError(expected("None or a concurrent.futures.Executor", executor, "executor"))
+    if log is not None and not isinstance(log, (ProbeLog, str, os.PathLike)):
+        raise ReductionError(expected("None, a path or a ProbeLog", log, "log"))
+    if on_progress is not None and not callable(on_progress):
+        raise ReductionError(expected("None or callable(ProgressEvent)", on_progress, "on_progress"))

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-from pytest_ddenv.validation import is_real
+from pytest_ddenv.validation import expected, is_real
 
 if TYPE_CHECKING:
     from pytest_ddenv.predicates import Contact
@@ -142,11 +142,10 @@ def controller_name(controller: object) -> str:
 def check_controller(controller: object, where: str = "controller") -> None:
     """Raise TypeError unless `controller` can be called with an observation."""
     if not callable(controller):
-        raise TypeError(f"{where} must be callable as controller(observation) -> Command, got "
-                        f"{type(controller).__name__} {controller!r}")
+        raise TypeError(expected("a callable controller(observation) -> Command", controller, where))
     reset = getattr(controller, "reset", None)
     if reset is not None and not callable(reset):
-        raise TypeError(f"{where}: its 'reset' attribute must be a method reset(observation), got {reset!r}")
+        raise TypeError(expected("a method reset(observation)", reset, f"{where}.reset"))
 
 
 def check_command(value: Any, controller: object, time: float) -> AnyCommand:
@@ -160,7 +159,6 @@ def check_command(value: Any, controller: object, time: float) -> AnyCommand:
     for number in numbers:
         if not is_real(number) or not math.isfinite(float(number)):
             raise ControllerError(
-                f"controller {controller_name(controller)} returned {value!r} at t = {time:.2f} s; every "
-                "speed must be a finite number"
+                expected("finite speeds", value, f"controller {controller_name(controller)} at t = {time:.2f} s")
             )
     return value

@@ -24,7 +24,7 @@ from pytest_ddenv.sim.episode import Episode, noise_streams
 from pytest_ddenv.sim.robot import ROBOTS, Robot, make_robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
-from pytest_ddenv.validation import is_finite_number, is_integral
+from pytest_ddenv.validation import expected, is_finite_number, is_integral, is_number
 from pytest_ddenv.world import RobotDescription, Scenario, World
 
 START_CLEARANCE = 0.01
@@ -98,13 +98,14 @@ class Simulator:
         limit = scenario.timeout if timeout is None else timeout
         if not is_finite_number(limit) or limit <= 0:
             field = "scenario.timeout" if timeout is None else "timeout"
-            raise ScenarioError(f"the time limit must be a finite number of seconds > 0, got {limit!r}",
+            raise ScenarioError(expected("a finite time limit in seconds > 0", limit),
                                 source=world.source, field=field)
         values = [*scenario.start.as_list(), scenario.goal[0], scenario.goal[1]]
         if not all(math.isfinite(v) for v in values):
-            raise ScenarioError("start and goal must be finite numbers", source=world.source, field="scenario")
+            raise ScenarioError(expected("a finite start and goal", values), source=world.source, field="scenario")
         if not (scenario.goal_tolerance > 0):
-            raise ScenarioError("goal_tolerance must be > 0", source=world.source, field="scenario.goal_tolerance")
+            raise ScenarioError(expected("a number > 0", scenario.goal_tolerance), source=world.source,
+                                field="scenario.goal_tolerance")
         return scenario
 
     # -- running ---------------------------------------------------------------------------------------
@@ -126,7 +127,7 @@ class Simulator:
         scenario = self.check_scenario(world, timeout)
         limit = float(scenario.timeout if timeout is None else timeout)
         if not is_integral(seed) or seed < 0:
-            raise ScenarioError(f"the seed must be an integer >= 0, got {seed!r}", field="seed")
+            raise ScenarioError(expected("an integer >= 0", seed), field="seed")
         for predicate in predicates:
             if not isinstance(predicate, Predicate):
                 raise ScenarioError(f"{predicate!r} is not a failure predicate (needs name, reset, check)",
@@ -181,9 +182,7 @@ class Simulator:
 
             controller = default_controller(settings)
         check_controller(controller)
-        if max_wall_time is not None and not (isinstance(max_wall_time, (int, float)) and max_wall_time > 0):
-            raise ScenarioError(f"max_wall_time must be a number of seconds > 0 or None, got {max_wall_time!r}",
-                                field="max_wall_time")
+        max_wall_time = wall_limit(max_wall_time)
         episode = self.start(world, seed=seed, predicates=predicates, settings=settings, timeout=timeout)
         drive_loop(episode, controller, max_wall_time)
         return episode.result()
@@ -224,6 +223,15 @@ class Simulator:
                               for n, d in sorted(inside.items()))
             raise ScenarioError(f"the robot's start pose is inside {names}; move the start or the model(s)",
                                 source=world.source, field="scenario.start")
+
+
+def wall_limit(max_wall_time: object) -> float | None:
+    """`max_wall_time` checked: None (no limit) or wall-clock seconds > 0; ScenarioError otherwise."""
+    if max_wall_time is None:
+        return None
+    if not is_number(max_wall_time) or not max_wall_time > 0:
+        raise ScenarioError(expected("a number of seconds > 0 or None", max_wall_time), field="max_wall_time")
+    return float(max_wall_time)
 
 
 def drive_loop(episode: Episode, controller: ControllerLike, max_wall_time: float | None) -> None:

@@ -20,6 +20,7 @@ from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.sim.control import ControllerError
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.urdf_geometry import UrdfGeometry, measure_urdf
+from pytest_ddenv.validation import expected
 from pytest_ddenv.world import DRIVE_KINDS, LaserMount, RobotDescription, resolve_relative
 
 
@@ -91,6 +92,7 @@ class WheeledRobot(Robot):
     `LaserMount`. The URDF is loaded with implicit wheel cylinders and merged fixed links (faster).
     """
 
+    # Over 60 lines by its signature alone: one keyword per entry of a world file's robot mapping.
     def __init__(
         self,
         urdf: str | os.PathLike[str],
@@ -284,7 +286,7 @@ def register_robot(name: str, robot: RobotFactory | RobotDescription, *, replace
     worker: workers import them as pytest does.
     """
     if not isinstance(name, str) or not name:
-        raise ValueError("a robot name must be a non-empty string")
+        raise ValueError(expected("a non-empty string", name, "register_robot(name=...)"))
     if name in ROBOTS and not replace:
         raise ValueError(f"a robot named {name!r} is already registered (pass replace=True)")
     if isinstance(robot, RobotDescription):
@@ -293,8 +295,8 @@ def register_robot(name: str, robot: RobotFactory | RobotDescription, *, replace
     elif callable(robot):
         ROBOTS[name] = robot
     else:
-        raise TypeError(f"register_robot({name!r}, ...): expected a factory returning a Robot or a "
-                        f"RobotDescription, got {type(robot).__name__}")
+        raise TypeError(expected("a factory returning a Robot or a RobotDescription", robot,
+                                 f"register_robot({name!r}, ...)"))
 
 
 def make_robot(robot: str | RobotDescription, source: str | None = None) -> Robot:

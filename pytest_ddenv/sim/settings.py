@@ -7,7 +7,7 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.validation import is_finite_number, is_integer
+from pytest_ddenv.validation import expected, is_finite_number, is_integer
 
 
 @dataclass(frozen=True)
@@ -32,7 +32,7 @@ class NoiseSettings:
         for item in fields(self):
             value = getattr(self, item.name)
             if not is_finite_number(value) or value < 0:
-                raise ScenarioError(f"noise standard deviation must be a finite number >= 0, got {value!r}",
+                raise ScenarioError(expected("a finite standard deviation >= 0", value),
                                     field=f"noise.{item.name}")
 
     @classmethod
@@ -78,13 +78,13 @@ class RunSettings:
                      "turn_gain", "max_turn_rate"):
             value = getattr(self, name)
             if not is_finite_number(value) or value <= 0:
-                raise ScenarioError(f"expected a finite number > 0, got {value!r}", field=f"settings.{name}")
+                raise ScenarioError(expected("a finite number > 0", value), field=f"settings.{name}")
         if not is_integer(self.laser_rays) or self.laser_rays < 0:
-            raise ScenarioError(f"expected an integer >= 0, got {self.laser_rays!r}", field="settings.laser_rays")
+            raise ScenarioError(expected("an integer >= 0", self.laser_rays), field="settings.laser_rays")
         if self.friction not in ("min", "product"):
-            raise ScenarioError(f"expected 'min' or 'product', got {self.friction!r}", field="settings.friction")
+            raise ScenarioError(expected("'min' or 'product'", self.friction), field="settings.friction")
         if not isinstance(self.noise, NoiseSettings):
-            raise ScenarioError("expected a NoiseSettings", field="settings.noise")
+            raise ScenarioError(expected("a NoiseSettings", self.noise), field="settings.noise")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -103,16 +103,49 @@ def run_stages(stages: Sequence[str], context: StageContext, models: Reduction, 
     outcome = StagesOutcome(tuple(stages), budget=context.budget.limit)
     budget = context.budget
     begin = budget.started()
-    base = context.base
-    world = base
     simulating = [stage for stage in SIMULATING if stage in stages]
     budget.reserve = (FINAL_RATE_RUNS if simulating else 0) + (PASSING_RESERVE if "passing" in stages else 0)
+    world = _simplify(context, simulating, models, outcome, minimal_run, folder)
+    budget.share = None
+    outcome.final, outcome.changed = world, world != context.base
+    budget.reserve = PASSING_RESERVE if "passing" in stages else 0
+    if outcome.final_rate is not None and outcome.minimal_rate is not None:
+        outcome.rate_below = rate_drops(outcome.final_rate, outcome.minimal_rate)
+    final_context = dataclasses.replace(context, base=world)
+    explained = None
+    if "explain" in stages:
+        decisions = budget.decisions
+        shaped = outcome.result("shapes")
+        kept_shapes = None if shaped is None or shaped.details.get("reverted") else shaped
+        explained = _record(outcome, explain.run(final_context, models, kept_shapes, simulate=not log_only),
+                            budget.decisions - decisions)
+    if "passing" in stages:
+        budget.reserve = 0
+        decisions = budget.decisions
+        simplified = outcome.result("attributes")
+        kept = None if simplified is None or simplified.details.get("reverted") else simplified
+        found = _record(outcome, passing.run(final_context, explained, kept, final_is_minimal=not outcome.changed,
+                                             search=not log_only), budget.decisions - decisions)
+        if found.details.get("found"):
+            outcome.passing = found.world
+    outcome.simulations = budget.started() - begin
+    outcome.probes = budget.decisions
+    return outcome
 
-    def record(result: StageResult, decisions: int) -> StageResult:
-        result.probes = budget.decisions - decisions
-        outcome.results.append(result)
-        return result
 
+def _record(outcome: StagesOutcome, result: StageResult, decisions: int) -> StageResult:
+    """`result` (which made `decisions` decisions) added to the outcome."""
+    result.probes = decisions
+    outcome.results.append(result)
+    return result
+
+
+def _simplify(context: StageContext, simulating: Sequence[str], models: Reduction, outcome: StagesOutcome,
+              minimal_run: Run | None, folder: Path) -> World:
+    """The stages that change the world (shapes, attributes, time), each from the world the one before kept;
+    a stage's world is kept only if it fails about as often as the minimal world on fresh runs."""
+    budget, base = context.budget, context.base
+    world = base
     reference = models.failure_rate
     if simulating:  # the minimal world's rate, on fresh runs measured as the stages' worlds will be
         reserve, budget.reserve = budget.reserve, 0
@@ -126,11 +159,12 @@ def run_stages(stages: Sequence[str], context: StageContext, models: Reduction, 
         budget.share = None if left is None else left // (len(simulating) - number)  # the rest goes on
         here = dataclasses.replace(context, base=world)
         if stage == "shapes":
-            result = record(shapes.run(here), decisions)
+            made = shapes.run(here)
         elif stage == "attributes":
-            result = record(attributes.run(here, folder / "meshes"), decisions)
+            made = attributes.run(here, folder / "meshes")
         else:
-            result = record(shorten.run(dataclasses.replace(here, run=minimal_run)), decisions)
+            made = shorten.run(dataclasses.replace(here, run=minimal_run))
+        result = _record(outcome, made, budget.decisions - decisions)
         if result.world == world:
             continue
         reserve, budget.reserve = budget.reserve, budget.reserve - FINAL_RATE_RUNS
@@ -146,30 +180,7 @@ def run_stages(stages: Sequence[str], context: StageContext, models: Reduction, 
             result.details["reverted"] = True
             continue
         world, outcome.final_rate, outcome.final_errors = result.world, (fails, runs), errors
-    budget.share = None
-    outcome.final, outcome.changed = world, world != base
-    budget.reserve = PASSING_RESERVE if "passing" in stages else 0
-    if outcome.final_rate is not None:
-        outcome.rate_below = rate_drops(outcome.final_rate, reference)
-    final_context = dataclasses.replace(context, base=world)
-    explained = None
-    if "explain" in stages:
-        decisions = budget.decisions
-        shaped = outcome.result("shapes")
-        kept_shapes = None if shaped is None or shaped.details.get("reverted") else shaped
-        explained = record(explain.run(final_context, models, kept_shapes, simulate=not log_only), decisions)
-    if "passing" in stages:
-        budget.reserve = 0
-        decisions = budget.decisions
-        simplified = outcome.result("attributes")
-        kept = None if simplified is None or simplified.details.get("reverted") else simplified
-        found = record(passing.run(final_context, explained, kept, final_is_minimal=not outcome.changed,
-                                   search=not log_only), decisions)
-        if found.details.get("found"):
-            outcome.passing = found.world
-    outcome.simulations = budget.started() - begin
-    outcome.probes = budget.decisions
-    return outcome
+    return world
 
 
 def _rate(context: StageContext, label: str, world: World, number: int) -> tuple[int, int, int]:

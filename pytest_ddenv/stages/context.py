@@ -83,6 +83,8 @@ class StageContext:
     budget: Budget
     run: Run | None = None
     executor: concurrent.futures.Executor | None = None
+    workers: int | None = None
+    """How many probes a round keeps running at once on `executor` (`reduce(workers=...)`)."""
     wrap: Callable[[Probe], Probe] = field(default=lambda probe: probe)
 
     def reduce_edits(self, stage: str, elements: Sequence[str], build: Callable[[Candidate], World], *,
@@ -104,7 +106,7 @@ class StageContext:
         reduction = reduce(
             tuple(elements), self.wrap(probe), partition="model2model", priority="sequential",
             deflake=policy or self.policy, preconditions=tuple(preconditions), max_probes=left, seed=self.seed,
-            log=self.log.view(stage), failure_rate_runs=rate_runs, executor=self.executor,
+            log=self.log.view(stage), failure_rate_runs=rate_runs, executor=self.executor, workers=self.workers,
         )
         self.budget.decisions += reduction.probes
         return reduction
@@ -118,7 +120,7 @@ class StageContext:
         rule = policy or (PASSES_RULE if passes else self.policy)
         known = view.decisions().get(frozenset([label]))
         if known is not None:
-            return Decided(known.reproduces, known.fails, known.runs, from_log=True,
+            return Decided(known.reproduces, known.fails, known.runs,
                            signatures=[entry[1] for entry in _logged(view, label)])
         logged = _logged(view, label)
         outcomes = [entry[0] for entry in logged]
@@ -195,12 +197,11 @@ class StageContext:
 @dataclass
 class Decided:
     """The verdict on one world: `verdict` (None: undecided, the budget ran out or a run errored), the runs
-    that showed the property (`fails`) of `runs`, and whether the log already had it."""
+    that showed the property (`fails`) of `runs`."""
 
     verdict: bool | None
     fails: int
     runs: int
-    from_log: bool = False
     error: str = ""
     signatures: list[dict[str, object] | None] = field(default_factory=list)
     run: Run | None = None

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -94,27 +95,8 @@ def run(context: StageContext) -> StageResult:
         why = "the world has no scenario" if world.scenario is None else "no failing run of the minimal world"
         return StageResult(STAGE, world, findings=[f"not shortened: {why}"])
     points, failure_time = path
-    good, bad = 0, len(points)
-    details: dict[str, Any] = {"points": len(points)}
-    incomplete: str | None = None
-    failure_times: dict[int, float] = {}
-    errors: list[str] = []
-    while bad - good > 1:
-        middle = (good + bad) // 2
-        distance = points[middle].distance
-        decided = context.decide(STAGE, f"start {distance:.2f} m before the failure point",
-                                 moved(world, points[middle]), stage_begin=begin)
-        if decided.verdict is None and not decided.error:
-            incomplete = "budget: no probes left"
-            break
-        if decided.error:  # the start is not valid (e.g. inside a model): start earlier
-            errors.append(f"a start {distance:.2f} m before the failure point errored: {decided.error}")
-            bad = middle
-        elif decided.verdict:
-            good = middle
-            failure_times[middle] = _failure_time(decided.signatures)
-        else:
-            bad = middle
+    search = _latest_start(context, world, points, begin)
+    good = search.good
     distance, start_time = points[good].distance, points[good].time
     shortened = world if good == 0 else moved(world, points[good])
     findings: list[str] = []
@@ -124,24 +106,15 @@ def run(context: StageContext) -> StageResult:
                         "failure")
     else:
         findings.append("the robot needs its original start: no later start along the path gave the same failure")
-    findings += errors
-    details.update({"start": shortened.scenario.start.as_list() if shortened.scenario else None,
-                    "start_time": start_time, "distance_before_failure": distance})
+    findings += search.errors
+    details: dict[str, Any] = {"points": len(points),
+                               "start": shortened.scenario.start.as_list() if shortened.scenario else None,
+                               "start_time": start_time, "distance_before_failure": distance}
     original_timeout = world.scenario.timeout
-    new_failure = failure_times.get(good, max(0.0, failure_time - start_time))
-    timeout = float(math.ceil(new_failure + TIME_MARGIN))
-    if incomplete is None and timeout < original_timeout:
-        assert shortened.scenario is not None
-        limited = dataclasses.replace(shortened, scenario=dataclasses.replace(shortened.scenario, timeout=timeout))
-        decided = context.decide(STAGE, f"time limit {timeout:g} s, start {distance:.2f} m before", limited,
-                                 stage_begin=begin)
-        if decided.verdict:
-            shortened = limited
-            findings.append(f"time limit {original_timeout:g} s -> {timeout:g} s")
-        elif decided.verdict is None and not decided.error:
-            incomplete = "budget: no probes left"
-        else:
-            findings.append(f"the failure needs the time limit of {original_timeout:g} s (not {timeout:g} s)")
+    new_failure = search.failure_times.get(good, max(0.0, failure_time - start_time))
+    incomplete = search.incomplete
+    if incomplete is None:
+        shortened, incomplete = _shorter_limit(context, shortened, new_failure, distance, begin, findings)
     assert shortened.scenario is not None
     saved_failing = max(0.0, failure_time - new_failure)
     saved_passing = original_timeout - shortened.scenario.timeout
@@ -152,6 +125,60 @@ def run(context: StageContext) -> StageResult:
                     "saved_sim_seconds_passing": round(saved_passing, 3)})
     return StageResult(STAGE, shortened, probes=0, simulations=context.budget.started() - begin, findings=findings,
                        details=details, incomplete=incomplete)
+
+
+@dataclass
+class _Search:
+    """The binary search for the latest start: `good` indexes the latest point known to give the failure."""
+
+    good: int = 0
+    incomplete: str | None = None
+    failure_times: dict[int, float] = field(default_factory=dict)
+    errors: list[str] = field(default_factory=list)
+
+
+def _latest_start(context: StageContext, world: World, points: Sequence[Point], begin: int) -> _Search:
+    """The latest start along the path that still gives the same failure (point 0: the original start)."""
+    search = _Search()
+    bad = len(points)
+    while bad - search.good > 1:
+        middle = (search.good + bad) // 2
+        distance = points[middle].distance
+        decided = context.decide(STAGE, f"start {distance:.2f} m before the failure point",
+                                 moved(world, points[middle]), stage_begin=begin)
+        if decided.verdict is None and not decided.error:
+            search.incomplete = "budget: no probes left"
+            break
+        if decided.error:  # the start is not valid (e.g. inside a model): start earlier
+            search.errors.append(f"a start {distance:.2f} m before the failure point errored: {decided.error}")
+            bad = middle
+        elif decided.verdict:
+            search.good = middle
+            search.failure_times[middle] = _failure_time(decided.signatures)
+        else:
+            bad = middle
+    return search
+
+
+def _shorter_limit(context: StageContext, world: World, failure_time: float, distance: float, begin: int,
+                   findings: list[str]) -> tuple[World, str | None]:
+    """`world` with the shortest time limit that still gives the failure (its time plus a margin), if that
+    is shorter than its own; a finding is added to `findings`. Returns the world and why it stopped early."""
+    assert world.scenario is not None
+    original_timeout = world.scenario.timeout
+    timeout = float(math.ceil(failure_time + TIME_MARGIN))
+    if timeout >= original_timeout:
+        return world, None
+    limited = dataclasses.replace(world, scenario=dataclasses.replace(world.scenario, timeout=timeout))
+    decided = context.decide(STAGE, f"time limit {timeout:g} s, start {distance:.2f} m before", limited,
+                             stage_begin=begin)
+    if decided.verdict:
+        findings.append(f"time limit {original_timeout:g} s -> {timeout:g} s")
+        return limited, None
+    if decided.verdict is None and not decided.error:
+        return world, "budget: no probes left"
+    findings.append(f"the failure needs the time limit of {original_timeout:g} s (not {timeout:g} s)")
+    return world, None
 
 
 def _failure_time(signatures: list[dict[str, object] | None]) -> float:

@@ -54,7 +54,7 @@ def reduce_with(
         executor = concurrent.futures.ThreadPoolExecutor(pool.size)
     try:
         return reduce(world.names, probe, geometry=world, reference=trace_of(original.run), deflake=deflake,
-                      seed=0, failure_rate_runs=0, executor=executor)
+                      seed=0, failure_rate_runs=0, executor=executor, workers=pool.size)
     finally:
         if own and executor is not None:
             executor.shutdown(wait=True)

@@ -122,7 +122,7 @@ def test_the_watchdog_can_be_set_by_the_environment(monkeypatch: pytest.MonkeyPa
     assert LocalPool(job, 1, in_process=job.handler()).watchdog_seconds() is None
     assert LocalPool(job, 1, in_process=job.handler(), watchdog=3).watchdog_seconds() == 3.0, "explicit wins"
     monkeypatch.setenv("DDENV_PROBE_TIMEOUT", "soon")
-    with pytest.raises(PoolConfigError, match=r"\$DDENV_PROBE_TIMEOUT must be a number of seconds > 0, 'auto'"):
+    with pytest.raises(PoolConfigError, match=r"\$DDENV_PROBE_TIMEOUT: expected a number of seconds > 0, 'auto' or 'none', got 'soon'"):
         LocalPool(job, 1, in_process=job.handler())
 
 

@@ -6,6 +6,9 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+import pytest
+
+from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import Observation, reduce
 
 from .conftest import SetOracle, names
@@ -28,7 +31,8 @@ def test_an_idle_worker_starts_the_next_round_while_the_last_probe_of_a_round_ru
         return oracle(candidate, attempt)
 
     with ThreadPoolExecutor(max_workers=2) as executor:
-        result = reduce(ELEMENTS, probe, partition="even", priority="sequential", deflake=2, executor=executor)
+        result = reduce(ELEMENTS, probe, partition="even", priority="sequential", deflake=2, executor=executor,
+                        workers=2)
     assert set(result.minimal) == NEEDS and result.one_minimal
     assert waited == [True], "the second worker stayed idle while the first round's last probe ran"
     serial = reduce(ELEMENTS, SetOracle(NEEDS), partition="even", priority="sequential", deflake=2)
@@ -46,7 +50,7 @@ def test_no_probe_is_simulated_twice_with_slow_flaky_probes() -> None:
 
     serial = reduce(names(24), SetOracle(culprits, rate=0.6, salt=11), partition="even", deflake=3)
     with ThreadPoolExecutor(max_workers=2) as executor:
-        parallel = reduce(names(24), probe, partition="even", deflake=3, executor=executor)
+        parallel = reduce(names(24), probe, partition="even", deflake=3, executor=executor, workers=2)
     assert len(oracle.calls) == len(set(oracle.calls)), "a (candidate, attempt) was simulated twice"
     assert parallel.minimal == serial.minimal and parallel.failure_rate == serial.failure_rate
 
@@ -68,5 +72,35 @@ def test_the_adaptive_policy_keeps_one_attempt_in_flight_per_candidate() -> None
         return oracle(candidate, attempt)
 
     with ThreadPoolExecutor(max_workers=3) as executor:
-        reduce(names(12), probe, deflake="adaptive", partition="even", executor=executor, failure_rate_runs=0)
+        reduce(names(12), probe, deflake="adaptive", partition="even", executor=executor, workers=3,
+               failure_rate_runs=0)
     assert most == 1, "the sequential test decides one run at a time: no speculative re-runs"
+
+
+def test_workers_is_the_number_of_probes_a_round_keeps_running() -> None:
+    """`workers`, not the executor's own size, sets how many probes the engine submits at once."""
+    running = most = 0
+    lock = threading.Lock()
+    oracle = SetOracle(frozenset({"m0002", "m0009"}), rate=0.7, salt=3)
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        nonlocal running, most
+        with lock:
+            running += 1
+            most = max(most, running)
+        time.sleep(0.002)
+        with lock:
+            running -= 1
+        return oracle(candidate, attempt)
+
+    serial = reduce(names(16), SetOracle(oracle.culprits, rate=0.7, salt=3), deflake=2, failure_rate_runs=0)
+    with ThreadPoolExecutor(max_workers=6) as executor:
+        parallel = reduce(names(16), probe, deflake=2, executor=executor, workers=1, failure_rate_runs=0)
+    assert most == 1, f"{most} probes ran at once with workers=1"
+    assert parallel.minimal == serial.minimal and parallel.steps == serial.steps
+
+
+@pytest.mark.parametrize("workers", [0, -1, 1.5, "2", True])
+def test_workers_must_be_a_positive_integer(workers: object) -> None:
+    with ThreadPoolExecutor(max_workers=2) as executor, pytest.raises(ReductionError, match="workers: expected"):
+        reduce(names(4), SetOracle(frozenset({"m0001"})), executor=executor, workers=workers)  # type: ignore[arg-type]

@@ -146,7 +146,7 @@ def test_parallel_probing_never_changes_the_result(
         **scenario,
     )
     oracle = synthetic.SetOracle(culprits, rate=0.7, salt=salt, trace=scenario["reference"])
-    parallel = reduce(probe=oracle, deflake=deflake, executor=pool, **scenario)
+    parallel = reduce(probe=oracle, deflake=deflake, executor=pool, workers=3, **scenario)
     assert len(oracle.calls) == len(set(oracle.calls)), "a (candidate, attempt) was simulated twice"
     assert parallel.minimal == serial.minimal
     assert [size for _, size in parallel.steps] == [size for _, size in serial.steps]
@@ -161,6 +161,6 @@ def test_parallel_non_monotone(
 ) -> None:
     fails = non_monotone(scenario["elements"], salt)
     serial = reduce(probe=synthetic.FunctionOracle(fails), deflake=0, **scenario)
-    parallel = reduce(probe=synthetic.FunctionOracle(fails), deflake=0, executor=pool, **scenario)
+    parallel = reduce(probe=synthetic.FunctionOracle(fails), deflake=0, executor=pool, workers=3, **scenario)
     assert parallel.minimal == serial.minimal
     assert [size for _, size in parallel.steps] == [size for _, size in serial.steps]

@@ -86,7 +86,8 @@ def test_parallel_finds_the_unique_answer(
     with ThreadPoolExecutor(max_workers=4) as executor:
         for partition in PARTITIONS:
             result = reduce(
-                ELEMENTS, synthetic.FunctionOracle(oracle), partition=partition, deflake=0, executor=executor
+                ELEMENTS, synthetic.FunctionOracle(oracle), partition=partition, deflake=0, executor=executor,
+                workers=4,
             )
             assert result.minimal == expected
 

@@ -67,7 +67,7 @@ def test_an_absurd_deflake_is_refused_before_any_simulation(tmp_path: Path) -> N
     plan = ReductionPlan(world=world, test_id="t", reference=FailureReference("RobotFailure", "t.py:1"),
                          reference_run=None, spec=ReductionSpec(deflake=10**12), artifacts=tmp_path / "art",
                          replay_command="", fingerprint={})
-    with pytest.raises(ReductionError, match="deflake must be at most 100 re-runs per candidate, got 1000000000000"):
+    with pytest.raises(ReductionError, match="deflake: expected at most 100 re-runs per candidate, got 1000000000000"):
         run_reduction(plan, NoSimulations())  # type: ignore[arg-type]
     assert not (tmp_path / "art").exists()
 

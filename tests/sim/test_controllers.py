@@ -92,8 +92,8 @@ def test_wheel_commands_drive_the_wheels(sim: Simulator) -> None:
     [
         ((0.5, 0.0), r"returned tuple \(0\.5, 0\.0\) at t = 0\.00 s; expected Command"),
         (None, "returned NoneType None"),
-        (Command(float("nan"), 0.0), "every speed must be a finite number"),
-        (WheelCommand(1.0, float("inf")), "every speed must be a finite number"),
+        (Command(float("nan"), 0.0), r"at t = 0\.00 s: expected finite speeds, got Command\(linear=nan, angular=0\.0\)"),
+        (WheelCommand(1.0, float("inf")), r"at t = 0\.00 s: expected finite speeds, got WheelCommand\(left=1\.0, right=inf\)"),
     ],
 )
 def test_a_command_that_is_not_a_command_is_a_controller_error(sim: Simulator, returned: object,
@@ -128,5 +128,6 @@ def test_a_controller_that_is_too_slow_fails_the_run(sim: Simulator) -> None:
 
 @pytest.mark.parametrize("controller", ["go", 42])
 def test_a_controller_must_be_callable(sim: Simulator, controller: object) -> None:
-    with pytest.raises(TypeError, match="must be callable"):
+    with pytest.raises(TypeError, match=rf"controller: expected a callable controller\(observation\) -> Command, got "
+                                        rf"{controller!r}"):
         sim.run(flat_world(timeout=1.0), controller=controller)  # type: ignore[arg-type]

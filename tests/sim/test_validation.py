@@ -28,7 +28,8 @@ def test_unknown_robot_lists_the_registered_ones(sim: Simulator) -> None:
 
 @pytest.mark.parametrize("timeout", [0.0, -1.0, float("nan")])
 def test_bad_timeout(sim: Simulator, timeout: float) -> None:
-    with pytest.raises(ScenarioError, match="time limit") as info:
+    with pytest.raises(ScenarioError, match=f"field 'timeout': expected a finite time limit in seconds > 0, got "
+                                            f"{timeout!r}") as info:
         sim.run(flat_world(), timeout=timeout)
     assert info.value.field == "timeout"
     world = flat_world()
@@ -61,11 +62,12 @@ def test_no_support_without_ground(sim: Simulator) -> None:
 
 
 def test_bad_settings() -> None:
-    with pytest.raises(ScenarioError, match="noise.actuation"):
+    with pytest.raises(ScenarioError, match=r"field 'noise.actuation': expected a finite standard deviation >= 0, "
+                                            r"got -0\.1"):
         NoiseSettings(actuation=-0.1)
-    with pytest.raises(ScenarioError, match="settings.control_rate"):
+    with pytest.raises(ScenarioError, match="field 'settings.control_rate': expected a finite number > 0, got 0"):
         RunSettings(control_rate=0)
-    with pytest.raises(ScenarioError, match="settings.friction"):
+    with pytest.raises(ScenarioError, match="field 'settings.friction': expected 'min' or 'product', got 'max'"):
         RunSettings(friction="max")
 
 

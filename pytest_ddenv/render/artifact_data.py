@@ -1,0 +1,75 @@
+"""What the pictures read from an artifacts folder: the last reduction's probes and steps in its run log
+(runs.jsonl) and the reference failure in summary.json. Read-only; a missing or damaged file gives nothing."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+
+def _last_reduction(log: Path) -> list[dict[str, Any]]:
+    """The model-level records of the last reduction in a run log (from its last ``start``)."""
+    from pytest_ddenv.reduce.log import read_records  # lazily: importing the pictures stays cheap
+
+    records: list[dict[str, Any]] = []
+    for record in read_records(log):
+        if "stage" not in record:  # the stages after the models are not drawn here
+            if record.get("event") == "start":
+                records = []
+            records.append(record)
+    return records
+
+
+def _is_reduction_probe(record: dict[str, Any]) -> bool:
+    return record.get("event") == "probe" and record.get("purpose", "reduce") == "reduce"
+
+
+def probe_sizes_from_log(log: Path) -> list[tuple[int, int, str]]:
+    """(probe number, candidate size, outcome) of the reduction probes of the last reduction in a run log."""
+    probes = [r for r in _last_reduction(log) if _is_reduction_probe(r)]
+    return [(number, int(r.get("size", len(r.get("candidate", ())))), str(r.get("outcome", "")))
+            for number, r in enumerate(probes, start=1)]
+
+
+def steps_from_log(log: Path) -> list[tuple[int, int]]:
+    """(probe number, size) of the start and of every adopted world (``step``, ``back-off``) of the last
+    reduction in a run log, on the same probe numbering as `probe_sizes_from_log`: a step is drawn at the
+    last probe logged before it, the one that justified it. Empty when the log has no start."""
+    steps: list[tuple[int, int]] = []
+    probes = 0
+    for record in _last_reduction(log):
+        if record.get("event") == "start":
+            steps.append((0, len(record.get("elements", ())) + len(record.get("keep", ()))))
+        elif _is_reduction_probe(record):
+            probes += 1
+        elif record.get("event") in ("step", "back-off") and isinstance(record.get("candidate"), list):
+            steps.append((probes, len(record["candidate"])))
+    return steps
+
+
+def _reference_failure(summary: Path) -> dict[str, Any] | None:
+    """The ``reference_failure`` object of a summary.json (None: no such file, key or object)."""
+    from pytest_ddenv.artifacts import read_summary
+
+    data = read_summary(summary)
+    reference = None if data is None else data.get("reference_failure")
+    return reference if isinstance(reference, dict) else None
+
+
+def reference_text(summary: Path) -> str | None:
+    """The reduced failure in its own words when no predicate found it ("AssertionError at test_x.py:12")."""
+    reference = _reference_failure(summary)
+    if reference is None or reference.get("signature") is not None:
+        return None
+    return f"{reference.get('exception_type', 'an exception')} at {reference.get('location', '?')}"
+
+
+def reference_pose(summary: Path) -> list[float] | None:
+    """The pose (x, y, z, roll, pitch, yaw) of the reference failure a predicate found, else None."""
+    reference = _reference_failure(summary)
+    if reference is None:
+        return None
+    try:
+        return [float(v) for v in reference["signature"]["pose"]]
+    except (KeyError, TypeError, ValueError):
+        return None

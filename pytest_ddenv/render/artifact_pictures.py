@@ -1,0 +1,76 @@
+"""The pictures of an artifacts folder: the reduction and its progress, and the worlds the stages found."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from pytest_ddenv.render.artifact_data import (
+    probe_sizes_from_log,
+    reference_pose,
+    reference_text,
+    steps_from_log,
+)
+from pytest_ddenv.render.canvas import models_text, wrap
+from pytest_ddenv.render.progress_chart import plot_progress
+from pytest_ddenv.render.world_picture import plot_reduction, plot_world
+
+if TYPE_CHECKING:  # pragma: no cover
+    from pytest_ddenv.artifacts import ArtifactPaths
+    from pytest_ddenv.reduce import Reduction
+    from pytest_ddenv.sim import Run
+    from pytest_ddenv.stages import StagesOutcome
+    from pytest_ddenv.world import World
+
+
+def write_reduction_pictures(world: World, reduction: Reduction, paths: ArtifactPaths, *,
+                             original_run: Run | None = None, minimal_run: Run | None = None) -> list[Path]:
+    """Write `paths.reduction_png` and `paths.progress_png`; return the paths written.
+
+    Without `original_run`, the reference failure pose is read from `paths.summary` when it exists. The
+    per-probe dots of the progress picture come from the run log `paths.log` when it exists.
+    """
+    failure_pose = None if original_run is not None else reference_pose(paths.summary)
+    failure_text = reference_text(paths.summary)
+    name = world.name or (Path(world.source).stem if world.source else "world")
+    status = "1-minimal" if reduction.one_minimal else (reduction.incomplete_reason or "incomplete")
+    reduction_title = (f"{name}: {reduction.original_size} → {models_text(reduction.minimal_size)} "
+                       f"({reduction.probes} probes, {status})")
+    probe_sizes = probe_sizes_from_log(paths.log)
+    steps = steps_from_log(paths.log) if probe_sizes else None
+    written = [
+        plot_reduction(world, reduction.minimal, path=paths.reduction_png, original_run=original_run,
+                       minimal_run=minimal_run, failure_pose=failure_pose, title=reduction_title,
+                       failure_text=failure_text),
+        plot_progress(steps or reduction.steps, path=paths.progress_png,
+                      probes=len(probe_sizes) if steps else reduction.probes, probe_sizes=probe_sizes,
+                      title=f"{name}: world size during the reduction ({status})",
+                      note=_progress_note(reduction)),
+    ]
+    return written
+
+
+def write_stage_pictures(staged: StagesOutcome, paths: ArtifactPaths, *, minimal_run: Run | None = None) -> list[Path]:
+    """`simplified.png` (the world the stages left: the kept shapes, simplified models and the shortened
+    start, with the minimal world's failing run) and `passing.png` (the nearest passing world), when found."""
+    written: list[Path] = []
+    runs = () if minimal_run is None else (minimal_run,)
+    if staged.changed and staged.final is not None:
+        rate = "" if staged.final_rate is None else f", fails {staged.final_rate[0]}/{staged.final_rate[1]} fresh runs"
+        written.append(plot_world(staged.final, runs, path=paths.directory / "simplified.png",
+                                  title=f"after the stages: kept shapes, simpler values, start{rate}"))
+    if staged.passing is not None:
+        found = staged.result("passing")
+        difference = "; ".join(found.details.get("difference", [])) if found is not None else ""
+        written.append(plot_world(staged.passing, runs, path=paths.directory / "passing.png",
+                                  title=wrap(f"nearest passing world: {difference}", 60)))
+    return written
+
+
+def _progress_note(reduction: Reduction) -> str:
+    fails, runs = reduction.failure_rate
+    lines = [f"{reduction.probes} probes ({reduction.cache_hits} cached, {reduction.skipped} skipped)",
+             f"{reduction.wall_time:.0f} s wall time"]
+    if runs:
+        lines.append(f"minimal world fails {fails}/{runs} seeds")
+    return "\n".join(lines)
