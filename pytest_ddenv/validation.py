@@ -1,4 +1,4 @@
-"""What counts as a number, an integer or a flag in every input pytest-ddenv checks: one place for it.
+"""What counts as a number, an integer or a flag in every input pytest-ddenv checks, and how a wrong one is told.
 
 Python's `bool` is an `int`, numpy's scalars are not Python numbers, and a float can be NaN or infinite:
 each check below settles those cases once, so that a world file, a marker argument, an option and a keyword

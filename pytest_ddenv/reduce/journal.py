@@ -57,15 +57,8 @@ class Journal:
 
     def verdict(self, trial: Trial, decision: Decision, errors: int) -> None:
         """A candidate just decided, on runs of which `errors` were ERROR."""
-        record: dict[str, Any] = {
-            "event": "errored" if decision.errored else "accept" if decision.reproduces else "reject",
-            "kind": trial.kind,
-            "candidate": list(trial.candidate),
-            "size": len(trial.candidate),
-            "reproduces": decision.reproduces,
-            "fails": decision.fails,
-            "runs": decision.runs,
-        }
+        record = _decision_record("errored" if decision.errored else "accept" if decision.reproduces else "reject",
+                                  trial, decision)
         if errors:
             record["errors"] = errors
         self.write(record)
@@ -78,15 +71,7 @@ class Journal:
             self.context.history.append(Verdict(frozenset(key - self.keep), decision.reproduces))
         if cached and not quiet:
             self.counters.cache_hits += 1
-            record: dict[str, Any] = {
-                "event": "cache-hit",
-                "kind": trial.kind,
-                "candidate": list(trial.candidate),
-                "size": len(trial.candidate),
-                "reproduces": decision.reproduces,
-                "fails": decision.fails,
-                "runs": decision.runs,
-            }
+            record = _decision_record("cache-hit", trial, decision)
             if decision.errored:
                 record["errored"] = True
             self.write(record)
@@ -111,3 +96,9 @@ class Journal:
         if self.log is not None:
             record["elapsed"] = round(self.elapsed(), 6)
             self.log.write(record)
+
+
+def _decision_record(event: str, trial: Trial, decision: Decision) -> dict[str, Any]:
+    """The log record of a decision about `trial` (a verdict, or a verdict looked up again)."""
+    return {"event": event, "kind": trial.kind, "candidate": list(trial.candidate), "size": len(trial.candidate),
+            "reproduces": decision.reproduces, "fails": decision.fails, "runs": decision.runs}

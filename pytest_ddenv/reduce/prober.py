@@ -59,6 +59,8 @@ class Prober:
         self.runner = Runner(probe, executor, workers, budget, self.counters)
         self.scheduler = Scheduler(self.decider, journal, self.runner, lookahead)
         self.extra_runs = ExtraRuns(self.runner, journal)
+        self.measure = self.extra_runs.measure
+        """A decided world's failure-rate and calibration runs (`ExtraRuns.measure`)."""
 
     @property
     def policy(self) -> DeflakePolicy:
@@ -77,20 +79,6 @@ class Prober:
         """See Scheduler.planned."""
         return self.scheduler.planned(trials)
 
-    def measure(
-        self,
-        candidate: Candidate,
-        first_attempt: int,
-        runs: int,
-        purpose: str = "failure-rate",
-        *,
-        known: dict[int, Outcome] | None = None,
-        strict: bool = False,
-        into: dict[int, Outcome] | None = None,
-    ) -> tuple[int, int]:
-        """See ExtraRuns.measure."""
-        return self.extra_runs.measure(candidate, first_attempt, runs, purpose, known=known, strict=strict,
-                                       into=into)
 
     def errored_among(self, trials: Sequence[Trial]) -> list[Trial]:
         """See Decider.errored_among."""
