@@ -31,6 +31,7 @@ from pytest_ddenv.robot_world import FIXTURE
 from pytest_ddenv.world import is_file
 
 if TYPE_CHECKING:
+    from pytest_ddenv.given_example import GivenExample
     from pytest_ddenv.predicates import PredicateSpec
     from pytest_ddenv.reduce import ProgressEvent
     from pytest_ddenv.robot_world import RobotWorld
@@ -77,6 +78,12 @@ def pytest_configure(config: pytest.Config) -> None:
     options = config.stash[_options_key] = read_options(config)
     if options.reduce:
         _open_log(config)
+    from pytest_ddenv.pytest_worker import WORKER
+
+    if options.world and not config.stash.get(WORKER, False):  # a @given test runs once on that world (replay)
+        from pytest_ddenv.given_example import GivenReplay
+
+        config.pluginmanager.register(GivenReplay(options.world), "ddenv-given-replay")
 
 
 def pytest_report_header(config: pytest.Config) -> str | None:
@@ -175,8 +182,12 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
     return RobotWorld(world, predicates=predicates, seed=spec.seed if seed is None else seed, max_wall_time=timeout)
 
 
+GIVEN_WORLD_NAME = "no world yet: a @given test binds each drawn world with robot_world.rebound(world)"
+
+
 def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates: tuple[PredicateSpec, ...]) -> World:
     """The world a test runs in, checked against its markers (DdenvError naming the file and field)."""
+    from pytest_ddenv.given_example import inner_test
     from pytest_ddenv.predicates import check_predicate_models
     from pytest_ddenv.world import World
 
@@ -193,6 +204,8 @@ def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates:
         world = World.load(_world_path(item, param), **options)
     elif spec.world is not None:
         world = World.load(_world_path(item, spec.world), **options)
+    elif inner_test(item) is not None:  # a @given test draws its worlds: robot_world.rebound(world)
+        return World(name=GIVEN_WORLD_NAME)
     else:
         raise DdenvError(
             "robot_world needs a world: @pytest.mark.ddenv(world='worlds/x.yaml'), an indirect parameter, or "
@@ -219,12 +232,23 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> Generator[None, object, o
     if pyfuncitem.config.stash.get(WORKER, False):
         _bind_probe(pyfuncitem)
         return (yield)
+    calls: list[dict[str, Any]] = []
     try:
-        return (yield)
+        with _recording_given_calls(pyfuncitem) as calls:
+            return (yield)
     except Exception as error:
         if _should_reduce(pyfuncitem, error):
-            _reduce_failed_test(pyfuncitem, error)
+            _reduce_failed_test(pyfuncitem, error, calls[-1] if calls else None)
         raise
+
+
+def _recording_given_calls(item: pytest.Function) -> contextlib.AbstractContextManager[list[dict[str, Any]]]:
+    """For a `@given` test that may be reduced: record its calls, to find the falsifying example."""
+    from pytest_ddenv.given_example import inner_test, recording_calls
+
+    if not _options(item.config).reduce or FIXTURE not in item.fixturenames or inner_test(item) is None:
+        return contextlib.nullcontext([])
+    return recording_calls(item)
 
 
 def _bind_probe(item: pytest.Function) -> None:
@@ -255,7 +279,19 @@ def _should_reduce(item: pytest.Function, error: BaseException) -> bool:
     return isinstance(item.funcargs.get(FIXTURE), RobotWorld)
 
 
-def _probe_pool(item: pytest.Function) -> Any:
+def _given_example(item: pytest.Function, call: dict[str, Any] | None) -> GivenExample | None:
+    """The falsifying example of a `@given` test (None for a plain test); DdenvError if it cannot be
+    re-run in a probe."""
+    from pytest_ddenv.given_example import GivenExample
+
+    if call is None:
+        return None
+    robot_world = item.funcargs[FIXTURE]
+    fixtures = {name: value for name, value in item.funcargs.items() if name in call and call[name] is value}
+    return GivenExample.of(call, robot_world.latest.world, fixtures)  # type: ignore[attr-defined]
+
+
+def _probe_pool(item: pytest.Function, example: GivenExample | None = None) -> Any:
     """A pool serving this test's probes: worker processes that run the test (or this process, with one
     worker), or the session's dask cluster."""
     from pytest_ddenv.execution import DaskCluster, check_executor, make_pool
@@ -269,13 +305,15 @@ def _probe_pool(item: pytest.Function) -> Any:
     executor = check_executor(options.executor)
     watchdog = options.watchdog
     if executor is None:
-        return make_pool(PytestJob.of(item), count, in_process=ItemHandler(item), watchdog=watchdog)
+        return make_pool(PytestJob.of(item, example=example), count, in_process=ItemHandler(item, example),
+                         watchdog=watchdog)
     cluster = config.stash.get(_cluster_key, None)
     if cluster is None:
         cluster = DaskCluster(None if executor == "dask" else executor,
                               n_workers=None if count == "auto" else int(count))
         config.stash[_cluster_key] = cluster
-    return make_pool(PytestJob.of(item, capture="sys"), count, executor, cluster=cluster, watchdog=watchdog)
+    return make_pool(PytestJob.of(item, capture="sys", example=example), count, executor, cluster=cluster,
+                     watchdog=watchdog)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
@@ -289,7 +327,7 @@ def pytest_unconfigure(config: pytest.Config) -> None:
         del config.stash[_cluster_key]
 
 
-def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
+def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call: dict[str, Any] | None) -> None:
     from pytest_ddenv.reduction_session import ReductionSession
 
     spec, _ = item.stash.get(_spec_key, (ReductionSpec(), ()))
@@ -314,7 +352,8 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException) -> None:
         media=options.media,
     )
     try:
-        with _probe_pool(item) as pool:
+        session.example = _given_example(item, given_call)
+        with _probe_pool(item, session.example) as pool:
             if getattr(pool, "in_process", False):
                 _warn_about_shared_fixtures(item)
             result = session.run(pool)

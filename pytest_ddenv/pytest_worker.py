@@ -23,6 +23,7 @@ from typing import Any
 import pytest
 
 from pytest_ddenv.execution import Channel, serve_requests
+from pytest_ddenv.given_example import GivenExample
 from pytest_ddenv.probe import ProbeResult, describe_error
 from pytest_ddenv.robot_world import FIXTURE, RobotWorld
 from pytest_ddenv.world import World
@@ -69,17 +70,19 @@ class PytestJob:
     environ: Mapping[str, str]
     basetemp: str | None = None
     capture: str | None = None
+    example: GivenExample | None = None
+    """A `@given` test's falsifying example: each probe calls the test once with it (`given_example`)."""
     key: str = field(default_factory=lambda: uuid.uuid4().hex)
 
     @classmethod
-    def of(cls, item: pytest.Item, *, capture: str | None = None) -> PytestJob:
+    def of(cls, item: pytest.Item, *, capture: str | None = None, example: GivenExample | None = None) -> PytestJob:
         config = item.config
         factory = getattr(config, "_tmp_path_factory", None)  # as pytest-xdist does for its workers
         basetemp = None if factory is None else str(factory.getbasetemp() / "ddenv-probes")
         return cls(
             nodeid=item.nodeid, test_file=str(item.path), args=tuple(str(a) for a in config.invocation_params.args),
             invocation_dir=str(config.invocation_params.dir), sys_path=tuple(sys.path), environ=dict(os.environ),
-            basetemp=basetemp, capture=capture,
+            basetemp=basetemp, capture=capture, example=example,
         )
 
     @property
@@ -149,6 +152,15 @@ class ProbeServer:
         serve_requests(self.channel, lambda world, attempt: self.run_item(item, world, attempt))
         return True
 
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_pyfunc_call(self, pyfuncitem: pytest.Function) -> bool | None:
+        """A `@given` test runs once on its falsifying example with the candidate world (no Hypothesis)."""
+        binding = pyfuncitem.config.stash.get(PROBE_BINDING, None)
+        if self.job.example is None or binding is None:
+            return None
+        self.job.example.call(pyfuncitem, fixture_arguments(pyfuncitem), binding.world)
+        return True
+
     @pytest.hookimpl(wrapper=True)
     def pytest_runtest_makereport(self, item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
         report = yield
@@ -174,28 +186,39 @@ class ProbeServer:
             if phase in self.raised:
                 error = describe_error(self.raised[phase], self.job.test_file, phase=phase)
                 break
-        robot_world = binding.robot_world
+        robot_world = None if binding.robot_world is None else binding.robot_world.latest
         run = robot_world.runs[-1] if robot_world is not None and robot_world.runs else None
         return ProbeResult(error, run)
+
+
+def fixture_arguments(item: pytest.Function) -> dict[str, Any]:
+    """The test function's arguments that pytest provides (its fixtures and parameters), by name."""
+    parameters = inspect.signature(item.obj).parameters
+    return {name: item.funcargs[name] for name in parameters if name in item.funcargs}
 
 
 class ItemHandler:
     """Probes in the pytest process: call the test function again with `robot_world` rebound to the
     candidate world; the other arguments keep the values the failing call received."""
 
-    def __init__(self, item: pytest.Function) -> None:
+    def __init__(self, item: pytest.Function, example: GivenExample | None = None) -> None:
         self.item = item
-        parameters = inspect.signature(item.obj).parameters
-        self.arguments = {name: item.funcargs[name] for name in parameters if name in item.funcargs}
+        self.example = example
+        self.arguments = fixture_arguments(item)
         original = item.funcargs[FIXTURE]
         assert isinstance(original, RobotWorld)
         self.original = original
 
     def __call__(self, world: World, attempt: int) -> ProbeResult:
         rebound = self.original.rebound(world, attempt=attempt)
+        arguments = {**self.arguments, FIXTURE: rebound}
         error = None
         try:
-            self.item.obj(**{**self.arguments, FIXTURE: rebound})
+            if self.example is not None:
+                self.example.call(self.item, arguments, world)
+            else:
+                self.item.obj(**arguments)
         except OUTCOME_EXCEPTIONS as raised:  # every exception is an outcome to classify
             error = describe_error(raised, self.item.path)
-        return ProbeResult(error, rebound.runs[-1] if rebound.runs else None)
+        ran = rebound.latest
+        return ProbeResult(error, ran.runs[-1] if ran.runs else None)

@@ -18,6 +18,7 @@ import pytest
 from pytest_ddenv import artifacts
 from pytest_ddenv.driver import ReductionOutcome, ReductionPlan, run_reduction
 from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.given_example import GivenExample, reproduction
 from pytest_ddenv.markers import ReductionSpec
 from pytest_ddenv.media import DEFAULT_MEDIA
 from pytest_ddenv.probe import FailureReference, describe_error
@@ -42,9 +43,12 @@ class ReductionSession:
     replay: Callable[[pytest.Item, Path], str]
     model_paths: tuple[str, ...] = ()
     media: str = DEFAULT_MEDIA
+    example: GivenExample | None = None
+    """The falsifying example of a `@given` test (its world is the one reduced)."""
 
     def run(self, pool: Pool) -> dict[str, Any]:
-        robot_world: RobotWorld = self.item.funcargs[FIXTURE]  # type: ignore[assignment]
+        fixture: RobotWorld = self.item.funcargs[FIXTURE]  # type: ignore[assignment]
+        robot_world = fixture.latest  # the world the test ran last (a @given test rebinds each example's)
         world = robot_world.world
         reference = FailureReference.of(describe_error(self.error, self.item.path))
         folder = self.artifacts_root / artifacts.artifact_dir_name(self.item.nodeid)
@@ -60,6 +64,8 @@ class ReductionSession:
             run_settings={
                 "predicates": [spec.to_json() for spec in robot_world.predicates],
                 "scenario_seed": robot_world.seed,
+                **({} if self.example is None else
+                   {"hypothesis": reproduction(self.item, self.error, self.example)}),
             },
             model_paths=self.model_paths, media=self.media,
         )

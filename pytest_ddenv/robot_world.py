@@ -58,14 +58,28 @@ class RobotWorld:
         self.attempt = attempt
         self.max_wall_time = max_wall_time
         self.runs: list[Run] = []
+        self.rebound_to: RobotWorld | None = None
+        """The last `rebound` of this one (a Hypothesis test binds each generated world with it)."""
 
     def __repr__(self) -> str:
         return f"RobotWorld({self.world.name or self.world.source!r}, {len(self.world)} models, seed={self.seed})"
 
-    def rebound(self, world: World, *, attempt: int) -> RobotWorld:
-        """The same test setup on another world and attempt (what a reduction probe runs)."""
-        return RobotWorld(world, predicates=self.predicates, seed=self.seed, attempt=attempt,
-                          max_wall_time=self.max_wall_time)
+    def rebound(self, world: World, *, attempt: int | None = None) -> RobotWorld:
+        """The same test setup (predicates, seed, time limits) on another world: a world the test generates
+        (``@given(world=strategies.worlds())``: ``robot_world.rebound(world).run()``), or a reduction
+        probe's candidate world and attempt. `attempt` defaults to this one's."""
+        bound = RobotWorld(world, predicates=self.predicates, seed=self.seed,
+                           attempt=self.attempt if attempt is None else attempt, max_wall_time=self.max_wall_time)
+        self.rebound_to = bound
+        return bound
+
+    @property
+    def latest(self) -> RobotWorld:
+        """The world the test ran last: this one, or the last one it was rebound to (recursively)."""
+        current = self
+        while current.rebound_to is not None:
+            current = current.rebound_to
+        return current
 
     @property
     def run_seed(self) -> int:

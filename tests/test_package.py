@@ -86,8 +86,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("probes, stages, driver, presentation", ("probe", "stages", "markers", "driver", "artifacts", "render",
                                              "media", "animate", "recording", "reduction_report", "report_text",
                                              "progress", "replay", "scenario_job", "user_code")),
-    ("front ends and pytest glue", ("plugin", "pytest_options", "reduction_session", "pytest_worker", "cli",
-                                    "cli_world")),
+    ("front ends and pytest glue", ("plugin", "pytest_options", "reduction_session", "pytest_worker", "given_example",
+                                    "cli", "cli_world")),
 ]
 PACKAGE = Path(pytest_ddenv.__file__).parent
 
