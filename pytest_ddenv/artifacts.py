@@ -17,8 +17,8 @@ import json
 import os
 import re
 import time
-from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self
 
@@ -29,6 +29,7 @@ from pytest_ddenv.reduction_report import ReductionReport, ReportFiles, identity
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:
+    from pytest_ddenv.other_failures import OtherFailure
     from pytest_ddenv.stages import StagesOutcome
 
 try:
@@ -336,6 +337,35 @@ def write_stage_worlds(paths: ArtifactPaths, staged: StagesOutcome) -> dict[str,
         write_text_atomic(sdf, text)
         files[f"{key}_sdf"] = str(sdf)
     return files
+
+
+OTHER_WORLD = re.compile(r"other-(\d+)\.yaml")
+"""The file name of a kept other failure's smallest world (`write_other_worlds`)."""
+
+
+def write_other_worlds(paths: ArtifactPaths, world: World, failures: Sequence[OtherFailure], keep: int,
+                       replay: Callable[[Path, int | None], str] | None = None
+                       ) -> tuple[tuple[OtherFailure, ...], tuple[Path, ...]]:
+    """Write the smallest worlds of the first `keep` other failures that have one (`failures` come largest
+    first) as `other-1.yaml`, `other-2.yaml` ...; returns the failures, those written with their `world_file`
+    and `replay` (`replay(path, run seed)`) set, and the files. An `other-<k>.yaml` of an earlier run that
+    this one did not write is removed."""
+    written: list[Path] = []
+    result: list[OtherFailure] = []
+    known = set(world.names)
+    for failure in failures:
+        models = failure.smallest_world
+        if len(written) < keep and models is not None and set(models) <= known:
+            path = paths.directory / f"other-{len(written) + 1}.yaml"
+            write_text_atomic(path, world.select(models).to_yaml(relative_to=paths.directory))
+            written.append(path)
+            failure = replace(failure, world_file=str(path), replay=None if replay is None
+                                          else replay(path, failure.smallest_seed))
+        result.append(failure)
+    for stale in paths.directory.glob("other-*.yaml"):
+        if OTHER_WORLD.fullmatch(stale.name) and stale not in written:
+            stale.unlink(missing_ok=True)
+    return tuple(result), tuple(written)
 
 
 def write_progress(paths: ArtifactPaths, world: World, best: Sequence[str], *, test_id: str, problem_fingerprint: str,

@@ -330,6 +330,9 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     reduce.add_argument("--executor", default=None, metavar="ADDRESS", type=_executor,
                         help="where probes run: 'local' worker processes (default), 'dask' (a local dask "
                              "cluster) or tcp://HOST:PORT of a dask scheduler")
+    reduce.add_argument("--keep-other", type=_non_negative_int, default=0, metavar="N",
+                        help="write the smallest worlds of the N most frequent other failures the probes met as "
+                             "other-1.yaml ... other-N.yaml in the artifacts folder (default 0)")
     reduce.add_argument("--out", metavar="DIR", help="artifacts folder (default ddenv-artifacts/WORLD)")
     reduce.add_argument("--quiet", "-q", action="store_true", help="no progress on stderr")
 
@@ -755,7 +758,8 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
             f" --controller {shlex.quote(arguments.controller)}" if arguments.controller else ""),
         fingerprint={**settings, "predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
                      "controller": arguments.controller, "imports": list(arguments.imports)},
-        confirmed=True, media=arguments.media,
+        confirmed=True, media=arguments.media, keep_other=arguments.keep_other,
+        other_replay=lambda world_file, seed: _other_replay(arguments, world_file, seed),
         model_paths=tuple(folder for value in arguments.model_paths for folder in value.split(os.pathsep) if folder),
         run_settings={"predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
                        "scenario_seed": arguments.seed, "command": command, "controller": arguments.controller,
@@ -768,6 +772,22 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
         return stop.outcome, True  # type: ignore[attr-defined]
     finally:
         progress.close()
+
+
+def _other_replay(arguments: argparse.Namespace, world_file: Path, seed: int | None) -> str:
+    """`ddenv run` of a kept other failure's world with the reduction's predicates, time limit and code, and
+    the run seed it failed with."""
+    words = ["ddenv", "run", str(world_file)]
+    for text in arguments.predicates:
+        words += ["--predicate", text]
+    words += ["--seed", str(arguments.seed if seed is None else seed)]
+    if arguments.timeout is not None:
+        words.append(f"--timeout={arguments.timeout}")
+    for spec in arguments.imports:
+        words += ["--import", spec]
+    if arguments.controller:
+        words += ["--controller", arguments.controller]
+    return " ".join(shlex.quote(word) for word in words)
 
 
 def _command_line(arguments: argparse.Namespace) -> list[str]:
@@ -787,6 +807,8 @@ def _command_line(arguments: argparse.Namespace) -> list[str]:
         words.append("--skip-unsupported")
     words += ["--partition", arguments.partition, "--priority", arguments.priority, "--deflake", arguments.deflake,
               "--seed", str(arguments.seed)]
+    if arguments.keep_other:
+        words += ["--keep-other", str(arguments.keep_other)]
     return words
 
 

@@ -16,7 +16,7 @@ import time
 import warnings
 from collections import OrderedDict
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -24,6 +24,7 @@ from pytest_ddenv import artifacts
 from pytest_ddenv.execution import Pool, ProbeDeadline, WorkerError, WorkerStartError
 from pytest_ddenv.markers import ReductionSpec
 from pytest_ddenv.media import DEFAULT_MEDIA, Shown, write_media
+from pytest_ddenv.other_failures import other_failures
 from pytest_ddenv.probe import (
     FailureReference,
     ProbeResult,
@@ -97,6 +98,12 @@ class ReductionPlan:
     media: str = DEFAULT_MEDIA
     """What to show besides the files: "all" (pictures, animations, 3D recording), "pictures" or "none"
     (`pytest_ddenv.media`)."""
+    keep_other: int = 0
+    """Write the smallest worlds of this many other failures the probes met as `other-<k>.yaml`
+    (`--ddenv-keep-other`, `ddenv reduce --keep-other`; `artifacts.write_other_worlds`)."""
+    other_replay: Callable[[Path, int | None], str] | None = None
+    """The command that replays a kept other failure: (its `other-<k>.yaml`, the run seed it failed with, None
+    when unknown) -> command line; None: no command."""
 
 
 @dataclass
@@ -311,15 +318,20 @@ class _Locked:
         plan, paths = self.plan, self.paths
         self.record_usage(final=True)
         files, how = artifacts.write_minimal_world(paths, plan.world, reduction, model_paths=plan.model_paths)
+        others, other_worlds = artifacts.write_other_worlds(
+            paths, plan.world, other_failures(self.log.records, plan.spec.tolerance), plan.keep_other,
+            plan.other_replay)
+        files = replace(files, other_worlds=other_worlds)
         report = ReductionReport(
             test=plan.test_id, world=plan.world.source or plan.world.name, reduction=reduction,
             reference_failure=plan.reference.to_dict(), replay=plan.replay_command, fingerprint=self.problem,
             files=files, cost=self.cost(reduction.probes), tolerance=plan.spec.tolerance, minimal_sdf=how,
             notes=tuple(self.notes), world_notes=tuple(plan.world.notes), stages=staged,
             stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
-            run_settings=plan.run_settings)
+            run_settings=plan.run_settings, other_failures=others)
         artifacts.write_summary(paths, report)
-        attachments = [paths.minimal_yaml, paths.log, paths.summary, *map(Path, report.stage_files.values())]
+        attachments = [paths.minimal_yaml, paths.log, paths.summary, *map(Path, report.stage_files.values()),
+                       *other_worlds]
         if interrupted is None and plan.media != "none":
             attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
         if interrupted is None and shown:

@@ -350,6 +350,7 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call:
         replay=replay_command,
         model_paths=options.model_paths,
         media=options.media,
+        keep_other=options.keep_other,
     )
     try:
         session.example = _given_example(item, given_call)

@@ -45,6 +45,8 @@ class DdenvOptions:
     stage_probes: int | None
     run_timeout: float | None
     media: str
+    keep_other: int = 0
+    """Write the smallest worlds of this many other failures a reduction met (`other-<k>.yaml`)."""
 
     def stages_for(self, marker: tuple[str, ...] | None) -> tuple[str, ...] | None:
         """--ddenv-stages, else the marker's stages=, else the ini value (None: the default stages)."""
@@ -88,6 +90,9 @@ def add_options(parser: pytest.Parser) -> None:
                   "$DDENV_MEDIA, else all)"), {"metavar": "WHAT"}),
         ("stage-probes", ("simulations each stage after the models may start (default: all of them together at "
                          "most twice the model-level simulations)"), {"metavar": "N"}),
+        ("keep-other", ("write the smallest worlds of the N most frequent other failures a reduction's probes "
+                       "met as other-1.yaml ... other-N.yaml in its artifacts folder (default 0: listed in the "
+                       "report and summary.json only)"), {"metavar": "N"}),
         ("run-timeout", ("wall-clock seconds one robot_world.run() may take before it fails with ControllerTimeout "
                         "(default 300): bounds a controller that is too slow"), {"metavar": "SECONDS"}),
     ]
@@ -228,6 +233,7 @@ def read_options(config: pytest.Config) -> DdenvOptions:
         stages_ini=_stage_list(config, config.getini("ddenv_stages")),
         stage_probes=_int_setting(config, "ddenv_stage_probes", 1),
         run_timeout=_seconds_setting(config, "ddenv_run_timeout"), media=_media_setting(config),
+        keep_other=_int_setting(config, "ddenv_keep_other", 0) or 0,
     )
 
 

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 from pytest_ddenv.reduce import Reduction
 
 if TYPE_CHECKING:
+    from pytest_ddenv.other_failures import OtherFailure
     from pytest_ddenv.stages import StagesOutcome
 
 SUMMARY_FORMAT = 1
@@ -53,6 +54,8 @@ class ReportFiles:
     log: Path
     summary: Path
     minimal_sdf: Path | None = None
+    other_worlds: tuple[Path, ...] = ()
+    """`other-1.yaml`, `other-2.yaml` ...: the smallest worlds of the other failures kept (`--ddenv-keep-other`)."""
 
     @property
     def folder(self) -> Path:
@@ -62,6 +65,8 @@ class ReportFiles:
         files = {"minimal_yaml": str(self.minimal_yaml), "log": str(self.log), "summary": str(self.summary)}
         if self.minimal_sdf is not None:
             files["minimal_sdf"] = str(self.minimal_sdf)
+        for number, path in enumerate(self.other_worlds, start=1):
+            files[f"other_{number}_yaml"] = str(path)
         return files
 
 
@@ -90,6 +95,8 @@ class ReductionReport:
     """The animations and recording written: {"files": {name: info}, "seconds": s}."""
     run_settings: Mapping[str, Any] = field(default_factory=dict)
     """The caller's own entries of `summary.json` (predicates, scenario_seed, timeout, command, imports ...)."""
+    other_failures: tuple[OtherFailure, ...] = ()
+    """The other failures the reduction's probes met, grouped, largest first (`pytest_ddenv.other_failures`)."""
 
     @property
     def removed_models(self) -> list[str]:
@@ -145,6 +152,7 @@ class ReductionReport:
             **self.cost.to_json(),
             "resumed_runs": self.cost.resumed_runs,
             "cpu_seconds_complete": self.cost.cpu_seconds_complete,
+            "other_failures": [failure.to_json() for failure in self.other_failures],
         }
         if self.stages is not None:
             summary["stages"] = self.stages.to_dict()

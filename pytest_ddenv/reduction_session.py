@@ -45,6 +45,8 @@ class ReductionSession:
     media: str = DEFAULT_MEDIA
     example: GivenExample | None = None
     """The falsifying example of a `@given` test (its world is the one reduced)."""
+    keep_other: int = 0
+    """`--ddenv-keep-other`: write the smallest worlds of this many other failures (`other-<k>.yaml`)."""
 
     def run(self, pool: Pool) -> dict[str, Any]:
         fixture: RobotWorld = self.item.funcargs[FIXTURE]  # type: ignore[assignment]
@@ -67,7 +69,8 @@ class ReductionSession:
                 **({} if self.example is None else
                    {"hypothesis": reproduction(self.item, self.error, self.example)}),
             },
-            model_paths=self.model_paths, media=self.media,
+            model_paths=self.model_paths, media=self.media, keep_other=self.keep_other,
+            other_replay=self._other_replay,
         )
         try:
             outcome = run_reduction(plan, pool, note=self.progress, on_progress=self._on_progress)
@@ -81,6 +84,12 @@ class ReductionSession:
         result = self._describe(outcome)
         self.progress(result["line"], final=True)
         return result
+
+    def _other_replay(self, world_file: Path, seed: int | None) -> str:
+        """The command that re-runs the test on a kept other failure's world, with the run seed it failed with
+        (`--ddenv-seed`, when not the test's own)."""
+        command = self.replay(self.item, world_file)
+        return command if seed is None or seed == self.spec.seed else f"{command} --ddenv-seed {seed}"
 
     def _on_progress(self, event: ProgressEvent) -> None:
         probe_line = None

@@ -36,9 +36,32 @@ def result_lines(report: ReductionReport) -> list[str]:
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
         failure_rate_line(reduction),
         *stage_lines(report),
+        *other_failure_lines(report),
         *(f"note: {text}" for text in report.notes),
         *(f"not simulated: {text}" for text in report.world_notes),
     ]
+
+
+OTHER_FAILURES_SHOWN = 5
+
+
+def other_failure_lines(report: ReductionReport, limit: int = OTHER_FAILURES_SHOWN) -> list[str]:
+    """One line per other failure the probes met (`pytest_ddenv.other_failures`), the largest groups first."""
+    lines = []
+    for failure in report.other_failures[:limit]:
+        seen = f"seen in {failure.probes} probe{'s' if failure.probes != 1 else ''}"
+        if failure.smallest_world is None:
+            where = "only in the stages' worlds"
+        else:
+            size = len(failure.smallest_world)
+            where = f"smallest world {size} model{'s' if size != 1 else ''}"
+            if failure.world_file is not None:
+                where += f" ({Path(failure.world_file).name})"
+        lines.append(f"other failure: {failure.describe()}, {seen}, {where}")
+    more = len(report.other_failures) - limit
+    if more > 0:
+        lines.append(f"and {more} more other failure{'s' if more != 1 else ''} (see summary.json)")
+    return lines
 
 
 def failure_rate_line(reduction: Reduction) -> str:

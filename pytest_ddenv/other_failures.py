@@ -1,0 +1,181 @@
+"""The other failures a reduction met: every probe that ended in another failure f' (outcome "other"), grouped.
+
+A reduction classifies each probe against the failure f it reduces; a probe that fails another way (another
+predicate, the same predicate elsewhere, an assert of the test) is OTHER, and the run log (`runs.jsonl`)
+keeps its signature. `other_failures(records, tolerance)` reads those records (the model-level probes, the
+driver's confirmation and picture runs and the stages' probes, every purpose) and groups them:
+
+- a predicate failure joins the first group whose first member it matches by the oracle's own rule
+  (`oracle.same_failure`: same predicate, failure position within `tolerance` m of that member's, and
+  touching one of the models it touched, if it touched any);
+- an exception of the test (``{"exception", "location"}``: an assert, an error of the controller) joins the
+  group of the same exception type at the same location.
+
+Per group (`OtherFailure`): the signature of its first member, the number of probes that showed it, the
+smallest model-level world that showed it (the stages' probes simplify shapes and attributes, so their
+worlds are not sets of models) with the seed and attempt of that probe, and every seed and attempt it was
+seen with. Largest group first, then by first probe. No pytest, no simulation: the driver calls it on its
+log when it writes the summary, and `artifacts.write_other_worlds` writes the smallest worlds of the largest
+groups as `other-<k>.yaml` (``--ddenv-keep-other N``), with the command that replays each.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from pytest_ddenv import defaults
+from pytest_ddenv.oracle import FailureSignature, same_failure
+
+MODEL_LEVEL = "models"
+"""The name `OtherFailure.seen_in` gives the model-level reduction (and the driver's own runs)."""
+TOUCHED_SHOWN = 2
+"""Models touched that `OtherFailure.describe` names (then "and N more")."""
+
+
+@dataclass(frozen=True)
+class OtherFailure:
+    """One other failure f' a reduction met: a group of probes with the same signature (module docstring).
+
+    Exactly one of `signature` (a predicate fired) and `exception` (the test raised something else: its type
+    and `location`) is set. `smallest_world` is None when only the stages' probes showed it."""
+
+    signature: FailureSignature | None
+    exception: str | None
+    location: str | None
+    probes: int
+    """How many probes (runs) showed it."""
+    first_probe: int
+    """The position of its first probe among the log's probe records (from 0)."""
+    smallest_world: tuple[str, ...] | None
+    smallest_seed: int | None
+    """The run seed of the probe of the smallest world (``ddenv run --seed`` replays it)."""
+    smallest_attempt: int | None
+    seeds: tuple[int, ...] = ()
+    attempts: tuple[int, ...] = ()
+    seen_in: tuple[str, ...] = ()
+    """Where it was seen: "models" (the model-level reduction and the driver's runs) and the stages."""
+    world_file: str | None = None
+    """`other-<k>.yaml` when its smallest world was written (``--ddenv-keep-other``)."""
+    replay: str | None = None
+    """The command that replays its smallest world, when written."""
+
+    @property
+    def predicate(self) -> str | None:
+        return None if self.signature is None else self.signature.predicate
+
+    def describe(self) -> str:
+        """"flipped near (3.2, 1.0) at t = 4.1 s (touching crate)", or "AssertionError at test_yard.py:12".
+        The models touched tell apart two failures at one spot (the oracle's third rule)."""
+        if self.signature is None:
+            return f"{self.exception} at {self.location}"
+        x, y, _ = self.signature.position
+        touched = self.signature.touched
+        touching = ", ".join(touched[:TOUCHED_SHOWN]) if touched else "no model"
+        if len(touched) > TOUCHED_SHOWN:
+            touching += f" and {len(touched) - TOUCHED_SHOWN} more"
+        return (f"{self.signature.predicate} near ({x:.1f}, {y:.1f}) at t = {self.signature.time:.1f} s "
+                f"(touching {touching})")
+
+    def to_json(self) -> dict[str, Any]:
+        """Its entry in `summary.json`'s ``other_failures``."""
+        signature = (self.signature.to_dict() if self.signature is not None
+                     else {"exception": self.exception, "location": self.location})
+        return {
+            "signature": signature,
+            "description": self.describe(),
+            "probes": self.probes,
+            "first_probe": self.first_probe,
+            "smallest_world": None if self.smallest_world is None else {
+                "size": len(self.smallest_world), "models": list(self.smallest_world),
+                "seed": self.smallest_seed, "attempt": self.smallest_attempt},
+            "seeds": list(self.seeds),
+            "attempts": list(self.attempts),
+            "seen_in": list(self.seen_in),
+            "world_file": self.world_file,
+            "replay": self.replay,
+        }
+
+
+@dataclass
+class _Group:
+    """An `OtherFailure` being collected."""
+
+    signature: FailureSignature | None
+    exception: tuple[str, str] | None
+    first_probe: int
+    probes: int = 0
+    smallest: tuple[tuple[str, ...], int | None, int | None] | None = None
+    seeds: set[int] = field(default_factory=set)
+    attempts: set[int] = field(default_factory=set)
+    seen_in: dict[str, None] = field(default_factory=dict)
+
+    def add(self, record: Mapping[str, Any]) -> None:
+        self.probes += 1
+        seed, attempt = _integer(record.get("seed")), _integer(record.get("attempt"))
+        if seed is not None:
+            self.seeds.add(seed)
+        if attempt is not None:
+            self.attempts.add(attempt)
+        stage = record.get("stage")
+        self.seen_in[MODEL_LEVEL if stage is None else str(stage)] = None
+        candidate = record.get("candidate")
+        if stage is None and isinstance(candidate, list):  # a model-level world: a set of models
+            world = tuple(str(name) for name in candidate)
+            if self.smallest is None or len(world) < len(self.smallest[0]):
+                self.smallest = (world, seed, attempt)
+
+    def frozen(self) -> OtherFailure:
+        world, seed, attempt = self.smallest if self.smallest is not None else (None, None, None)
+        return OtherFailure(
+            signature=self.signature, exception=None if self.exception is None else self.exception[0],
+            location=None if self.exception is None else self.exception[1], probes=self.probes,
+            first_probe=self.first_probe, smallest_world=world, smallest_seed=seed, smallest_attempt=attempt,
+            seeds=tuple(sorted(self.seeds)), attempts=tuple(sorted(self.attempts)), seen_in=tuple(self.seen_in))
+
+
+def other_failures(records: Iterable[Mapping[str, Any]],
+                   tolerance: float = defaults.TOLERANCE) -> tuple[OtherFailure, ...]:
+    """The other failures in a run log's `records` (`ProbeLog.records`, `read_records`), grouped (module
+    docstring); largest group first, then by first probe. Records without a readable signature are left out."""
+    groups: list[_Group] = []
+    by_exception: dict[tuple[str, str], _Group] = {}
+    position = -1
+    for record in records:
+        if record.get("event") != "probe":
+            continue
+        position += 1
+        if record.get("outcome") != "other":
+            continue
+        data = record.get("signature")
+        if not isinstance(data, Mapping):
+            continue
+        group: _Group | None
+        if "predicate" in data:
+            try:
+                signature = FailureSignature.from_dict(data)
+            except (KeyError, TypeError, ValueError, IndexError):
+                continue
+            if len(signature.pose) < 3:
+                continue
+            group = next((g for g in groups if g.signature is not None
+                          and same_failure(signature, g.signature, tolerance)), None)
+            if group is None:
+                group = _Group(signature, None, position)
+                groups.append(group)
+        elif "exception" in data:
+            key = (str(data["exception"]), str(data.get("location", "")))
+            group = by_exception.get(key)
+            if group is None:
+                group = by_exception[key] = _Group(None, key, position)
+                groups.append(group)
+        else:
+            continue
+        group.add(record)
+    ordered = sorted(groups, key=lambda g: (-g.probes, g.first_probe))
+    return tuple(group.frozen() for group in ordered)
+
+
+def _integer(value: Any) -> int | None:
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
