@@ -62,3 +62,17 @@ def test_gym_policy_example_is_reduced_to_the_ditch(pytester: pytest.Pytester) -
 def test_urdf_robot_example_is_reduced_to_the_dock(pytester: pytest.Pytester) -> None:
     summary = reduce_example(pytester, "robots")
     assert summary["minimal_models"] == ["loading_dock"] and summary["one_minimal"]
+
+
+@pytest.mark.slow
+def test_generated_worlds_example_finds_a_collision_and_reduces_it_to_the_model_hit(pytester: pytest.Pytester) -> None:
+    """Hypothesis (derandomized, at most 30 examples) finds a yard where the robot hits a model; ddenv reduces
+    the falsifying world to that model, which fails again on fresh runs, and records the reproduction."""
+    summary = reduce_example(pytester, "test_generated_worlds.py")
+    signature = summary["reference_failure"]["signature"]
+    assert signature["predicate"] == "collided" and len(signature["touched"]) >= 1
+    assert summary["minimal_models"] == [signature["touched"][0]] and summary["one_minimal"]
+    assert summary["original_size"] >= 6 and summary["failure_rate"]["fails"] >= 4
+    assert summary["hypothesis"]["world_argument"] == "world" and summary["hypothesis"]["arguments"] == {}
+    documented = (ROOT / "docs" / "generating-worlds.md").read_text()
+    assert "def test_husky_crosses_a_cluttered_yard_without_collision" in documented

@@ -78,14 +78,14 @@ def test_layers_load_only_what_comes_before_them(module: str, forbidden: list[st
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
     # DESIGN.md section 3, in order: each module may import its own layer and the ones above it only
     ("foundations", ("errors", "validation", "defaults", "outcome", "bounded_yaml", "geometry", "detail")),
-    ("world model", ("world", "world_yaml", "world_robot", "sdf")),
+    ("world model", ("world", "world_yaml", "world_robot", "sdf", "strategies")),
     ("simulation", ("predicates", "sim", "controllers")),
     ("oracle verdict and the test's view", ("oracle", "robot_world", "gym_env", "reported")),
     ("reduction", ("reduce",)),
     ("execution", ("execution",)),
     ("probes, stages, driver, presentation", ("probe", "stages", "markers", "driver", "artifacts", "render",
                                              "media", "animate", "recording", "reduction_report", "report_text",
-                                             "progress", "replay", "scenario_job", "user_code")),
+                                             "progress", "replay", "scenario_job", "user_code", "other_failures")),
     ("front ends and pytest glue", ("plugin", "pytest_options", "reduction_session", "pytest_worker", "given_example",
                                     "cli", "cli_world")),
 ]
