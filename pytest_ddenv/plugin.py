@@ -182,13 +182,11 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
     return RobotWorld(world, predicates=predicates, seed=spec.seed if seed is None else seed, max_wall_time=timeout)
 
 
-GIVEN_WORLD_NAME = "no world yet: a @given test binds each drawn world with robot_world.rebound(world)"
-
-
 def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates: tuple[PredicateSpec, ...]) -> World:
     """The world a test runs in, checked against its markers (DdenvError naming the file and field)."""
     from pytest_ddenv.given_example import inner_test
     from pytest_ddenv.predicates import check_predicate_models
+    from pytest_ddenv.robot_world import NO_WORLD_YET
     from pytest_ddenv.world import World
 
     item = request.node
@@ -205,7 +203,7 @@ def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates:
     elif spec.world is not None:
         world = World.load(_world_path(item, spec.world), **options)
     elif inner_test(item) is not None:  # a @given test draws its worlds: robot_world.rebound(world)
-        return World(name=GIVEN_WORLD_NAME)
+        return NO_WORLD_YET
     else:
         raise DdenvError(
             "robot_world needs a world: @pytest.mark.ddenv(world='worlds/x.yaml'), an indirect parameter, or "

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:
@@ -22,6 +23,8 @@ FIXTURE = "robot_world"
 ATTEMPT_SEED_STRIDE = 1_000_003
 """Re-run k of a probe uses seed + k * stride, so deflaking re-runs never collide with a test's own seeds."""
 DEFAULT_MAX_WALL_TIME = 300.0
+NO_WORLD_YET = World(name="no world yet: a @given test binds each drawn world with robot_world.rebound(world)")
+"""The fixture's world in a `@given` test without a world marker: the test draws its worlds."""
 """Wall-clock seconds one `run()` may take before it fails with `ControllerTimeout` (`--ddenv-run-timeout`)."""
 
 
@@ -108,6 +111,9 @@ class RobotWorld:
         """
         from pytest_ddenv.sim import RunSettings, simulate
 
+        if self.world is NO_WORLD_YET:
+            raise ScenarioError("robot_world has no world in a @given test: run the drawn one, "
+                                "robot_world.rebound(world).run()")
         effective_seed = (self.seed if seed is None else seed) + self.attempt * ATTEMPT_SEED_STRIDE
         result = simulate(
             self.world, seed=effective_seed, predicates=self.build_predicates(), settings=settings or RunSettings(),

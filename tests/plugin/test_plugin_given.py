@@ -96,3 +96,20 @@ def test_a_drawn_value_that_is_not_plain_data_is_named_and_the_failure_kept(wall
                                            "-p", "no:cacheprovider")
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(["*no reduction: @given argument 'gain' = <object object at *> is not plain data*"])
+
+
+def test_running_the_fixture_instead_of_the_drawn_world_says_what_to_do(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_forgot="""
+        from hypothesis import HealthCheck, given, settings
+        from pytest_ddenv.strategies import worlds
+
+        @settings(max_examples=2, deadline=None, database=None,
+                  suppress_health_check=[HealthCheck.function_scoped_fixture])
+        @given(world=worlds(count=1))
+        def test_forgot_rebound(robot_world, world):
+            robot_world.run()
+        """)
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*robot_world has no world in a @given test: run the drawn one, "
+                                 "robot_world.rebound(world).run()*"])
