@@ -17,10 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-try:
-    from hypothesis import strategies as st
-except ImportError as error:  # pragma: no cover - hypothesis is a dev dependency
-    raise ImportError("pytest_ddenv.strategies needs Hypothesis: pip install hypothesis") from error
+from hypothesis import strategies as st
 
 from pytest_ddenv.errors import shown
 from pytest_ddenv.strategies._arguments import (
