@@ -26,6 +26,7 @@ from pytest_ddenv.markers import ReductionSpec
 from pytest_ddenv.media import DEFAULT_MEDIA, Shown, write_media
 from pytest_ddenv.other_failures import other_failures
 from pytest_ddenv.probe import (
+    ErrorInfo,
     FailureReference,
     ProbeResult,
     classify_result,
@@ -522,12 +523,35 @@ def _confirm(plan: ReductionPlan, call: _Calls, note: Note,
     if errors and len(errors) == runs:
         return ReductionOutcome("error", message=f"every confirmation run of the test raised an error instead of "
                                 f"running; the first one:\n{errors[0]}")
+    raised = _same_exception_every_time(confirmations, runs)
+    if raised is not None:
+        return ReductionOutcome("error", message=(
+            f"every confirmation run of the test raised {raised.describe()} instead of failing the same way "
+            f"({plan.reference.describe()}): the test behaves differently in a probe than in the pytest process "
+            "(an environment variable, a file, state left by other tests?). No reduction was run. The first "
+            f"one's traceback:\n{raised.traceback}"))
     return ReductionOutcome(
         "not-reproducible",
         message=(f"not reproducible: 0 of {runs} re-runs failed the same way ({plan.reference.describe()}); they "
                  f"gave: {', '.join(seen)}. No reduction was run. The failure may depend on state outside the "
                  "world (other fixtures, globals) or on the seed; try a larger --ddenv-deflake."),
     )
+
+
+def _same_exception_every_time(confirmations: list[tuple[int, ProbeResult | None, str]],
+                               runs: int) -> ErrorInfo | None:
+    """The exception every confirmation run raised, when they all raised the same one (type and place) and
+    it is an error rather than a robot's failure or an assertion: what the test does in a probe, shown as
+    it is rather than as "not reproducible"."""
+    raised = [result.error for _, result, _ in confirmations if result is not None and result.error is not None]
+    if len(raised) != runs or not raised:
+        return None
+    first = raised[0]
+    if first.signature is not None or first.type_name == "AssertionError":
+        return None
+    if any((error.type_name, error.location) != (first.type_name, first.location) for error in raised):
+        return None
+    return first
 
 
 def _schemas(spec: ReductionSpec, reference_run: Run | None) -> tuple[str, str, list[str]]:

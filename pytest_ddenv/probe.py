@@ -69,11 +69,24 @@ def describe_error(error: BaseException, test_file: str | Path | None, *, phase:
         type_name=type(error).__qualname__,
         message=str(error)[:DETAIL_LIMIT],
         location=raise_location(error, test_file),
-        traceback="".join(traceback.format_exception(error))[-20 * DETAIL_LIMIT:],
+        traceback=user_traceback(error)[-20 * DETAIL_LIMIT:],
         signature=error.signature if isinstance(error, RobotFailure) else None,
         ddenv_error=isinstance(error, DdenvError),
         phase=phase,
     )
+
+
+_MACHINERY = ("/_pytest/", "/pluggy/")
+"""Frames of pytest's own call machinery: left out of a probe's traceback (pytest's reports omit them too)."""
+
+
+def user_traceback(error: BaseException) -> str:
+    """`error`'s traceback without the frames of pytest's and pluggy's call machinery."""
+    shown = traceback.TracebackException.from_exception(error)
+    frames = [frame for frame in shown.stack if not any(part in frame.filename for part in _MACHINERY)]
+    if frames:
+        shown.stack = traceback.StackSummary.from_list(frames)
+    return "".join(shown.format())
 
 
 def raise_location(error: BaseException, test_file: str | Path | None) -> str:

@@ -12,13 +12,14 @@ pytest process with the fixture values of the failing call.
 from __future__ import annotations
 
 import inspect
+import io
 import os
 import sys
 import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import pytest
 
@@ -43,6 +44,8 @@ NEUTRALIZED_OPTIONS: Mapping[str, Any] = {
     # debugging needs a terminal a worker does not have
     "usepdb": False, "trace": False,
 }
+STARTUP_STDERR_LIMIT = 4000
+"""Characters of what a worker's pytest said on stderr before it failed to collect the test (its end)."""
 
 
 @dataclass
@@ -95,7 +98,10 @@ class PytestJob:
         sys.path[:] = list(self.sys_path) + [entry for entry in sys.path if entry not in self.sys_path]
         os.environ.update(self.environ)
         server = ProbeServer(self, channel)
-        code = pytest.main(list(self.args), plugins=[server])
+        try:
+            code = pytest.main(list(self.args), plugins=[server])
+        finally:
+            server.stop_holding_stderr()
         if not server.started:
             channel.failed(server.failure(code))
 
@@ -109,11 +115,23 @@ class ProbeServer:
         self.started = False
         self.collect_errors: list[str] = []
         self.raised: dict[str, BaseException] = {}
+        # What pytest writes to stderr before the test is collected (a conftest that does not import, a
+        # usage error) is the reason the worker cannot serve: held, and sent with the failure.
+        self.startup_stderr = io.StringIO()
+        self._stderr: TextIO | None = sys.stderr
+        sys.stderr = self.startup_stderr
+
+    def stop_holding_stderr(self) -> None:
+        if self._stderr is not None:
+            sys.stderr, self._stderr = self._stderr, None
 
     def failure(self, code: object) -> str:
         if self.collect_errors:
             return f"collecting {self.job.test_file} failed:\n" + "\n".join(self.collect_errors)
-        return f"pytest (exit code {code}) did not collect {self.job.nodeid} from {self.job.test_file}"
+        said = self.startup_stderr.getvalue().strip()[-STARTUP_STDERR_LIMIT:]
+        last = said.splitlines()[-1].removeprefix("E").strip() if said else ""
+        return (f"pytest (exit code {code}) did not collect {self.job.nodeid} from {self.job.test_file}"
+                + (f": {last}; pytest said:\n{said}" if said else ""))
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_cmdline_main(self, config: pytest.Config) -> None:
@@ -149,6 +167,7 @@ class ProbeServer:
             return True  # serve() reports the failure
         item = found[0]
         self.started = True
+        self.stop_holding_stderr()
         serve_requests(self.channel, lambda world, attempt: self.run_item(item, world, attempt))
         return True
 

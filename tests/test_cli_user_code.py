@@ -136,3 +136,19 @@ def test_quiet_parallel_reduce_prints_nothing_on_stderr(project: Path) -> None:
     done = subprocess.run(["ddenv", "reduce", "world.yaml", "--import", "lab_robots", "-p", "stuck:window=2",
                            "--workers", "2", "-q", "--out", "art"], capture_output=True, text=True, cwd=project)
     assert done.returncode == 0 and done.stderr == "", done.stderr
+
+
+def test_a_module_that_imports_here_but_not_in_a_worker_is_named(capsys: pytest.CaptureFixture[str],
+                                                                  project: Path) -> None:
+    (project / "worker_only_lab.py").write_text(
+        "import multiprocessing\n"
+        "from lab_robots import *\n"
+        "if multiprocessing.parent_process() is not None:  # in probe workers only\n"
+        "    import lab_driver_only_on_the_ci_host\n"
+    )
+    code, _, err = run(capsys, "reduce", "world.yaml", "--import", "worker_only_lab.py", "-p", "stuck", "--workers", "2",
+                       "--media", "none", "--out", "art", "--quiet")
+    sys.modules.pop("worker_only_lab", None)
+    assert code == 2, err
+    assert "a probe worker could not start the test" in err
+    assert "No module named 'lab_driver_only_on_the_ci_host'" in err and "Traceback" not in err, err

@@ -12,6 +12,7 @@ import signal
 import traceback
 from multiprocessing.connection import Connection
 
+from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.execution.errors import WorkerError
 from pytest_ddenv.execution.request import Job, ProbeRequest, Reply
 
@@ -85,13 +86,14 @@ def worker_main(conn: Connection, job: Job) -> None:
     try:
         job.serve(channel)
     except BaseException as error:
-        if not channel.said_ready:
-            message = "".join(traceback.format_exception(error))
-            try:
-                channel.failed(f"{type(error).__name__}: {error}\n{message}")
-            except (BrokenPipeError, OSError):
-                pass
-        raise
+        if channel.said_ready:
+            raise
+        # An error pytest-ddenv raises on purpose says what and where: its traceback would only be noise.
+        shown = "" if isinstance(error, DdenvError) else "\n" + "".join(traceback.format_exception(error))
+        try:  # the pool reports it: no second copy on the worker's stderr
+            channel.failed(f"{type(error).__name__}: {error}{shown}")
+        except (BrokenPipeError, OSError):
+            raise error from None
     finally:
         if not channel.said_ready:  # serve() returned without a word: nothing to serve
             try:

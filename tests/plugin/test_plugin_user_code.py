@@ -120,12 +120,34 @@ def test_user_code_that_does_not_import_in_a_worker_is_named(user_project: pytes
     ))
     result = user_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-workers", "2")
     result.assert_outcomes(failed=1)
+    # The one-line summary of the reduction names the module (not only the worker's stderr, which no longer
+    # leaks into the test's captured output).
     result.stdout.fnmatch_lines([
-        "*the test could not be run in a probe worker*",
-        "*No module named 'lab_driver_only_on_the_ci_host'*",
+        "*= ddenv reductions =*",
+        "test_scenario.py::test_reaches_goal: the test could not be run in a probe worker*"
+        "ModuleNotFoundError: No module named 'lab_driver_only_on_the_ci_host'*",
     ])
     assert "not reproducible" not in result.stdout.str()
+    assert "Captured stderr" not in result.stdout.str()
     assert not Path(user_project.path, "ddenv-artifacts").exists()
+
+
+def test_an_exception_the_test_raises_only_in_probes_is_shown_as_it_is(user_project: pytest.Pytester) -> None:
+    user_project.makepyfile(test_scenario=USER_CODE_TEST.replace(
+        "def heading_to_goal(observation):\n",
+        "def heading_to_goal(observation):\n"
+        "    import multiprocessing, os\n"
+        "    if multiprocessing.parent_process() is not None:  # in probe workers only\n"
+        "        return float(os.environ['LAB_ONLY_IN_THE_PYTEST_PROCESS'])\n",
+    ))
+    result = user_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-workers", "2", "--ddenv-media", "none")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines([
+        "*= ddenv reductions =*",
+        "test_scenario.py::test_reaches_goal: every confirmation run of the test raised "
+        "KeyError: 'LAB_ONLY_IN_THE_PYTEST_PROCESS' at test_scenario.py:12 instead of failing the same way*",
+    ])
+    assert "not reproducible" not in result.stdout.str() and "--ddenv-deflake" not in result.stdout.str()
 
 
 def test_a_robot_registered_only_in_the_pytest_process_is_reported_as_unknown(user_project: pytest.Pytester) -> None:
