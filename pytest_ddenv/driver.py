@@ -522,14 +522,14 @@ def _confirm(plan: ReductionPlan, call: _Calls, note: Note,
                     else f"{outcome.value} ({result.error.type_name} at {result.error.location})")
     if errors and len(errors) == runs:
         return ReductionOutcome("error", message=f"every confirmation run of the test raised an error instead of "
-                                f"running; the first one:\n{errors[0]}")
+                                f"running; the first one: {errors[0]}")
     raised = _same_exception_every_time(confirmations, runs)
     if raised is not None:
         return ReductionOutcome("error", message=(
             f"every confirmation run of the test raised {raised.describe()} instead of failing the same way "
             f"({plan.reference.describe()}): the test behaves differently in a probe than in the pytest process "
-            "(an environment variable, a file, state left by other tests?). No reduction was run. The first "
-            f"one's traceback:\n{raised.traceback}"))
+            "(an environment variable, a file, state left by other tests?). No reduction was run.\n"
+            f"{raised.traceback}"))
     return ReductionOutcome(
         "not-reproducible",
         message=(f"not reproducible: 0 of {runs} re-runs failed the same way ({plan.reference.describe()}); they "

@@ -77,7 +77,8 @@ def test_layers_load_only_what_comes_before_them(module: str, forbidden: list[st
 
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
     # DESIGN.md section 3, in order: each module may import its own layer and the ones above it only
-    ("foundations", ("errors", "validation", "defaults", "outcome", "bounded_yaml", "geometry", "detail")),
+    ("foundations", ("errors", "validation", "defaults", "outcome", "bounded_yaml", "geometry", "detail",
+                     "alarm")),
     ("world model", ("world", "world_yaml", "world_robot", "sdf", "strategies")),
     ("simulation", ("predicates", "sim", "controllers")),
     ("oracle verdict and the test's view", ("oracle", "robot_world", "gym_env", "reported")),

@@ -27,6 +27,7 @@ from dataclasses import replace
 from multiprocessing.connection import Connection, wait
 from typing import TYPE_CHECKING, Any, Self
 
+from pytest_ddenv.alarm import Alarm
 from pytest_ddenv.execution.base import (
     DEFAULT,
     DEFAULT_WATCHDOG_FACTOR,
@@ -134,49 +135,6 @@ class _Hung(Exception):
 class ProbeTimeout(BaseException):
     """Raised in the main thread by the in-process watchdog (SIGALRM) to stop a probe that runs too long. A
     BaseException, so that a test's ``except Exception`` does not take it for the test's own error."""
-
-
-class _Alarm:
-    """Raise `ProbeTimeout` in this (main) thread after `seconds`, then every second until disarmed (a test
-    that swallows it is interrupted again). Inactive off the main thread, without `seconds`, or when someone
-    else (pytest-timeout's signal method, the test itself) uses SIGALRM."""
-
-    def __init__(self, seconds: float | None) -> None:
-        self.seconds = seconds
-        self.active = False
-        self.armed = False
-        self.previous: Any = None
-
-    def usable(self) -> bool:
-        if self.seconds is None or not hasattr(signal, "setitimer"):
-            return False
-        if threading.current_thread() is not threading.main_thread():
-            return False
-        handler = signal.getsignal(signal.SIGALRM)
-        return handler in (signal.SIG_DFL, signal.SIG_IGN, None) and signal.getitimer(signal.ITIMER_REAL)[0] == 0
-
-    def _fire(self, signum: int, frame: object) -> None:
-        if self.armed:
-            raise ProbeTimeout(f"the probe ran past {self.seconds:g} s")
-
-    def __enter__(self) -> Self:
-        if not self.usable():
-            return self
-        assert self.seconds is not None
-        self.previous = signal.signal(signal.SIGALRM, self._fire)
-        self.active = self.armed = True
-        signal.setitimer(signal.ITIMER_REAL, max(self.seconds, 1e-3), 1.0)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        while self.active:
-            try:
-                self.armed = False
-                signal.setitimer(signal.ITIMER_REAL, 0)
-                signal.signal(signal.SIGALRM, self.previous)
-                self.active = False
-            except ProbeTimeout:  # delivered just before it was disarmed
-                continue
 
 
 class _Worker:
@@ -420,7 +378,7 @@ class LocalPool:
             limit, by_deadline = limit_of(self.watchdog_seconds(), deadline, time.monotonic())
             self._stats.add("simulations")
             started = time.perf_counter()
-            alarm = _Alarm(limit)
+            alarm = Alarm(limit, lambda: ProbeTimeout(f"the probe ran past {limit:g} s"))
             try:
                 with alarm:
                     reply = answer(request, self._handler)

@@ -7,6 +7,7 @@ import time
 from collections.abc import Sequence
 from typing import Any, Self
 
+from pytest_ddenv.alarm import Alarm
 from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.predicates import GROUND, Predicate
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
@@ -235,25 +236,32 @@ def wall_limit(max_wall_time: object) -> float | None:
 
 
 def drive_loop(episode: Episode, controller: ControllerLike, max_wall_time: float | None) -> None:
-    """Run `episode` to its end with `controller` called every control tick."""
+    """Run `episode` to its end with `controller` called every control tick, within `max_wall_time`: checked
+    every tick, and (in the main thread) an alarm that also stops a controller that never returns."""
     reset = getattr(controller, "reset", None)
     first = True
-    while not episode.finished:
-        observation = episode.observe()
-        if first and reset is not None:
-            _call(reset, controller, observation)
-        first = False
-        if episode.reached:  # reached without stopping early: the robot is told to stand still
-            command: AnyCommand = Command(0.0, 0.0)
-        else:
-            command = check_command(_call(controller, controller, observation), controller, observation.time)
-        episode.act(command)
-        if max_wall_time is not None and time.perf_counter() - episode.started > max_wall_time:
-            raise ControllerTimeout(
-                f"the run took more than its wall-clock limit of {max_wall_time:g} s (at t = {episode.time:.2f} s "
-                f"simulated of {episode.limit:g} s): the controller {controller_name(controller)} or the world is "
-                "too slow; raise the limit (robot_world.run(max_wall_time=...), --ddenv-run-timeout)"
-            )
+    left = None if max_wall_time is None else max(max_wall_time - (time.perf_counter() - episode.started), 0.0)
+    with Alarm(left, lambda: _too_slow(episode, controller, max_wall_time)):
+        while not episode.finished:
+            observation = episode.observe()
+            if first and reset is not None:
+                _call(reset, controller, observation)
+            first = False
+            if episode.reached:  # reached without stopping early: the robot is told to stand still
+                command: AnyCommand = Command(0.0, 0.0)
+            else:
+                command = check_command(_call(controller, controller, observation), controller, observation.time)
+            episode.act(command)
+            if max_wall_time is not None and time.perf_counter() - episode.started > max_wall_time:
+                raise _too_slow(episode, controller, max_wall_time)
+
+
+def _too_slow(episode: Episode, controller: ControllerLike, max_wall_time: float | None) -> ControllerTimeout:
+    return ControllerTimeout(
+        f"the run took more than its wall-clock limit of {max_wall_time:g} s (at t = {episode.time:.2f} s "
+        f"simulated of {episode.limit:g} s): the controller {controller_name(controller)} or the world is "
+        "too slow; raise the limit (robot_world.run(max_wall_time=...), --ddenv-run-timeout)"
+    )
 
 
 def _call(function: Any, controller: object, observation: Observation) -> Any:

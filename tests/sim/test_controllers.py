@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+import signal
 import time
+import traceback
 
 import numpy as np
 import pytest
@@ -124,6 +126,19 @@ def test_a_controller_that_is_too_slow_fails_the_run(sim: Simulator) -> None:
 
     with pytest.raises(ControllerTimeout, match="wall-clock limit of 0.3 s.*slow"):
         sim.run(flat_world(timeout=5.0), controller=slow, max_wall_time=0.3)
+
+
+def test_a_controller_that_never_returns_is_stopped_by_the_run_alarm(sim: Simulator) -> None:
+    def stuck(observation: Observation) -> Command:
+        if observation.time > 0.2:
+            time.sleep(30)  # a controller waiting for a message that never comes
+        return Command(0.5, 0.0)
+
+    with pytest.raises(ControllerTimeout, match="wall-clock limit of 0.5 s.*stuck") as raised:
+        sim.run(flat_world(timeout=5.0), controller=stuck, max_wall_time=0.5)
+    # Raised inside the controller's call (by the alarm), not after it returned (by the per-tick check).
+    assert [frame.name for frame in traceback.extract_tb(raised.value.__traceback__)][-2:] == ["stuck", "_fire"]
+    assert signal.getsignal(signal.SIGALRM) == signal.SIG_DFL and signal.getitimer(signal.ITIMER_REAL)[0] == 0
 
 
 @pytest.mark.parametrize("controller", ["go", 42])
