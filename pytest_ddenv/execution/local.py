@@ -160,8 +160,6 @@ class _Worker:
         if code is None:
             return f"{self} stopped answering"
         if code < 0:
-            import signal
-
             try:
                 return f"{self} was killed by {signal.Signals(-code).name}"
             except ValueError:  # pragma: no cover
