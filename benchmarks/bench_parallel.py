@@ -20,7 +20,8 @@ minimal world's run for the pictures, the pictures).
 test_husky_crosses_the_ditch --ddenv-reduce --ddenv-workers W` in a fresh process, N times per worker count
 (the whole command's wall time: pytest start-up, the failing test, probe workers that are pytest sessions
 collecting the test, confirmation, reduction, artifacts and pictures; and the engine's own time from
-summary.json).
+summary.json). `--cli N` does the same for the command: `ddenv reduce worlds/ditch.yaml -p stuck:... --workers W`
+(its pool is a `ScenarioJob`; media included, as a user gets it by default).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -151,27 +153,44 @@ def overhead(runs: int) -> tuple[float, float, float]:
 DITCH_TEST = "examples/test_paper_scenarios.py::test_husky_crosses_the_ditch"
 
 
-def through_pytest(workers: int) -> tuple[float, float, int, tuple[str, ...]]:
-    """(whole command s, the engine's reduction s, probes, minimal world) of the ditch example under pytest."""
-    with tempfile.TemporaryDirectory() as folder:
-        started = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "pytest", DITCH_TEST, "--ddenv-reduce", "--ddenv-workers", str(workers),
-                        "-q", "-p", "no:cacheprovider", "--ddenv-artifacts", folder], cwd=ROOT, capture_output=True,
-                       check=False)
-        seconds = time.perf_counter() - started
-        (summary_file,) = Path(folder).glob("*/summary.json")
-        summary = json.loads(summary_file.read_text())
+CLI_REDUCE = ("reduce", "worlds/ditch.yaml", "-p", "stuck:window=5,min_progress=0.2", "--partition", "model2model",
+              "--priority", "avg-trajectory", "--quiet")
+
+
+def end_to_end(command: list[str], folder: str) -> tuple[float, float, int, tuple[str, ...]]:
+    """(whole command s, the engine's reduction s, probes, minimal world) of one reduction in a fresh process,
+    with the defaults a user gets (media included)."""
+    started = time.perf_counter()
+    subprocess.run(command, cwd=ROOT, capture_output=True, check=False)
+    seconds = time.perf_counter() - started
+    (summary_file,) = Path(folder).glob("**/summary.json")
+    summary = json.loads(summary_file.read_text())
     return seconds, float(summary["wall_time"]), int(summary["probes"]), tuple(summary["minimal_models"])
 
 
-def pytest_table(workers_list: list[int], repeat: int) -> None:
-    print(f"\nThe plugin end to end: `pytest {DITCH_TEST} --ddenv-reduce --ddenv-workers W`, median of {repeat}\n")
+def through_pytest(workers: int) -> tuple[float, float, int, tuple[str, ...]]:
+    """The ditch example under pytest: `pytest TEST --ddenv-reduce --ddenv-workers W`."""
+    with tempfile.TemporaryDirectory() as folder:
+        return end_to_end([sys.executable, "-m", "pytest", DITCH_TEST, "--ddenv-reduce", "--ddenv-workers",
+                           str(workers), "-q", "-p", "no:cacheprovider", "--ddenv-artifacts", folder], folder)
+
+
+def through_cli(workers: int) -> tuple[float, float, int, tuple[str, ...]]:
+    """The ditch world through the command: `ddenv reduce worlds/ditch.yaml ... --workers W`."""
+    with tempfile.TemporaryDirectory() as folder:
+        return end_to_end([sys.executable, "-m", "pytest_ddenv.cli", *CLI_REDUCE, "--workers", str(workers),
+                           "--out", folder], folder)
+
+
+def end_to_end_table(title: str, run: Callable[[int], tuple[float, float, int, tuple[str, ...]]],
+                     workers_list: list[int], repeat: int) -> None:
+    print(f"\n{title}, in a fresh process, median of {repeat}\n")
     print("| workers | whole command (s) | speed-up | reduction in the engine (s) | speed-up | probes | minimal world |")
     print("|---:|---:|---:|---:|---:|---:|---|")
     rows: dict[int, list[tuple[float, float, int, tuple[str, ...]]]] = {w: [] for w in workers_list}
     for index in range(repeat):
         for workers in workers_list if index % 2 == 0 else list(reversed(workers_list)):
-            rows[workers].append(through_pytest(workers))
+            rows[workers].append(run(workers))
     base_total = statistics.median(r[0] for r in rows[workers_list[0]])
     base_engine = statistics.median(r[1] for r in rows[workers_list[0]])
     for workers in workers_list:
@@ -193,6 +212,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeat", type=int, default=3, help="reductions per worker count (median reported)")
     parser.add_argument("--pytest", type=int, default=0, metavar="N",
                         help="also time the plugin end to end, N pytest runs per worker count")
+    parser.add_argument("--cli", type=int, default=0, metavar="N",
+                        help="also time `ddenv reduce` end to end, N runs per worker count")
     args = parser.parse_args(argv)
     cases = [(World.load(args.world), PREDICATES, "stuck(window=5.0, min_progress=0.2)")]
     if not args.no_yard:
@@ -262,7 +283,11 @@ def main(argv: list[str] | None = None) -> int:
     print("|---:|---:|---:|---:|")
     print(f"| {direct:.2f} | {through:.2f} | {through - direct:+.2f} | {transport:.2f} |")
     if args.pytest:
-        pytest_table(args.workers, args.pytest)
+        end_to_end_table(f"The plugin end to end: `pytest {DITCH_TEST} --ddenv-reduce --ddenv-workers W`",
+                         through_pytest, args.workers, args.pytest)
+    if args.cli:
+        end_to_end_table(f"The command end to end: `ddenv {' '.join(CLI_REDUCE)} --workers W`", through_cli,
+                         args.workers, args.cli)
     return 0 if same else 1
 
 

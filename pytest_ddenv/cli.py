@@ -23,6 +23,7 @@ from pytest_ddenv.cli_world import (
     UsageError,
     add_scenario_options,
     add_world_options,
+    dropped_models,
     load_world,
     with_scenario,
 )
@@ -432,7 +433,7 @@ def _emit(arguments: argparse.Namespace, text: str, data: dict[str, Any]) -> Non
 
 # -- check, convert ---------------------------------------------------------------------------------------
 def _cmd_check(arguments: argparse.Namespace) -> int:
-    world = load_world(arguments, arguments.world)
+    world = load_world(arguments, arguments.world, warn=False)  # its notes say what was dropped
     text = f"{arguments.world}: {len(world)} models ({len(world.reducible_names)} reducible)"
     text += "".join(f"\nnot simulated: {note}" for note in world.notes)
     _emit(arguments, text, {"ok": True, "world": arguments.world, "models": len(world),
@@ -455,7 +456,8 @@ def _cmd_convert(arguments: argparse.Namespace) -> int:
     except ImportError:
         raise UsageError("SDF export is not available in this version of pytest-ddenv") from None
     text = f"wrote {target} ({len(world)} models) from {source}"
-    _emit(arguments, text, {"ok": True, "input": str(source), "output": str(target), "models": len(world)})
+    _emit(arguments, text, {"ok": True, "input": str(source), "output": str(target), "models": len(world),
+                            "dropped": dropped_models(world)})
     return EXIT_OK
 
 
@@ -524,6 +526,7 @@ def _cmd_run(arguments: argparse.Namespace) -> int:
         "sim_time": run.sim_time,
         "wall_time": run.wall_time,
         "picture": None if picture is None else str(picture),
+        "dropped": dropped_models(world),
     })
     return EXIT_OK if passed else EXIT_FAILED
 
@@ -537,7 +540,7 @@ def _run_raised(arguments: argparse.Namespace, world: World, error: Exception) -
             f"{info.type_name} at {info.location}: {info.message}){notes}")
     _emit(arguments, text, {"ok": False, "world": arguments.world, "models": len(world), "seed": arguments.seed,
                             "outcome": "raised", "exception": info.type_name, "message": info.message,
-                            "location": info.location})
+                            "location": info.location, "dropped": dropped_models(world)})
     return EXIT_FAILED
 
 
@@ -571,7 +574,7 @@ def _cmd_show(arguments: argparse.Namespace) -> int:
                                 robot_footprint=_robot_footprint(world) if poses and not runs else None)
     text = f"wrote {picture} ({len(world)} models, {len(runs)} runs, {len(poses)} failure poses)"
     data: dict[str, Any] = {"ok": True, "picture": str(picture), "models": len(world), "runs": len(runs),
-                            "failure_poses": len(poses)}
+                            "failure_poses": len(poses), "dropped": dropped_models(world)}
     if arguments.animate is not None:
         if world.scenario is None:
             raise UsageError(f"{arguments.world}: --animate needs a scenario (a robot to follow); add one with "
@@ -687,7 +690,8 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     pictures = [str(p) for p in outcome.attachments if p.suffix == ".png"]
     media = [str(p) for p in outcome.attachments if p.suffix in (".gif", ".rrd")]
     _emit(arguments, _reduction_text(arguments.world, outcome.report, pictures, media),
-          {"ok": True, **outcome.report.to_json(), "pictures": pictures, "media": media})
+          {"ok": True, **outcome.report.to_json(), "pictures": pictures, "media": media,
+           "dropped": dropped_models(world)})
     return EXIT_INTERRUPTED if interrupted else EXIT_OK
 
 

@@ -9,6 +9,7 @@ import argparse
 import dataclasses
 import math
 import os
+import sys
 from pathlib import Path
 
 from pytest_ddenv.errors import DdenvError, shown
@@ -44,8 +45,24 @@ def add_scenario_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--goal", metavar="X,Y[,Z]", help="the goal (m)")
 
 
-def load_world(arguments: argparse.Namespace, path: str) -> World:
-    """The world file at `path`, read with the command's --model-path and --skip-unsupported."""
+def dropped_models(world: World) -> list[str]:
+    """What `skip_unsupported` dropped from `world`: one line per model (its name, the element and why)."""
+    return [note.removeprefix("dropped ") for note in world.notes if note.startswith("dropped ")]
+
+
+def dropped_warning(world: World, where: str) -> str | None:
+    """One line naming each model that `skip_unsupported` dropped from `world` (read from `where`); None when
+    nothing was dropped."""
+    dropped = dropped_models(world)
+    if not dropped:
+        return None
+    count = f"{len(dropped)} model{'s' if len(dropped) != 1 else ''}"
+    return f"{where}: skip_unsupported dropped {count} that cannot be simulated: {'; '.join(dropped)}"
+
+
+def load_world(arguments: argparse.Namespace, path: str, *, warn: bool = True) -> World:
+    """The world file at `path`, read with the command's --model-path and --skip-unsupported; with `warn`, one
+    warning line on stderr naming the models --skip-unsupported dropped."""
     file = Path(path)
     if not file.exists():
         raise UsageError(f"{path}: no such world file")
@@ -56,7 +73,11 @@ def load_world(arguments: argparse.Namespace, path: str) -> World:
     for folder in folders:
         if not Path(folder).is_dir():
             raise UsageError(f"--model-path: no such folder: {folder}")
-    return World.load(file, model_paths=folders, skip_unsupported=getattr(arguments, "skip_unsupported", False))
+    world = World.load(file, model_paths=folders, skip_unsupported=getattr(arguments, "skip_unsupported", False))
+    warning = dropped_warning(world, path) if warn else None
+    if warning is not None:
+        print(f"ddenv: warning: {warning}", file=sys.stderr)
+    return world
 
 
 def with_scenario(arguments: argparse.Namespace, world: World, path: str) -> World:

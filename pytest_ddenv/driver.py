@@ -105,6 +105,8 @@ class ReductionPlan:
     other_replay: Callable[[Path, int | None], str] | None = None
     """The command that replays a kept other failure: (its `other-<k>.yaml`, the run seed it failed with, None
     when unknown) -> command line; None: no command."""
+    no_run_reason: str = ""
+    """Why there is no `reference_run` when the caller knows better than "no run was made" (the run raised)."""
 
 
 @dataclass
@@ -160,7 +162,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
                 failed = _confirm(plan, calls, note, confirmations)
                 if failed is not None:
                     return failed
-            partition, priority, notes = _schemas(spec, plan.reference_run)
+            partition, priority, notes = _schemas(spec, plan.reference_run, plan.no_run_reason)
             for text in notes:
                 note(text)
             settings = {key: value for key, value in plan.fingerprint.items() if key not in BUDGETS}
@@ -554,11 +556,14 @@ def _same_exception_every_time(confirmations: list[tuple[int, ProbeResult | None
     return first
 
 
-def _schemas(spec: ReductionSpec, reference_run: Run | None) -> tuple[str, str, list[str]]:
+NO_RUN = "the test made no robot_world.run() and no robot_world.report(), so there is no trajectory"
+
+
+def _schemas(spec: ReductionSpec, reference_run: Run | None, no_run_reason: str = "") -> tuple[str, str, list[str]]:
     """The partition and priority to use, and notes on any fallback (no trajectory to guide them)."""
     partition, priority, notes = spec.partition, spec.priority, []
     if reference_run is None:
-        why = "the test made no robot_world.run() and no robot_world.report(), so there is no trajectory"
+        why = no_run_reason or NO_RUN
         if partition in TRAJECTORY_PARTITIONS:
             notes.append(f"{why}: partition {partition} -> model2model")
             partition = "model2model"

@@ -6,7 +6,9 @@ error that names the test.
 
 from __future__ import annotations
 
+import inspect
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -163,6 +165,61 @@ def parse_failure_markers(markers: Sequence[tuple[Sequence[Any], Mapping[str, An
         except DdenvError as error:
             raise MarkerError(f"robot_failure({shown(args[0])}, ...): {error}") from error
     return tuple(specs)
+
+
+def marked_predicate(value: Any) -> Any:
+    """The class or function that pytest marked with `robot_failure` when it was given alone to the marker
+    (`robot_failure(OnSlope)`, `robot_failure(tipped)`): `value` itself, or its class (pytest then called the
+    class with the test, making `value` an instance); None when neither carries such a mark.
+
+    pytest takes a lone class or function given to a marker for the thing to mark: the mark lands on it with
+    no arguments and the test is called with it, or replaced by what it returns."""
+    for holder in (value, type(value)):
+        try:  # any module attribute comes here: a proxy's __getattr__ may raise anything
+            marks = vars(holder).get("pytestmark", ())
+        except Exception:  # noqa: BLE001
+            continue
+        if isinstance(marks, (list, tuple)) and any(_is_empty_failure_mark(mark) for mark in marks):
+            return holder
+    return None
+
+
+def _is_empty_failure_mark(mark: Any) -> bool:
+    return getattr(mark, "name", None) == "robot_failure" and not getattr(mark, "args", ()) \
+        and not getattr(mark, "kwargs", {})
+
+
+def misplaced_predicate_message(holder: Any) -> str:
+    """The usage error for `robot_failure(holder)` where pytest took the predicate for the thing to mark."""
+    name = getattr(holder, "__name__", None) or shown(holder)
+    if inspect.isclass(holder):
+        return (f"robot_failure({name}): {name} is a class, not a predicate, so pytest marked the class instead of "
+                f"the test and did not collect the test; pass an instance: robot_failure({name}())")
+    return (f"robot_failure({name}): pytest takes a function given alone to a marker for the function to mark, "
+            f"so it called {name} with the test as its state; decorate {name} with @predicate (from pytest_ddenv "
+            f"import predicate), or write robot_failure.with_args({name})")
+
+
+def find_marked_test(lines: Sequence[str], predicate_name: str) -> tuple[str, int] | None:
+    """The test (its name and the marker's line, 1-based) that `robot_failure(predicate_name)` decorates in a
+    module's source `lines`; None when not found."""
+    usage = re.compile(rf"robot_failure\(\s*(?:[\w.]+\.)?{re.escape(predicate_name)}\s*\)")
+    for number, line in enumerate(lines, start=1):
+        if usage.search(line):
+            test = defined_after(lines, number)
+            if test is not None:
+                return test, number
+    return None
+
+
+def defined_after(lines: Sequence[str], first: int) -> str | None:
+    """The name of the first function defined on or after line `first` (1-based) of `lines`: the function
+    that the decorators on that line decorate."""
+    for line in lines[max(first - 1, 0):first + 40]:
+        match = re.match(r"\s*(?:async\s+)?def\s+(\w+)", line)
+        if match:
+            return match.group(1)
+    return None
 
 
 def _string(value: Any, name: str) -> str:

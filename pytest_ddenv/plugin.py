@@ -18,6 +18,7 @@ import traceback
 import warnings
 from collections.abc import Generator
 from pathlib import Path
+from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
 import pytest
@@ -45,6 +46,8 @@ _cluster_key = pytest.StashKey[Any]()
 _options_key = pytest.StashKey[DdenvOptions]()
 _log_key = pytest.StashKey[Any]()
 """A text stream on the terminal pytest writes to, past output capture (for progress in CI logs)."""
+_misplaced_key = pytest.StashKey[dict[tuple[str, str], str]]()
+"""Usage errors for predicates given alone to robot_failure(...), by (module node id, predicate name)."""
 _STATELESS_FIXTURES = {"request", "pytestconfig", "record_property", "record_xml_attribute", "tmp_path_factory"}
 
 
@@ -119,10 +122,85 @@ def _open_log(config: pytest.Config) -> None:
                                        errors="replace")
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_pycollect_makeitem(collector: pytest.Module | pytest.Class, name: str, obj: object) -> list[Any] | None:
+    """A predicate class or function given alone to `robot_failure(...)` was marked instead of the test (and
+    the test lost): remember the usage error, raised once collection is over."""
+    from pytest_ddenv.markers import marked_predicate
+
+    holder = marked_predicate(obj)
+    if holder is None or (inspect.isfunction(obj) and collector.funcnamefilter(name) and obj.__name__ == name):
+        return None  # nothing marked by mistake, or a test marked with a bare robot_failure (checked later)
+    test = name if collector.funcnamefilter(name) and name != getattr(holder, "__name__", name) else None
+    _record_misplaced(collector, holder, test)
+    return []
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_make_collect_report(collector: pytest.Collector) -> Generator[None, pytest.CollectReport,
+                                                                          pytest.CollectReport]:
+    """A test module that failed to import because a predicate given alone to `robot_failure(...)` was called
+    with the test as its state: the usage error instead of the predicate's traceback."""
+    report = yield
+    excinfo = getattr(getattr(report, "call", None), "excinfo", None)
+    if report.failed and isinstance(collector, pytest.Module) and excinfo is not None:
+        found = _predicate_called_as_decorator(excinfo.value.__traceback__)
+        if found is not None:
+            holder, line = found
+            report.longrepr = _record_misplaced(collector, holder, None, line)
+    return report
+
+
+def _predicate_called_as_decorator(trace: TracebackType | None) -> tuple[object, int] | None:
+    """The predicate marked by mistake that the failed import of a test module ran into, and the module's line."""
+    from pytest_ddenv.markers import marked_predicate
+
+    while trace is not None:
+        frame = trace.tb_frame
+        if frame.f_code.co_name == "<module>":
+            called = trace.tb_next.tb_frame if trace.tb_next is not None else None
+            places = [frame.f_globals] + ([called.f_globals] if called is not None else [])
+            for holder in (value for place in places for value in list(place.values())):
+                if holder is not None and marked_predicate(holder) is holder:
+                    return holder, trace.tb_lineno
+        trace = trace.tb_next
+    return None
+
+
+def _record_misplaced(collector: pytest.Collector, holder: object, test: str | None, line: int | None = None) -> str:
+    """The usage error for `holder` given alone to robot_failure(...) in `collector`'s module, naming the test
+    (`test`, else the function defined after `line`, else the one the module's source marks with it)."""
+    from pytest_ddenv.markers import defined_after, find_marked_test, misplaced_predicate_message
+
+    name = str(getattr(holder, "__name__", holder))
+    lines = _source_lines(collector.path)
+    if test is None and line is not None:
+        test = defined_after(lines, line)
+    if test is None:
+        found = find_marked_test(lines, name)
+        test = found[0] if found else None
+    module = collector.nodeid.split("::")[0]
+    text = f"{module}::{test if test else '(a test)'}: {misplaced_predicate_message(holder)}"
+    known = collector.config.stash.setdefault(_misplaced_key, {})
+    if (module, name) not in known or test:
+        known[(module, name)] = text
+    return known[(module, name)]
+
+
+def _source_lines(path: Path) -> list[str]:
+    try:
+        return path.read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError:
+        return []
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Validate the markers of every collected robot test now, not in the middle of a run."""
     from pytest_ddenv.markers import parse_ddenv_marker, parse_failure_markers
 
+    misplaced = config.stash.get(_misplaced_key, {})
+    if misplaced:
+        raise pytest.UsageError(*misplaced.values())
     for item in items:
         ddenv_marker = item.get_closest_marker("ddenv")
         failure_markers = list(item.iter_markers("robot_failure"))
@@ -212,12 +290,28 @@ def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates:
     where = world.source or world.name or "the world"
     if world.source is not None and Path(world.source).is_relative_to(request.config.invocation_params.dir):
         where = str(Path(world.source).relative_to(request.config.invocation_params.dir))
+    if not isinstance(param, World) or override:  # loaded here: say what skip_unsupported dropped
+        _warn_dropped(item, world, where)
     unknown = sorted(set(spec.keep) - set(world.names))
     if unknown:
         raise DdenvError(f"ddenv(keep=...) names model(s) not in {where}: {', '.join(map(shown, unknown))}")
     if not override:  # a reduced world (--ddenv-world minimal.yaml) may lack models the predicates name
         check_predicate_models(predicates, world.names, where)
     return world
+
+
+class DroppedModelsWarning(UserWarning):
+    """A test's world was loaded with `ddenv(skip_unsupported=True)` and models that cannot be simulated were
+    dropped from it (`-W ignore::pytest_ddenv.plugin.DroppedModelsWarning` to silence it)."""
+
+
+def _warn_dropped(item: pytest.Item, world: World, where: str) -> None:
+    """One warning naming each model that skip_unsupported dropped from the test's world (none if none)."""
+    from pytest_ddenv.cli_world import dropped_warning
+
+    text = dropped_warning(world, where)
+    if text is not None:
+        warnings.warn(DroppedModelsWarning(f"{item.nodeid}: {text}"), stacklevel=1)
 
 
 # -- reduction on failure ----------------------------------------------------------------------------------

@@ -70,7 +70,7 @@ class ReductionSession:
                    {"hypothesis": reproduction(self.item, self.error, self.example)}),
             },
             model_paths=self.model_paths, media=self.media, keep_other=self.keep_other,
-            other_replay=self._other_replay,
+            other_replay=self._other_replay, no_run_reason=no_run_reason(robot_world),
         )
         try:
             outcome = run_reduction(plan, pool, note=self.progress, on_progress=self._on_progress)
@@ -137,3 +137,11 @@ def _shown_path(path: Path) -> Path:
         return path.relative_to(Path.cwd())
     except ValueError:
         return path
+
+
+def no_run_reason(robot_world: RobotWorld) -> str:
+    """Why the failing test left no run behind, when its `robot_world.run()` raised ("" otherwise)."""
+    error = robot_world.run_error
+    if error is None or robot_world.runs:
+        return ""
+    return f"robot_world.run() raised {type(error).__name__}, so there is no trajectory"

@@ -10,7 +10,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pytest_ddenv.errors import ScenarioError
+from pytest_ddenv.errors import DdenvError, ScenarioError
+from pytest_ddenv.validation import expected
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:
@@ -37,6 +38,31 @@ class RobotFailure(AssertionError):
         super().__init__(signature.explain())
 
 
+def failure_predicates(values: Sequence[PredicateSpec | str | Predicate] | str | None) -> tuple[PredicateSpec, ...]:
+    """`PredicateSpec`s from what `RobotWorld(predicates=...)` is given: specs, registered names (with their
+    default parameters, built as the `robot_failure` marker builds them), predicate objects or functions of
+    the state. `ScenarioError` naming the entry otherwise."""
+    from pytest_ddenv.predicates import PredicateSpec, predicate_spec
+
+    if values is None:
+        return ()
+    if isinstance(values, str):
+        values = (values,)
+    if not isinstance(values, (Sequence, set, frozenset)):
+        raise ScenarioError(expected("a list of predicates (names, predicate objects or PredicateSpecs)", values,
+                                     "RobotWorld(predicates=...)"))
+    specs = []
+    for index, value in enumerate(values):
+        if isinstance(value, PredicateSpec):
+            specs.append(value)
+            continue
+        try:
+            specs.append(predicate_spec(value))
+        except DdenvError as error:
+            raise ScenarioError(f"RobotWorld(predicates=...)[{index}]: {error}") from None
+    return tuple(specs)
+
+
 class RobotWorld:
     """A world bound to a scenario test: run the robot in it, see the runs made so far.
 
@@ -50,17 +76,20 @@ class RobotWorld:
         self,
         world: World,
         *,
-        predicates: Sequence[PredicateSpec] = (),
+        predicates: Sequence[PredicateSpec | str | Predicate] | str = (),
         seed: int = 0,
         attempt: int = 0,
         max_wall_time: float | None = DEFAULT_MAX_WALL_TIME,
     ) -> None:
         self.world = world
-        self.predicates = tuple(predicates)
+        self.predicates = failure_predicates(predicates)
         self.seed = seed
         self.attempt = attempt
         self.max_wall_time = max_wall_time
         self.runs: list[Run] = []
+        self.run_error: BaseException | None = None
+        """What the last `run()` raised instead of returning a run (a controller that raised or returned NaN,
+        a run past its wall-clock limit); None when it returned one."""
         self.rebound_to: RobotWorld | None = None
         """The last `rebound` of this one (a Hypothesis test binds each generated world with it)."""
 
@@ -115,11 +144,16 @@ class RobotWorld:
             raise ScenarioError("robot_world has no world in a @given test: run the drawn one, "
                                 "robot_world.rebound(world).run()")
         effective_seed = (self.seed if seed is None else seed) + self.attempt * ATTEMPT_SEED_STRIDE
-        result = simulate(
-            self.world, seed=effective_seed, predicates=self.build_predicates(), settings=settings or RunSettings(),
-            timeout=timeout, controller=controller,
-            max_wall_time=self.max_wall_time if max_wall_time is None else max_wall_time,
-        )
+        self.run_error = None
+        try:
+            result = simulate(
+                self.world, seed=effective_seed, predicates=self.build_predicates(),
+                settings=settings or RunSettings(), timeout=timeout, controller=controller,
+                max_wall_time=self.max_wall_time if max_wall_time is None else max_wall_time,
+            )
+        except Exception as error:
+            self.run_error = error
+            raise
         self.runs.append(result)
         if raise_on_failure:
             self.check(result)

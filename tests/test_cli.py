@@ -428,3 +428,62 @@ def test_a_closed_pipe_ends_the_command_quietly(tmp_path: Path) -> None:
     error = process.stderr.read().decode()
     assert process.wait(timeout=120) == 1
     assert "Traceback" not in error and "Broken pipe" not in error
+
+
+# -- --skip-unsupported: one warning naming what was dropped ------------------------------------------------
+ACTOR_WORLD = """<?xml version="1.0"?>
+<sdf version="1.6">
+  <world name="actor_wall">
+    <model name="ground_plane">
+      <static>true</static>
+      <link name="l"><collision name="c"><geometry><plane><normal>0 0 1</normal><size>100 100</size></plane>
+      </geometry></collision></link>
+    </model>
+    <model name="wall">
+      <static>true</static>
+      <pose>2 0 0.5 0 0 0</pose>
+      <link name="l"><collision name="c"><geometry><box><size>0.3 4 1</size></box></geometry></collision></link>
+    </model>
+    <model name="crate">
+      <static>true</static>
+      <pose>-3 4 0.25 0 0 0</pose>
+      <link name="l"><collision name="c"><geometry><box><size>0.5 0.5 0.5</size></box></geometry></collision></link>
+    </model>
+    <actor name="walker">
+      <skin><filename>walk.dae</filename></skin>
+    </actor>
+  </world>
+</sdf>
+"""
+ACTOR_LINE = ACTOR_WORLD.splitlines().index('    <actor name="walker">') + 1
+SCENARIO = ["--start", "0,0", "--goal", "4,0", "--timeout", "10"]
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["run", "{world}", *SCENARIO, "-p", STUCK, "--no-picture"],
+        ["convert", "{world}", "{tmp}/out.yaml"],
+        ["show", "{world}", "-o", "{tmp}/world.png"],
+        ["reduce", "{world}", *SCENARIO, "-p", STUCK, "--deflake", "1", "--workers", "1", "--quiet",
+         "--media", "none", "--out", "{tmp}/artifacts"],
+    ],
+    ids=["run", "convert", "show", "reduce"],
+)
+def test_skip_unsupported_warns_once_naming_each_dropped_model(capsys: pytest.CaptureFixture[str],
+                                                               tmp_path: Path, command: list[str]) -> None:
+    world = tmp_path / "actor_wall.world"
+    world.write_text(ACTOR_WORLD)
+    argv = [part.format(world=world, tmp=tmp_path) for part in command]
+    code, out, err = run(capsys, *argv, "--skip-unsupported")
+    assert code in (cli.EXIT_OK, cli.EXIT_FAILED), err
+    warnings = [line for line in err.splitlines() if line.startswith("ddenv: warning: ")]
+    expected = (f"ddenv: warning: {world}: skip_unsupported dropped 1 model that cannot be simulated: "
+                f"walker: unsupported <actor>: animated actors are not simulated ({world}:{ACTOR_LINE})")
+    assert warnings == [expected], err
+    code, out, err = run(capsys, *argv, "--skip-unsupported", "--json")
+    data = json.loads(out)
+    assert [line.split(":")[0] for line in data["dropped"]] == ["walker"]
+    assert "ddenv: warning:" in err and "walker" in err
+    code, out, err = run(capsys, *argv)  # without skipping the world is refused, as before
+    assert code == cli.EXIT_USAGE and "unsupported <actor>" in err and "warning" not in err

@@ -161,3 +161,38 @@ def test_a_predicate_object_is_reset_before_every_run(wall: World) -> None:
         with pytest.raises(RobotFailure):
             robot_world.run()
         assert counter.touches == 1 and math.isfinite(robot_world.runs[-1].failure.time)
+
+
+def test_robot_world_takes_predicates_by_registered_name(wall: World) -> None:
+    """Names as strings are built as the robot_failure marker builds them (not an AttributeError on .build)."""
+    robot_world = RobotWorld(wall, predicates=("stuck", TouchedTwice()))
+    assert [p.name for p in robot_world.build_predicates()] == ["stuck", "touched_twice"]
+    assert RobotWorld(wall, predicates="stuck").predicates == RobotWorld(wall, predicates=["stuck"]).predicates
+    assert robot_world.rebound(wall).predicates == robot_world.predicates
+
+
+@pytest.mark.parametrize(
+    ("predicates", "message"),
+    [
+        (("wobbly",), r"RobotWorld\(predicates=...\)\[0\]: .*unknown failure predicate 'wobbly'; valid predicates: "),
+        (("stuck", 3), r"RobotWorld\(predicates=...\)\[1\]: .*3 is not a failure predicate"),
+        (5, r"RobotWorld\(predicates=...\): expected a list of predicates .*, got 5"),
+    ],
+)
+def test_robot_world_rejects_what_is_not_a_predicate(wall: World, predicates: Any, message: str) -> None:
+    with pytest.raises(ScenarioError, match=message):
+        RobotWorld(wall, predicates=predicates)
+
+
+def test_a_run_that_raises_is_recorded_as_such(wall: World) -> None:
+    """What the reduction needs to say "the run raised" rather than "the test made no run"."""
+    robot_world = RobotWorld(wall)
+
+    def broken(observation: Any) -> Any:
+        raise RuntimeError("controller bug")
+
+    with pytest.raises(RuntimeError, match="controller bug"):
+        robot_world.run(controller=broken)
+    assert isinstance(robot_world.run_error, RuntimeError) and robot_world.runs == []
+    robot_world.run(raise_on_failure=False)
+    assert robot_world.run_error is None and len(robot_world.runs) == 1

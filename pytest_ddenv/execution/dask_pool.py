@@ -1,23 +1,22 @@
 """Probes on a dask.distributed cluster (optional extra `dask`): `DaskCluster` is the connection (a session
 may share one), `DaskPool` runs the probes of one `Job` on it with the `Pool` API.
 
-Every dask worker process keeps the jobs it has served alive (`run_probe_task` below, imported by name on
-the workers: pytest-ddenv must be installed there): a job's `serve` runs in a thread of the worker process,
-started on the first probe of that job, so the test module is imported once per worker, not per probe.
-``address=None`` or ``"dask"`` starts a LocalCluster of worker processes bound to 127.0.0.1;
-``tcp://host:port`` (or ``tls://``) connects to a running scheduler. Dask reschedules the tasks of a worker
-that dies; after `distributed.scheduler.allowed-failures` deaths it gives up (KilledWorker): `WorkerError`.
+A probe is a dask task, `dask_host.run_probe_task` (imported by name on the workers: pytest-ddenv must be
+installed there): each dask worker process runs the job's `serve` in the main thread of probe processes of
+its own, started like `LocalPool`'s workers on the first probe of that job and kept for the next ones, so
+the test module is imported once per probe process, not per probe. The watchdog runs there too: a probe
+process past it is killed, one that dies is replaced and its probe retried once. ``address=None`` or
+``"dask"`` starts a LocalCluster of worker processes bound to 127.0.0.1; ``tcp://host:port`` (or ``tls://``)
+connects to a running scheduler. Dask reschedules the tasks of a worker process that dies; after
+`distributed.scheduler.allowed-failures` deaths it gives up (KilledWorker): `WorkerError`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import queue
 import threading
 import time
-import traceback
 import uuid
-from collections import OrderedDict
 from collections.abc import Sequence
 from typing import Any, Self
 
@@ -30,17 +29,18 @@ from pytest_ddenv.execution.base import (
     check_watchdog,
     limit_of,
 )
+from pytest_ddenv.execution.dask_host import JOBS_KEPT, TaskReply, run_probe_task, worker_versions
 from pytest_ddenv.execution.errors import (
     PoolConfigError,
     ProbeDeadline,
     WorkerError,
     WorkerStartError,
 )
+from pytest_ddenv.execution.local import STARTUP_TIMEOUT
 from pytest_ddenv.execution.request import (
     Fault,
     Job,
     ProbeRequest,
-    Reply,
     describe_request,
     fault_for,
     parse_faults,
@@ -49,95 +49,13 @@ from pytest_ddenv.world import World
 
 ADDRESS_SCHEMES = ("tcp://", "tls://")
 CONNECT_TIMEOUT = 30.0
-STARTUP_TIMEOUT = 120.0
-JOBS_KEPT = 4
-"""Jobs a dask worker process keeps started (least recently used first out)."""
-
-
-# -- on the dask workers -----------------------------------------------------------------------------
-
-
-class _ThreadChannel:
-    """A `Channel` between a job's serve thread and the dask task threads that hand it probes."""
-
-    def __init__(self) -> None:
-        self.requests: queue.Queue[ProbeRequest | None] = queue.Queue()
-        self.replies: queue.Queue[Reply] = queue.Queue()
-        self.status: queue.Queue[tuple[str, str]] = queue.Queue()
-
-    def ready(self) -> None:
-        self.status.put(("ready", ""))
-
-    def failed(self, message: str) -> None:
-        self.status.put(("failed", message))
-
-    def receive(self) -> ProbeRequest | None:
-        return self.requests.get()
-
-    def send(self, reply: Reply) -> None:
-        self.replies.put(reply)
-
-
-class _StartedJob:
-    """A job serving in a thread of this worker process."""
-
-    def __init__(self, job: Job) -> None:
-        self.job = job
-        self.channel = _ThreadChannel()
-        self.lock = threading.Lock()
-        self.thread = threading.Thread(target=self._serve, name=f"ddenv-job-{job.key[:8]}", daemon=True)
-        self.thread.start()
-        try:
-            state, message = self.channel.status.get(timeout=STARTUP_TIMEOUT)
-        except queue.Empty:
-            raise WorkerStartError(f"{job.label}: the job did not start within {STARTUP_TIMEOUT:g} s") from None
-        if state != "ready":
-            raise WorkerStartError(message)
-
-    def _serve(self) -> None:
-        try:
-            self.job.serve(self.channel)
-        except BaseException as error:  # noqa: BLE001 - reported to whoever waits for this job
-            self.channel.failed(f"{type(error).__name__}: {error}\n{''.join(traceback.format_exception(error))}")
-        finally:
-            self.channel.failed(f"{self.job.label}: the job stopped serving")
-
-    def call(self, request: ProbeRequest) -> Reply:
-        with self.lock:
-            self.channel.requests.put(request)
-            while True:
-                try:
-                    return self.channel.replies.get(timeout=1.0)
-                except queue.Empty:
-                    if not self.thread.is_alive():
-                        raise WorkerError(f"{self.job.label}: the job's thread ended during a probe") from None
-
-    def close(self) -> None:
-        self.channel.requests.put(None)
-
-
-_started: OrderedDict[str, _StartedJob] = OrderedDict()
-_started_lock = threading.Lock()
-
-
-def run_probe_task(job: Job, request: ProbeRequest) -> Reply:
-    """Runs on a dask worker: the probe, on this process's started copy of `job` (started on first use)."""
-    with _started_lock:
-        started = _started.get(job.key)
-        if started is None:
-            started = _StartedJob(job)
-            _started[job.key] = started
-            while len(_started) > JOBS_KEPT:
-                _started.popitem(last=False)[1].close()
-        _started.move_to_end(job.key)
-    return started.call(request)
-
-
-def worker_versions() -> dict[str, str]:
-    """Runs on each dask worker at connection time: what the pool checks for bit-identical runs."""
-    from importlib.metadata import version
-
-    return {"pytest-ddenv": version("pytest-ddenv"), "pybullet": version("pybullet"), "numpy": version("numpy")}
+DEADLINE_GRACE = 2.0
+"""Seconds past a probe's deadline the pool waits for the dask worker to report that it stopped the probe,
+before it cancels the task itself."""
+BACKSTOP_GRACE = 30.0
+"""Seconds past its watchdog (and the time a probe process may take to start) the pool waits for a task the
+dask worker does not report on (a cluster that lost it, a long queue) before it cancels it."""
+__all__ = ["DEADLINE_GRACE", "JOBS_KEPT", "DaskCluster", "DaskPool", "run_probe_task", "worker_versions"]
 
 
 # -- where pytest runs ---------------------------------------------------------------------------------
@@ -241,11 +159,14 @@ class DaskCluster:
 class DaskPool:
     """The probes of `job` on a `DaskCluster` (the `Pool` API).
 
-    `watchdog` as for `LocalPool`, except that dask cannot kill a running task: a probe past the watchdog
-    is cancelled and reported as `WorkerError`, its worker thread finishes it in the background (the
-    simulated time limit bounds it). `fault_injection` supports only 'error' on dask. `owns_cluster`: close
-    the cluster with the pool. `close()` cancels the probes still waiting for their results, so that the
-    threads waiting on them return at once (`WorkerError`).
+    `watchdog` as for `LocalPool`: the dask worker kills the probe process of a probe past it (the time the
+    probe waited in dask's queue and its probe process took to start is not counted), `WorkerError`; a probe
+    past its caller's `timeout` is stopped the same way, `ProbeDeadline`. A probe process that dies is
+    replaced and its probe retried once (`WorkerError` if it dies again); a dask worker process that dies is
+    dask's business (it reschedules the task, then gives up: `WorkerError`). `fault_injection` as for
+    `LocalPool` (the faults hit probe processes, never the dask workers). `owns_cluster`: close the cluster
+    with the pool. `close()` cancels the probes still waiting for their results, so that the threads
+    waiting on them return at once (`WorkerError`).
     """
 
     def __init__(
@@ -265,9 +186,6 @@ class DaskPool:
         self._watchdog = check_watchdog(watchdog)
         self._floor, self._factor = float(watchdog_floor), float(watchdog_factor)
         self._faults = parse_faults(fault_injection)
-        unsupported = sorted({f.kind for f in self._faults} - {"error"})
-        if unsupported:
-            raise PoolConfigError(f"fault(s) {', '.join(unsupported)} cannot be injected on dask (only 'error')")
         self._size = cluster.threads
         self._stats = StatsBook(self._size)
         self._sequence = 0
@@ -294,9 +212,7 @@ class DaskPool:
         self._stats.expect(seconds)
 
     def call(self, world: World, attempt: int, *, timeout: float | None = None, record: bool = False) -> Any:
-        """Like `LocalPool.call`, on the cluster (a probe past `timeout` is cancelled: `ProbeDeadline`)."""
-        from distributed import KilledWorker
-
+        """Like `LocalPool.call`, on the cluster."""
         if self._closed or self.cluster.closed:
             raise WorkerError("the dask pool is closed")
         if self._start_error is not None:
@@ -306,17 +222,30 @@ class DaskPool:
             sequence = self._sequence
         request = ProbeRequest(world, int(attempt), fault_for(self._faults, sequence, 0), record=bool(record))
         what = describe_request(self.job.label, request)
-        watchdog, by_deadline = limit_of(self.watchdog_seconds(), None if timeout is None else
-                                         time.monotonic() + max(0.0, timeout), time.monotonic())
+        limit, by_deadline = limit_of(self.watchdog_seconds(), None if timeout is None else
+                                      time.monotonic() + max(0.0, timeout), time.monotonic())
         started = time.perf_counter()
-        self._stats.add("simulations")
-        future = self.cluster.client.submit(run_probe_task, self.job, request, pure=False,
-                                            key=f"ddenv-probe-{uuid.uuid4().hex}")
+        future = self.cluster.client.submit(run_probe_task, self.job, request, fault_for(self._faults, sequence, 1),
+                                            limit, by_deadline, pure=False, key=f"ddenv-probe-{uuid.uuid4().hex}")
         with self._lock:
             self._pending.add(future)
         try:
-            reply: Reply = future.result(timeout=watchdog)
+            done = self._result_of(future, what, limit, by_deadline)
+        finally:
+            with self._lock:
+                self._pending.discard(future)
+        return self._finish(done, what, limit, by_deadline, started)
+
+    def _result_of(self, future: Any, what: str, limit: float | None, by_deadline: bool) -> TaskReply:
+        """The task's `TaskReply`; the errors of the cluster (not of the probe) as `WorkerError`s."""
+        from distributed import KilledWorker
+
+        backstop = None if limit is None else limit + (DEADLINE_GRACE if by_deadline else
+                                                       STARTUP_TIMEOUT + BACKSTOP_GRACE)
+        try:
+            done: TaskReply = future.result(timeout=backstop)
         except KilledWorker as error:
+            self._stats.add("simulations")
             self._stats.add("crashes")
             self._stats.add("errors")
             raise WorkerError(f"probe of {what}: dask gave up after its workers died ({error})") from None
@@ -327,7 +256,8 @@ class DaskPool:
                 raise ProbeDeadline(f"probe of {what} was cancelled at the reduction's deadline") from None
             self._stats.add("timeouts")
             self._stats.add("errors")
-            raise WorkerError(f"probe of {what} ran past the {watchdog:g} s watchdog on dask") from None
+            raise WorkerError(f"probe of {what}: the dask cluster did not answer within {backstop:g} s "
+                              "(watchdog, probe process start and grace); the task was cancelled") from None
         except WorkerStartError as error:
             self._stats.add("errors")
             self._start_error = WorkerStartError(f"{self.job.label}: a dask worker could not start the test: {error}")
@@ -340,9 +270,26 @@ class DaskPool:
                 self._stats.add("errors")
                 raise WorkerError(f"probe of {what} was lost by the dask cluster: {error!r}") from error
             raise
-        finally:
-            with self._lock:
-                self._pending.discard(future)
+        return done
+
+    def _finish(self, done: TaskReply, what: str, limit: float | None, by_deadline: bool, started: float) -> Any:
+        for name in ("simulations", "crashes", "retries", "restarts"):
+            if getattr(done, name):
+                self._stats.add(name, getattr(done, name))
+        if done.failure == "hung":
+            if by_deadline:
+                self._stats.add("cancelled")
+                raise ProbeDeadline(f"probe of {what} was stopped at the reduction's deadline; its probe process "
+                                    f"({done.host}) was killed")
+            self._stats.add("timeouts")
+            self._stats.add("errors")
+            raise WorkerError(f"probe of {what} ran past the {limit:g} s watchdog; its probe process "
+                              f"({done.host}) was killed")
+        if done.failure is not None or done.reply is None:
+            self._stats.add("errors")
+            raise WorkerError(f"probe of {what} failed twice: its probe process died each time on {done.host} "
+                              f"(last: {done.detail})")
+        reply = done.reply
         self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds, reply.cpu_seconds)
         if reply.error is not None:
             raise reply.error

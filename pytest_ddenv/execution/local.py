@@ -122,14 +122,16 @@ def _main_module_hidden() -> Iterator[None]:
             main.__dict__.update(saved)
 
 
-class _Died(Exception):
+class WorkerDied(Exception):
+    """A worker process died during a probe (`how`: its exit, for the message)."""
+
     def __init__(self, how: str) -> None:
         super().__init__(how)
         self.how = how
 
 
-class _Hung(Exception):
-    pass
+class WorkerHung(Exception):
+    """A worker process ran past the watchdog during a probe (it is killed)."""
 
 
 class ProbeTimeout(BaseException):
@@ -137,7 +139,7 @@ class ProbeTimeout(BaseException):
     BaseException, so that a test's ``except Exception`` does not take it for the test's own error."""
 
 
-class _Worker:
+class WorkerProcess:
     """One worker process and the parent's end of its pipe."""
 
     def __init__(self, context: Any, name: str, job: Job) -> None:
@@ -169,11 +171,11 @@ class _Worker:
     def await_ready(self, timeout: float) -> None:
         status = self._wait(timeout)
         if status == "timeout":
-            raise _Died(f"{self} did not start within {timeout:g} s")
+            raise WorkerDied(f"{self} did not start within {timeout:g} s")
         try:
             message = self.conn.recv()
         except (EOFError, OSError):
-            raise _Died(f"{self.exit_description()} while starting") from None
+            raise WorkerDied(f"{self.exit_description()} while starting") from None
         if message[0] == "failed":
             raise WorkerStartError(str(message[1]))
         self.ready = True
@@ -183,14 +185,14 @@ class _Worker:
             with self.send_lock:
                 self.conn.send(request)
         except (BrokenPipeError, OSError):
-            raise _Died(self.exit_description()) from None
+            raise WorkerDied(self.exit_description()) from None
         status = self._wait(watchdog)
         if status == "timeout":
-            raise _Hung()
+            raise WorkerHung()
         try:
             reply = self.conn.recv()
         except (EOFError, OSError):
-            raise _Died(self.exit_description()) from None
+            raise WorkerDied(self.exit_description()) from None
         assert isinstance(reply, Reply)
         return reply
 
@@ -224,7 +226,8 @@ class _Worker:
             pass
 
 
-def _shutdown(live: set[_Worker], grace: float) -> None:
+def shutdown_workers(live: set[WorkerProcess], grace: float) -> None:
+    """Ask every worker of `live` to stop, then kill those still running after `grace` seconds."""
     workers = list(live)
     for worker in workers:
         worker.ask_to_stop()
@@ -275,8 +278,8 @@ class LocalPool:
         self._sequence_lock = threading.Lock()
         self._closed = False
         self._start_error: WorkerStartError | None = None
-        self._idle: queue.Queue[_Worker | None] = queue.Queue()
-        self._live: set[_Worker] = set()
+        self._idle: queue.Queue[WorkerProcess | None] = queue.Queue()
+        self._live: set[WorkerProcess] = set()
         self._names = itertools.count(1)
         self._local_lock = threading.Lock()
         if in_process is not None:
@@ -301,7 +304,7 @@ class LocalPool:
                 self._context.set_forkserver_preload(forkserver_preload())
             for _ in range(self._size):
                 self._idle.put(self._start_worker(count=False))
-        self._finalizer = weakref.finalize(self, _shutdown, self._live, 0.0)
+        self._finalizer = weakref.finalize(self, shutdown_workers, self._live, 0.0)
 
     # -- public API ----------------------------------------------------------------------------------
     @property
@@ -355,7 +358,7 @@ class LocalPool:
     def close(self, grace: float = CLOSE_GRACE) -> None:
         """Stop every worker (let them exit for `grace` seconds, then terminate/kill) and reap them."""
         self._closed = True
-        _shutdown(self._live, grace)
+        shutdown_workers(self._live, grace)
         self._finalizer.detach()
 
     def __enter__(self) -> Self:
@@ -409,7 +412,7 @@ class LocalPool:
                     f"{self.job.label}: a probe worker could not start the test: {error}"
                 )
                 raise self._start_error from None
-            except _Died as died:
+            except WorkerDied as died:
                 retry = try_index == 0 and not self._closed
                 self._forget(worker, free_slot=not retry)
                 self._raise_if_closed(what)
@@ -421,7 +424,7 @@ class LocalPool:
                 self._stats.add("errors")
                 raise WorkerError(f"probe of {what} failed twice: its worker died each time "
                                   f"(last: {died.how})") from None
-            except _Hung:
+            except WorkerHung:
                 self._forget(worker)
                 self._raise_if_closed(what)
                 if by_deadline:
@@ -451,9 +454,9 @@ class LocalPool:
             self._stats.add("errors")
             raise WorkerError(f"the worker pool was closed while running the probe of {what}")
 
-    def _start_worker(self, *, count: bool = True) -> _Worker:
+    def _start_worker(self, *, count: bool = True) -> WorkerProcess:
         assert self._context is not None
-        worker = _Worker(self._context, f"ddenv-probe-{next(self._names)}", self.job)
+        worker = WorkerProcess(self._context, f"ddenv-probe-{next(self._names)}", self.job)
         self._live.add(worker)
         if count:
             self._stats.add("restarts")
@@ -462,7 +465,7 @@ class LocalPool:
             raise WorkerError("the worker pool is closed")
         return worker
 
-    def _forget(self, worker: _Worker, *, free_slot: bool = True) -> None:
+    def _forget(self, worker: WorkerProcess, *, free_slot: bool = True) -> None:
         """Kill (if needed) and reap a worker whose state is unknown or dead. With `free_slot`, its slot goes
         back to the idle queue empty (a new worker starts when someone needs it)."""
         self._live.discard(worker)
@@ -470,7 +473,7 @@ class LocalPool:
         if free_slot and not self._closed:
             self._idle.put(None)
 
-    def _acquire(self) -> _Worker:
+    def _acquire(self) -> WorkerProcess:
         while True:
             if self._closed:
                 raise WorkerError("the worker pool is closed")
@@ -489,7 +492,7 @@ class LocalPool:
             self._stats.add("crashes")
             return self._start_worker()
 
-    def _release(self, worker: _Worker) -> None:
+    def _release(self, worker: WorkerProcess) -> None:
         if self._closed:
             return
         self._idle.put(worker)

@@ -13,7 +13,10 @@ from __future__ import annotations
 
 import abc
 import os
+import sys
 from collections.abc import Callable, Mapping, Sequence
+from functools import partial
+from pathlib import Path
 from typing import Any
 
 from pytest_ddenv.errors import ScenarioError
@@ -290,13 +293,26 @@ def register_robot(name: str, robot: RobotFactory | RobotDescription, *, replace
     if name in ROBOTS and not replace:
         raise ValueError(f"a robot named {name!r} is already registered (pass replace=True)")
     if isinstance(robot, RobotDescription):
-        description = robot
-        ROBOTS[name] = lambda: WheeledRobot.from_description(description)
+        caller = sys._getframe(1)
+        where = f"{Path(caller.f_code.co_filename).name}:{caller.f_lineno}"
+        urdf = Path(robot.urdf).expanduser()
+        if not urdf.is_file():
+            raise ValueError(f"register_robot({name!r}, ...) at {where}: URDF file not found: {robot.urdf} (a "
+                             f"relative path is taken from the current folder, {Path.cwd()})")
+        ROBOTS[name] = partial(_described, name, where, robot)
     elif callable(robot):
         ROBOTS[name] = robot
     else:
         raise TypeError(expected("a factory returning a Robot or a RobotDescription", robot,
                                  f"register_robot({name!r}, ...)"))
+
+
+def _described(name: str, where: str, description: RobotDescription) -> WheeledRobot:
+    """The robot registered as `name` (at `where`) by its description; its errors name it."""
+    try:
+        return WheeledRobot.from_description(description)
+    except ScenarioError as error:
+        raise ScenarioError(f"robot {name!r} (registered at {where}): {error.reason}", field=error.field) from None
 
 
 def make_robot(robot: str | RobotDescription, source: str | None = None) -> Robot:

@@ -1,12 +1,31 @@
-"""DaskPool on a local cluster bound to loopback: the same runs, the same minimal world."""
+"""DaskPool on a local cluster bound to loopback: the same runs, the same minimal world; the test runs in the
+main thread of a probe process of each dask worker, which the watchdog can kill."""
 
 from __future__ import annotations
 
+import multiprocessing
+import os
+import signal
+import threading
+import time
+import uuid
 from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import pytest
 
-from pytest_ddenv.execution import LocalPool, PoolConfigError, make_pool
+from pytest_ddenv.execution import (
+    Channel,
+    Fault,
+    LocalPool,
+    PoolConfigError,
+    ProbeDeadline,
+    WorkerError,
+    make_pool,
+    serve_requests,
+)
 from pytest_ddenv.world import World
 
 from .conftest import reduce_with, run_of, stuck_job
@@ -17,7 +36,7 @@ distributed = pytest.importorskip(
     "distributed", reason="dask.distributed is not installed (pip install 'pytest-ddenv[dask]')"
 )
 
-from pytest_ddenv.execution import DaskCluster, DaskPool
+from pytest_ddenv.execution import DaskCluster, DaskPool  # noqa: E402 - after the importorskip
 
 
 @pytest.fixture(scope="module")
@@ -53,6 +72,137 @@ def test_a_reduction_on_dask_finds_the_same_minimal_world(dask_pool: DaskPool, w
     assert dask_pool.stats.probes >= reduction.probes
 
 
+HANG = 99
+"""The attempt number on which `UserCodeJob` hangs."""
+
+
+@dataclass(frozen=True)
+class UserCodeJob:
+    """A job whose probes do what user code may do: need the main thread (signal handlers) and, on attempt
+    `HANG`, hang (after writing their pid to `pid_file`)."""
+
+    pid_file: str
+    key: str = field(default_factory=lambda: uuid.uuid4().hex)
+
+    @property
+    def label(self) -> str:
+        return "user-code job"
+
+    def serve(self, channel: Channel) -> None:
+        serve_requests(channel, self.probe)
+
+    def probe(self, world: World, attempt: int) -> dict[str, Any]:
+        assert threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGUSR1, lambda signum, frame: None)  # ValueError off the main thread
+        signal.signal(signal.SIGUSR1, previous)
+        if attempt == HANG:
+            Path(self.pid_file).write_text(str(os.getpid()))
+            time.sleep(3600)
+        return {"pid": os.getpid(), "parent": os.getppid(), "models": len(world)}
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def gone(pid: int, within: float = 10.0) -> bool:
+    deadline = time.monotonic() + within
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def test_the_dask_workers_are_daemonic_and_the_test_runs_in_the_main_thread_of_a_probe_process(
+        cluster: DaskCluster, wall_world: World, tmp_path: Path) -> None:
+    daemonic = cluster.client.run(lambda: multiprocessing.current_process().daemon)
+    dask_pids = set(cluster.client.run(os.getpid).values())
+    assert daemonic and all(daemonic.values())  # dask's default: probe processes start all the same
+    with DaskPool(UserCodeJob(str(tmp_path / "pid")), cluster, watchdog=60.0) as pool:
+        results = [pool.call(wall_world, attempt) for attempt in range(4)]
+    assert all(result["models"] == len(wall_world) for result in results)
+    assert not {result["pid"] for result in results} & dask_pids  # not in the dask worker processes
+    assert pool.stats.probes == 4 and pool.stats.errors == 0 and pool.stats.restarts == 0
+
+
+def test_a_hung_probe_is_killed_by_the_watchdog_and_the_next_probe_runs(
+        cluster: DaskCluster, wall_world: World, tmp_path: Path) -> None:
+    pid_file = tmp_path / "pid"
+    with DaskPool(UserCodeJob(str(pid_file)), cluster, watchdog=3.0) as pool:
+        before = pool.call(wall_world, 0)
+        started = time.monotonic()
+        with pytest.raises(WorkerError, match=r"ran past the 3 s watchdog; its probe process \(dask worker .* "
+                                              r"pid \d+, probe process pid \d+\) was killed") as raised:
+            pool.call(wall_world, HANG)
+        assert not isinstance(raised.value, ProbeDeadline)
+        assert 3.0 <= time.monotonic() - started < 20.0
+        assert gone(int(pid_file.read_text()))
+        after = [pool.call(wall_world, attempt) for attempt in range(1, 4)]
+        stats = pool.stats
+    assert before["models"] == len(wall_world) and all(result["models"] == len(wall_world) for result in after)
+    assert stats.timeouts == 1 and stats.errors == 1 and stats.probes == 4 and stats.cancelled == 0
+
+
+def test_a_probe_past_its_deadline_is_killed_and_reported_as_a_deadline(
+        cluster: DaskCluster, wall_world: World, tmp_path: Path) -> None:
+    pid_file = tmp_path / "pid"
+    with DaskPool(UserCodeJob(str(pid_file)), cluster, watchdog=60.0) as pool:
+        pool.call(wall_world, 0)
+        with pytest.raises(ProbeDeadline, match="stopped at the reduction's deadline; its probe process"):
+            pool.call(wall_world, HANG, timeout=2.0)
+        assert gone(int(pid_file.read_text()))
+        assert pool.call(wall_world, 1)["models"] == len(wall_world)
+        stats = pool.stats
+    assert stats.cancelled == 1 and stats.timeouts == 0 and stats.errors == 0
+
+
+def test_a_probe_process_that_crashes_is_replaced_and_its_probe_retried(
+        cluster: DaskCluster, wall_world: World, tmp_path: Path) -> None:
+    job = UserCodeJob(str(tmp_path / "pid"))
+    with DaskPool(job, cluster, watchdog=60.0, fault_injection=[Fault("crash", 2)]) as pool:
+        pool.call(wall_world, 0)
+        second = pool.call(wall_world, 1)  # crashes once, then runs on a fresh probe process
+        stats = pool.stats
+    assert second["models"] == len(wall_world) and stats.errors == 0
+    assert stats.crashes == 1 and stats.retries == 1 and stats.restarts == 1 and stats.simulations == 3
+    with DaskPool(job, cluster, watchdog=60.0, fault_injection=[Fault("kill", 1, tries=2)]) as pool:
+        with pytest.raises(WorkerError, match="failed twice: its probe process died each time"):
+            pool.call(wall_world, 0)
+        assert pool.call(wall_world, 1)["models"] == len(wall_world)
+        assert pool.stats.crashes == 2 and pool.stats.errors == 1
+
+
+def hosted_jobs() -> list[int]:
+    """On a dask worker: how many probe processes each job it hosts has."""
+    from pytest_ddenv.execution import dask_host
+
+    return [len(hosted._live) for hosted in dask_host._hosted.values()]
+
+
+def test_a_dask_worker_keeps_the_probe_processes_of_its_most_recent_jobs_only(
+        cluster: DaskCluster, wall_world: World, tmp_path: Path) -> None:
+    from pytest_ddenv.execution.dask_host import JOBS_KEPT
+
+    pids = []
+    for index in range(2 * JOBS_KEPT + 1):  # on 2 dask workers: at least one evicts a job
+        with DaskPool(UserCodeJob(str(tmp_path / f"pid-{index}")), cluster, watchdog=60.0) as pool:
+            pids.append(pool.call(wall_world, 0)["pid"])
+    kept = cluster.client.run(hosted_jobs)
+    assert all(len(jobs) <= JOBS_KEPT and all(count <= 1 for count in jobs) for jobs in kept.values())
+    assert sum(len(jobs) for jobs in kept.values()) < len(pids)
+    deadline = time.monotonic() + 10.0  # evicted jobs stop in the background
+    while sum(map(alive, pids)) != sum(sum(jobs) for jobs in kept.values()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert sum(map(alive, pids)) == sum(sum(jobs) for jobs in kept.values())
+
+
 def test_make_pool_rejects_a_scheduler_that_is_not_there() -> None:
-    with pytest.raises(PoolConfigError, match="cannot connect to the dask scheduler at tcp://127.0.0.1:9"):
+    with pytest.raises(PoolConfigError, match=r"cannot connect to the dask scheduler at tcp://127\.0\.0\.1:9"):
         make_pool(stuck_job(), 2, "tcp://127.0.0.1:9")

@@ -32,6 +32,8 @@ MY_ROBOT_CONFTEST = textwrap.dedent(
 USER_CODE_TEST = textwrap.dedent(
     """\
     import math
+    import signal
+    import threading
 
     import pytest
 
@@ -68,6 +70,9 @@ USER_CODE_TEST = textwrap.dedent(
     @pytest.mark.ddenv(world="wall.yaml", deflake=1)
     @pytest.mark.robot_failure(Blocked())
     def test_reaches_goal(robot_world):
+        # Every way of running probes runs the test in the main thread of its process: signals work.
+        assert threading.current_thread() is threading.main_thread()
+        signal.signal(signal.SIGUSR1, signal.getsignal(signal.SIGUSR1))
         assert robot_world.run(controller=cautious).reached_goal
     """
 )
@@ -145,7 +150,7 @@ def test_an_exception_the_test_raises_only_in_probes_is_shown_as_it_is(user_proj
     result.stdout.fnmatch_lines([
         "*= ddenv reductions =*",
         "test_scenario.py::test_reaches_goal: every confirmation run of the test raised "
-        "KeyError: 'LAB_ONLY_IN_THE_PYTEST_PROCESS' at test_scenario.py:12 instead of failing the same way*",
+        "KeyError: 'LAB_ONLY_IN_THE_PYTEST_PROCESS' at test_scenario.py:* instead of failing the same way*",
     ])
     assert "not reproducible" not in result.stdout.str() and "--ddenv-deflake" not in result.stdout.str()
 
@@ -221,3 +226,14 @@ def test_a_test_with_its_own_simulator_and_no_report_is_reduced_by_model_positio
     summary = summary_of(pytester)
     assert summary["minimal_models"] == ["wall"] and summary["schemas"]["partition"] == "model2model"
     assert len(summary["notes"]) == 2
+
+
+def test_a_run_that_raised_is_named_in_the_fallback_note(user_project: pytest.Pytester) -> None:
+    docstring = '    """The controller under test: steady 0.6 m/s, gentle turns toward the goal."""\n'
+    user_project.makepyfile(test_scenario=USER_CODE_TEST.replace(
+        docstring, docstring + "    raise ZeroDivisionError('no plan')\n"))
+    result = user_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-workers", "1", "--ddenv-media", "none")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*note: robot_world.run() raised ZeroDivisionError, so there is no trajectory: "
+                                 "priority avg-trajectory-proximal -> sequential*"])
+    assert "made no robot_world.run()" not in result.stdout.str()

@@ -107,6 +107,48 @@ def test_a_marker_that_holds_no_predicate_is_a_usage_error(wall_project: pytest.
     result.stderr.fnmatch_lines(["ERROR: test_scenario.py::test_robot: " + message])
 
 
+_ON_SLOPE = (
+    "class OnSlope:\n"
+    "    name = 'on_slope'\n"
+    "    def __init__(self{init}):\n"
+    "        pass\n"
+    "    def reset(self): pass\n"
+    "    def check(self, state): return None\n"
+)
+
+
+@pytest.mark.parametrize(
+    ("definition", "marker", "message"),
+    [
+        (_ON_SLOPE.format(init=", max_pitch=0.3"), "robot_failure(OnSlope)",
+         "*robot_failure(OnSlope): OnSlope is a class, not a predicate*pass an instance: robot_failure(OnSlope())"),
+        (_ON_SLOPE.format(init=""), "robot_failure(OnSlope)",  # OnSlope(test) raises TypeError on import
+         "*robot_failure(OnSlope): OnSlope is a class, not a predicate*pass an instance: robot_failure(OnSlope())"),
+        ("def tipped(state):\n    return state.time > 3\n", "robot_failure(tipped)",  # AttributeError on import
+         "*robot_failure(tipped): pytest takes a function given alone*@predicate*robot_failure.with_args(tipped)"),
+        ("def tipped(state):\n    return None\n", "robot_failure(tipped)",  # the test silently became None
+         "*robot_failure(tipped): pytest takes a function given alone*@predicate*robot_failure.with_args(tipped)"),
+    ],
+    ids=["class-with-defaults", "class-without-parameters", "function-raising", "function-returning-none"],
+)
+def test_a_predicate_given_alone_is_a_usage_error_naming_the_test(pytester: pytest.Pytester, definition: str,
+                                                                  marker: str, message: str) -> None:
+    """pytest takes a lone class or function given to a marker for the thing to mark: the test is lost (or
+    the module fails to import with the predicate's own error). It must stop pytest, naming the test."""
+    pytester.makepyfile(test_scenario=(
+        f"import pytest\n{definition}"
+        f"@pytest.mark.ddenv(world='wall.yaml')\n@pytest.mark.{marker}\n"
+        "def test_robot(robot_world):\n"
+        "    robot_world.run()\n"
+        "def test_other():\n"
+        "    pass\n"
+    ))
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["ERROR: test_scenario.py::test_robot: " + message])
+    assert "AttributeError" not in result.stdout.str() + result.stderr.str()
+
+
 def test_a_plain_function_predicate_is_given_with_with_args(wall_project: pytest.Pytester) -> None:
     wall_project.makepyfile(test_scenario=(
         "import pytest\n"

@@ -279,3 +279,16 @@ def test_unknown_drive_in_python_is_refused() -> None:
     with pytest.raises(ScenarioError, match="unknown drive 'tank'") as caught:
         WheeledRobot(DIFFBOT_URDF, left_wheels=["left_wheel_joint"], right_wheels=["right_wheel_joint"], drive="tank")
     assert caught.value.field == "scenario.robot.drive"
+
+
+def test_a_registered_description_names_its_robot_in_errors(monkeypatch: pytest.MonkeyPatch) -> None:
+    from pytest_ddenv.sim import ROBOTS, register_robot
+
+    monkeypatch.setattr("pytest_ddenv.sim.robot.ROBOTS", dict(ROBOTS))
+    with pytest.raises(ValueError, match=r"register_robot\('ghost', \.\.\.\) at test_urdf_robot\.py:\d+: URDF file "
+                                         r"not found: ghost\.urdf \(a relative path is taken from the current folder"):
+        register_robot("ghost", dataclasses.replace(DIFFBOT, urdf="ghost.urdf"))
+    register_robot("wrong_wheels", dataclasses.replace(DIFFBOT, left_wheels=("left_whel_joint",)))
+    with pytest.raises(ScenarioError, match=r"robot 'wrong_wheels' \(registered at test_urdf_robot\.py:\d+\): .*"
+                                            r"has no joint named 'left_whel_joint'"):
+        make_robot("wrong_wheels")
