@@ -58,8 +58,12 @@ def artifact_dir_name(test_id: str) -> str:
 
 def write_text_atomic(path: Path, text: str) -> None:
     """Replace `path` with `text` all at once and durably; ArtifactsError (the file untouched) if it cannot."""
+    write_bytes_atomic(path, text.encode("utf-8"))
+
+
+def write_bytes_atomic(path: Path, data: bytes) -> None:
+    """`write_text_atomic` for bytes (a cut SDF file keeps its original encoding)."""
     temporary = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    data = text.encode("utf-8")
     try:
         handle = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         try:
@@ -393,45 +397,28 @@ def write_progress(paths: ArtifactPaths, world: World, best: Sequence[str], *, t
 
 def write_minimal_sdf(target: Path, world: World, minimal: World, removed: Sequence[str],
                       model_paths: Sequence[str | Path]) -> str | None:
-    """Write `minimal.sdf` and say how: "cut from <file>" (the original SDF file with the removed models and
-    their `<state>` entries deleted, nothing else changed: its relative paths are the original file's), or
-    "regenerated[: why not cut]" (from the world model), or None when no SDF could be written."""
-    from pytest_ddenv.sdf import SurgeryError, cut_models
+    """Write `minimal.sdf` and say how: "cut from <file>[; ...]" (the original SDF file with the removed models
+    and their `<state>` entries deleted, its `ddenv:scenario` the reduction's, nothing else changed; the rest says
+    where its relative paths resolve), or "regenerated[: why not cut]" (from the world model), or None when no
+    SDF could be written."""
+    from pytest_ddenv.sdf import SurgeryError
+    from pytest_ddenv.sdf._surgical_check import minimal_cut
 
     source = Path(world.source) if world.source else None
     reason = ""
     if source is not None and source.suffix.lower() in (".sdf", ".world") and source.is_file():
         try:
-            text = cut_models(source, set(removed), model_paths=model_paths)
-            _check_cut(text, source, minimal, model_paths)
+            data, how = minimal_cut(source, minimal, removed, model_paths)
         except SurgeryError as error:
             reason = f": {error.reason}"
         else:
-            write_text_atomic(target, text)
-            return f"cut from {source}"
+            write_bytes_atomic(target, data)
+            return how
     try:
         minimal.save(target)
     except Exception:  # noqa: BLE001 - SDF export is optional; the YAML is the reference artifact
         return None
     return "regenerated" + reason
-
-
-def _check_cut(text: str, source: Path, minimal: World, model_paths: Sequence[str | Path]) -> None:
-    """SurgeryError unless `text`, read as if it were `source`, gives exactly the minimal world's models (a kept
-    model may be placed relative to a removed one, for instance)."""
-    from pytest_ddenv.errors import WorldError
-    from pytest_ddenv.sdf import SurgeryError, parse_sdf
-
-    dropped = any(note.startswith("dropped ") for note in minimal.notes)
-    try:
-        reread = parse_sdf(text, source=source, model_paths=model_paths, skip_unsupported=dropped)
-    except WorldError as error:
-        raise SurgeryError(f"the cut file does not load: {error}", source=source) from None
-    if reread.models != minimal.models:
-        changed = sorted({m.name for m in reread.models} ^ {m.name for m in minimal.models}) or sorted(
-            m.name for m, n in zip(reread.models, minimal.models, strict=False) if m != n)
-        raise SurgeryError(f"the cut file does not give the minimal world ({', '.join(changed[:5])} differ)",
-                           source=source)
 
 
 def folder_problem(folder: Path) -> str | None:

@@ -107,3 +107,75 @@ def test_an_unsupported_element_is_one_line_or_skipped_with_a_note(capsys: pytes
     assert code == 0 and any(note.startswith("dropped ") and "<actor>" in note for note in data["notes"]), err
     code, _, err = run(capsys, "--debug", "check", world)
     assert code == 2 and "Traceback" in err and "unsupported <actor>" in err.strip().splitlines()[-1]
+
+
+# -- bad input: one line naming file:line, model and element; exit code 2 with --debug and --json too -----------
+MESH_IN_A_FOUND_MODEL = """<?xml version="1.0"?>
+<sdf version="1.7">
+  <world name="w">
+    <model name="wall"><static>true</static>
+      <link name="l"><collision name="c"><geometry><mesh><uri>model://crate/meshes/nope.dae</uri></mesh>
+      </geometry></collision></link>
+    </model>
+  </world>
+</sdf>
+"""
+BAD_INPUT = {  # file name: (its text or a corpus file, what the error line holds)
+    "missing_include.world": (
+        ('<?xml version="1.0"?>\n<sdf version="1.7">\n  <world name="w">\n'
+         "    <include><uri>model://no_such_model</uri><name>ghost</name></include>\n  </world>\n</sdf>\n"),
+        ["missing_include.world:4, model ghost, field 'include/uri': cannot resolve include "
+         "'model://no_such_model': model not found; searched, in order: " + str(DATA / "models")]),
+    "missing_mesh.world": (MESH_IN_A_FOUND_MODEL, [
+        "missing_mesh.world:5, model wall, field 'link 'l'/collision 'c'/geometry/mesh/uri': missing mesh file",
+        f"model 'crate' was found at {DATA / 'models' / 'crate'}, but it has no file 'meshes/nope.dae'"]),
+    "actor.world": (DATA / "corpus" / "actor.world", [
+        "actor.world:11, model walker: unsupported <actor>: animated actors are not simulated", "--skip-unsupported"]),
+    "malformed.world": (
+        ('<?xml version="1.0"?>\n<sdf version="1.7">\n  <world name="w">\n    <model name="m"><link name="l">\n'
+         "  </world>\n</sdf>\n"),
+        ["malformed.world:5, model m: malformed XML: mismatched tag", "(inside <link name='l'> opened at line 4)"]),
+    "bad_joint_child.world": (DATA / "corpus" / "bad_joint_child.world", [
+        ("bad_joint_child.world:15, model arm, field 'joint/child': unknown frame 'fore_arm' in the <child> of joint "
+         "'elbow': not a link, frame, joint or nested model of model 'arm' (there are: base, elbow, forearm)")]),
+    "namespaced.world": (DATA / "corpus" / "namespaced.world", [  # loads: a Gazebo world has no scenario
+        "namespaced.world: the world has no scenario", "--start X,Y[,YAW] --goal X,Y", "<ddenv:scenario>"]),
+}
+BAD_COMMANDS = [(name, command) for name in BAD_INPUT for command in ("check", "run")
+                if (name, command) != ("namespaced.world", "check")]  # a world needs no scenario to be checked
+
+
+@pytest.mark.parametrize(("name", "command"), BAD_COMMANDS, ids=lambda value: str(value))
+def test_bad_input_is_one_line_and_exit_code_2(capsys: pytest.CaptureFixture[str], gazebo: Path, name: str,
+                                               command: str) -> None:
+    text, fragments = BAD_INPUT[name]
+    if isinstance(text, Path):
+        shutil.copy(text, gazebo / name)
+    else:
+        (gazebo / name).write_text(text)
+    argv = [command, name, "--model-path", str(DATA / "models"), *(["--no-picture"] if command == "run" else [])]
+    code, out, err = run(capsys, *argv)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert err.startswith(f"ddenv: error: {name}") and all(fragment in err for fragment in fragments), err
+    code, out, err = run(capsys, *argv, "--json")
+    report = json.loads(out)
+    assert code == 2 and report["ok"] is False and report["exit_code"] == 2, out
+    assert report["error"] == err.strip().removeprefix("ddenv: error: ")
+    code, _, err = run(capsys, "--debug", *argv)
+    assert code == 2 and "Traceback" in err and all(fragment in err.strip().splitlines()[-1] for fragment in fragments)
+
+
+def test_everything_not_simulated_is_said_by_check(capsys: pytest.CaptureFixture[str], gazebo: Path) -> None:
+    shutil.copy(DATA / "corpus" / "everything_not_simulated.world", gazebo / "all.world")
+    code, _, err = run(capsys, "check", "all.world")
+    assert code == 2 and err.startswith("ddenv: error: all.world:28, model visitor: unsupported <actor>")
+    code, out, _ = run(capsys, "check", "all.world", "--skip-unsupported")
+    assert code == 0 and out.splitlines() == [
+        "all.world: 1 models (1 reducible)",
+        "not simulated: dropped visitor: unsupported <actor>: animated actors are not simulated (all.world:28)",
+        "not simulated: joints: door (1 joint); each articulated model is simulated as one rigid body",
+        "not simulated: plugins: libworld_stats.so (world), libdoor_opener.so (door); plugins do not run",
+        "not simulated: lights: sun; lights do not take part in the simulation",
+    ]
+    code, out, _ = run(capsys, "check", "all.world", "--skip-unsupported", "--json")
+    assert code == 0 and json.loads(out)["names"] == ["door"] and len(json.loads(out)["notes"]) == 4

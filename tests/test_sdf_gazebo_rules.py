@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import math
 import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -146,7 +147,7 @@ def test_frame_attribute_of_sdf_1_6_at_depth_2() -> None:
 def test_unknown_scoped_frame_is_an_error() -> None:
     text = world_xml(f'<model name="m"><static>1</static><link name="l"><pose relative_to="a::nothing"/>{BOX}'
                      '</link><model name="a"><link name="k"/></model></model>', "1.8")
-    with pytest.raises(WorldError, match="unknown frame 'nothing'"):
+    with pytest.raises(WorldError, match=r"unknown frame 'a::nothing' .*there are: a::k\)"):
         parse_sdf(text, source="x.world")
 
 
@@ -509,3 +510,213 @@ def test_a_self_intersecting_polyline_is_refused_with_its_line() -> None:
     with pytest.raises(WorldError, match=r"w.sdf:3, model tie, field .*polyline.*point") as raised:
         parse_sdf(text, source="w.sdf")
     assert "self" in str(raised.value).lower() or "intersect" in str(raised.value).lower()
+
+
+# -- 8. undeclared namespace prefixes: lenient as libsdformat ------------------------------------------------------
+def test_undeclared_namespace_prefixes_are_read_as_libsdformat_reads_them() -> None:
+    world = corpus("namespaced")  # libsdformat loads it too (tests/test_sdf_sdformat.py)
+    assert world.names == ("crate",) and world.model("crate").pose == Pose(1.0, 2.0, 0.25, yaw=0.5)
+    assert world.notes == ("plugins: libgazebo_ros_factory.so (world), libgz_follow.so (crate); plugins do not run",)
+
+
+@pytest.mark.parametrize("body", [
+    '<gz:camera_follow>true</gz:camera_follow><model name="m"><static>1</static><link name="l">{BOX}</link></model>',
+    ('<plugin name="p" filename="f.so"><ros:remap from="a" to="b"/></plugin><model name="m"><static>1</static>'
+     '<link name="l">{BOX}</link></model>'),
+    ('<model name="m"><static>1</static><pose gz:expressed_in="world">0 0 1 0 0 0</pose><link name="l">{BOX}</link>'
+     "</model>"),
+    '<model name="m" xmlns:gz="urn:gz"><static>1</static><link name="l">{BOX}</link></model><gz:x/>',  # inner only
+])
+def test_an_undeclared_prefix_is_not_an_error(body: str) -> None:
+    text = f'<sdf version="1.7" xmlns:other="urn:o">\n<world name="w">{body.format(BOX=BOX)}</world></sdf>'
+    assert parse_sdf(text).names == ("m",)
+
+
+def test_an_undeclared_ddenv_prefix_is_still_ddenv() -> None:
+    text = world_xml('<ddenv:scenario robot="husky" timeout="9"><ddenv:start x="1" y="0"/><ddenv:goal x="5" y="0"/>'
+                     f'</ddenv:scenario><model name="m"><static>1</static><link name="l">{BOX}</link></model>')
+    scenario = parse_sdf(text).scenario
+    assert scenario is not None and scenario.timeout == 9.0 and scenario.goal[0] == 5.0
+
+
+def test_lines_stay_right_with_undeclared_prefixes() -> None:
+    text = ('<?xml version="1.0"?>\n<sdf\n version="1.7">\n<world name="w">\n<gz:a/>\n<model name="m">'
+            '<static>1</static>\n<link name="l"><ros:b/><collision name="c"><geometry><box><size>1 x 1</size>'
+            "</box></geometry></collision></link></model></world></sdf>")
+    with pytest.raises(WorldError, match="expected numbers") as error:
+        parse_sdf(text, source="ns.world")
+    assert error.value.line == 7
+    with pytest.raises(WorldError, match="malformed XML") as error:
+        parse_sdf(text.replace("</model>", ""), source="ns.world")
+    assert error.value.line == 7 and error.value.model == "m"
+    assert "(inside <model name='m'> opened at line 6)" in str(error.value)
+
+
+@pytest.mark.parametrize("text", [
+    '<?xml version="1.0"?>\n<!DOCTYPE sdf [<!ENTITY a "aaaa">]>\n<sdf version="1.7"><gz:x>&a;</gz:x></sdf>',
+    '<!DOCTYPE sdf SYSTEM "http://example.com/x.dtd">\n<sdf version="1.7"><world name="w" gz:a="1"/></sdf>',
+    '<sdf version="1.7"><!DOCTYPE x [<!ENTITY e SYSTEM "file:///etc/passwd">]><gz:x>&e;</gz:x></sdf>',
+])
+def test_undeclared_prefixes_keep_dtds_and_entities_refused(text: str) -> None:
+    with pytest.raises(WorldError, match=r"not allowed|malformed XML|forbidden"):
+        parse_sdf(text, source="hostile.world")
+
+
+# -- 9. names a joint, a frame or a pose gives must exist: strict as libsdformat --------------------------------
+BAD_CORPUS = sorted(CORPUS.glob("bad_*.world"))
+BAD = {  # file: line, model, field, the name not found, the names there are
+    "bad_joint_child.world": (15, "arm", "joint/child", "'fore_arm' in the <child> of joint 'elbow'",
+                              "base, elbow, forearm"),
+    "bad_joint_parent.world": (14, "arm", "joint/parent", "'bas' in the <parent> of joint 'elbow'",
+                               "base, elbow, forearm"),
+    "bad_attached_to.world": (7, "shelf", "frame/@attached_to", "'bord' in the attached_to of frame 'shelf_top'",
+                              "board, shelf_top"),
+    "bad_world_attached_to.world": (5, None, "frame/@attached_to", "'table' in the attached_to of frame 'dock'",
+                                    "desk, dock"),
+    "bad_relative_to.world": (10, "cart", "frame/pose/@relative_to",
+                              "'chasis' in the relative_to of frame 'handle'", "chassis, handle"),
+}
+
+
+def test_every_bad_corpus_file_is_described() -> None:
+    assert {path.name for path in BAD_CORPUS} == set(BAD)
+
+
+@pytest.mark.parametrize("path", BAD_CORPUS, ids=lambda path: path.name)
+def test_a_name_that_is_no_frame_is_refused_as_libsdformat_refuses_it(path: Path) -> None:
+    line, model, field, missing, there_are = BAD[path.name]
+    with pytest.raises(WorldError) as error:
+        load_sdf(path, model_paths=[MODELS], skip_unsupported=True)
+    assert not isinstance(error.value, UnsupportedSdfError)  # not droppable: the file is wrong
+    assert (error.value.line, error.value.model, error.value.field) == (line, model, field)
+    message = str(error.value)
+    assert message.startswith(f"{path}:{line}, ") and f"unknown frame {missing}" in message
+    assert message.endswith(f"(there are: {there_are})")
+
+
+@pytest.fixture(scope="module")
+def sdformat_check(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    if shutil.which("g++") is None or shutil.which("pkg-config") is None:
+        pytest.skip("needs g++ and pkg-config to build the libsdformat checker")
+    flags = subprocess.run(["pkg-config", "--cflags", "--libs", "sdformat12"], capture_output=True, text=True,
+                           check=False)
+    if flags.returncode != 0:
+        pytest.skip("libsdformat 12 is not installed (Debian: apt-get install libsdformat-dev)")
+    binary = tmp_path_factory.mktemp("sdformat") / "sdformat_check"
+    subprocess.run(["g++", "-std=c++17", str(DATA / "sdformat_check.cc"), "-o", str(binary), *flags.stdout.split()],
+                   check=True)
+    return binary
+
+
+@pytest.mark.parametrize("name", [*BAD, "namespaced.world"])
+def test_libsdformat_agrees_on_names_and_prefixes(sdformat_check: Path, name: str) -> None:
+    result = subprocess.run([str(sdformat_check), str(CORPUS / name)], capture_output=True, text=True, check=False,
+                            timeout=60)
+    assert (result.returncode == 0) == (name == "namespaced.world"), result.stdout + result.stderr
+
+
+JOINT_MODEL = ('<model name="arm"><link name="base">{BOX}</link><link name="tip"/><frame name="fr" attached_to="tip"/>'
+               '<model name="inner"><link name="il"/></model>\n<joint name="h" type="fixed">{joint}</joint></model>')
+
+
+@pytest.mark.parametrize(("joint", "error"), [  # each as libsdformat 12 decides
+    ("<parent>base</parent><child>tip</child>", None),
+    ("<parent>world</parent><child>base</child>", None),
+    ("<parent>base</parent><child>fr</child>", None),
+    ("<parent>base</parent><child>inner</child>", None),
+    ("<parent>base</parent><child>inner::il</child>", None),
+    ("<parent>base</parent><child> tip </child>", None),
+    ("<parent>base</parent><child>world</child>", "unknown frame 'world' in the <child> of joint 'h'"),
+    ("<parent>__model__</parent><child>base</child>", "unknown frame '__model__' in the <parent> of joint 'h'"),
+    ("<parent>base</parent><child>inner::nope</child>", r"unknown frame 'inner::nope' .*\(there are: inner::il\)"),
+    ("<parent>base</parent>", "joint 'h' needs a <child>"),
+    ("<parent>base</parent><child> </child>", "joint 'h' needs a <child>"),
+    ("<child>tip</child>", "joint 'h' needs a <parent>"),
+    ("<parent>base</parent><child>base</child>", "the same <parent> and <child>"),
+])
+def test_joint_parent_and_child_must_be_frames_of_the_model(joint: str, error: str | None) -> None:
+    text = world_xml(JOINT_MODEL.format(BOX=BOX, joint=joint))
+    if error is None:
+        assert parse_sdf(text).names == ("arm",)
+        return
+    with pytest.raises(WorldError, match=error) as raised:
+        parse_sdf(text, source="j.world")
+    assert raised.value.line == 2 and raised.value.model == "arm"
+
+
+def test_a_pose_relative_to_nothing_is_refused_even_when_nothing_resolves_through_it() -> None:
+    text = world_xml(f'<model name="m"><link name="l">{BOX}</link><frame name="f"><pose relative_to="nope"/></frame>'
+                     '</model><frame name="g" attached_to="m"/><frame name="k"><pose relative_to="ghost"/></frame>')
+    with pytest.raises(WorldError, match="unknown frame 'nope' in the relative_to of frame 'f'"):
+        parse_sdf(text)
+    with pytest.raises(WorldError, match=r"unknown frame 'ghost' .* of the world \(there are: g, k, m\)"):
+        parse_sdf(text.replace('relative_to="nope"', 'relative_to="l"'))
+
+
+# -- 10. files inside found models, Gazebo-classic resource URIs ---------------------------------------------------
+def test_a_missing_file_in_a_model_that_was_found_says_where_the_model_is() -> None:
+    text = world_xml('<model name="w"><static>1</static><link name="l"><collision name="c"><geometry><mesh>'
+                     "<uri>model://crate/meshes/nope.dae</uri></mesh></geometry></collision></link></model>")
+    with pytest.raises(WorldError) as error:
+        parse_sdf(text, source="w.world", model_paths=[MODELS])
+    message = str(error.value)
+    assert f"model 'crate' was found at {MODELS / 'crate'}, but it has no file 'meshes/nope.dae'" in message
+    assert "model not found" not in message and "--model-path" not in message
+
+
+@pytest.fixture
+def resources(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """tmp/world/hm.world using file://media/materials/textures/hm.png; the image in tmp/share/media/..."""
+    monkeypatch.delenv("GAZEBO_RESOURCE_PATH", raising=False)
+    textures = tmp_path / "share" / "media" / "materials" / "textures"
+    textures.mkdir(parents=True)
+    shutil.copy(CORPUS / "media" / "hill.png", textures / "hm.png")
+    (tmp_path / "world").mkdir()
+    (tmp_path / "world" / "hm.world").write_text(world_xml(
+        '<model name="hill"><static>1</static><link name="l"><collision name="c"><geometry><heightmap><uri>'
+        "file://media/materials/textures/hm.png</uri><size>8 8 1</size></heightmap></geometry></collision></link>"
+        "</model>"))
+    return tmp_path
+
+
+def test_a_gazebo_classic_media_uri_is_found_through_the_resource_path(
+    resources: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    with pytest.raises(WorldError) as error:
+        load_sdf(resources / "world" / "hm.world", model_paths=[MODELS])
+    message = str(error.value)
+    assert "missing heightmap file 'file://media/materials/textures/hm.png': file not found" in message
+    assert f"searched, in order: {resources / 'world'}, {MODELS}." in message
+    assert "'media/' to GAZEBO_RESOURCE_PATH or to the model path" in message
+    expected = resources / "share" / "media" / "materials" / "textures" / "hm.png"
+    monkeypatch.setenv("GAZEBO_RESOURCE_PATH", f"{resources / 'nothing'}:{resources / 'share'}")
+    assert load_sdf(resources / "world" / "hm.world").model("hill").shapes[0].mesh == str(expected.resolve())
+    monkeypatch.delenv("GAZEBO_RESOURCE_PATH")
+    world = load_sdf(resources / "world" / "hm.world", model_paths=[resources / "share"])  # the model path too
+    assert world.model("hill").shapes[0].mesh == str(expected.resolve())
+
+
+def test_a_relative_file_uri_is_relative_to_the_world_file_first(resources: Path) -> None:
+    (resources / "world" / "media").symlink_to(resources / "share" / "media")
+    world = load_sdf(resources / "world" / "hm.world")
+    assert world.model("hill").shapes[0].mesh is not None
+    absolute = resources / "share" / "media" / "materials" / "textures" / "hm.png"
+    text = (resources / "world" / "hm.world").read_text()
+    (resources / "other.world").write_text(text.replace("file://media", f"file://{resources / 'share' / 'media'}"))
+    assert load_sdf(resources / "other.world").model("hill").shapes[0].mesh == str(absolute.resolve())  # file:///
+
+
+# -- 11. a joint, a plugin, a light and an actor together ---------------------------------------------------------
+def test_everything_not_simulated_is_noted_and_the_actor_dropped() -> None:
+    with pytest.raises(UnsupportedSdfError, match="unsupported <actor>") as error:
+        corpus("everything_not_simulated")
+    assert error.value.model == "visitor" and error.value.line == 28
+    world = corpus("everything_not_simulated", skip=True)
+    assert world.names == ("door",) and world.model("door").mass == 15.0
+    path = CORPUS / "everything_not_simulated.world"
+    assert world.notes == (
+        f"dropped visitor: unsupported <actor>: animated actors are not simulated ({path}:28)",
+        "joints: door (1 joint); each articulated model is simulated as one rigid body",
+        "plugins: libworld_stats.so (world), libdoor_opener.so (door); plugins do not run",
+        "lights: sun; lights do not take part in the simulation",
+    )

@@ -7,6 +7,7 @@ import xml.etree.ElementTree as ET
 
 from pytest_ddenv.errors import ScenarioError, WorldError, shown
 from pytest_ddenv.sdf._values import Values
+from pytest_ddenv.sdf._xml import DDENV_NS as DDENV_NS  # re-exported: its home before _xml needed it
 from pytest_ddenv.sdf._xml import local_name
 from pytest_ddenv.world import (
     DRIVE_KINDS,
@@ -21,9 +22,6 @@ from pytest_ddenv.world import (
     solver_iterations_problem,
     timestep_problem,
 )
-
-DDENV_NS = "https://github.com/pytest-ddenv/pytest-ddenv/sdf"
-"""Namespace of the `ddenv:` elements that carry what SDF has no place for (scenario, tags, keep)."""
 
 
 class DdenvElements:

@@ -4,6 +4,10 @@ As in libsdformat (SDF 1.7+ frame semantics; the `frame` attribute of 1.5/1.6 is
 a pose is relative to the frame its `relative_to` names, else to the entry's default frame: the scope's own
 frame for links, nested models and models, the `attached_to` frame for `<frame>`s, the child link for joints.
 Names may be scoped into nested models (`inner::link`, `inner::__model__`).
+
+As libsdformat does, every name a scope's entries give (a pose's `relative_to`, a frame's `attached_to`, a
+joint's `<parent>` and `<child>`) must name a frame of the scope, whether or not a pose is resolved through it
+(`Frames.check`).
 """
 
 from __future__ import annotations
@@ -30,6 +34,8 @@ class Frame:
     element: ET.Element
     default: str = ""
     placement: str = ""  # a model's placement frame: its pose places that frame, not the model frame
+    kind: str = ""  # "link", "frame", "joint", "model": what `check` checks
+    parent: str = ""  # a joint's <parent>
 
 
 class Frames:
@@ -52,6 +58,58 @@ class Frames:
         if scope is not None:
             self.scopes[name] = scope
 
+    def exists(self, name: str, *, roots: bool = True) -> bool:
+        """Whether `name` is a frame of this scope (`roots`: its own frame names, `__model__` or `world`, too)."""
+        if name in self.entries or (roots and name in self.roots):
+            return True
+        head, scoped, rest = name.partition("::")
+        return bool(scoped) and head in self.scopes and (rest == "__model__" or self.scopes[head].exists(rest))
+
+    def known(self, name: str = "") -> str:
+        """The frame names of this scope, or of the nested scope a scoped `name` reaches (`a::b::x`: a::b's)."""
+        scope, prefix = self, ""
+        head, scoped, rest = name.partition("::")
+        while scoped and head in scope.scopes:
+            scope, prefix = scope.scopes[head], f"{prefix}{head}::"
+            head, scoped, rest = rest.partition("::")
+        names = sorted(f"{prefix}{n}" for n in scope.entries if n and not n.startswith("_merged__"))
+        return ", ".join(names) or "none"
+
+    def check(self) -> None:
+        """Refuse, as libsdformat does, a `relative_to`, `attached_to`, joint `<parent>` or `<child>` naming no
+        frame of this scope (in file order)."""
+        scope = f"model '{self.model}'" if self.model else "the world"
+        kinds = "link, frame, joint or nested model" if self.model else "model or frame"
+        for name, frame in self.entries.items():
+            owner = f"{frame.kind or 'element'} {shown(name)}"
+            pose = frame.element.find("pose")
+            if frame.relative_to and not self.exists(frame.relative_to):
+                self.missing(frame.relative_to, f"the relative_to of {owner}", pose if pose is not None else
+                             frame.element, f"{frame.kind}/pose/@relative_to", scope, kinds)
+            if frame.kind == "frame" and frame.default and not self.exists(frame.default):
+                self.missing(frame.default, f"the attached_to of {owner}", frame.element, "frame/@attached_to",
+                             scope, kinds)
+            if frame.kind == "joint":
+                self.joint(name, frame, scope, kinds)
+
+    def joint(self, name: str, frame: Frame, scope: str, kinds: str) -> None:
+        for tag, value in (("parent", frame.parent), ("child", frame.default)):
+            element = frame.element.find(tag)
+            if element is None or not value:
+                raise self.values.error(f"joint {shown(name)} needs a <{tag}> naming a {kinds}",
+                                        frame.element if element is None else element, model=self.model,
+                                        field=f"joint/{tag}")
+            if not (self.exists(value, roots=False) or (tag == "parent" and value == "world")):
+                self.missing(value, f"the <{tag}> of joint {shown(name)}", element, f"joint/{tag}", scope, kinds)
+        if frame.parent == frame.default:
+            raise self.values.error(f"joint {shown(name)} has the same <parent> and <child> ({shown(frame.parent)}); "
+                                    "they must be different frames", frame.element.find("child"), model=self.model,
+                                    field="joint/child")
+
+    def missing(self, name: str, what: str, element: ET.Element | None, field: str, scope: str, kinds: str) -> None:
+        raise self.values.error(f"unknown frame {shown(name)} in {what}: not a {kinds} of {scope} (there are: "
+                                f"{self.known(name)})", element, model=self.model, field=field)
+
     def resolve(self, name: str, element: ET.Element, visiting: tuple[str, ...] = ()) -> Pose:
         """The pose of frame `name` in this scope's own frame."""
         if name in self._cache:
@@ -65,8 +123,7 @@ class Frames:
             inner = _poses.IDENTITY if rest == "__model__" else self.scopes[head].resolve(rest, element)
             result = compose(self.resolve(head, element, visiting), inner)
         else:
-            known = ", ".join(sorted(n for n in self.entries if n and not n.startswith("_merged__"))) or "none"
-            raise self.values.error(f"unknown frame {shown(name)} in relative_to/frame (known frames: {known})",
+            raise self.values.error(f"unknown frame {shown(name)} in relative_to/frame (known frames: {self.known()})",
                                     element,
                                     model=self.model, field="pose/@relative_to")
         self._cache[name] = result

@@ -12,6 +12,9 @@ from pytest_ddenv.world import exists
 
 MODEL_PATH_VARIABLES = ("GAZEBO_MODEL_PATH", "GZ_SIM_RESOURCE_PATH", "IGN_GAZEBO_RESOURCE_PATH", "SDF_PATH")
 """Environment variables searched for `model://` URIs, in this order, after the explicit paths."""
+RESOURCE_PATH_VARIABLE = "GAZEBO_RESOURCE_PATH"
+"""Gazebo-classic's resource folders (`/usr/share/gazebo-11` holds `media/`), searched for relative `file://` URIs
+(`file://media/materials/textures/grass.png`) after the world file's folder and before the model path."""
 
 
 def model_search_paths(
@@ -32,17 +35,19 @@ def model_search_paths(
 class UnresolvedURI(Exception):
     """A URI that names no existing file; `searched` lists the places that were tried."""
 
-    def __init__(self, uri: str, searched: Sequence[Path], reason: str = "not found") -> None:
+    def __init__(self, uri: str, searched: Sequence[Path], reason: str = "not found", *, hint: bool = True) -> None:
         self.uri = uri
         self.searched = tuple(searched)
         self.reason = reason
+        self.hint = hint  # whether adding a folder to the model path may help
         super().__init__(uri)
 
     def describe(self) -> str:
-        if not self.uri.startswith("model://"):
-            return f"{shown(self.uri, PATH_CHARACTERS)}: {self.reason}"
+        uri = shown(self.uri, PATH_CHARACTERS)
+        if not self.hint:
+            return f"{uri}: {self.reason}"
         places = ", ".join(str(p) for p in self.searched) if self.searched else "(no folders: no model path is set)"
-        return f"{shown(self.uri, PATH_CHARACTERS)}: {self.reason}; searched, in order: {places}. {MODEL_PATH_HINT}"
+        return f"{uri}: {self.reason}; searched, in order: {places}. {MODEL_PATH_HINT}"
 
 
 MODEL_PATH_HINT = (
@@ -65,20 +70,54 @@ def resolve_uri(uri: str, base_dir: Path | None, search_paths: Sequence[Path]) -
                                      "add its folder to the model path (--model-path, --ddenv-model-path or "
                                      "GAZEBO_MODEL_PATH)")
     if uri.startswith("model://"):
-        rest = uri[len("model://"):].strip("/")
-        if not rest:
-            raise UnresolvedURI(uri, (), "a model:// URI needs a model name")
-        candidates = [directory / rest for directory in search_paths]
-        for candidate in candidates:
-            if exists(candidate):
-                return candidate
-        raise UnresolvedURI(uri, tuple(search_paths), "model not found")
+        return _model_file(uri, search_paths)
     if uri.startswith("file://"):
-        path = Path(unquote(urlparse(uri).path))
+        rest = unquote(uri[len("file://"):])
+        rest = rest[len("localhost"):] if rest.startswith("localhost/") else rest
+        if not rest.startswith("/"):  # file://media/...: Gazebo-classic's form, relative to its resource folders
+            return _relative_file(uri, Path(rest), base_dir, search_paths)
+        path = Path(rest)
     else:
         path = Path(uri).expanduser()
     if not path.is_absolute() and base_dir is not None:
         path = base_dir / path
     if not exists(path):
-        raise UnresolvedURI(uri, (), f"file not found: {shown_path(path)}")
+        raise UnresolvedURI(uri, (), f"file not found: {shown_path(path)}", hint=False)
     return path
+
+
+def _model_file(uri: str, search_paths: Sequence[Path]) -> Path:
+    """`model://NAME/rest` through `search_paths`; when NAME is found but not `rest`, says where NAME is."""
+    rest = uri[len("model://"):].strip("/")
+    if not rest:
+        raise UnresolvedURI(uri, (), "a model:// URI needs a model name", hint=False)
+    for directory in search_paths:
+        if exists(directory / rest):
+            return directory / rest
+    name, _, inside = rest.partition("/")
+    for directory in search_paths:
+        if inside and exists(directory / name):
+            raise UnresolvedURI(uri, tuple(search_paths), f"model '{name}' was found at {shown_path(directory / name)}"
+                                f", but it has no file {shown(inside, PATH_CHARACTERS)}", hint=False)
+    raise UnresolvedURI(uri, tuple(search_paths), "model not found")
+
+
+def resource_search_paths(environ: Mapping[str, str] | None = None) -> tuple[Path, ...]:
+    """The folders of GAZEBO_RESOURCE_PATH (`os.pathsep`-separated; empty entries skipped)."""
+    environ = os.environ if environ is None else environ
+    entries = environ.get(RESOURCE_PATH_VARIABLE, "").split(os.pathsep)
+    return tuple(Path(entry).expanduser() for entry in entries if entry)
+
+
+def _relative_file(uri: str, relative: Path, base_dir: Path | None, search_paths: Sequence[Path]) -> Path:
+    """A relative `file://` URI: in the world file's folder, then GAZEBO_RESOURCE_PATH, then the model path."""
+    folders = tuple(dict.fromkeys([*([base_dir] if base_dir is not None else []), *resource_search_paths(),
+                                   *search_paths]))
+    for folder in folders:
+        if exists(folder / relative):
+            return folder / relative
+    places = ", ".join(str(folder) for folder in folders) or "(no folders)"
+    holder = shown(f"{relative.parts[0] if relative.parts else relative}/", PATH_CHARACTERS)
+    raise UnresolvedURI(uri, folders, f"file not found; searched, in order: {places}. Add the folder that holds "
+                        f"{holder} to {RESOURCE_PATH_VARIABLE} or to the model path (--model-path, --ddenv-model-path)",
+                        hint=False)

@@ -19,7 +19,7 @@ from typing import TypeVar
 from pytest_ddenv.errors import shown
 from pytest_ddenv.sdf._bodies import BodyReader, Raw, State
 from pytest_ddenv.sdf._collada import collada_unit
-from pytest_ddenv.sdf._ddenv import DDENV_NS, DdenvElements
+from pytest_ddenv.sdf._ddenv import DdenvElements
 from pytest_ddenv.sdf._frames import Frame, Frames, compose
 from pytest_ddenv.sdf._includes import Documents, IncludedLight
 from pytest_ddenv.sdf._notes import Notes
@@ -27,7 +27,7 @@ from pytest_ddenv.sdf._paths import model_search_paths
 from pytest_ddenv.sdf._shapes import GeometryReader
 from pytest_ddenv.sdf._tree import ModelNode, TreeReader, plugin_name
 from pytest_ddenv.sdf._values import UnsupportedSdfError, Values
-from pytest_ddenv.sdf._xml import Lines, read_limited
+from pytest_ddenv.sdf._xml import DDENV_NS, Lines, read_limited
 from pytest_ddenv.world import Ground, Model, World, name_problem
 
 __all__ = ["DDENV_NS", "collada_unit", "load_sdf", "parse_sdf"]
@@ -76,6 +76,7 @@ class _Loader:
         present = [node for node in nodes if node is not None]
         for node in present:
             self.add_frame(frames, node)
+        frames.check()
         ground, models = self.assemble(present, frames, {})
         return World(models=tuple(models), scenario=None, ground=ground, name=name, source=self.source,
                      notes=self.notes.lines())
@@ -101,6 +102,7 @@ class _Loader:
                 nodes.append(node)
         for node in nodes:
             self.add_frame(frames, node)
+        frames.check()
         state = element.find("state")
         states = self.states(state) if state is not None else {}
         ground, models = self.assemble(nodes, frames, states)
@@ -118,7 +120,8 @@ class _Loader:
         """A world element other than a model: frames, lights, plugins; actors and populations are unsupported."""
         if child.tag == "frame":
             pose, relative_to = self.values.pose(child, f"frame '{label}'", None)
-            frames.add(label, Frame(pose, relative_to, child, default=(child.get("attached_to") or "").strip()))
+            frames.add(label, Frame(pose, relative_to, child, default=(child.get("attached_to") or "").strip(),
+                                    kind="frame"))
         elif child.tag == "light":
             self.notes.lights.append(label)
         elif child.tag == "plugin":
@@ -146,7 +149,8 @@ class _Loader:
 
     def add_frame(self, frames: Frames, node: ModelNode) -> None:
         pose, relative_to = node.pose
-        frames.add(node.name, Frame(pose, relative_to, node.origin, placement=node.placement), node.frames)
+        frames.add(node.name, Frame(pose, relative_to, node.origin, placement=node.placement, kind="model"),
+                   node.frames)
 
     # models -------------------------------------------------------------------------------------------
     def assemble(

@@ -1,160 +1,173 @@
 """Surgical export: the user's own SDF file with the removed models deleted and nothing else changed.
 
-The file is parsed twice: once by the reader's hostile-input-safe parser (which also gives the top-level
-elements' model names, resolving `<include>`s as the import did), once by expat alone for the character
-span of each top-level `<model>`/`<include>` and of each `<state>` entry. The spans of the removed models are
-cut out of the original text (with the indentation and line break around them); comments, includes,
-relative paths, plugins, lights, physics, scene and GUI stay as written.
+The file is parsed twice: once by the reader's hostile-input-safe parser (which gives the top-level elements'
+model names, resolving local `<include>`s as the import did), once by expat alone for the character span of each
+top-level element and of each `<state>` entry (`_surgical_text`). The spans of the removed models are cut out of
+the original text (with the indentation and line break around them); comments, includes, relative paths,
+plugins, lights, physics, scene and GUI stay as written, byte for byte. Only the `ddenv:scenario` element is
+rewritten, when the reduction's scenario is not the file's (given on the command line, for instance).
 """
 
 from __future__ import annotations
 
+import enum
 import xml.etree.ElementTree as ET
-import xml.parsers.expat
 from collections.abc import Collection, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from pytest_ddenv.errors import WorldError
+from pytest_ddenv.errors import DdenvError, WorldError
+from pytest_ddenv.sdf._ddenv import DDENV_NS, DdenvElements
 from pytest_ddenv.sdf._includes import Documents, IncludedLight
-from pytest_ddenv.sdf._paths import UnresolvedURI, model_search_paths
-from pytest_ddenv.sdf._values import Values
-from pytest_ddenv.sdf._xml import Lines, lenient_text, parse_xml, read_limited
+from pytest_ddenv.sdf._paths import UnresolvedURI, is_remote, model_search_paths
+from pytest_ddenv.sdf._surgical_refs import relative_paths, removed_reference
+from pytest_ddenv.sdf._surgical_text import (
+    STATE_PATHS,
+    Original,
+    Span,
+    SurgeryError,
+    edited,
+    element_spans,
+    extent,
+    indentation,
+    line_break,
+)
+from pytest_ddenv.sdf._values import UnsupportedSdfError, Values
+from pytest_ddenv.sdf._writer import _scenario as write_scenario_element
+from pytest_ddenv.sdf._xml import Lines, parse_xml, read_limited
+from pytest_ddenv.world import Scenario
 
-TOP_LEVEL = ("model", "include")
-STATE_PATHS = (("state", "model"), ("state", "insertions", "model"))
+__all__ = ["KEEP", "Cut", "SurgeryError", "cut_file", "cut_models"]
+
+SCENARIO = f"{{{DDENV_NS}}}scenario"
+BEFORE_SCENARIO = ("gravity", "physics", f"{{{DDENV_NS}}}physics")
+"""World elements the writer puts before `ddenv:scenario`: a scenario added goes after the last of them."""
 
 
-class SurgeryError(WorldError):
-    """The file cannot be cut surgically (the caller writes a regenerated export instead); says why."""
+class Keep(enum.Enum):
+    KEEP = "keep"
+
+
+KEEP = Keep.KEEP
+"""`cut_file(scenario=KEEP)`: leave the file's `ddenv:scenario` (or its absence) as written."""
 
 
 @dataclass(frozen=True)
-class _Span:
-    path: tuple[str, ...]
-    """Tags from the container down to the element (("model",), ("state", "model"), ...)."""
-    start: int
-    end: int
-    """Character offsets in the text: the element's '<' and one past its final '>'."""
+class Cut:
+    """A cut SDF file: its bytes (encoded as the original), its text, and what else the export should say."""
+
+    data: bytes
+    text: str
+    scenario_written: bool
+    """Whether the `ddenv:scenario` element was written (replaced, added or deleted) to the reduction's one."""
+    relative_paths: tuple[str, ...]
+    """Relative file paths the kept elements hold (they resolve against the original file's folder)."""
 
 
 def cut_models(path: Path, removed: Collection[str], *, model_paths: Iterable[str | Path] = ()) -> str:
     """The text of the SDF file `path` without the top-level models named in `removed` (nor their `<state>`
     entries). SurgeryError when that cannot be done exactly."""
+    return cut_file(path, removed, model_paths=model_paths).text
+
+
+def cut_file(path: Path, removed: Collection[str], *, model_paths: Iterable[str | Path] = (),
+             scenario: Scenario | Keep | None = KEEP) -> Cut:
+    """`cut_models` as the file's bytes, with `ddenv:scenario` written for `scenario` when it is not the file's
+    (None: no scenario). SurgeryError when that cannot be done exactly, or when a kept element refers to a
+    removed model (the cut file would not load)."""
     data = read_limited(path)
-    text = lenient_text(data)
-    original = _decoded(data)
-    if len(text) != len(original):
-        raise SurgeryError("the file has characters the parser rewrites with another length (a stray '&')",
-                           source=path)
+    original = Original.of(data)
     root = parse_xml(data, str(path), Lines())
     container = root.find("world")
     if container is None:
         container = root
-    names = _top_level_names(container, path, model_paths)
-    spans = _spans(text, depth=2 if container is not root else 1)
-    top = [span for span in spans if span.path in (("model",), ("include",))]
-    if len(top) != len(names):
-        raise SurgeryError(f"found {len(top)} top-level models by position and {len(names)} by name", source=path)
-    cuts = [span for span, name in zip(top, names, strict=True) if name is not None and name in removed]
-    found = {name for name in names if name is not None} & set(removed)
-    missing = sorted(set(removed) - found)
+    children = list(container)
+    spans, container_end = element_spans(original.text, depth=2 if container is not root else 1, path=path)
+    top = [span for span in spans if len(span.path) == 1]
+    if len(top) != len(children):
+        raise SurgeryError(f"found {len(top)} elements in the {container.tag} by position and {len(children)} "
+                           "by parsing", source=path)
+    names = _top_level_names(children, path, model_paths)
+    removed_set = set(removed)
+    missing = sorted(removed_set - {name for name in names if name is not None})
     if missing:
         raise SurgeryError(f"no top-level element for model(s) {', '.join(missing)}", source=path)
-    state_names = _state_names(container)
-    state_spans = [span for span in spans if span.path in STATE_PATHS]
-    cuts += [span for span, name in zip(state_spans, state_names, strict=True) if name in removed]
-    return _without(original, cuts)
+    cut = [index for index, name in enumerate(names) if name is not None and name in removed_set]
+    kept = [child for index, child in enumerate(children) if index not in cut]
+    problem = removed_reference(kept, removed_set)
+    if problem is not None:
+        raise SurgeryError(f"{problem}; the cut file would not load", source=path)
+    cuts = [top[index] for index in cut]
+    cuts += [span for span in spans if span.path in STATE_PATHS and span.name in removed_set]
+    inserts: list[tuple[int, str]] = []
+    written = scenario is not KEEP and _file_scenario(container, path) != scenario
+    if written:
+        assert not isinstance(scenario, Keep)
+        _write_scenario(original.text, scenario, children, top, container_end, cuts, inserts, path)
+    text = edited(original.text, cuts, inserts)
+    return Cut(original.encoded(text), text, written, tuple(relative_paths(kept)))
 
 
-def _decoded(data: bytes) -> str:
-    """The file's text as `lenient_text` decodes it, but otherwise unchanged."""
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return data.decode("latin-1")
-
-
-def _top_level_names(container: ET.Element, path: Path, model_paths: Iterable[str | Path]) -> list[str | None]:
-    """The model name of each top-level `<model>`/`<include>` (None for an include of a light)."""
+def _top_level_names(children: list[ET.Element], path: Path, model_paths: Iterable[str | Path]) -> list[str | None]:
+    """The model name of each top-level element: None for an element that is no model (a light, a plugin, an
+    include of a light); a remote or unsupported include named as the import names it when it drops it (its
+    `<name>`, else the URI's last segment), without fetching or reading it."""
     documents = Documents(Values(Lines(), str(path)), model_search_paths(model_paths))
     names: list[str | None] = []
-    for child in container:
+    for child in children:
         if child.tag == "model":
             names.append((child.get("name") or "").strip())
         elif child.tag == "include":
+            uri = (child.findtext("uri") or "").strip()
+            label = (child.findtext("name") or "").strip() or uri.rstrip("/").rsplit("/", 1)[-1]
+            if is_remote(uri):
+                names.append(label)
+                continue
             try:
                 included = documents.include(child, path.resolve().parent, 0)
+            except UnsupportedSdfError as error:
+                names.append(error.model or label)
+                continue
             except (UnresolvedURI, WorldError) as error:
                 raise SurgeryError(f"cannot resolve an include again to name it: {error}", source=path) from None
             names.append(None if isinstance(included, IncludedLight) else included.name)
+        else:
+            names.append(None)
     return names
 
 
-def _state_names(container: ET.Element) -> list[str]:
-    names = []
-    for state in container.findall("state"):
-        names += [(model.get("name") or "").strip() for model in state.findall("model")]
-        for insertions in state.findall("insertions"):
-            names += [(model.get("name") or "").strip() for model in insertions.findall("model")]
-    return names
-
-
-def _spans(text: str, *, depth: int) -> list[_Span]:
-    """Spans of the elements `depth` levels below the root (the container's children) and of the `<state>`
-    entries, in document order."""
-    encoded = text.encode("utf-8")
-    parser = xml.parsers.expat.ParserCreate()
-    stack: list[tuple[str, int]] = []
-    spans: list[_Span] = []
-
-    last = [0, 0]  # (byte, character) of the last offset asked for: events come in document order
-
-    def offset(byte_index: int) -> int:
-        if len(encoded) == len(text):
-            return byte_index
-        byte, character = last
-        if byte_index < byte:
-            byte, character = 0, 0
-        character += len(encoded[byte:byte_index].decode("utf-8"))
-        last[:] = [byte_index, character]
-        return character
-
-    def start(tag: str, attributes: dict[str, str]) -> None:
-        stack.append((tag, offset(parser.CurrentByteIndex)))
-
-    def end(tag: str) -> None:
-        _, begin = stack.pop()
-        close = text.index(">", offset(parser.CurrentByteIndex)) + 1
-        path = (*(name for name, _ in stack[depth:]), tag)
-        if (len(stack) == depth and tag in TOP_LEVEL) or (path in STATE_PATHS and len(stack) >= depth):
-            spans.append(_Span(path, begin, close))
-
-    parser.StartElementHandler = start
-    parser.EndElementHandler = end
+def _file_scenario(container: ET.Element, path: Path) -> Scenario | Keep | None:
+    """The scenario the file holds (KEEP when it cannot be read: it is rewritten then)."""
     try:
-        parser.Parse(encoded, True)
-    except xml.parsers.expat.ExpatError as error:
-        if "junk after document element" not in str(error):
-            raise SurgeryError(f"cannot locate the elements: {error}") from None
-    return sorted(spans, key=lambda span: span.start)
+        return DdenvElements(Values(Lines(), str(path))).scenario(container)
+    except DdenvError:
+        return KEEP
 
 
-def _without(text: str, cuts: list[_Span]) -> str:
-    """`text` without the cut spans, each with the blank space before it on its line and the line break
-    after it when nothing else is on those lines."""
-    pieces = []
-    position = 0
-    for span in sorted(cuts, key=lambda cut: cut.start):
-        start, end = span.start, span.end
-        line_start = text.rfind("\n", 0, start) + 1
-        if not text[line_start:start].strip():
-            start = line_start
-        line_end = text.find("\n", end)
-        line_end = len(text) if line_end < 0 else line_end + 1
-        if not text[end:line_end].strip():
-            end = line_end
-        pieces.append(text[position:max(position, start)])
-        position = max(position, end)
-    pieces.append(text[position:])
-    return "".join(pieces)
+def _write_scenario(text: str, scenario: Scenario | None, children: list[ET.Element], top: list[Span],
+                    container_end: int, cuts: list[Span], inserts: list[tuple[int, str]], path: Path) -> None:
+    """Add to `cuts` and `inserts` the edits that make the file's `ddenv:scenario` the reduction's `scenario`:
+    the element written by the same writer as the regenerated export, in place of the file's one, or after the
+    world's physics settings, or first in the world."""
+    old = [span for child, span in zip(children, top, strict=True) if child.tag == SCENARIO]
+    cuts += old
+    if scenario is None:
+        return
+    first = top[0] if top else None
+    indent = indentation(text, first.start) if first is not None else None
+    if indent is None:
+        indent = "    "
+    br = line_break(text)
+    holder = ET.Element("world")
+    write_scenario_element(holder, scenario, str(path))
+    ET.indent(holder[0], space="  ")
+    element = ET.tostring(holder[0], encoding="unicode").replace("\n", br + indent)
+    anchors = old[:1] or [span for child, span in zip(children, top, strict=True) if child.tag in BEFORE_SCENARIO][-1:]
+    if anchors:
+        start, end, whole_lines = extent(text, anchors[0])
+        if whole_lines:
+            inserts.append((start if old else end, indent + element + br))
+        else:
+            inserts.append((anchors[0].start, element) if old else (anchors[0].end, br + indent + element))
+    else:
+        inserts.append((container_end, br + indent + element))

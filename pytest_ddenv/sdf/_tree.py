@@ -112,6 +112,7 @@ class TreeReader:
             placement=placement or (element.get("placement_frame") or "").strip(), level=level,
         )
         self.fill(node, element, base_dir, "", top, depth)
+        node.frames.check()
         return node
 
     def fill(self, node: ModelNode, element: ET.Element, base_dir: Path | None, proxy: str, top: str,
@@ -129,7 +130,7 @@ class TreeReader:
                 raise values.error(f"a <{child.tag}> needs a name attribute", child, model=top, field="name")
             if child.tag == "link":
                 pose, relative_to = values.pose(child, where, top)
-                node.frames.add(label, Frame(pose, relative(relative_to), child))
+                node.frames.add(label, Frame(pose, relative(relative_to), child, kind="link"))
                 node.links.append(LinkSpec(child, f"{node.scoped}{label}", label, node.frames, base_dir,
                                            node.static, node.static_from, node.static_element))
                 node.sensors.extend(f"{top}::{node.scoped}{label}::{s.get('name') or ''}"
@@ -139,12 +140,14 @@ class TreeReader:
             elif child.tag == "frame":
                 pose, relative_to = values.pose(child, where, top)
                 attached = (child.get("attached_to") or "").strip()
-                node.frames.add(label, Frame(pose, relative(relative_to), child, default=relative(attached)))
+                node.frames.add(label, Frame(pose, relative(relative_to), child, default=relative(attached),
+                                             kind="frame"))
             elif child.tag == "joint":
                 node.joints += 1
                 pose, relative_to = values.pose(child, where, top)
-                node.frames.add(label, Frame(pose, relative(relative_to), child,
-                                             default=(child.findtext("child") or "").strip()))
+                node.frames.add(label, Frame(pose, relative(relative_to), child, kind="joint",
+                                             default=(child.findtext("child") or "").strip(),
+                                             parent=(child.findtext("parent") or "").strip()))
             elif child.tag == "model":
                 pose, relative_to = values.pose(child, where, top)
                 nested = self.model(child, base_dir, label, origin=child, top=top, parent=node, depth=depth,
@@ -180,8 +183,8 @@ class TreeReader:
 
     def add_nested(self, node: ModelNode, nested: ModelNode) -> None:
         pose, relative_to = nested.pose
-        node.frames.add(nested.name, Frame(pose, relative_to, nested.origin, placement=nested.placement),
-                        nested.frames)
+        node.frames.add(nested.name, Frame(pose, relative_to, nested.origin, placement=nested.placement,
+                                           kind="model"), nested.frames)
         node.children.append(nested)
 
 

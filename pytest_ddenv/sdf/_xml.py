@@ -16,7 +16,7 @@ from pathlib import Path
 import defusedxml
 from defusedxml.ElementTree import DefusedXMLParser
 
-from pytest_ddenv.errors import WorldError
+from pytest_ddenv.errors import WorldError, shown
 from pytest_ddenv.world import read_bounded
 
 MAX_FILE_BYTES = 32 * 1024 * 1024
@@ -43,16 +43,29 @@ class _LineTarget:
         self._lines = lines
         self._source = source
         self.parser: DefusedXMLParser | None = None
+        self.open: list[tuple[str, str, int]] = []  # the elements not yet closed: tag, name attribute, line
 
     def start(self, tag: str, attrs: dict[str, str]) -> ET.Element:
         element = self._builder.start(tag, attrs)
-        line = self.parser.parser.CurrentLineNumber if self.parser is not None else 0
-        self._lines.where[id(element)] = (self._source, int(line))
+        line = int(self.parser.parser.CurrentLineNumber if self.parser is not None else 0)
+        self._lines.where[id(element)] = (self._source, line)
         self._lines.keep.append(element)  # ids stay unique while the elements live
+        self.open.append((local_name(tag), attrs.get("name", ""), line))
         return element
 
     def end(self, tag: str) -> ET.Element:
+        if self.open:
+            self.open.pop()
         return self._builder.end(tag)
+
+    def context(self) -> tuple[str, str | None]:
+        """Where a parse error happened: the innermost open element, and the model around it."""
+        if not self.open:
+            return "", None
+        tag, name, line = self.open[-1]
+        label = f" name={shown(name)}" if name else ""
+        model = next((n for t, n, _ in reversed(self.open) if t == "model" and n), None)
+        return f" (inside <{tag}{label}> opened at line {line})", model
 
     def data(self, data: str) -> None:
         self._builder.data(data)
@@ -71,7 +84,7 @@ def parse_xml(data: bytes | str, source: str | None, lines: Lines) -> ET.Element
     if len(data) > MAX_FILE_BYTES:
         raise WorldError(f"XML text is larger than the {MAX_FILE_BYTES} byte limit; refusing to parse it",
                          source=source)
-    text = lenient_text(data)
+    text = declare_prefixes(lenient_text(data))
     target = _LineTarget(lines, source)
     parser = DefusedXMLParser(target=target, forbid_dtd=True, forbid_entities=True, forbid_external=True)
     target.parser = parser
@@ -83,7 +96,8 @@ def parse_xml(data: bytes | str, source: str | None, lines: Lines) -> ET.Element
         if getattr(error, "code", None) == _JUNK_AFTER_ROOT and _markup_follows(text, error.position):
             closed: ET.Element = target.close()  # tinyxml2 reads on; libsdformat uses the first <sdf>
             return closed
-        raise WorldError(f"malformed XML: {error}", source=source, line=line) from None
+        inside, model = target.context()
+        raise WorldError(f"malformed XML: {error}{inside}", source=source, line=line, model=model) from None
     except defusedxml.DTDForbidden:
         raise WorldError(
             "XML document type declarations (<!DOCTYPE>) are not allowed: they enable entity-expansion "
@@ -148,6 +162,40 @@ def lenient_text(data: bytes | str) -> str:
         position = end + len(closing)
     parts.append(text[position:])
     return "".join(parts)
+
+
+DDENV_NS = "https://github.com/pytest-ddenv/pytest-ddenv/sdf"
+"""Namespace of the `ddenv:` elements that carry what SDF has no place for (scenario, tags, keep)."""
+UNDECLARED_NS = "urn:pytest-ddenv:undeclared:"
+"""Namespace given to a prefix the file uses but never declares: `gz:x` is read as `{urn:...:gz}x`; an undeclared
+`ddenv:` prefix is DDENV_NS."""
+_NAME = r"[A-Za-z_][\w.-]*"
+_PREFIXED = re.compile(rf"<\/?({_NAME}):{_NAME}|\s({_NAME}):{_NAME}\s*=")
+_PROLOG = re.compile(r"(?:\s+|<!--.*?-->|<\?.*?\?>)*", re.DOTALL)
+_ROOT_TAG = re.compile(rf"<({_NAME}(?::{_NAME})?)((?:\s+[^\s=/>]+\s*=\s*(?:\"[^\"]*\"|'[^']*'))*)\s*/?>")
+_DECLARED = re.compile(rf"xmlns:({_NAME})\s*=")
+
+
+def declare_prefixes(text: str) -> str:
+    """`text` with each namespace prefix it uses but its root element does not declare declared there.
+
+    The declarations go into the root's start tag, on its line, so every line stays where it was. A prefix
+    declared on an inner element keeps that declaration inside it (XML scoping).
+    """
+    used = {name for match in _PREFIXED.finditer(text) for name in match.groups() if name} - {"xml", "xmlns"}
+    if not used:
+        return text
+    prolog = _PROLOG.match(text)
+    start = prolog.end() if prolog is not None else 0
+    root = _ROOT_TAG.match(text, start)
+    if root is None:
+        return text  # no plain root start tag (a DTD, malformed XML): let the parser report it
+    missing = sorted(used - set(_DECLARED.findall(root.group(2))))
+    if not missing:
+        return text
+    declarations = "".join(f' xmlns:{name}="{DDENV_NS if name == "ddenv" else UNDECLARED_NS + name}"'
+                           for name in missing)
+    return text[:root.end(1)] + declarations + text[root.end(1):]
 
 
 def _blank(text: str) -> str:
