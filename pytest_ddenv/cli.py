@@ -14,6 +14,7 @@ import math
 import os
 import shlex
 import sys
+import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
@@ -662,6 +663,7 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     priority = PRIORITY_ALIASES.get(arguments.priority, arguments.priority)
     executor = check_executor(arguments.executor)
     from pytest_ddenv.artifacts import folder_problem
+    from pytest_ddenv.driver import IMPORT_AHEAD_WAIT, import_ahead
 
     problem = folder_problem(_artifacts_folder(arguments))
     if problem is not None:
@@ -670,12 +672,15 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
                       controller=arguments.controller, imports=tuple(arguments.imports))
     progress = ProgressLine(sys.stderr, quiet=arguments.quiet)
     in_process = job.handler() if executor is None and arguments.workers == 1 else None
+    ahead: threading.Thread | None = None
     try:
         from pytest_ddenv.execution.base import DEFAULT
 
         chosen = arguments.probe_timeout  # None: not given ($DDENV_PROBE_TIMEOUT, else auto)
         watchdog = DEFAULT if chosen is None else None if chosen == "none" else chosen
         with make_pool(job, arguments.workers, executor, in_process=in_process, watchdog=watchdog) as pool:
+            if in_process is None:  # the workers run the original: the engine's imports meanwhile
+                ahead = import_ahead()
             progress.note(f"simulating the original world ({len(world)} models, seed {arguments.seed}; "
                           f"{_where(pool)})")
             original = pool.call(world, 0, record=arguments.media == "all")
@@ -686,6 +691,8 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
                                            progress)
     finally:
         progress.close()
+        if ahead is not None:  # never exit while it imports (see driver.IMPORT_AHEAD_WAIT)
+            ahead.join(IMPORT_AHEAD_WAIT)
     assert outcome.report is not None
     pictures = [str(p) for p in outcome.attachments if p.suffix == ".png"]
     media = [str(p) for p in outcome.attachments if p.suffix in (".gif", ".rrd")]

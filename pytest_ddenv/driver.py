@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 from pytest_ddenv import artifacts
 from pytest_ddenv.execution import Pool, ProbeDeadline, WorkerError, WorkerStartError
 from pytest_ddenv.markers import ReductionSpec
-from pytest_ddenv.media import DEFAULT_MEDIA, Shown, write_media
+from pytest_ddenv.media import DEFAULT_MEDIA, PendingMedia, Shown
 from pytest_ddenv.other_failures import other_failures
 from pytest_ddenv.probe import (
     ErrorInfo,
@@ -150,10 +150,8 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
     expect = getattr(pool, "expect", None)
     if plan.reference_run is not None and callable(expect):  # the watchdog scales with the original run
         expect(float(getattr(plan.reference_run, "wall_time", 0.0) or 0.0))
-    ahead = None
-    if not getattr(pool, "in_process", False):  # this process waits for the workers: import meanwhile
-        ahead = threading.Thread(target=_import_ahead, name="ddenv-import-ahead", daemon=True)
-        ahead.start()
+    # This process waits for the workers: import meanwhile (a caller may have started it earlier).
+    ahead = None if getattr(pool, "in_process", False) else import_ahead()
     try:
         calls = _Calls(pool, plan.reference, spec.tolerance, deadline)
         with _sigterm_as_interrupt():
@@ -335,10 +333,14 @@ class _Locked:
         artifacts.write_summary(paths, report)
         attachments = [paths.minimal_yaml, paths.log, paths.summary, *map(Path, report.stage_files.values()),
                        *other_worlds]
+        pending = None
+        if interrupted is None and shown:  # with worker processes, an animation renders beside the pictures
+            pending = PendingMedia(paths.directory, shown, failure_text=plan.reference.describe(),
+                                   helper=self.pool.size > 1 and not getattr(self.pool, "in_process", False))
         if interrupted is None and plan.media != "none":
             attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
-        if interrupted is None and shown:
-            media = write_media(paths.directory, shown, failure_text=plan.reference.describe())
+        if pending is not None:
+            media = pending.finish()
             attachments += media.paths
             if media.info:  # what was made and what it took, in the summary
                 report = report.with_media(media.info, media.seconds)
@@ -479,7 +481,23 @@ fresh install has no .pyc files yet): a reduction that ends early (a failure tha
 not leave the thread compiling while pytest goes on importing (and rewriting) its own plugins."""
 
 
-def _import_ahead() -> None:
+_ahead: threading.Thread | None = None
+_ahead_lock = threading.Lock()
+
+
+def import_ahead() -> threading.Thread:
+    """Start importing the modules the engine and the pictures need (scikit-learn, matplotlib) in a thread,
+    once per process, so that they are loaded by the time they are needed while this process waits for
+    its probe workers; the thread (started now or earlier)."""
+    global _ahead
+    with _ahead_lock:
+        if _ahead is None:
+            _ahead = threading.Thread(target=_import_heavy_modules, name="ddenv-import-ahead", daemon=True)
+            _ahead.start()
+        return _ahead
+
+
+def _import_heavy_modules() -> None:
     import importlib
 
     for module in HEAVY_IMPORTS:

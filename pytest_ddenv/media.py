@@ -8,6 +8,8 @@ detail (`Run.detail`): the run that confirmed the failure, and one run of the mi
 
 from __future__ import annotations
 
+import concurrent.futures
+import concurrent.futures.process
 import hashlib
 import os
 import time
@@ -15,10 +17,13 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.world import Model, World
+
+if TYPE_CHECKING:
+    from pytest_ddenv.animate import AnimationInfo
 
 PALETTE = ((0.55, 0.42, 0.30), (0.36, 0.50, 0.63), (0.52, 0.60, 0.36), (0.66, 0.46, 0.52), (0.45, 0.45, 0.58),
             (0.70, 0.58, 0.34), (0.40, 0.58, 0.55))
@@ -74,27 +79,81 @@ def write_media(directory: Path, shown: Sequence[Shown], *, failure_text: str = 
     `failure_text` describes the reduced failure; the last frame of a run that failed the same way without
     a predicate firing (a plain `assert` after the run) says it. Never raises: a medium that cannot be made
     is a warning (the reduction's files are what matter)."""
+    return PendingMedia(directory, shown, failure_text=failure_text).finish()
+
+
+class PendingMedia:
+    """`write_media` started now and finished by `finish()`. With `helper=True` (a reduction that ran its
+    probes in worker processes: more than one core is the user's) the first animation renders in a helper
+    process, started like the probe workers, while this process makes the pictures, the other animations
+    and the recording; without, everything is made in this process by `finish()`."""
+
+    def __init__(self, directory: Path, shown: Sequence[Shown], *, failure_text: str = "",
+                 helper: bool = False) -> None:
+        self.started = time.perf_counter()
+        self.directory, self.failure_text = directory, failure_text
+        self.items = [item for item in shown if item.run is not None]
+        self.elsewhere: tuple[Shown, concurrent.futures.ProcessPoolExecutor, concurrent.futures.Future[Any]] | None
+        self.elsewhere = None
+        if helper and len(self.items) >= 2:
+            self.elsewhere = _render_elsewhere(directory, self.items[0], failure_text)
+
+    def finish(self) -> MediaWritten:
+        written = MediaWritten()
+        made: dict[str, AnimationInfo | None] = {}
+        for item in self.items[1:] if self.elsewhere is not None else self.items:
+            made[item.label] = _animation(self.directory, item, self.failure_text)
+        if self.elsewhere is not None:
+            item, executor, future = self.elsewhere
+            try:
+                made[item.label] = future.result()
+            except concurrent.futures.process.BrokenProcessPool:  # the helper died: draw it here
+                made[item.label] = _animation(self.directory, item, self.failure_text)
+            except Exception as error:  # noqa: BLE001 - as in _animation
+                warnings.warn(f"ddenv: {item.label}.gif not written: {type(error).__name__}: {error}", stacklevel=1)
+                made[item.label] = None
+            finally:
+                executor.shutdown(wait=True)
+        for item in self.items:  # in the order shown
+            info = made.get(item.label)
+            if info is not None:
+                written.paths.append(info.path)
+                written.info[info.path.name] = info.to_dict()
+        if self.items:
+            _write_recording(self.directory / "recording.rrd",
+                             [(item.label, item.world, item.run) for item in self.items if item.run is not None],
+                             written)
+        written.seconds = time.perf_counter() - self.started
+        return written
+
+
+def _render_elsewhere(directory: Path, item: Shown, failure_text: str
+                      ) -> tuple[Shown, concurrent.futures.ProcessPoolExecutor, concurrent.futures.Future[Any]]:
+    """`item`'s animation started in a helper process (forkserver with the workers' preloads)."""
+    from pytest_ddenv.execution.local import main_module_hidden, probe_context
+
+    executor = concurrent.futures.ProcessPoolExecutor(1, mp_context=probe_context())
+    with main_module_hidden():  # the process starts here: it must not re-import a user's script
+        future = executor.submit(render_animation, directory, item, failure_text)
+    return item, executor, future
+
+
+def render_animation(directory: Path, item: Shown, failure_text: str) -> AnimationInfo:
+    """`<label>.gif` of `item` (raises what the renderer raises). Runs in a helper process too."""
     from pytest_ddenv.animate import write_animation
 
-    started = time.perf_counter()
-    written = MediaWritten()
-    runs = [(item.label, item.world, item.run) for item in shown if item.run is not None]
-    for item in shown:
-        if item.run is None:
-            continue
-        label, world, run = item.label, item.world, item.run
-        try:
-            info = write_animation(directory / f"{label}.gif", world, run, title=f"{label} ({_models(world)})",
-                                   failure_text=failure_text if item.failed else "")
-        except Exception as error:  # noqa: BLE001 - a convenience; never lose the reduction over one
-            warnings.warn(f"ddenv: {label}.gif not written: {type(error).__name__}: {error}", stacklevel=1)
-            continue
-        written.paths.append(info.path)
-        written.info[info.path.name] = info.to_dict()
-    if runs:
-        _write_recording(directory / "recording.rrd", runs, written)
-    written.seconds = time.perf_counter() - started
-    return written
+    assert item.run is not None
+    return write_animation(directory / f"{item.label}.gif", item.world, item.run,
+                           title=f"{item.label} ({_models(item.world)})",
+                           failure_text=failure_text if item.failed else "")
+
+
+def _animation(directory: Path, item: Shown, failure_text: str) -> AnimationInfo | None:
+    try:
+        return render_animation(directory, item, failure_text)
+    except Exception as error:  # noqa: BLE001 - a convenience; never lose the reduction over one
+        warnings.warn(f"ddenv: {item.label}.gif not written: {type(error).__name__}: {error}", stacklevel=1)
+        return None
 
 
 def _write_recording(path: Path, runs: Sequence[tuple[str, World, Run]], written: MediaWritten) -> None:

@@ -13,7 +13,7 @@ import pytest
 from pytest_ddenv.animate import HEIGHT, WIDTH, frame_times, write_animation
 from pytest_ddenv.detail import recording_detail
 from pytest_ddenv.execution import LocalPool
-from pytest_ddenv.media import MediaChoiceError, media_choice
+from pytest_ddenv.media import MediaChoiceError, PendingMedia, Shown, media_choice
 from pytest_ddenv.oracle import PredicateSpec
 from pytest_ddenv.scenario_job import ScenarioJob
 from pytest_ddenv.sim import Run, simulate
@@ -111,6 +111,34 @@ def test_a_run_without_detail_is_animated_with_the_models_where_they_started(tmp
     world, run = failing_run("ditch", detail=False)
     info = write_animation(tmp_path / "plain.gif", world, run)
     assert len(read_gif(info.path)) == info.frames
+
+
+def test_an_animation_rendered_in_a_helper_process_is_the_same_file(tmp_path: Path) -> None:
+    world, run = failing_run("ditch")
+    shown = [Shown("original", world, run, True), Shown("minimal", world.select(world.names[:5]), run, True)]
+    (tmp_path / "here").mkdir()
+    (tmp_path / "helped").mkdir()
+    here = PendingMedia(tmp_path / "here", shown, failure_text="stuck").finish()
+    helped = PendingMedia(tmp_path / "helped", shown, failure_text="stuck", helper=True)
+    assert helped.elsewhere is not None  # the first animation went to a helper process
+    beside = helped.finish()
+    assert [path.name for path in beside.paths] == [path.name for path in here.paths]
+    for name in ("original.gif", "minimal.gif"):
+        assert (tmp_path / "helped" / name).read_bytes() == (tmp_path / "here" / name).read_bytes()
+    assert beside.info["original.gif"]["frames"] == here.info["original.gif"]["frames"]
+
+
+def test_an_animation_whose_helper_dies_is_rendered_here(tmp_path: Path) -> None:
+    world, run = failing_run("ditch")
+    shown = [Shown("original", world, run, True), Shown("minimal", world, run, True)]
+    pending = PendingMedia(tmp_path, shown, helper=True)
+    assert pending.elsewhere is not None
+    _, executor, _ = pending.elsewhere
+    for process in list(executor._processes.values()):  # the helper is killed mid-render
+        process.kill()
+    written = pending.finish()
+    assert [path.name for path in written.paths][:2] == ["original.gif", "minimal.gif"]
+    assert len(read_gif(tmp_path / "original.gif")) == written.info["original.gif"]["frames"]
 
 
 # -- the media setting --------------------------------------------------------------------------------------

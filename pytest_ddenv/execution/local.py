@@ -77,6 +77,16 @@ def forkserver_preload() -> list[str]:
     return [*_PRELOAD, *plugins]
 
 
+def probe_context() -> Any:
+    """The multiprocessing context the workers start from (forkserver with their preloads, else spawn), for
+    other processes that should start as they do (the helper that renders an animation)."""
+    method = default_context()
+    context = multiprocessing.get_context(method)
+    if method == "forkserver":
+        context.set_forkserver_preload(forkserver_preload())
+    return context
+
+
 def cpu_count() -> int:
     """Cores this process may use (affinity-aware)."""
     try:
@@ -104,7 +114,7 @@ _main_lock = threading.Lock()
 
 
 @contextlib.contextmanager
-def _main_module_hidden() -> Iterator[None]:
+def main_module_hidden() -> Iterator[None]:
     """Start a worker without it re-importing the parent's __main__ (workers never need it): user scripts
     without an ``if __name__ == "__main__"`` guard would otherwise run again in every worker."""
     with _main_lock:
@@ -145,7 +155,7 @@ class WorkerProcess:
     def __init__(self, context: Any, name: str, job: Job) -> None:
         parent, child = context.Pipe(duplex=True)
         self.process: Any = context.Process(target=worker_main, args=(child, job), name=name, daemon=True)
-        with _main_module_hidden():
+        with main_module_hidden():
             self.process.start()
         child.close()
         self.conn: Connection = parent
