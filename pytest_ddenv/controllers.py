@@ -78,8 +78,8 @@ class AvoidObstacles:
             return command
         finite = np.isfinite(scan.ranges)
         ranges = np.where(finite, scan.ranges, 0.0)
-        ahead = ranges * np.cos(scan.angles)
-        side = ranges * np.sin(scan.angles)
+        ahead = scan.origin[0] + ranges * np.cos(scan.angles)  # the hits in the robot's frame
+        side = scan.origin[1] + ranges * np.sin(scan.angles)
         half_width = self.corridor_width / 2.0
         blocking = finite & (ahead > 0.0) & (ahead < self.corridor_depth) & (np.abs(side) < half_width)
         if not blocking.any():

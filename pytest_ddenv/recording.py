@@ -333,8 +333,8 @@ def _log_robot(writer: _Writer, root: str, run: Run) -> None:
 
 def scan_points(run: Run, detail: RunDetail) -> tuple[FloatArray, NDArray[np.int64]]:
     """The laser's hits in the world frame, (N, 3), and how many belong to each sample, (T,): each ray leaves
-    the base `scan_height` up, at the robot's yaw plus its angle, tilted down by `Laser.TILT` (as the laser
-    casts it); rays without a hit are left out."""
+    the laser (`scan_origin` on the robot, `scan_height` up), at the robot's yaw plus its angle, tilted down
+    by `Laser.TILT` (as the laser casts it); rays without a hit are left out."""
     from pytest_ddenv.sim.laser import Laser
 
     assert detail.scan_angles is not None and detail.scan_ranges is not None
@@ -345,7 +345,11 @@ def scan_points(run: Run, detail: RunDetail) -> tuple[FloatArray, NDArray[np.int
     headings = detail.scan_angles[rays] + poses[rows, 5]
     reach = ranges[rows, rays]
     flat = reach * math.cos(Laser.TILT)
-    points = np.stack([poses[rows, 0] + flat * np.cos(headings), poses[rows, 1] + flat * np.sin(headings),
+    forward, left = detail.scan_origin
+    yaws = poses[rows, 5]
+    x = poses[rows, 0] + forward * np.cos(yaws) - left * np.sin(yaws)
+    y = poses[rows, 1] + forward * np.sin(yaws) + left * np.cos(yaws)
+    points = np.stack([x + flat * np.cos(headings), y + flat * np.sin(headings),
                        poses[rows, 2] + detail.scan_height - reach * math.sin(Laser.TILT)], axis=1)
     return points, hit.sum(axis=1).astype(np.int64)
 

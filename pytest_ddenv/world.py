@@ -121,11 +121,15 @@ DRIVE_KINDS = ("differential", "skid-steer")
 
 @dataclass(frozen=True)
 class LaserMount:
-    """Where a robot's 2D laser sits: `height` (m) above the robot's base frame; rays start `min_range` (m)
-    from the robot's centre, outside its own body."""
+    """Where a robot's 2D laser sits: `height` (m) above the robot's base frame, at `x` (forward) and `y`
+    (left) from the base's origin (m), turned by `yaw` (rad, counterclockwise); rays start `min_range` (m)
+    from the laser, outside the robot's own body."""
 
     height: float
     min_range: float
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0
 
 
 @dataclass(frozen=True)

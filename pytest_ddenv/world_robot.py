@@ -19,7 +19,8 @@ ROBOT_KEYS = (
     "urdf", "drive", "left_wheels", "right_wheels", "wheel_radius", "track", "track_factor", "max_wheel_torque",
     "laser", "name",
 )
-LASER_KEYS = ("height", "min_range")
+LASER_KEYS = ("height", "min_range", "x", "y", "yaw")
+"""The keys of a `laser` mapping: height and min_range are required, the mounting's x, y and yaw optional."""
 FIELD = "scenario.robot"
 
 
@@ -88,14 +89,16 @@ def _laser(reader: FieldReader, value: Any) -> bool | LaserMount:
     if is_flag(value):
         return value
     if not isinstance(value, Mapping):
-        raise reader.fail(f"{FIELD}.laser", f"expected true, false or a mapping {{height, min_range}}, got {value!r}")
+        raise reader.fail(f"{FIELD}.laser", f"expected true, false or a mapping {{height, min_range[, x, y, yaw]}}, "
+                                            f"got {value!r}")
     data = reader.mapping(value, f"{FIELD}.laser", LASER_KEYS)
-    for key in LASER_KEYS:
+    for key in ("height", "min_range"):
         if key not in data:
             raise reader.fail(f"{FIELD}.laser.{key}", "missing; give both height and min_range (m), or true/false")
     return LaserMount(
         height=reader.number(data["height"], f"{FIELD}.laser.height"),
         min_range=reader.number(data["min_range"], f"{FIELD}.laser.min_range", non_negative=True),
+        **{key: reader.number(data[key], f"{FIELD}.laser.{key}") for key in ("x", "y", "yaw") if key in data},
     )
 
 
@@ -110,7 +113,9 @@ def robot_dict(robot: str | RobotDescription, source: str | None, relative_to: P
             data[key] = getattr(robot, key)
     data["max_wheel_torque"] = robot.max_wheel_torque
     if isinstance(robot.laser, LaserMount):
-        data["laser"] = {"height": robot.laser.height, "min_range": robot.laser.min_range}
+        mount = robot.laser
+        data["laser"] = {"height": mount.height, "min_range": mount.min_range,
+                         **{key: getattr(mount, key) for key in ("x", "y", "yaw") if getattr(mount, key)}}
     elif robot.laser is False:
         data["laser"] = False
     if robot.name:

@@ -152,10 +152,13 @@ class DdenvElements:
         laser: bool | LaserMount = laser_text == "true"
         if laser_text not in ("true", "false"):
             try:
-                height, min_range = (float(v) for v in laser_text.split())
+                numbers = [float(v) for v in laser_text.split()]
+                if len(numbers) not in (2, 5) or not all(math.isfinite(v) for v in numbers):
+                    raise ValueError(laser_text)
             except ValueError:
-                raise fail(f"expected true, false or 'HEIGHT MIN_RANGE', got {shown(laser_text)}", "laser") from None
-            laser = LaserMount(height, min_range)
+                raise fail(f"expected true, false, 'HEIGHT MIN_RANGE' or 'HEIGHT MIN_RANGE X Y YAW', got "
+                           f"{shown(laser_text)}", "laser") from None
+            laser = LaserMount(*numbers)
         return RobotDescription(
             urdf=urdf, left_wheels=wheels["left_wheels"], right_wheels=wheels["right_wheels"], drive=drive,
             wheel_radius=optional("wheel_radius"), track=optional("track"), track_factor=optional("track_factor"),

@@ -236,7 +236,10 @@ def _robot_description(parent: ET.Element, robot: RobotDescription, source: str 
         if getattr(robot, key) is not None:
             attributes[key] = _number(getattr(robot, key))
     if isinstance(robot.laser, LaserMount):
-        attributes["laser"] = f"{_number(robot.laser.height)} {_number(robot.laser.min_range)}"
+        mount = robot.laser
+        place = (mount.x, mount.y, mount.yaw)
+        numbers = (mount.height, mount.min_range, *(place if any(place) else ()))
+        attributes["laser"] = " ".join(_number(v) for v in numbers)
     else:
         attributes["laser"] = "true" if robot.laser else "false"
     if robot.name:

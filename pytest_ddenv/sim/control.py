@@ -27,7 +27,9 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True, eq=False)
 class LaserScan:
-    """One sweep of the robot's planar laser (robot frame: angle 0 is straight ahead, counterclockwise).
+    """One sweep of the robot's planar laser. `angles` are in the robot's frame (0 is straight ahead,
+    counterclockwise; a laser mounted turned has its `yaw` added), `ranges` are measured from the laser,
+    which sits at `origin` (x forward, y left of the robot's base, m; (0, 0) unless its mounting says).
 
     `ranges` (m, with the seeded sensing noise) are `inf` where a ray hit nothing but the ground within
     `max_range`. Both arrays are read-only. `time` is when the sweep was taken (the laser runs slower than
@@ -38,12 +40,13 @@ class LaserScan:
     angles: FloatArray
     max_range: float
     time: float
+    origin: tuple[float, float] = (0.0, 0.0)
 
     def points(self) -> FloatArray:
         """(K, 2) x, y of the finite hits in the robot frame."""
         finite = np.isfinite(self.ranges)
-        return np.stack([self.ranges[finite] * np.cos(self.angles[finite]),
-                         self.ranges[finite] * np.sin(self.angles[finite])], axis=1)
+        return np.stack([self.origin[0] + self.ranges[finite] * np.cos(self.angles[finite]),
+                         self.origin[1] + self.ranges[finite] * np.sin(self.angles[finite])], axis=1)
 
 
 @dataclass(frozen=True, eq=False)

@@ -65,4 +65,5 @@ class DetailRecorder:
             scan_ranges=None if laser is None else np.asarray(self._scans, dtype=np.float64).reshape(samples, -1),
             scan_height=self._laser_height,
             contacts=tuple(self._contacts),
+            scan_origin=(0.0, 0.0) if laser is None else laser.origin,
         )

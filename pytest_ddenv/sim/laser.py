@@ -29,10 +29,13 @@ class Laser:
             angles = np.arange(self.rays) * (2 * math.pi / self.rays) - math.pi
         else:
             angles = np.linspace(-fov / 2.0, fov / 2.0, self.rays)
+        if mount.yaw:  # the laser is turned on the robot: its rays' angles in the robot's frame
+            angles = angles + mount.yaw
         self.angles: FloatArray = np.asarray(angles, dtype=np.float64)
         self.angles.flags.writeable = False
         self.ranges = np.full(self.rays, np.inf)
-        self.latest = LaserScan(self._frozen_ranges(), self.angles, float(self.range), 0.0)
+        self.origin = (float(mount.x), float(mount.y))
+        self.latest = LaserScan(self._frozen_ranges(), self.angles, float(self.range), 0.0, self.origin)
 
     def scan(self, position: tuple[float, float, float], yaw: float, noise: np.ndarray, now: float,
              first_sensed: dict[str, float]) -> LaserScan:
@@ -40,7 +43,12 @@ class Laser:
         headings = self.angles + yaw
         cos_t, sin_t = math.cos(self.TILT), math.sin(self.TILT)
         direction = np.stack([np.cos(headings) * cos_t, np.sin(headings) * cos_t, np.full(self.rays, -sin_t)], axis=1)
-        origin = np.array([position[0], position[1], position[2] + self.mount.height])
+        x, y = position[0], position[1]
+        if any(self.origin):  # the laser's place on the robot, turned with it
+            forward, left = self.origin
+            cos_y, sin_y = math.cos(yaw), math.sin(yaw)
+            x, y = x + forward * cos_y - left * sin_y, y + forward * sin_y + left * cos_y
+        origin = np.array([x, y, position[2] + self.mount.height])
         starts = origin + direction * self.mount.min_range
         ends = origin + direction * self.range
         hits = self.p.rayTestBatch(starts.tolist(), ends.tolist(), numThreads=1, physicsClientId=self.client)
@@ -52,7 +60,7 @@ class Laser:
                 continue
             first_sensed.setdefault(name, now)
             self.ranges[i] = self.mount.min_range + hit[2] * span + noise[i]
-        self.latest = LaserScan(self._frozen_ranges(), self.angles, float(self.range), now)
+        self.latest = LaserScan(self._frozen_ranges(), self.angles, float(self.range), now, self.origin)
         return self.latest
 
     def _frozen_ranges(self) -> np.ndarray:

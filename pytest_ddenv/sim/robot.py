@@ -40,12 +40,18 @@ class Robot(abc.ABC):
     base_height: float = 0.0
     laser_height: float = 0.3
     laser_min_range: float = 0.6
+    laser_x: float = 0.0
+    laser_y: float = 0.0
+    laser_yaw: float = 0.0
     has_laser: bool = True
 
     @property
     def laser(self) -> LaserMount | None:
-        """Where the laser sits (from `laser_height` and `laser_min_range`), or None: no laser."""
-        return LaserMount(self.laser_height, self.laser_min_range) if self.has_laser else None
+        """Where the laser sits (from `laser_height`, `laser_min_range` and its place on the robot, `laser_x`,
+        `laser_y`, `laser_yaw`), or None: no laser."""
+        if not self.has_laser:
+            return None
+        return LaserMount(self.laser_height, self.laser_min_range, self.laser_x, self.laser_y, self.laser_yaw)
 
     @abc.abstractmethod
     def spawn(self, client: int, position: tuple[float, float, float], yaw: float) -> int:
@@ -151,6 +157,7 @@ class WheeledRobot(Robot):
         self.has_laser = mount is not None
         if mount is not None:
             self.laser_height, self.laser_min_range = mount.height, mount.min_range
+            self.laser_x, self.laser_y, self.laser_yaw = mount.x, mount.y, mount.yaw
         self._known_mass = mass
         self._client = -1
         self._body = -1

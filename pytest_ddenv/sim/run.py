@@ -23,8 +23,9 @@ class RunDetail:
     `bodies`: moving model name -> (T, 7) x y z qx qy qz qw (static models stay where the world puts them).
     `joints`: (T, J) the robot's joint positions in joint index order (wheels turning). `scan_angles` (R,)
     and `scan_ranges` (T, R): the latest laser scan at each time (robot frame, `inf` = no hit; None without a
-    laser), from `scan_height` above the robot's base. `contacts`: per time, (model, x, y, z, normal force)
-    of each point where the robot touches a model, or the ground with a part that is not a wheel.
+    laser), from `scan_height` above the robot's base at `scan_origin` (x forward, y left, m). `contacts`: per
+    time, (model, x, y, z, normal force) of each point where the robot touches a model, or the ground with a
+    part that is not a wheel.
     """
 
     bodies: Mapping[str, FloatArray]
@@ -33,6 +34,7 @@ class RunDetail:
     scan_ranges: FloatArray | None
     scan_height: float
     contacts: tuple[tuple[tuple[str, float, float, float, float], ...], ...]
+    scan_origin: tuple[float, float] = (0.0, 0.0)
 
 
 @dataclass(frozen=True, eq=False)

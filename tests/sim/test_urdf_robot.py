@@ -4,10 +4,12 @@ written back, and refused with a clear error when the description does not fit t
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import numpy as np
 import pytest
 from helpers import flat_world
 
@@ -292,3 +294,56 @@ def test_a_registered_description_names_its_robot_in_errors(monkeypatch: pytest.
     with pytest.raises(ScenarioError, match=r"robot 'wrong_wheels' \(registered at test_urdf_robot\.py:\d+\): .*"
                                             r"has no joint named 'left_whel_joint'"):
         make_robot("wrong_wheels")
+
+
+# -- the laser's mounting ---------------------------------------------------------------------------------
+MOUNTED = LaserMount(0.2, 0.5, x=0.15, y=-0.05, yaw=0.3)
+
+
+def test_a_laser_mounting_round_trips_through_yaml_and_sdf(tmp_path: Path) -> None:
+    world = with_robot(World.load(EXAMPLE / "diffbot_world.yaml"), dataclasses.replace(DIFFBOT, laser=MOUNTED))
+    assert "yaw: 0.3" in world.to_yaml()
+    assert World.from_yaml(world.to_yaml(), source=world.source).scenario == world.scenario
+    world.save(tmp_path / "x.sdf")
+    assert World.load(tmp_path / "x.sdf").scenario == world.scenario
+    assert 'laser="0.2 0.5 0.15 -0.05 0.3"' in (tmp_path / "x.sdf").read_text()
+
+
+def test_a_bad_laser_mounting_in_sdf_names_the_field(tmp_path: Path) -> None:
+    world = with_robot(World.load(EXAMPLE / "diffbot_world.yaml"), dataclasses.replace(DIFFBOT, laser=MOUNTED))
+    world.save(tmp_path / "x.sdf")
+    text = (tmp_path / "x.sdf").read_text().replace('laser="0.2 0.5 0.15 -0.05 0.3"', 'laser="0.2 0.5 0.15"')
+    (tmp_path / "y.sdf").write_text(text)
+    with pytest.raises(ScenarioError, match=r"laser.*expected true, false, 'HEIGHT MIN_RANGE' or 'HEIGHT MIN_RANGE "
+                                            r"X Y YAW', got '0.2 0.5 0.15'"):
+        World.load(tmp_path / "y.sdf")
+
+
+def first_scan(sim: Simulator, mount: LaserMount) -> tuple[np.ndarray, np.ndarray]:
+    """The first scan's hits in the robot's frame and its angles, of a Husky with its laser at `mount`
+    standing 3 m before a wall."""
+    from helpers import box
+
+    from pytest_ddenv import Command, Observation
+
+    seen: list[Observation] = []
+
+    def still(observation: Observation) -> Command:
+        seen.append(observation)
+        return Command(0.0, 0.0)
+
+    robot = dataclasses.replace(husky_description(), laser=mount)
+    world = flat_world(box("wall", (0.3, 6.0, 1.0), (3.0, 0.0, 0.5)), robot="husky", timeout=0.2)
+    sim.run(with_robot(world, robot), seed=0, controller=still)
+    assert seen[0].scan is not None
+    return seen[0].scan.points(), seen[0].scan.angles
+
+
+def test_the_laser_sees_from_where_it_is_mounted(sim: Simulator) -> None:
+    centre_points, centre_angles = first_scan(sim, LaserMount(0.35, 0.62))
+    ahead_points, _ = first_scan(sim, LaserMount(0.35, 0.62, x=0.3))
+    turned_points, turned_angles = first_scan(sim, LaserMount(0.35, 0.62, yaw=math.pi / 2))
+    np.testing.assert_allclose(turned_angles, centre_angles + math.pi / 2)  # angles in the robot's frame
+    for points in (centre_points, ahead_points, turned_points):  # the wall is where it is, however mounted
+        facing = points[np.abs(points[:, 1]) < 0.5]
+        assert len(facing) >= 3 and np.all(np.abs(facing[:, 0] - 2.85) < 0.1), facing
