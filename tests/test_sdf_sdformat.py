@@ -42,15 +42,9 @@ STOCK_SUN = """<?xml version="1.0"?><sdf version="1.6"><light type="directional"
 
 
 def _build(tmp_path_factory: pytest.TempPathFactory, source: Path) -> Path:
-    if shutil.which("g++") is None or shutil.which("pkg-config") is None:
-        pytest.skip("needs g++ and pkg-config to build the libsdformat checker")
-    flags = subprocess.run(["pkg-config", "--cflags", "--libs", "sdformat12"], capture_output=True, text=True,
-                           check=False)
-    if flags.returncode != 0:
-        pytest.skip("libsdformat 12 is not installed (Debian: apt-get install libsdformat-dev)")
-    binary = tmp_path_factory.mktemp("sdformat") / source.stem
-    subprocess.run(["g++", "-std=c++17", str(source), "-o", str(binary), *flags.stdout.split()], check=True)
-    return binary
+    from sdformat_build import build_sdformat_tool
+
+    return build_sdformat_tool(source, tmp_path_factory.mktemp("sdformat"))
 
 
 @pytest.fixture(scope="module")
