@@ -15,16 +15,18 @@ import threading
 import time
 import warnings
 from collections import OrderedDict
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv import artifacts
+from pytest_ddenv.code_identity import CodeIdentity
 from pytest_ddenv.execution import Pool, ProbeDeadline, WorkerError, WorkerStartError
 from pytest_ddenv.markers import ReductionSpec
 from pytest_ddenv.media import DEFAULT_MEDIA, PendingMedia, Shown
 from pytest_ddenv.other_failures import other_failures
+from pytest_ddenv.predicates import FailureSignature
 from pytest_ddenv.probe import (
     ErrorInfo,
     FailureReference,
@@ -33,8 +35,10 @@ from pytest_ddenv.probe import (
     keeps_start_support,
     make_probe,
     signature_record,
+    start_support,
     trace_of,
 )
+from pytest_ddenv.problem import Problem, problem_of
 from pytest_ddenv.reduce import (
     Observation as ProbeObservation,
 )
@@ -79,7 +83,8 @@ class ReductionPlan:
 
     `reference` is the failure to reproduce and `reference_run` the run it happened in (None: the test
     made no run and reported none, so trajectory-guided schemas fall back). `confirmed`: the failure was
-    already seen on the pool (skip the confirmation runs). `fingerprint` identifies the problem for resume.
+    already seen on the pool (skip the confirmation runs). `fingerprint` (the settings), `test_source`, `code`
+    and the world identify the problem for resume (`problem.problem_of`).
     """
 
     world: World
@@ -91,6 +96,8 @@ class ReductionPlan:
     replay_command: str
     fingerprint: Mapping[str, Any]
     test_source: str = ""
+    code: CodeIdentity = field(default_factory=CodeIdentity)
+    """The code under test (`code_identity.identify`): part of the problem, so an edit starts a fresh log."""
     confirmed: bool = False
     run_settings: Mapping[str, Any] = field(default_factory=dict)
     """The caller's own entries of `summary.json` (predicates, noise seed, command line ...)."""
@@ -112,7 +119,8 @@ class ReductionPlan:
 @dataclass
 class ReductionOutcome:
     """What `run_reduction` did. `status`: "reduced" (maybe incomplete: see the reduction), "not-reproducible"
-    (the confirmation runs never failed the same way) or "error" (the test could not be run: `message`)."""
+    (the confirmation runs never failed the same way), "world-independent" (the world without its removable
+    models fails the same way: nothing to reduce) or "error" (the test could not be run: `message`)."""
 
     status: str
     message: str = ""
@@ -164,10 +172,13 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
             for text in notes:
                 note(text)
             settings = {key: value for key, value in plan.fingerprint.items() if key not in BUDGETS}
-            problem = artifacts.fingerprint(world, {**settings, "partition": partition, "priority": priority},
-                                            plan.test_source)
+            problem = problem_of(world, {**settings, "partition": partition, "priority": priority},
+                                 plan.test_source, plan.code, test_id=plan.test_id,
+                                 reference=plan.reference.to_dict())
             with artifacts.FolderLock(plan.artifacts):
-                paths, prepared = artifacts.prepare(plan.artifacts, problem, test_id=plan.test_id)
+                paths, prepared = artifacts.prepare(
+                    plan.artifacts, problem,
+                    same_reference=lambda logged: same_reference(logged, plan.reference, spec.tolerance))
                 log = ProbeLog(paths.log)
                 for text in prepared + log.notes:
                     note(text)
@@ -182,7 +193,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
 
 
 def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifacts.ArtifactPaths, log: ProbeLog,
-                   problem: str, partition: str, priority: str, notes: list[str],
+                   problem: Problem, partition: str, priority: str, notes: list[str],
                    confirmations: list[tuple[int, ProbeResult | None, str]],
                    on_progress: Callable[[ProgressEvent], None] | None) -> ReductionOutcome:
     """The reduction once its folder is locked and its log open, in its phases: the model-level reduction,
@@ -190,6 +201,9 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
     locked = _Locked(plan, pool, calls, paths, log, problem, notes, on_progress)
     for attempt, result, verdict in confirmations:
         _log_run(log, "confirmation", plan.world.names, attempt, result, verdict)
+    independent = locked.independent_of_the_world()
+    if independent is not None:
+        return independent
     reduction, interrupted = locked.reduce_models(partition, priority)
     locked.notes = list(dict.fromkeys([*locked.notes, *reduction.notes]))
     minimal_run, shown = (None, []) if interrupted is not None else locked.runs_to_show(reduction, confirmations)
@@ -212,7 +226,7 @@ class _Locked:
     """One reduction in its locked folder: its log, its usage and the files it writes."""
 
     def __init__(self, plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifacts.ArtifactPaths,
-                 log: ProbeLog, problem: str, notes: list[str],
+                 log: ProbeLog, problem: Problem, notes: list[str],
                  on_progress: Callable[[ProgressEvent], None] | None) -> None:
         self.plan, self.pool, self.calls, self.paths, self.log = plan, pool, calls, paths, log
         self.problem = problem
@@ -243,7 +257,7 @@ class _Locked:
                 self.calls.pin(self.best)
             plan = self.plan
             artifacts.write_progress(
-                self.paths, plan.world, self.best, test_id=plan.test_id, problem_fingerprint=self.problem,
+                self.paths, plan.world, self.best, test_id=plan.test_id, problem_fingerprint=self.problem.fingerprint,
                 replay_command=plan.replay_command, reference=plan.reference.to_dict(),
                 counts=self.cost(event.probes).to_json(),
                 extra={**plan.run_settings, "tolerance": plan.spec.tolerance, "notes": self.notes,
@@ -251,6 +265,40 @@ class _Locked:
             self.record_usage()
         if self.on_progress is not None:
             self.on_progress(event)
+
+    def independent_of_the_world(self) -> ReductionOutcome | None:
+        """None when the failure needs some of the world's models; else the outcome that says it does not: the
+        world without every model it may lose (the kept ones and the one under the robot's start remain)
+        fails the same way in one run (attempt 0, the original's seed), logged and counted. A log that already
+        holds that run answers without a simulation."""
+        plan = self.plan
+        empty = plan.world.select(_always_kept(plan.world, plan.spec.keep))
+        if len(empty) == len(plan.world):
+            return None
+        logged = [record for record in self.log.own_records()
+                  if record.get("event") == "probe" and record.get("purpose") == INDEPENDENCE]
+        if logged:
+            verdict = logged[-1].get("outcome")
+        else:
+            try:
+                result = self.calls(empty, 0)
+            except Exception:  # noqa: BLE001 - the check is a shortcut: without its answer, reduce
+                _log_run(self.log, INDEPENDENCE, empty.names, 0, None, Outcome.ERROR.value)
+                return None
+            verdict = classify_result(result.error, plan.reference, plan.spec.tolerance).value
+            _log_run(self.log, INDEPENDENCE, empty.names, 0, result, verdict)
+        if verdict != Outcome.FAIL.value:
+            return None
+        kept = f" (only {', '.join(empty.names)} kept)" if empty.names else ""
+        simulations = self.cost(0).simulations
+        message = (f"the failure does not depend on the world: it also happens with no models{kept}, the same "
+                   f"way ({plan.reference.describe()}); no reduction was run ({_count(simulations, 'simulation')}). "
+                   "Look at the code under test rather than the world.")
+        self.record_usage(final=True)
+        artifacts.write_world_independent(self.paths, test_id=plan.test_id, world=plan.world, kept=empty.names,
+                                          message=message, reference=plan.reference.to_dict(),
+                                          counts=self.cost(0).to_json())
+        return ReductionOutcome("world-independent", message=message)
 
     def reduce_models(self, partition: str, priority: str) -> tuple[Reduction, ReductionInterrupted | None]:
         """The engine's reduction of the models (the best so far when interrupted)."""
@@ -325,7 +373,8 @@ class _Locked:
         files = replace(files, other_worlds=other_worlds)
         report = ReductionReport(
             test=plan.test_id, world=plan.world.source or plan.world.name, reduction=reduction,
-            reference_failure=plan.reference.to_dict(), replay=plan.replay_command, fingerprint=self.problem,
+            reference_failure=plan.reference.to_dict(), replay=plan.replay_command,
+            fingerprint=self.problem.fingerprint,
             files=files, cost=self.cost(reduction.probes), tolerance=plan.spec.tolerance, minimal_sdf=how,
             notes=tuple(self.notes), world_notes=tuple(plan.world.notes), stages=staged,
             stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
@@ -448,6 +497,36 @@ class _Calls:
         if self.deadline is not None and time.monotonic() >= self.deadline:
             return False
         return max_probes is None or self.started < max_probes
+
+
+INDEPENDENCE = "independence"
+"""The run log's purpose of the run of the world without its removable models (`_Locked.independent_of_the_world`)."""
+
+
+def _always_kept(world: World, keep: Sequence[str]) -> tuple[str, ...]:
+    """The models no reduction removes: those kept by the settings or the world file, and the one under the
+    robot's start (a precondition)."""
+    kept = (set(keep) & set(world.names)) | {model.name for model in world.models if model.keep}
+    support = start_support(world)
+    return tuple(name for name in world.names if name in kept or name == support)
+
+
+def _count(number: int, noun: str) -> str:
+    return f"{number} {noun}{'' if number == 1 else 's'}"
+
+
+def same_reference(logged: Mapping[str, Any], reference: FailureReference, tolerance: float) -> bool:
+    """Whether a run log's reference failure (`FailureReference.to_dict()`) is the failure being reduced now,
+    under the same-failure rule the probes are judged by: a resumed log's verdicts were taken against it."""
+    try:
+        signature = logged.get("signature")
+        earlier = ErrorInfo(str(logged["exception_type"]), "", str(logged["location"]),
+                            signature=None if signature is None else FailureSignature.from_dict(signature))
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return False
+    now = ErrorInfo(reference.exception_type, "", reference.location, signature=reference.signature)
+    return (classify_result(earlier, reference, tolerance) is Outcome.FAIL
+            and classify_result(now, FailureReference.of(earlier), tolerance) is Outcome.FAIL)
 
 
 def _last_step(records: list[dict[str, Any]]) -> tuple[str, ...] | None:
