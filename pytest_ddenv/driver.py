@@ -15,7 +15,7 @@ import threading
 import time
 import warnings
 from collections import OrderedDict
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -35,7 +35,6 @@ from pytest_ddenv.probe import (
     keeps_start_support,
     make_probe,
     signature_record,
-    start_support,
     trace_of,
 )
 from pytest_ddenv.problem import Problem, problem_of
@@ -52,6 +51,7 @@ from pytest_ddenv.reduce import (
     reduce,
 )
 from pytest_ddenv.reduce.deflake import make_policy
+from pytest_ddenv.reduce.engine import INDEPENDENCE
 from pytest_ddenv.reduce.types import Probe
 from pytest_ddenv.reduction_report import Cost, ReductionReport
 from pytest_ddenv.stages import (
@@ -201,10 +201,9 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
     locked = _Locked(plan, pool, calls, paths, log, problem, notes, on_progress)
     for attempt, result, verdict in confirmations:
         _log_run(log, "confirmation", plan.world.names, attempt, result, verdict)
-    independent = locked.independent_of_the_world()
-    if independent is not None:
-        return independent
     reduction, interrupted = locked.reduce_models(partition, priority)
+    if reduction.independent:
+        return locked.world_independent(reduction)
     locked.notes = list(dict.fromkeys([*locked.notes, *reduction.notes]))
     minimal_run, shown = (None, []) if interrupted is not None else locked.runs_to_show(reduction, confirmations)
     staged: StagesOutcome | None = None
@@ -266,38 +265,21 @@ class _Locked:
         if self.on_progress is not None:
             self.on_progress(event)
 
-    def independent_of_the_world(self) -> ReductionOutcome | None:
-        """None when the failure needs some of the world's models; else the outcome that says it does not: the
-        world without every model it may lose (the kept ones and the one under the robot's start remain)
-        fails the same way in one run (attempt 0, the original's seed), logged and counted. A log that already
-        holds that run answers without a simulation."""
+    def world_independent(self, reduction: Reduction) -> ReductionOutcome:
+        """The outcome of a failure that the world without its removable models reproduced (the engine's
+        `check_independence`): nothing reduced, a summary that says so, no minimal world."""
         plan = self.plan
-        empty = plan.world.select(_always_kept(plan.world, plan.spec.keep))
-        if len(empty) == len(plan.world):
-            return None
-        logged = [record for record in self.log.own_records()
-                  if record.get("event") == "probe" and record.get("purpose") == INDEPENDENCE]
-        if logged:
-            verdict = logged[-1].get("outcome")
-        else:
-            try:
-                result = self.calls(empty, 0)
-            except Exception:  # noqa: BLE001 - the check is a shortcut: without its answer, reduce
-                _log_run(self.log, INDEPENDENCE, empty.names, 0, None, Outcome.ERROR.value)
-                return None
-            verdict = classify_result(result.error, plan.reference, plan.spec.tolerance).value
-            _log_run(self.log, INDEPENDENCE, empty.names, 0, result, verdict)
-        if verdict != Outcome.FAIL.value:
-            return None
-        kept = f" (only {', '.join(empty.names)} kept)" if empty.names else ""
-        simulations = self.cost(0).simulations
-        message = (f"the failure does not depend on the world: it also happens with no models{kept}, the same "
+        empty = next((tuple(record["candidate"]) for record in reversed(self.log.own_records())
+                      if record.get("purpose") == INDEPENDENCE and isinstance(record.get("candidate"), list)), ())
+        simulations = self.cost(reduction.probes).simulations
+        only = f" (only {', '.join(empty)} kept)" if empty else ""
+        message = (f"the failure does not depend on the world: it also happens with no models{only}, the same "
                    f"way ({plan.reference.describe()}); no reduction was run ({_count(simulations, 'simulation')}). "
                    "Look at the code under test rather than the world.")
         self.record_usage(final=True)
-        artifacts.write_world_independent(self.paths, test_id=plan.test_id, world=plan.world, kept=empty.names,
+        artifacts.write_world_independent(self.paths, test_id=plan.test_id, world=plan.world, kept=empty,
                                           message=message, reference=plan.reference.to_dict(),
-                                          counts=self.cost(0).to_json())
+                                          counts=self.cost(reduction.probes).to_json())
         return ReductionOutcome("world-independent", message=message)
 
     def reduce_models(self, partition: str, priority: str) -> tuple[Reduction, ReductionInterrupted | None]:
@@ -327,7 +309,7 @@ class _Locked:
                 granularity=spec.granularity, deflake=spec.deflake, keep=tuple(sorted(keep)),
                 preconditions=(keeps_start_support(world),), max_probes=left,
                 max_seconds=seconds, seed=spec.seed, log=self.log, on_progress=self.progress,
-                executor=threads, workers=pool.size,
+                executor=threads, workers=pool.size, check_independence=True,
             )
             clean = True
             return reduction, None
@@ -497,18 +479,6 @@ class _Calls:
         if self.deadline is not None and time.monotonic() >= self.deadline:
             return False
         return max_probes is None or self.started < max_probes
-
-
-INDEPENDENCE = "independence"
-"""The run log's purpose of the run of the world without its removable models (`_Locked.independent_of_the_world`)."""
-
-
-def _always_kept(world: World, keep: Sequence[str]) -> tuple[str, ...]:
-    """The models no reduction removes: those kept by the settings or the world file, and the one under the
-    robot's start (a precondition)."""
-    kept = (set(keep) & set(world.names)) | {model.name for model in world.models if model.keep}
-    support = start_support(world)
-    return tuple(name for name in world.names if name in kept or name == support)
 
 
 def _count(number: int, noun: str) -> str:
