@@ -4,7 +4,7 @@ keeps two reductions out of one folder.
 Every file is written atomically and durably (write a temporary file, fsync it, rename it over the old one,
 fsync the folder), so a crash at any moment leaves either the old or the new file, never half of one. The
 run log `runs.jsonl` is appended and fsynced line by line by the engine and is never deleted: its first
-record names the problem it belongs to (`problem_header`), and a log of another problem is moved aside
+record names the problem it belongs to (`problem.Problem.header`), and a log of another problem is moved aside
 (`runs.previous-N.jsonl`), not removed. While a reduction runs, `minimal.yaml` and a provisional
 `summary.json` (``"complete": false``) hold the best world so far, rewritten at every accepted step.
 """
@@ -23,9 +23,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self
 
 from pytest_ddenv.errors import DdenvError, ReductionError
+from pytest_ddenv.problem import Problem
 from pytest_ddenv.reduce import Reduction
-from pytest_ddenv.reduce.log import LOG_FORMAT, parse_record, sync_directory, write_failure
-from pytest_ddenv.reduction_report import ReductionReport, ReportFiles, identity_json
+from pytest_ddenv.reduce.log import parse_record, sync_directory, write_failure
+from pytest_ddenv.reduction_report import SUMMARY_FORMAT, ReductionReport, ReportFiles, identity_json
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:
@@ -79,19 +80,6 @@ def write_bytes_atomic(path: Path, data: bytes) -> None:
             temporary.unlink()
         raise ArtifactsError(write_failure(path, error)) from error
     sync_directory(path.parent)
-
-
-def fingerprint(world: World, settings: dict[str, Any], test_source: str = "") -> str:
-    """Identifies a reduction problem: a resumed log is only reused when this matches."""
-    from importlib.metadata import version
-
-    payload = json.dumps(
-        {"world": world.to_yaml(), "settings": settings, "test": test_source,
-         "pybullet": version("pybullet")},  # a run is bit-identical only with the same pybullet
-        sort_keys=True,
-        default=str,
-    )
-    return hashlib.sha256(payload.encode("utf-8")).hexdigest()
 
 
 @dataclass(frozen=True)
@@ -185,18 +173,16 @@ def _read_holder(fd: int) -> str:
     return "pid unknown"
 
 
-def problem_header(problem_fingerprint: str, test_id: str = "") -> dict[str, Any]:
-    """The first record of a run log: which problem (test, world, settings) the log belongs to."""
-    return {"event": "problem", "format": LOG_FORMAT, "fingerprint": problem_fingerprint, "test": test_id}
+def prepare(directory: Path, problem: Problem, *,
+            same_reference: Callable[[Mapping[str, Any]], bool] = lambda reference: True
+            ) -> tuple[ArtifactPaths, list[str]]:
+    """Create the folder and make `runs.jsonl` the log of `problem`; returns the paths and notes.
 
-
-def prepare(directory: Path, problem_fingerprint: str, *, test_id: str = "") -> tuple[ArtifactPaths, list[str]]:
-    """Create the folder and make `runs.jsonl` the log of this problem; returns the paths and notes.
-
-    An existing log is resumed when its first record (`problem_header`) names this problem (a log without
-    that record, from an earlier version, when summary.json names it), whatever else is missing. A log of
-    another problem is moved aside to ``runs.previous-N.jsonl`` (never deleted), and the notes say so. Call it
-    while holding the folder's `FolderLock`."""
+    An existing log is resumed when its first record (`Problem.header`) names this problem and
+    `same_reference(the failure it reduced)` holds: the same world, settings, test and code under test, and
+    the same failure (whatever the fingerprint says, a log that reduced another failure is never reused). A
+    log of another problem is moved aside to ``runs.previous-N.jsonl`` (never deleted), and the notes say so
+    and what changed. Call it while holding the folder's `FolderLock`."""
     paths = ArtifactPaths(Path(directory))
     notes: list[str] = []
     try:
@@ -204,18 +190,17 @@ def prepare(directory: Path, problem_fingerprint: str, *, test_id: str = "") -> 
     except OSError as error:
         raise ArtifactsError(f"cannot create the artifacts folder {paths.directory}: "
                              f"{error.strerror or error}") from error
-    header = problem_header(problem_fingerprint, test_id)
     if paths.log.exists():
         first, size = _first_record(paths.log)
+        why = "its test, world, code or reduction settings differ"
         if first is not None and first.get("event") == "problem":
-            if first.get("fingerprint") == problem_fingerprint:
-                return paths, notes
-        elif first is not None and first.get("event") == "start":  # written before logs had a header
-            previous = read_summary(paths.summary)
-            if previous is not None and previous.get("fingerprint") == problem_fingerprint:
-                text = paths.log.read_text(encoding="utf-8", errors="replace")
-                write_text_atomic(paths.log, json.dumps(header) + "\n" + text)
-                return paths, notes
+            if first.get("fingerprint") == problem.fingerprint:
+                reference = first.get("reference")
+                if isinstance(reference, Mapping) and same_reference(reference):
+                    return paths, notes
+                why = "it reduced another failure"
+            else:
+                why = "; ".join(problem.differences(first)) or why
         elif size == 0:
             paths.log.unlink()  # an empty file holds nothing to keep
         if paths.log.exists():
@@ -225,12 +210,12 @@ def prepare(directory: Path, problem_fingerprint: str, *, test_id: str = "") -> 
             except OSError as error:
                 raise ArtifactsError(f"cannot move the run log of another problem {paths.log} aside to {kept.name}: "
                                      f"{error.strerror or error}; move or delete it yourself") from error
-            notes.append(f"the run log of another problem (its test, world or reduction settings differ) was kept "
-                         f"as {kept.name}; this reduction starts a new {paths.log.name}")
+            notes.append(f"the run log of another problem ({why}) was kept as {kept.name}; this reduction starts "
+                         f"a new {paths.log.name}")
     for name in STALE_OUTPUTS:
         with contextlib.suppress(OSError):
             (paths.directory / name).unlink()
-    write_text_atomic(paths.log, json.dumps(header) + "\n")
+    write_text_atomic(paths.log, json.dumps(problem.header()) + "\n")
     return paths, notes
 
 
@@ -391,6 +376,24 @@ def write_progress(paths: ArtifactPaths, world: World, best: Sequence[str], *, t
         "fingerprint": problem_fingerprint,
         "files": ReportFiles(paths.minimal_yaml, paths.log, paths.summary).to_json(),
         **dict(extra or {}),
+    }
+    write_text_atomic(paths.summary, json.dumps(summary, indent=2) + "\n")
+
+
+def write_world_independent(paths: ArtifactPaths, *, test_id: str, world: World, kept: Sequence[str], message: str,
+                            reference: Mapping[str, Any], counts: Mapping[str, Any]) -> None:
+    """`summary.json` of a failure that does not depend on the world (its world without the removable models
+    fails the same way), and no minimal world: nothing was reduced."""
+    for name in ("minimal.yaml", "simplified.yaml", "simplified.sdf", "passing.yaml", "passing.sdf",
+                 *STALE_OUTPUTS):
+        with contextlib.suppress(OSError):
+            (paths.directory / name).unlink()
+    summary = {
+        "format": SUMMARY_FORMAT, "test": test_id, "world": world.source or world.name,
+        "original_size": len(world), "status": "world-independent", "complete": True, "message": message,
+        "kept_models": list(kept),
+        "reference_failure": dict(reference), **dict(counts),
+        "files": {"log": str(paths.log), "summary": str(paths.summary)},
     }
     write_text_atomic(paths.summary, json.dumps(summary, indent=2) + "\n")
 

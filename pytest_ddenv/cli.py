@@ -693,7 +693,12 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
         progress.close()
         if ahead is not None:  # never exit while it imports (see driver.IMPORT_AHEAD_WAIT)
             ahead.join(IMPORT_AHEAD_WAIT)
-    assert outcome.report is not None
+    if outcome.report is None:  # nothing reduced: the failure does not depend on the world
+        print(f"ddenv: {arguments.world}: {outcome.message}", file=sys.stderr)
+        if arguments.json:
+            _print_json({"ok": False, "status": outcome.status, "error": outcome.message,
+                         "exit_code": EXIT_FAILED})
+        return EXIT_FAILED
     pictures = [str(p) for p in outcome.attachments if p.suffix == ".png"]
     media = [str(p) for p in outcome.attachments if p.suffix in (".gif", ".rrd")]
     _emit(arguments, _reduction_text(arguments.world, outcome.report, pictures, media),
@@ -769,7 +774,7 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
             f" --controller {shlex.quote(arguments.controller)}" if arguments.controller else ""),
         fingerprint={**settings, "predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
                      "controller": arguments.controller, "imports": list(arguments.imports)},
-        confirmed=True, media=arguments.media, keep_other=arguments.keep_other,
+        code=_code_under_test(arguments), confirmed=True, media=arguments.media, keep_other=arguments.keep_other,
         other_replay=lambda world_file, seed: _other_replay(arguments, world_file, seed),
         model_paths=tuple(folder for value in arguments.model_paths for folder in value.split(os.pathsep) if folder),
         run_settings={"predicates": predicates_to_json(predicates), "timeout": arguments.timeout,
@@ -783,6 +788,18 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
         return stop.outcome, True  # type: ignore[attr-defined]
     finally:
         progress.close()
+
+
+def _code_under_test(arguments: argparse.Namespace) -> Any:
+    """The code under test of `ddenv reduce`: the modules loaded from the current folder and from the folders of
+    the --import and --controller files (all imported by now), with those files themselves."""
+    from pytest_ddenv.code_identity import identify
+
+    specs = [*arguments.imports, *([arguments.controller.rpartition(":")[0]] if arguments.controller else [])]
+    files = [Path(spec).expanduser() if spec.endswith(".py") or os.sep in spec
+             else Path(getattr(sys.modules.get(spec), "__file__", None) or "") for spec in specs]
+    files = [path for path in files if path.suffix == ".py"]
+    return identify([Path.cwd(), *(path.parent for path in files)], data_files=files)
 
 
 def _other_replay(arguments: argparse.Namespace, world_file: Path, seed: int | None) -> str:

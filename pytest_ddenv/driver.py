@@ -21,10 +21,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv import artifacts
+from pytest_ddenv.code_identity import CodeIdentity
 from pytest_ddenv.execution import Pool, ProbeDeadline, WorkerError, WorkerStartError
 from pytest_ddenv.markers import ReductionSpec
 from pytest_ddenv.media import DEFAULT_MEDIA, PendingMedia, Shown
 from pytest_ddenv.other_failures import other_failures
+from pytest_ddenv.predicates import FailureSignature
 from pytest_ddenv.probe import (
     ErrorInfo,
     FailureReference,
@@ -35,6 +37,7 @@ from pytest_ddenv.probe import (
     signature_record,
     trace_of,
 )
+from pytest_ddenv.problem import Problem, problem_of
 from pytest_ddenv.reduce import (
     Observation as ProbeObservation,
 )
@@ -48,6 +51,7 @@ from pytest_ddenv.reduce import (
     reduce,
 )
 from pytest_ddenv.reduce.deflake import make_policy
+from pytest_ddenv.reduce.engine import INDEPENDENCE
 from pytest_ddenv.reduce.types import Probe
 from pytest_ddenv.reduction_report import Cost, ReductionReport
 from pytest_ddenv.stages import (
@@ -79,7 +83,8 @@ class ReductionPlan:
 
     `reference` is the failure to reproduce and `reference_run` the run it happened in (None: the test
     made no run and reported none, so trajectory-guided schemas fall back). `confirmed`: the failure was
-    already seen on the pool (skip the confirmation runs). `fingerprint` identifies the problem for resume.
+    already seen on the pool (skip the confirmation runs). `fingerprint` (the settings), `test_source`, `code`
+    and the world identify the problem for resume (`problem.problem_of`).
     """
 
     world: World
@@ -91,6 +96,8 @@ class ReductionPlan:
     replay_command: str
     fingerprint: Mapping[str, Any]
     test_source: str = ""
+    code: CodeIdentity = field(default_factory=CodeIdentity)
+    """The code under test (`code_identity.identify`): part of the problem, so an edit starts a fresh log."""
     confirmed: bool = False
     run_settings: Mapping[str, Any] = field(default_factory=dict)
     """The caller's own entries of `summary.json` (predicates, noise seed, command line ...)."""
@@ -112,7 +119,8 @@ class ReductionPlan:
 @dataclass
 class ReductionOutcome:
     """What `run_reduction` did. `status`: "reduced" (maybe incomplete: see the reduction), "not-reproducible"
-    (the confirmation runs never failed the same way) or "error" (the test could not be run: `message`)."""
+    (the confirmation runs never failed the same way), "world-independent" (the world without its removable
+    models fails the same way: nothing to reduce) or "error" (the test could not be run: `message`)."""
 
     status: str
     message: str = ""
@@ -164,10 +172,13 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
             for text in notes:
                 note(text)
             settings = {key: value for key, value in plan.fingerprint.items() if key not in BUDGETS}
-            problem = artifacts.fingerprint(world, {**settings, "partition": partition, "priority": priority},
-                                            plan.test_source)
+            problem = problem_of(world, {**settings, "partition": partition, "priority": priority},
+                                 plan.test_source, plan.code, test_id=plan.test_id,
+                                 reference=plan.reference.to_dict())
             with artifacts.FolderLock(plan.artifacts):
-                paths, prepared = artifacts.prepare(plan.artifacts, problem, test_id=plan.test_id)
+                paths, prepared = artifacts.prepare(
+                    plan.artifacts, problem,
+                    same_reference=lambda logged: same_reference(logged, plan.reference, spec.tolerance))
                 log = ProbeLog(paths.log)
                 for text in prepared + log.notes:
                     note(text)
@@ -182,7 +193,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
 
 
 def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifacts.ArtifactPaths, log: ProbeLog,
-                   problem: str, partition: str, priority: str, notes: list[str],
+                   problem: Problem, partition: str, priority: str, notes: list[str],
                    confirmations: list[tuple[int, ProbeResult | None, str]],
                    on_progress: Callable[[ProgressEvent], None] | None) -> ReductionOutcome:
     """The reduction once its folder is locked and its log open, in its phases: the model-level reduction,
@@ -191,6 +202,8 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
     for attempt, result, verdict in confirmations:
         _log_run(log, "confirmation", plan.world.names, attempt, result, verdict)
     reduction, interrupted = locked.reduce_models(partition, priority)
+    if reduction.independent:
+        return locked.world_independent(reduction)
     locked.notes = list(dict.fromkeys([*locked.notes, *reduction.notes]))
     minimal_run, shown = (None, []) if interrupted is not None else locked.runs_to_show(reduction, confirmations)
     staged: StagesOutcome | None = None
@@ -212,7 +225,7 @@ class _Locked:
     """One reduction in its locked folder: its log, its usage and the files it writes."""
 
     def __init__(self, plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifacts.ArtifactPaths,
-                 log: ProbeLog, problem: str, notes: list[str],
+                 log: ProbeLog, problem: Problem, notes: list[str],
                  on_progress: Callable[[ProgressEvent], None] | None) -> None:
         self.plan, self.pool, self.calls, self.paths, self.log = plan, pool, calls, paths, log
         self.problem = problem
@@ -243,7 +256,7 @@ class _Locked:
                 self.calls.pin(self.best)
             plan = self.plan
             artifacts.write_progress(
-                self.paths, plan.world, self.best, test_id=plan.test_id, problem_fingerprint=self.problem,
+                self.paths, plan.world, self.best, test_id=plan.test_id, problem_fingerprint=self.problem.fingerprint,
                 replay_command=plan.replay_command, reference=plan.reference.to_dict(),
                 counts=self.cost(event.probes).to_json(),
                 extra={**plan.run_settings, "tolerance": plan.spec.tolerance, "notes": self.notes,
@@ -251,6 +264,23 @@ class _Locked:
             self.record_usage()
         if self.on_progress is not None:
             self.on_progress(event)
+
+    def world_independent(self, reduction: Reduction) -> ReductionOutcome:
+        """The outcome of a failure that the world without its removable models reproduced (the engine's
+        `check_independence`): nothing reduced, a summary that says so, no minimal world."""
+        plan = self.plan
+        empty = next((tuple(record["candidate"]) for record in reversed(self.log.own_records())
+                      if record.get("purpose") == INDEPENDENCE and isinstance(record.get("candidate"), list)), ())
+        simulations = self.cost(reduction.probes).simulations
+        only = f" (only {', '.join(empty)} kept)" if empty else ""
+        message = (f"the failure does not depend on the world: it also happens with no models{only}, the same "
+                   f"way ({plan.reference.describe()}); no reduction was run ({_count(simulations, 'simulation')}). "
+                   "Look at the code under test rather than the world.")
+        self.record_usage(final=True)
+        artifacts.write_world_independent(self.paths, test_id=plan.test_id, world=plan.world, kept=empty,
+                                          message=message, reference=plan.reference.to_dict(),
+                                          counts=self.cost(reduction.probes).to_json())
+        return ReductionOutcome("world-independent", message=message)
 
     def reduce_models(self, partition: str, priority: str) -> tuple[Reduction, ReductionInterrupted | None]:
         """The engine's reduction of the models (the best so far when interrupted)."""
@@ -279,7 +309,7 @@ class _Locked:
                 granularity=spec.granularity, deflake=spec.deflake, keep=tuple(sorted(keep)),
                 preconditions=(keeps_start_support(world),), max_probes=left,
                 max_seconds=seconds, seed=spec.seed, log=self.log, on_progress=self.progress,
-                executor=threads, workers=pool.size,
+                executor=threads, workers=pool.size, check_independence=True,
             )
             clean = True
             return reduction, None
@@ -325,7 +355,8 @@ class _Locked:
         files = replace(files, other_worlds=other_worlds)
         report = ReductionReport(
             test=plan.test_id, world=plan.world.source or plan.world.name, reduction=reduction,
-            reference_failure=plan.reference.to_dict(), replay=plan.replay_command, fingerprint=self.problem,
+            reference_failure=plan.reference.to_dict(), replay=plan.replay_command,
+            fingerprint=self.problem.fingerprint,
             files=files, cost=self.cost(reduction.probes), tolerance=plan.spec.tolerance, minimal_sdf=how,
             notes=tuple(self.notes), world_notes=tuple(plan.world.notes), stages=staged,
             stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
@@ -448,6 +479,24 @@ class _Calls:
         if self.deadline is not None and time.monotonic() >= self.deadline:
             return False
         return max_probes is None or self.started < max_probes
+
+
+def _count(number: int, noun: str) -> str:
+    return f"{number} {noun}{'' if number == 1 else 's'}"
+
+
+def same_reference(logged: Mapping[str, Any], reference: FailureReference, tolerance: float) -> bool:
+    """Whether a run log's reference failure (`FailureReference.to_dict()`) is the failure being reduced now,
+    under the same-failure rule the probes are judged by: a resumed log's verdicts were taken against it."""
+    try:
+        signature = logged.get("signature")
+        earlier = ErrorInfo(str(logged["exception_type"]), "", str(logged["location"]),
+                            signature=None if signature is None else FailureSignature.from_dict(signature))
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return False
+    now = ErrorInfo(reference.exception_type, "", reference.location, signature=reference.signature)
+    return (classify_result(earlier, reference, tolerance) is Outcome.FAIL
+            and classify_result(now, FailureReference.of(earlier), tolerance) is Outcome.FAIL)
 
 
 def _last_step(records: list[dict[str, Any]]) -> tuple[str, ...] | None:

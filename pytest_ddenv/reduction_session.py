@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from pytest_ddenv import artifacts
+from pytest_ddenv.code_identity import CodeIdentity, collected_elsewhere, identify
 from pytest_ddenv.driver import ReductionOutcome, ReductionPlan, run_reduction
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.given_example import GivenExample, reproduction
@@ -63,6 +64,7 @@ class ReductionSession:
             reference_run=robot_world.runs[-1] if robot_world.runs else None, spec=self.spec, artifacts=folder,
             replay_command=self.replay(self.item, folder / "minimal.yaml"),
             fingerprint={**self.spec.__dict__, "test": self.item.nodeid}, test_source=test_source,
+            code=self._code(),
             run_settings={
                 "predicates": [spec.to_json() for spec in robot_world.predicates],
                 "scenario_seed": robot_world.seed,
@@ -84,6 +86,13 @@ class ReductionSession:
         result = self._describe(outcome)
         self.progress(result["line"], final=True)
         return result
+
+    def _code(self) -> CodeIdentity:
+        """The code under test: the project's modules this session loaded, but other test files and the
+        conftests of other folders (unless the test's own files import them)."""
+        collected = {item.path for item in self.item.session.items}
+        return identify([self.item.config.rootpath],
+                        exclude=collected_elsewhere(self.item.path, collected))
 
     def _other_replay(self, world_file: Path, seed: int | None) -> str:
         """The command that re-runs the test on a kept other failure's world, with the run seed it failed with

@@ -78,7 +78,7 @@ def test_layers_load_only_what_comes_before_them(module: str, forbidden: list[st
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
     # DESIGN.md section 3, in order: each module may import its own layer and the ones above it only
     ("foundations", ("errors", "validation", "defaults", "outcome", "bounded_yaml", "geometry", "detail",
-                     "alarm")),
+                     "alarm", "code_identity")),
     ("world model", ("world", "world_yaml", "world_robot", "sdf", "strategies")),
     ("simulation", ("predicates", "sim", "controllers")),
     ("oracle verdict and the test's view", ("oracle", "robot_world", "gym_env", "reported")),
@@ -86,7 +86,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("execution", ("execution",)),
     ("probes, stages, driver, presentation", ("probe", "stages", "markers", "driver", "artifacts", "render",
                                              "media", "animate", "recording", "reduction_report", "report_text",
-                                             "progress", "replay", "scenario_job", "user_code", "other_failures")),
+                                             "progress", "replay", "scenario_job", "user_code", "other_failures",
+                                             "problem")),
     ("front ends and pytest glue", ("plugin", "pytest_options", "reduction_session", "pytest_worker", "given_example",
                                     "cli", "cli_world")),
 ]

@@ -48,6 +48,10 @@ from pytest_ddenv.reduce.types import (
 )
 from pytest_ddenv.validation import is_integral
 
+INDEPENDENCE = "independence"
+"""The log's purpose of the run of the world without its reducible elements (`check_independence`)."""
+WORLD_INDEPENDENT = "world-independent"
+"""The incomplete reason of a reduction that found the failure independent of the elements."""
 MAX_BACKOFFS = 3
 """How many times a reduction backs off from a minimal world that fails significantly less often than the
 original before it reports that world with its rate as it is."""
@@ -81,6 +85,7 @@ def reduce(
     failure_rate_runs: int = 20,
     on_progress: Callable[[ProgressEvent], None] | None = None,
     complement_order: str = "reverse",
+    check_independence: bool = False,
 ) -> Reduction:
     """Reduce a failing world to a 1-minimal failing sub-world.
 
@@ -91,6 +96,8 @@ def reduce(
     number of workers it has; default: the number of CPUs; ignored without one). Raises ReductionError for
     invalid arguments and ReductionInterrupted (carrying the partial `.reduction`) on KeyboardInterrupt;
     budgets end the reduction early with the best world so far and ``incomplete_reason`` set.
+    `check_independence`: first run the world without its reducible elements once (those the preconditions
+    need stay); if it reproduces f, nothing is reduced (`Reduction.independent`).
     """
     settings = validate(
         elements,
@@ -114,6 +121,7 @@ def reduce(
         log=log,
         failure_rate_runs=failure_rate_runs,
         on_progress=on_progress,
+        check_independence=check_independence,
     )
     return _Engine(settings, probe_window(workers)).run()
 
@@ -217,6 +225,7 @@ class _Engine:
         self.precondition_check: tuple[int, int] | None = None
         self.verifying = False
         self.calibration: tuple[int, int] | None = None
+        self.independent = False
 
     # -- driver -------------------------------------------------------------------------------------------
 
@@ -225,8 +234,9 @@ class _Engine:
             try:
                 self.write_start()
                 one_minimal, incomplete = self.reduce_and_check()
-                failure_rate = self.final_rate()
-                self.check_without_precondition_kept()
+                failure_rate = (0, 0) if self.independent else self.final_rate()
+                if not self.independent:
+                    self.check_without_precondition_kept()
             except KeyboardInterrupt as interrupt:
                 if isinstance(interrupt, ReductionInterrupted):
                     raise
@@ -245,6 +255,8 @@ class _Engine:
         """Reduce to a 1-minimal world, compare its failure rate with the original's and back off while it
         is significantly lower; (1-minimal, incomplete reason)."""
         try:
+            if self.settings.check_independence and self.reproduces_without_elements():
+                return False, WORLD_INDEPENDENT
             self.calibrate()
             while True:
                 one_minimal = self.reduce_to_one_minimal()
@@ -259,6 +271,25 @@ class _Engine:
                     return one_minimal, None
         except BudgetExhausted as exhausted:
             return False, exhausted.reason
+
+    def reproduces_without_elements(self) -> bool:
+        """Whether the world without every reducible element the preconditions allow to remove reproduces f
+        in one run (attempt 0, the reference's): then the failure does not depend on the elements. Logged
+        with purpose "independence" (a resumed log answers without a simulation)."""
+        needed = tuple(name for name in self.current if self.refused(self.full(tuple(
+            other for other in self.current if other != name))) is not None)
+        empty = self.full(needed)
+        if len(needed) == len(self.current) or self.refused(empty) is not None:
+            return False
+        known = self.log.measured(INDEPENDENCE, empty) if self.log is not None else {}
+        fails, runs = self.prober.measure(empty, 0, 1, purpose=INDEPENDENCE, known=known, strict=True)
+        self.independent = runs == 1 and fails == 1
+        return self.independent
+
+    def refused(self, candidate: Candidate) -> str | None:
+        """Why a precondition refuses `candidate` (None: none does)."""
+        return next((str(reason) for check in self.prober.preconditions if (reason := check(candidate)) is not None),
+                    None)
 
     def back_off(self) -> bool:
         """The minimal world fails significantly less often than the original: find (binary search over
@@ -486,8 +517,7 @@ class _Engine:
         (it was not shown needed for the failure, only for the scenario to be valid)."""
         kept: list[tuple[str, str]] = []
         for name in self.current:
-            candidate = self.full(tuple(other for other in self.current if other != name))
-            reason = next((str(r) for check in self.prober.preconditions if (r := check(candidate)) is not None), None)
+            reason = self.refused(self.full(tuple(other for other in self.current if other != name)))
             if reason is not None:
                 kept.append((name, reason))
         return tuple(kept)
@@ -580,6 +610,7 @@ class _Engine:
             rate_backoffs=self.backoffs,
             precondition_kept=self.precondition_kept(),
             without_precondition_kept=self.precondition_check,
+            independent=self.independent,
         )
 
     def write_start(self) -> None:

@@ -20,7 +20,7 @@ from pytest_ddenv.reduce.types import (
     ProgressEvent,
     Trace,
 )
-from pytest_ddenv.validation import expected, is_integral, is_real
+from pytest_ddenv.validation import expected, is_flag, is_integral, is_real
 
 GRANULARITIES: tuple[str, ...] = ("ddmin", "paper")
 COMPLEMENT_ORDERS: tuple[str, ...] = ("reverse", "priority")
@@ -48,6 +48,7 @@ class Settings:
     log: ProbeLog | str | os.PathLike[str] | None
     failure_rate_runs: int
     on_progress: Callable[[ProgressEvent], None] | None
+    check_independence: bool = False
 
     @property
     def reducible(self) -> tuple[str, ...]:
@@ -58,6 +59,12 @@ def _int(name: str, value: object, minimum: int) -> int:
     if not is_integral(value) or int(value) < minimum:
         raise ReductionError(expected(f"an integer >= {minimum}", value, name))
     return int(value)
+
+
+def _flag(name: str, value: object) -> bool:
+    if not is_flag(value):
+        raise ReductionError(expected("True or False", value, name))
+    return value
 
 
 def _choice(name: str, value: object, choices: tuple[str, ...]) -> str:
@@ -89,6 +96,7 @@ def validate(
     log: ProbeLog | str | os.PathLike[str] | None,
     failure_rate_runs: int,
     on_progress: Callable[[ProgressEvent], None] | None,
+    check_independence: bool = False,
 ) -> Settings:
     """Check every argument; raise ReductionError naming the argument, the value and what is allowed."""
     names = _elements(elements)
@@ -120,6 +128,7 @@ def validate(
         log=log,
         failure_rate_runs=_int("failure_rate_runs", failure_rate_runs, 0),
         on_progress=on_progress,
+        check_independence=_flag("check_independence", check_independence),
     )
 
 

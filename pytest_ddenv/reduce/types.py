@@ -184,7 +184,8 @@ class Reduction:
     one_minimal: bool
     """True when every single reducible element of `minimal` was shown necessary (see docs/algorithm.md)."""
     incomplete_reason: str | None
-    """None, "budget: max_probes", "budget: max_seconds", "interrupted", or "not verified: N candidates
+    """None, "budget: max_probes", "budget: max_seconds", "interrupted", "world-independent" (see
+    `independent`), or "not verified: N candidates
     errored" (the minimal world is 1-minimal only if those N single removals, rejected on ERROR runs alone,
     do not reproduce f; a resumed reduction tries them again)."""
     failure_rate: tuple[int, int]
@@ -221,6 +222,10 @@ class Reduction:
     without_precondition_kept: tuple[int, int] | None = None
     """(fails, runs) of `minimal` without the `precondition_kept` elements (preconditions bypassed, a few
     runs): information, not part of the verdict."""
+    independent: bool = False
+    """`check_independence`: the world without its reducible elements (but those the preconditions need)
+    reproduced f, so the failure does not depend on them and nothing was reduced (`incomplete_reason`
+    "world-independent")."""
 
     @property
     def original_failure_rate(self) -> tuple[int, int] | None:

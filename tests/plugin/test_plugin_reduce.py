@@ -130,7 +130,8 @@ def test_reduction_works_under_xdist(wall_project: pytest.Pytester) -> None:
 def test_interrupted_reduction_keeps_its_best_world_and_resumes_without_reprobing(
     wall_project: pytest.Pytester,
 ) -> None:
-    partial = wall_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-max-probes", "2")
+    # 3 simulations: the confirmation, the world without its models (it passes), one probe of the reduction
+    partial = wall_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-max-probes", "3")
     partial.assert_outcomes(failed=1)
     partial.stdout.fnmatch_lines(["*6 -> * models*probes*incomplete (budget: max_probes)*"])
     first = summary_of(wall_project)

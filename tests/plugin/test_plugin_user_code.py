@@ -230,8 +230,8 @@ def test_a_test_with_its_own_simulator_and_no_report_is_reduced_by_model_positio
 
 def test_a_run_that_raised_is_named_in_the_fallback_note(user_project: pytest.Pytester) -> None:
     docstring = '    """The controller under test: steady 0.6 m/s, gentle turns toward the goal."""\n'
-    user_project.makepyfile(test_scenario=USER_CODE_TEST.replace(
-        docstring, docstring + "    raise ZeroDivisionError('no plan')\n"))
+    user_project.makepyfile(test_scenario=USER_CODE_TEST.replace(  # it raises in front of the wall only
+        docstring, docstring + "    if min(observation.scan.ranges) < 1.0:\n        raise ZeroDivisionError('no plan')\n"))
     result = user_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-workers", "1", "--ddenv-media", "none")
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(["*note: robot_world.run() raised ZeroDivisionError, so there is no trajectory: "
