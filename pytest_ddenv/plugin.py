@@ -297,6 +297,10 @@ def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates:
         raise DdenvError(f"ddenv(keep=...) names model(s) not in {where}: {', '.join(map(shown, unknown))}")
     if not override:  # a reduced world (--ddenv-world minimal.yaml) may lack models the predicates name
         check_predicate_models(predicates, world.names, where)
+    if world.scenario is not None:  # a robot that does not fit its URDF: an error at setup, not a failure
+        from pytest_ddenv.sim.robot import check_robot
+
+        check_robot(world.scenario.robot, world.source)
     return world
 
 
