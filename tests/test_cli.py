@@ -392,7 +392,7 @@ def test_progress_without_a_terminal_prints_each_step_and_a_line_when_silent_too
     progress.update(_event("end", 2, 6, 35.0))
     progress.close()
     lines = stream.getvalue().splitlines()
-    assert [line.rsplit("| ", 1)[1] for line in lines] == ["start", "step", "probe", "end"]
+    assert [line.rsplit("| ", 1)[1] for line in lines] == ["start", "step", "probe", "models done"]
     assert "6 -> 3 models | 3 probes" in lines[1] and "| 5 probes | 00:34" in lines[2]
 
 
