@@ -125,6 +125,9 @@ PAGES: dict[str, Page] = {
             "lab_control.py": re.search(r'```python\n("""Our robot\'s software.*?)```',
                                         (DOCS / "cli.md").read_text(encoding="utf-8"), flags=re.DOTALL)[1],
             "yard.world": YARD_WORLD,
+            "rover.yaml": re.search(r"```yaml\n(format: 1\nscenario:\n  robot: \{urdf: robots/diffbot.*?)```",
+                                    (DOCS / "cli.md").read_text(encoding="utf-8"), flags=re.DOTALL)[1],
+            "robots/diffbot.urdf": (ROOT / "examples" / "robots" / "diffbot.urdf").read_text(encoding="utf-8"),
         },
         checks={"summary.json": (
             "recorded == (['lab_control'], 'lab_control:Avoider', [{'name': 'trapped', 'params': {'seconds': 15}}])",
