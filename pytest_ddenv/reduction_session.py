@@ -99,8 +99,8 @@ class ReductionSession:
     def _on_progress(self, event: ProgressEvent) -> None:
         probe_line = None
         if event.kind == "probe" and event.candidate is not None and event.outcome is not None:
-            probe_line = f"probe {event.probes}: {models(len(event.candidate))} -> {event.outcome.value}"
-        self.progress(f"reducing {self.item.name}: {models(event.size)}, {event.probes} probe"
+            probe_line = f"probe {event.probes}: {_models(len(event.candidate))} -> {event.outcome.value}"
+        self.progress(f"reducing {self.item.name}: {_models(event.size)}, {event.probes} probe"
                       f"{'s' if event.probes != 1 else ''}", probe_line=probe_line, event=event)
 
     def _describe(self, outcome: ReductionOutcome) -> dict[str, Any]:
@@ -113,7 +113,8 @@ class ReductionSession:
                                   seconds=None if self.seconds is None else self.seconds(), verbose=self.verbose)
 
 
-def models(count: int) -> str:
+def _models(count: int) -> str:
+    """"1 model", "2 models"."""
     return f"{count} model{'s' if count != 1 else ''}"
 
 
