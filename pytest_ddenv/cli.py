@@ -24,6 +24,7 @@ from pytest_ddenv.cli_world import (
     UsageError,
     add_scenario_options,
     add_world_options,
+    check_robot,
     dropped_models,
     load_world,
     with_scenario,
@@ -435,7 +436,9 @@ def _emit(arguments: argparse.Namespace, text: str, data: dict[str, Any]) -> Non
 # -- check, convert ---------------------------------------------------------------------------------------
 def _cmd_check(arguments: argparse.Namespace) -> int:
     world = load_world(arguments, arguments.world, warn=False)  # its notes say what was dropped
-    text = f"{arguments.world}: {len(world)} models ({len(world.reducible_names)} reducible)"
+    check_robot(world)
+    count = len(world)
+    text = f"{arguments.world}: {count} model{'s' if count != 1 else ''} ({len(world.reducible_names)} reducible)"
     text += "".join(f"\nnot simulated: {note}" for note in world.notes)
     _emit(arguments, text, {"ok": True, "world": arguments.world, "models": len(world),
                             "reducible": len(world.reducible_names), "names": list(world.names),

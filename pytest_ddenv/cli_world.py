@@ -80,6 +80,17 @@ def load_world(arguments: argparse.Namespace, path: str, *, warn: bool = True) -
     return world
 
 
+def check_robot(world: World) -> None:
+    """The robot of `world`'s scenario built as a run builds it, when the world file describes it by its URDF
+    (`sim.robot.check_robot`): a URDF pybullet cannot load or without a wheel joint raises `ScenarioError`
+    naming the file and the field. A registered robot's name is not checked: its registration is the user's
+    code (`ddenv run --import`)."""
+    if world.scenario is not None:
+        from pytest_ddenv.sim.robot import check_robot as check_scenario_robot
+
+        check_scenario_robot(world.scenario.robot, world.source)
+
+
 def with_scenario(arguments: argparse.Namespace, world: World, path: str) -> World:
     """`world` with the scenario the command line gives (a --scenario file, then --robot/--start/--goal/
     --timeout on top); UsageError when it still has none."""

@@ -571,7 +571,7 @@ def _confirm(plan: ReductionPlan, call: _Calls, note: Note,
     seen: list[str] = []
     errors: list[str] = []
     for attempt in range(runs):
-        note(f"confirming the failure ({attempt + 1}/{runs})")
+        note(f"confirming the failure: run {attempt + 1} of up to {runs}")  # it stops at the first that fails
         try:
             result = call(plan.world, attempt, record=plan.media == "all")
         except WorkerStartError as error:

@@ -13,7 +13,6 @@ import dataclasses
 import inspect
 import os
 import shlex
-import time
 import traceback
 import warnings
 from collections.abc import Generator
@@ -28,13 +27,13 @@ from pytest_ddenv.markers import (
     ReductionSpec,
 )
 from pytest_ddenv.pytest_options import DdenvOptions, add_options, read_options
+from pytest_ddenv.pytest_progress import PytestProgress, close_log, open_log
 from pytest_ddenv.robot_world import FIXTURE
 from pytest_ddenv.world import is_file
 
 if TYPE_CHECKING:
     from pytest_ddenv.given_example import GivenExample
     from pytest_ddenv.predicates import PredicateSpec
-    from pytest_ddenv.reduce import ProgressEvent
     from pytest_ddenv.robot_world import RobotWorld
     from pytest_ddenv.world import World
 
@@ -44,8 +43,6 @@ _spec_key = pytest.StashKey[tuple[ReductionSpec, "tuple[PredicateSpec, ...]"]]()
 _result_key = pytest.StashKey[dict[str, Any]]()
 _cluster_key = pytest.StashKey[Any]()
 _options_key = pytest.StashKey[DdenvOptions]()
-_log_key = pytest.StashKey[Any]()
-"""A text stream on the terminal pytest writes to, past output capture (for progress in CI logs)."""
 _misplaced_key = pytest.StashKey[dict[tuple[str, str], str]]()
 """Usage errors for predicates given alone to robot_failure(...), by (module node id, predicate name)."""
 _STATELESS_FIXTURES = {"request", "pytestconfig", "record_property", "record_xml_attribute", "tmp_path_factory"}
@@ -80,7 +77,7 @@ def pytest_configure(config: pytest.Config) -> None:
     )
     options = config.stash[_options_key] = read_options(config)
     if options.reduce:
-        _open_log(config)
+        open_log(config)
     from pytest_ddenv.pytest_worker import WORKER
 
     if options.world and not config.stash.get(WORKER, False):  # a @given test runs once on that world (replay)
@@ -103,23 +100,6 @@ def pytest_report_header(config: pytest.Config) -> str | None:
         workers = f"auto ({os.cpu_count() or 1} cores)"
     return (f"ddenv: reduction on, seed {seed_text}, workers {workers}, executor {options.executor or 'local'}, "
             f"media {options.media}, artifacts {options.artifacts}")
-
-
-def _open_log(config: pytest.Config) -> None:
-    """When pytest's output is not a terminal (a CI log): a stream on it that output capture does not
-    redirect, for the reduction's progress lines (made now, while capture is suspended)."""
-    import sys
-
-    if hasattr(config, "workerinput"):
-        return
-    try:
-        if sys.stdout.isatty():
-            return
-        descriptor = os.dup(sys.stdout.fileno())
-    except (AttributeError, OSError, ValueError):  # no file descriptor (an in-process pytester run, ...)
-        return
-    config.stash[_log_key] = os.fdopen(descriptor, "w", encoding=sys.stdout.encoding or "utf-8",
-                                       errors="replace")
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -297,6 +277,10 @@ def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates:
         raise DdenvError(f"ddenv(keep=...) names model(s) not in {where}: {', '.join(map(shown, unknown))}")
     if not override:  # a reduced world (--ddenv-world minimal.yaml) may lack models the predicates name
         check_predicate_models(predicates, world.names, where)
+    if world.scenario is not None:  # a robot that does not fit its URDF: an error at setup, not a failure
+        from pytest_ddenv.sim.robot import check_robot
+
+        check_robot(world.scenario.robot, world.source)
     return world
 
 
@@ -409,10 +393,7 @@ def _probe_pool(item: pytest.Function, example: GivenExample | None = None) -> A
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
-    log = config.stash.get(_log_key, None)
-    if log is not None:
-        log.close()
-        del config.stash[_log_key]
+    close_log(config)
     cluster = config.stash.get(_cluster_key, None)
     if cluster is not None:
         cluster.close()
@@ -432,7 +413,7 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call:
         stages=options.stages_for(spec.stages),
         stage_probes=options.stage_probes,
     )
-    progress = _ProgressLine(item.config)
+    progress = PytestProgress(item.config, item.nodeid)
     session = ReductionSession(
         item=item,
         error=error,
@@ -443,6 +424,8 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call:
         model_paths=options.model_paths,
         media=options.media,
         keep_other=options.keep_other,
+        seconds=progress.seconds,
+        verbose=item.config.get_verbosity() > 0,
     )
     try:
         session.example = _given_example(item, given_call)
@@ -458,6 +441,7 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call:
             "line": f"{item.nodeid}: no reduction: {problem}",
             "attachments": [],
         }
+        progress(result["line"], final=True)
     except Exception as crash:  # noqa: BLE001 - the test's own failure must stay what the user sees
         detail = "".join(traceback.format_exception(crash))
         result = {
@@ -465,12 +449,19 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call:
             "line": f"{item.nodeid}: reduction crashed: {type(crash).__name__}: {crash}",
             "attachments": [],
         }
+        progress(result["line"], final=True)
     finally:
         progress.close()
+    result["attachments_shown"] = item.config.get_verbosity() > 0
     item.stash[_result_key] = result
-    attachments = "".join(f"[[ATTACHMENT|{path}]]\n" for path in result.get("attachments", []))
-    if attachments:  # a stdout section reaches JUnit's <system-out> (with junit_logging = system-out)
+    attachments = _attachment_lines(result)
+    if attachments:  # a stdout section: JUnit's <system-out> (junit_logging = system-out); not the terminal's
         item.add_report_section("call", "stdout", attachments)
+
+
+def _attachment_lines(result: dict[str, Any]) -> str:
+    """The JUnit attachments of a reduction's files, one `[[ATTACHMENT|path]]` line each (GitLab, Jenkins)."""
+    return "".join(f"[[ATTACHMENT|{path}]]\n" for path in result.get("attachments", []))
 
 
 def _warn_about_shared_fixtures(item: pytest.Function) -> None:
@@ -492,74 +483,6 @@ def _warn_about_shared_fixtures(item: pytest.Function) -> None:
             ),
             stacklevel=1,
         )
-
-
-class _ProgressLine:
-    """The reduction's progress. On a terminal: one updating line (a line per probe with -v). Otherwise (a CI
-    log): a line for each note, at the start, at each accepted step, at verification and at the end, and at
-    least one line every HEARTBEAT_SECONDS, written to the terminal past pytest's output capture."""
-
-    def __init__(self, config: pytest.Config) -> None:
-        from pytest_ddenv.progress import Heartbeat
-
-        self.config = config
-        self.reporter = config.pluginmanager.getplugin("terminalreporter")
-        self.capture = config.pluginmanager.getplugin("capturemanager")
-        self.verbose = config.get_verbosity() > 0
-        self.started = time.monotonic()
-        self.silent = self.reporter is None or hasattr(config, "workerinput")
-        self.live = not self.silent and bool(self.reporter.isatty)
-        self.log = None if self.silent or self.live else config.stash.get(_log_key, None)
-        self.heartbeat = Heartbeat(self._beat)
-        self._text = ""
-        if self.log is not None:  # lines go past pytest, after what pytest has written so far
-            with self._suspended():
-                self.reporter.ensure_newline()
-                self.reporter.flush()
-            self.heartbeat.start()
-
-    def __call__(self, text: str, *, final: bool = False, probe_line: str | None = None,
-                 event: ProgressEvent | None = None) -> None:
-        """`event`: the engine event this line words, if any (a CI log needs to know which are steps)."""
-        if self.silent:
-            return
-        elapsed = time.monotonic() - self.started
-        line = f"ddenv: {text}" if final else f"ddenv: {text}, {elapsed:.0f} s"
-        with self.heartbeat.lock:
-            self._text = text
-            if self.verbose and probe_line:
-                self._write(f"    {probe_line}")
-            elif final:
-                self._write(line)
-            elif self.live:
-                self._rewrite(line)
-            elif event is None or event.kind in ("start", "step", "verify", "end") or self.heartbeat.due():
-                self._write(line if event is None else f"{line} ({event.kind})")
-
-    def _beat(self) -> None:
-        """The heartbeat's line: the latest progress with the time now."""
-        self._write(f"ddenv: {self._text or 'reducing'}, {time.monotonic() - self.started:.0f} s (running)")
-
-    def _write(self, line: str) -> None:
-        if self.log is not None:
-            self.log.write(line + "\n")
-            self.log.flush()
-        else:
-            with self._suspended():
-                self.reporter.write_line(line)
-        self.heartbeat.wrote()
-
-    def _rewrite(self, line: str) -> None:
-        with self._suspended():
-            self.reporter.rewrite(line, erase=True)
-
-    def _suspended(self) -> contextlib.AbstractContextManager[None]:
-        if self.capture is None:
-            return contextlib.nullcontext()
-        return self.capture.global_and_fixture_disabled()  # type: ignore[no-any-return]
-
-    def close(self) -> None:
-        self.heartbeat.close()
 
 
 # -- reports -----------------------------------------------------------------------------------------------
@@ -587,6 +510,19 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
                 extras.append(html.extras.url(path, name=Path(path).name))
         report.extras = extras
     return report
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_logreport(report: pytest.TestReport) -> Generator[None, None, None]:
+    """Once every plugin has had the call's report (JUnit XML writes its `[[ATTACHMENT|...]]` lines from it, or
+    from the teardown's, which keeps them), the lines leave the sections pytest prints for a failed test,
+    unless -v: a failing test shows the user's own output, and the reduction's section says where the files are."""
+    yield
+    result = getattr(report, REPORT_KEY, None)
+    if report.when != "call" or not isinstance(result, dict) or result.get("attachments_shown", True):
+        return
+    lines = ("Captured stdout call", _attachment_lines(result))
+    report.sections = [section for section in report.sections if section != lines]
 
 
 _HTML_FIRST = ("minimal.gif", "original.gif")

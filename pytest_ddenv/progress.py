@@ -16,6 +16,20 @@ if TYPE_CHECKING:  # pragma: no cover
 
 HEARTBEAT_SECONDS = 30.0
 """Longest silence of a reduction's progress in a log that is not a terminal (CI)."""
+LABELS = {"end": "models done"}
+"""How a CI log's line names the engine event it shows (its kind, unless renamed here): after "end" come the
+stages, the files and the pictures."""
+
+
+def label_of(kind: str) -> str:
+    """The name of an engine event's kind in a progress line."""
+    return LABELS.get(kind, kind)
+
+
+def heartbeat_label(done: bool) -> str:
+    """The name of a heartbeat's line: "running" while the models are reduced, "finishing" once they are done
+    (`done`: the stages after the models, the files and the pictures)."""
+    return "finishing" if done else "running"
 
 
 class Heartbeat:
@@ -23,10 +37,10 @@ class Heartbeat:
     so that a CI log gets a line at least that often even while one long probe runs. Writers call `wrote()`
     after each line, holding `lock` (which `beat` is called with) so that lines never interleave."""
 
-    def __init__(self, beat: Callable[[], None], interval: float = HEARTBEAT_SECONDS,
+    def __init__(self, beat: Callable[[], None], interval: float | None = None,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.lock = threading.RLock()
-        self.interval = interval
+        self.interval = HEARTBEAT_SECONDS if interval is None else interval
         self._beat = beat
         self._clock = clock
         self._last = clock()
@@ -64,7 +78,7 @@ class ProgressLine:
 
     WIDTH = 24
 
-    def __init__(self, stream: IO[str], *, quiet: bool = False, heartbeat: float = HEARTBEAT_SECONDS) -> None:
+    def __init__(self, stream: IO[str], *, quiet: bool = False, heartbeat: float | None = None) -> None:
         self.stream = stream
         self.quiet = quiet
         self.live = not quiet and stream.isatty() and os.environ.get("TERM") != "dumb"
@@ -91,7 +105,7 @@ class ProgressLine:
             if self.original is None:
                 self.original = event.size
             self._last = (event, time.perf_counter())
-            line = self._line(event, event.elapsed, event.kind)
+            line = self._line(event, event.elapsed, label_of(event.kind))
             if self.live:
                 self.stream.write("\r" + line.ljust(self._width))
                 self.stream.flush()
@@ -105,7 +119,7 @@ class ProgressLine:
             self._print(f"ddenv: {self._note or 'working'} ({time.perf_counter() - self.started:.0f} s)")
             return
         event, seen = self._last
-        self._print(self._line(event, event.elapsed + time.perf_counter() - seen, "running"))
+        self._print(self._line(event, event.elapsed + time.perf_counter() - seen, heartbeat_label(event.kind == "end")))
 
     def _print(self, line: str) -> None:
         print(line, file=self.stream, flush=True)

@@ -23,7 +23,7 @@ from pytest_ddenv.given_example import GivenExample, reproduction
 from pytest_ddenv.markers import ReductionSpec
 from pytest_ddenv.media import DEFAULT_MEDIA
 from pytest_ddenv.probe import FailureReference, describe_error
-from pytest_ddenv.reduce.types import ProgressEvent, ReductionInterrupted
+from pytest_ddenv.reduce.types import ProgressEvent, Reduction, ReductionInterrupted
 from pytest_ddenv.report_text import result_lines, status_of
 from pytest_ddenv.robot_world import FIXTURE, RobotWorld
 
@@ -48,6 +48,11 @@ class ReductionSession:
     """The falsifying example of a `@given` test (its world is the one reduced)."""
     keep_other: int = 0
     """`--ddenv-keep-other`: write the smallest worlds of this many other failures (`other-<k>.yaml`)."""
+    seconds: Callable[[], float] | None = None
+    """Seconds since the reduction started, on the progress lines' clock (the result line's time); None: the
+    engine's own time."""
+    verbose: bool = False
+    """-v: the report section also gives the statistics of the failure-rate comparison."""
 
     def run(self, pool: Pool) -> dict[str, Any]:
         fixture: RobotWorld = self.item.funcargs[FIXTURE]  # type: ignore[assignment]
@@ -103,9 +108,9 @@ class ReductionSession:
     def _on_progress(self, event: ProgressEvent) -> None:
         probe_line = None
         if event.kind == "probe" and event.candidate is not None and event.outcome is not None:
-            probe_line = f"probe {event.probes}: {len(event.candidate)} models -> {event.outcome.value}"
-        self.progress(f"reducing {self.item.name}: {event.size} models, {event.probes} probes", probe_line=probe_line,
-                      event=event)
+            probe_line = f"probe {event.probes}: {_models(len(event.candidate))} -> {event.outcome.value}"
+        self.progress(f"reducing {self.item.name}: {_models(event.size)}, {event.probes} probe"
+                      f"{'s' if event.probes != 1 else ''}", probe_line=probe_line, event=event)
 
     def _describe(self, outcome: ReductionOutcome) -> dict[str, Any]:
         if outcome.status != "reduced":
@@ -113,11 +118,19 @@ class ReductionSession:
             return {"text": outcome.message + "\n", "line": line, "attachments": [],
                     "reproducible": outcome.status != "not-reproducible", "status": outcome.status}
         assert outcome.report is not None
-        return describe_reduction(self.item.nodeid, outcome.report, outcome.attachments)
+        return describe_reduction(self.item.nodeid, outcome.report, outcome.attachments,
+                                  seconds=None if self.seconds is None else self.seconds(), verbose=self.verbose)
 
 
-def describe_reduction(test_id: str, report: ReductionReport, attachments: Sequence[Path]) -> dict[str, Any]:
-    """The report section, the terminal line and the attachments of a reduction."""
+def _models(count: int) -> str:
+    """"1 model", "2 models"."""
+    return f"{count} model{'s' if count != 1 else ''}"
+
+
+def describe_reduction(test_id: str, report: ReductionReport, attachments: Sequence[Path], *,
+                       seconds: float | None = None, verbose: bool = False) -> dict[str, Any]:
+    """The report section, the terminal line and the attachments of a reduction. `seconds`: how long it took
+    (default: the engine's time); `verbose`: the statistics of the failure-rate comparison too."""
     reduction = report.reduction
     fails, runs = reduction.failure_rate
     status = status_of(reduction)
@@ -127,17 +140,27 @@ def describe_reduction(test_id: str, report: ReductionReport, attachments: Seque
         (f"reduced {reduction.original_size} -> {reduction.minimal_size} models "
          f"({report.reduction_percent}%), {status}"),
         *result_lines(report),
+        *(rate_statistics(reduction) if verbose else []),
         f"artifacts: {folder}",
         f"replay: {report.replay}",
     ]
     line = (
         f"{test_id}: {reduction.original_size} -> {reduction.minimal_size} models "
         f"({report.reduction_percent:.0f}%), {reduction.probes} probes, {report.cost.simulations} simulations, "
-        f"{reduction.wall_time:.0f} s, "
+        f"{reduction.wall_time if seconds is None else seconds:.0f} s, "
         f"fails {fails}/{runs}{'' if reduction.one_minimal else ', ' + status} -> {folder}"
     )
     return {"text": "\n".join(lines) + "\n", "line": line, "attachments": [str(p) for p in attachments],
             "summary": report.to_json(), "reproducible": True, "status": "reduced"}
+
+
+def rate_statistics(reduction: Reduction) -> list[str]:
+    """The test behind the failure-rate line (docs/algorithm.md section 2), as summary.json's `rate_check` has it."""
+    check = reduction.rate_check
+    if check is None:
+        return []
+    return [(f"rate check (one-sided Fisher exact test): p = {check.p_value:.3g}, level {check.level:.3g} per look, "
+             f"decision {check.decision!r} on {check.reduced} vs {check.original} fresh runs")]
 
 
 def _shown_path(path: Path) -> Path:

@@ -76,11 +76,16 @@ def failure_rate_line(reduction: Reduction) -> str:
     if check is not None and check.decision == "continue":
         return (f"minimal world fails {check.reduced} fresh runs vs the original's {check.original}: undecided, "
                 "the budget stopped the rate comparison (warning: the rate is not checked)")
-    if check is not None:
-        line = f"minimal world {check.describe()}"
+    if check is not None:  # in words; the test's statistics are in summary.json (rate_check) and under -v
+        runs_text = f"{check.reduced} vs {check.original} fresh runs"
         if check.decision == "below":
-            line += f" (warning: it fails less often than the original, after {reduction.rate_backoffs} back-offs)"
-        return line
+            return (f"minimal world fails less often than the original: {runs_text} (warning: significantly less "
+                    f"often, after {reduction.rate_backoffs} back-offs)")
+        if check.reduced.value < check.original.value:
+            return f"minimal world fails about as often as the original: {runs_text} (fewer, within chance)"
+        if check.reduced.value > check.original.value:
+            return f"minimal world fails at least as often as the original: {runs_text}"
+        return f"minimal world fails as often as the original: {runs_text}"
     line = f"minimal world fails {fails}/{runs} fresh runs"
     original = reduction.original_failure_rate
     if original is not None:

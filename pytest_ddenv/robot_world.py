@@ -24,9 +24,20 @@ FIXTURE = "robot_world"
 ATTEMPT_SEED_STRIDE = 1_000_003
 """Re-run k of a probe uses seed + k * stride, so deflaking re-runs never collide with a test's own seeds."""
 DEFAULT_MAX_WALL_TIME = 300.0
+"""Wall-clock seconds one `run()` may take before it fails with `ControllerTimeout` (`--ddenv-run-timeout`)."""
 NO_WORLD_YET = World(name="no world yet: a @given test binds each drawn world with robot_world.rebound(world)")
 """The fixture's world in a `@given` test without a world marker: the test draws its worlds."""
-"""Wall-clock seconds one `run()` may take before it fails with `ControllerTimeout` (`--ddenv-run-timeout`)."""
+
+
+def _hidden_in_tracebacks(excinfo: object) -> bool:
+    """`sim.tracebacks.hidden_in_tracebacks`, imported when pytest asks (loading the plugin loads no simulation)."""
+    from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
+
+    return hidden_in_tracebacks(excinfo)
+
+
+__tracebackhide__ = _hidden_in_tracebacks
+"""pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
 
 
 class RobotFailure(AssertionError):
@@ -94,7 +105,9 @@ class RobotWorld:
         """The last `rebound` of this one (a Hypothesis test binds each generated world with it)."""
 
     def __repr__(self) -> str:
-        return f"RobotWorld({self.world.name or self.world.source!r}, {len(self.world)} models, seed={self.seed})"
+        count = len(self.world)
+        return (f"RobotWorld({self.world.name or self.world.source!r}, {count} model{'s' if count != 1 else ''}, "
+                f"seed={self.seed})")
 
     def rebound(self, world: World, *, attempt: int | None = None) -> RobotWorld:
         """The same test setup (predicates, seed, time limits) on another world: a world the test generates

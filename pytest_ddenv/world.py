@@ -14,7 +14,7 @@ import re
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -291,6 +291,22 @@ class World:
 
     def __len__(self) -> int:
         return len(self.models)
+
+    REPR_MODELS = 4
+    """How many model names `repr()` shows."""
+
+    def __repr__(self) -> str:
+        """One short line: the name, the number of models and the first names (a world may hold hundreds of
+        models; `World.save` writes all of it)."""
+        count = len(self.models)
+        names = ", ".join(self.names[:self.REPR_MODELS]) + (", ..." if count > self.REPR_MODELS else "")
+        models = f"{count} model{'s' if count != 1 else ''}: {names}" if count else "no models"
+        return f"World({f'{self.name!r}, ' if self.name else ''}{models})"
+
+    def _repr_pretty_(self, printer: Any, cycle: bool) -> None:
+        """The same short line in Hypothesis' and IPython's pretty printers (they print a dataclass field by
+        field otherwise)."""
+        printer.text(repr(self))
 
     def __iter__(self) -> Iterator[Model]:
         return iter(self.models)

@@ -171,7 +171,7 @@ def test_everything_not_simulated_is_said_by_check(capsys: pytest.CaptureFixture
     assert code == 2 and err.startswith("ddenv: error: all.world:28, model visitor: unsupported <actor>")
     code, out, _ = run(capsys, "check", "all.world", "--skip-unsupported")
     assert code == 0 and out.splitlines() == [
-        "all.world: 1 models (1 reducible)",
+        "all.world: 1 model (1 reducible)",
         "not simulated: dropped visitor: unsupported <actor>: animated actors are not simulated (all.world:28)",
         "not simulated: joints: door (1 joint); each articulated model is simulated as one rigid body",
         "not simulated: plugins: libworld_stats.so (world), libdoor_opener.so (door); plugins do not run",
@@ -179,3 +179,43 @@ def test_everything_not_simulated_is_said_by_check(capsys: pytest.CaptureFixture
     ]
     code, out, _ = run(capsys, "check", "all.world", "--skip-unsupported", "--json")
     assert code == 0 and json.loads(out)["names"] == ["door"] and len(json.loads(out)["notes"]) == 4
+
+
+HUSKY_SIDES = "right_wheels: [front_right_wheel, rear_right_wheel], drive: skid-steer"
+
+
+@pytest.mark.parametrize(("robot", "urdf_text", "field", "words"), [
+    ("{urdf: HUSKY, left_wheels: [front_left_wheel, rear_left_whel], " + HUSKY_SIDES + "}", None,
+     "scenario.robot.left_wheels", "the robot's URDF HUSKY has no joint named 'rear_left_whel'; its joints: "),
+    ("{urdf: broken.urdf, left_wheels: [front_left_wheel], " + HUSKY_SIDES + "}", "<robot name='x'><link",
+     "scenario.robot.urdf", "pybullet cannot load the URDF broken.urdf"),
+    ("{urdf: gone.urdf, left_wheels: [front_left_wheel], " + HUSKY_SIDES + "}", None,
+     "scenario.robot.urdf", "URDF file not found: gone.urdf"),
+], ids=["wrong-wheel-joint", "unloadable-urdf", "missing-urdf"])
+def test_check_loads_the_robot_and_names_the_file_and_field_of_what_does_not_fit(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, robot: str,
+        urdf_text: str | None, field: str, words: str) -> None:
+    import pybullet_data
+
+    husky = str(Path(pybullet_data.getDataPath()) / "husky" / "husky.urdf")
+    monkeypatch.chdir(tmp_path)
+    if urdf_text is not None:
+        Path("broken.urdf").write_text(urdf_text)
+    Path("robot.yaml").write_text(f"format: 1\nscenario: {{robot: {robot.replace('HUSKY', husky)}, start: {{x: 0, y: 0}}, "
+                                  "goal: {x: 3, y: 0}, timeout: 5}\nmodels: []\n")
+    code, out, err = run(capsys, "check", "robot.yaml")
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert err.startswith(f"ddenv: error: robot.yaml, field '{field}': ") and words.replace("HUSKY", husky) in err, err
+
+
+def test_check_accepts_a_robot_that_fits_its_urdf(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    import pybullet_data
+
+    husky = Path(pybullet_data.getDataPath()) / "husky" / "husky.urdf"
+    monkeypatch.chdir(tmp_path)
+    Path("robot.yaml").write_text(f"format: 1\nscenario: {{robot: {{urdf: {husky}, left_wheels: [front_left_wheel], "
+                                  f"{HUSKY_SIDES}}}, start: {{x: 0, y: 0}}, goal: {{x: 3, y: 0}}, timeout: 5}}\n"
+                                  "models: []\n")
+    code, out, err = run(capsys, "check", "robot.yaml")
+    assert (code, out, err) == (0, "robot.yaml: 0 models (0 reducible)\n", "")

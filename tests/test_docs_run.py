@@ -125,6 +125,9 @@ PAGES: dict[str, Page] = {
             "lab_control.py": re.search(r'```python\n("""Our robot\'s software.*?)```',
                                         (DOCS / "cli.md").read_text(encoding="utf-8"), flags=re.DOTALL)[1],
             "yard.world": YARD_WORLD,
+            "rover.yaml": re.search(r"```yaml\n(format: 1\nscenario:\n  robot: \{urdf: robots/diffbot.*?)```",
+                                    (DOCS / "cli.md").read_text(encoding="utf-8"), flags=re.DOTALL)[1],
+            "robots/diffbot.urdf": (ROOT / "examples" / "robots" / "diffbot.urdf").read_text(encoding="utf-8"),
         },
         checks={"summary.json": (
             "recorded == (['lab_control'], 'lab_control:Avoider', [{'name': 'trapped', 'params': {'seconds': 15}}])",
@@ -474,7 +477,7 @@ def test_the_harness_compares_output_and_exit_codes(workdir: Path, request: pyte
                                                     monkeypatch: pytest.MonkeyPatch) -> None:
     """A synthetic page: shown output must be printed, exit codes must match, `pytest` runs in a subprocess."""
     good = (
-        "```console\n$ ddenv check worlds/tiny.yaml\nworlds/tiny.yaml: 1 models (1 reducible)\n"
+        "```console\n$ ddenv check worlds/tiny.yaml\nworlds/tiny.yaml: 1 model (1 reducible)\n"
         "$ ddenv check worlds/nothing.yaml\nddenv: error: worlds/nothing.yaml: no such world file\n```\n\n"
         "```python\nfrom pytest_ddenv import World\n\nworld = World.load('worlds/tiny.yaml')\n```\n\n"
         "```console\n$ pytest -q test_tiny.py\n...\n1 passed in 0.01s\n$ echo $?\n0\n```\n"

@@ -291,7 +291,8 @@ def test_pytest_keeps_the_other_failures_of_a_scenario_test(pytester: pytest.Pyt
             assert robot_world.run().reached_goal
         """)
     result = pytester.runpytest_subprocess("--ddenv-reduce", "--ddenv-keep-other", "1", "--ddenv-stages", "models",
-                                           "--ddenv-media", "none", "--ddenv-workers", "2", "-p", "no:cacheprovider")
+                                           "--ddenv-media", "none", "--ddenv-workers", "2", "-p", "no:cacheprovider",
+                                           "-o", "junit_logging=system-out", "--junitxml=junit.xml")
     result.assert_outcomes(failed=1)
     (summary_path,) = pytester.path.glob("ddenv-artifacts/*/summary.json")
     summary = json.loads(summary_path.read_text())
@@ -300,4 +301,5 @@ def test_pytest_keeps_the_other_failures_of_a_scenario_test(pytester: pytest.Pyt
     assert kept.name == "other-1.yaml" and World.load(kept).names == tuple(
         summary["other_failures"][0]["smallest_world"]["models"])
     assert not (summary_path.parent / "other-2.yaml").exists()
-    result.stdout.fnmatch_lines(["*[[]ATTACHMENT|*other-1.yaml[]]*", "*other failure: * (other-1.yaml)"])
+    assert f"[[ATTACHMENT|{kept}]]" in (pytester.path / "junit.xml").read_text()
+    result.stdout.fnmatch_lines(["*other failure: * (other-1.yaml)"])

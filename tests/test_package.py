@@ -88,8 +88,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
                                              "media", "animate", "recording", "reduction_report", "report_text",
                                              "progress", "replay", "scenario_job", "user_code", "other_failures",
                                              "problem")),
-    ("front ends and pytest glue", ("plugin", "pytest_options", "reduction_session", "pytest_worker", "given_example",
-                                    "cli", "cli_world")),
+    ("front ends and pytest glue", ("plugin", "pytest_options", "pytest_progress", "reduction_session",
+                                    "pytest_worker", "given_example", "cli", "cli_world")),
 ]
 PACKAGE = Path(pytest_ddenv.__file__).parent
 

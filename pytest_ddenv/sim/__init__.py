@@ -25,7 +25,11 @@ from pytest_ddenv.sim.episode import Episode
 from pytest_ddenv.sim.robot import ROBOTS, Husky, Robot, WheeledRobot, register_robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import NoiseSettings, RunSettings
+from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.world import World
+
+__tracebackhide__ = hidden_in_tracebacks
+"""pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
 
 __all__ = [
     "ROBOTS",

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from pytest_ddenv.errors import WorldError
+from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.world import (
     Model,
     Pose,
@@ -21,6 +22,9 @@ from pytest_ddenv.world import (
     polyline_polygon,
     resolve_mesh_path,
 )
+
+__tracebackhide__ = hidden_in_tracebacks
+"""pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
 
 GROUND_BODY_NAME = "<ground>"
 _NATIVE_MESH_SUFFIXES = (".obj", ".stl")

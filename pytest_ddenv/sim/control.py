@@ -17,7 +17,11 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.validation import expected, is_real
+
+__tracebackhide__ = hidden_in_tracebacks
+"""pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
 
 if TYPE_CHECKING:
     from pytest_ddenv.predicates import Contact

@@ -25,8 +25,12 @@ from pytest_ddenv.sim.episode import Episode, noise_streams
 from pytest_ddenv.sim.robot import ROBOTS, Robot, make_robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
+from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.validation import expected, is_finite_number, is_integral, is_number
 from pytest_ddenv.world import RobotDescription, Scenario, World
+
+__tracebackhide__ = hidden_in_tracebacks
+"""pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
 
 START_CLEARANCE = 0.01
 """Spawn height above the support surface (m); the robot settles from there."""

@@ -26,7 +26,11 @@ from pytest_ddenv.sim.laser import Laser
 from pytest_ddenv.sim.robot import Robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
+from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.world import Scenario, World
+
+__tracebackhide__ = hidden_in_tracebacks
+"""pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
 
 NOISE_STREAMS = ("start", "actuation", "odometry", "imu", "laser")
 

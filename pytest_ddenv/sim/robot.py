@@ -22,9 +22,13 @@ from typing import Any
 from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.sim.control import ControllerError
 from pytest_ddenv.sim.quiet import silenced
-from pytest_ddenv.sim.urdf_geometry import UrdfGeometry, measure_urdf
+from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
+from pytest_ddenv.sim.urdf_geometry import UrdfGeometry, check_wheel_joints, measure_urdf, urdf_joint_names
 from pytest_ddenv.validation import expected
 from pytest_ddenv.world import DRIVE_KINDS, LaserMount, RobotDescription, resolve_relative
+
+__tracebackhide__ = hidden_in_tracebacks
+"""pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
 
 
 class Robot(abc.ABC):
@@ -142,8 +146,11 @@ class WheeledRobot(Robot):
         self.implicit_cylinder = implicit_cylinder
         self.merge_fixed_links = merge_fixed_links
         measured: UrdfGeometry | None = None
-        if None in (wheel_radius, track, footprint, base_height) or laser is True:
+        if None in (wheel_radius, track, footprint, base_height) or laser is True:  # it checks the joints too
             measured = measure_urdf(self.urdf, self._flags(), self.left, self.right, source=source)
+        else:  # found now, before a run spawns the robot
+            check_wheel_joints(self.urdf, urdf_joint_names(self.urdf, self._flags(), source=source), self.left,
+                               self.right, source=source)
         self.wheel_radius = float(wheel_radius if wheel_radius is not None else measured.wheel_radius)  # type: ignore[union-attr]
         if track is None and measured.track is None:  # type: ignore[union-attr]
             raise ScenarioError(f"{self.urdf}: the left and right wheels are at the same lateral position, so the "
@@ -178,7 +185,8 @@ class WheeledRobot(Robot):
         )
 
     def _flags(self) -> int:
-        import pybullet as p
+        with silenced():  # importing pybullet prints its build time on the C-level stdout
+            import pybullet as p
 
         flags = p.URDF_USE_IMPLICIT_CYLINDER if self.implicit_cylinder else 0
         if self.merge_fixed_links:
@@ -200,11 +208,7 @@ class WheeledRobot(Robot):
             joints[info[1].decode()] = index
             self._links[index] = info[12].decode()
             mass += p.getDynamicsInfo(body, index, physicsClientId=client)[0]
-        missing = [name for name in self.wheel_names if name not in joints]
-        if missing:
-            side = "left_wheels" if missing[0] in self.left else "right_wheels"
-            raise ScenarioError(f"{self.urdf} has no joint named {', '.join(map(repr, missing))}; its joints: "
-                                f"{', '.join(joints) or '(none)'}", source=self.source, field=f"scenario.robot.{side}")
+        check_wheel_joints(self.urdf, joints, self.left, self.right, source=self.source)
         self._wheels = tuple(joints[name] for name in self.wheel_names)
         self._mass = mass if self._known_mass is None else self._known_mass
         # free the wheels from the default velocity motors before commanding them
@@ -320,6 +324,17 @@ def _described(name: str, where: str, description: RobotDescription) -> WheeledR
         return WheeledRobot.from_description(description)
     except ScenarioError as error:
         raise ScenarioError(f"robot {name!r} (registered at {where}): {error.reason}", field=error.field) from None
+
+
+def check_robot(robot: str | RobotDescription, source: str | None = None) -> None:
+    """Build a scenario's robot as a run does, without a simulation, when it is described by its URDF (a world
+    file's `scenario.robot` mapping, or a name registered with a `RobotDescription`): a URDF pybullet cannot
+    load, a wheel joint it does not have, a wheel without a collision shape raise `ScenarioError` naming the
+    world file `source` and the field. A robot of a factory of yours, or a name not registered (yet), is left
+    to the run."""
+    factory = ROBOTS.get(robot) if isinstance(robot, str) else None
+    if isinstance(robot, RobotDescription) or (isinstance(factory, partial) and factory.func is _described):
+        make_robot(robot, source)
 
 
 def make_robot(robot: str | RobotDescription, source: str | None = None) -> Robot:

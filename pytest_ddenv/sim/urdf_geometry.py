@@ -8,12 +8,17 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.sim.quiet import silenced
+from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.world import LaserMount
+
+__tracebackhide__ = hidden_in_tracebacks
+"""pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
 
 LASER_CLEARANCE = 0.05
 """m: the automatic laser mount sits this far above the robot's top and starts its rays this far outside it."""
@@ -33,6 +38,47 @@ class UrdfGeometry:
 
 
 _cache: dict[tuple[str, float, int, tuple[str, ...], tuple[str, ...]], UrdfGeometry] = {}
+_joints: dict[tuple[str, float, int], tuple[str, ...]] = {}
+
+
+def urdf_joint_names(urdf: str, flags: int, *, source: str | None = None) -> tuple[str, ...]:
+    """The joints of `urdf` loaded with `flags` in a scratch client (cached per file); ScenarioError naming the
+    world file `source` when pybullet cannot load it."""
+    key = (os.path.abspath(urdf), os.path.getmtime(urdf), flags)
+    if key not in _joints:
+        with silenced():
+            import pybullet as p
+
+            client = p.connect(p.DIRECT)
+        try:
+            body = _load(p, client, urdf, flags, source)
+            _joints[key] = tuple(p.getJointInfo(body, j, physicsClientId=client)[1].decode()
+                                 for j in range(p.getNumJoints(body, physicsClientId=client)))
+        finally:
+            p.disconnect(physicsClientId=client)
+    return _joints[key]
+
+
+def check_wheel_joints(urdf: str, joints: Collection[str], left: Sequence[str], right: Sequence[str], *,
+                       source: str | None = None) -> None:
+    """ScenarioError naming the world file `source` and the field (`scenario.robot.left_wheels` or
+    `right_wheels`) when a wheel joint is not one of the URDF's `joints`."""
+    for side, names in (("left_wheels", left), ("right_wheels", right)):
+        missing = [name for name in names if name not in joints]
+        if missing:
+            raise ScenarioError(f"the robot's URDF {urdf} has no joint named {', '.join(map(repr, missing))}; its "
+                                f"joints: {', '.join(joints) or '(none)'}", source=source,
+                                field=f"scenario.robot.{side}")
+
+
+def _load(p: Any, client: int, urdf: str, flags: int, source: str | None) -> int:
+    """`urdf` loaded at the origin in the scratch `client`."""
+    try:
+        with silenced():
+            return int(p.loadURDF(urdf, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], flags=flags, physicsClientId=client))
+    except p.error as error:
+        raise ScenarioError(f"pybullet cannot load the URDF {urdf}: {error}", source=source,
+                            field="scenario.robot.urdf") from None
 
 
 def measure_urdf(urdf: str, flags: int, left: Sequence[str], right: Sequence[str], *,
@@ -50,19 +96,10 @@ def _measure(urdf: str, flags: int, left: tuple[str, ...], right: tuple[str, ...
 
         client = p.connect(p.DIRECT)
     try:
-        try:
-            with silenced():
-                body = p.loadURDF(urdf, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], flags=flags, physicsClientId=client)
-        except p.error as error:
-            raise ScenarioError(f"pybullet cannot load the URDF {urdf}: {error}", source=source,
-                                field="scenario.robot.urdf") from None
+        body = _load(p, client, urdf, flags, source)
         joints = {p.getJointInfo(body, j, physicsClientId=client)[1].decode(): j
                   for j in range(p.getNumJoints(body, physicsClientId=client))}
-        for side, names in (("left_wheels", left), ("right_wheels", right)):
-            missing = [name for name in names if name not in joints]
-            if missing:
-                raise ScenarioError(f"{urdf} has no joint named {', '.join(map(repr, missing))}; its joints: "
-                                    f"{', '.join(joints) or '(none)'}", source=source, field=f"scenario.robot.{side}")
+        check_wheel_joints(urdf, joints, left, right, source=source)
         links = [-1, *joints.values()]
         boxes = [p.getAABB(body, link, physicsClientId=client) for link in links]
         low = [min(box[0][axis] for box in boxes) for axis in range(3)]

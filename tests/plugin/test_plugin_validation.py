@@ -177,6 +177,6 @@ def test_ci_logs_get_progress_lines_and_relative_artifacts_follow_the_invocation
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(["ddenv: reducing test_reaches_goal: 6 models, 0 probes, * s (start)",
                                  "ddenv: reducing test_reaches_goal: * models, * probes, * s (step)",
-                                 "ddenv: reducing test_reaches_goal: 1 models, * probes, * s (end)"])
+                                 "ddenv: reducing test_reaches_goal: 1 model, * probes, * s (models done)"])
     assert (wall_project.path / "out").is_dir() and not (suite / "out").exists()
     assert list((wall_project.path / "out").glob("*/minimal.yaml"))
