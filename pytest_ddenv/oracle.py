@@ -262,7 +262,7 @@ class SameFailureRule:
         origin = ("the default rule" if match == defaults.SAME_FAILURE and reference.predicate not in
                   dict(self.predicates) else f"same_failure={match!r}")
         if match not in MATCHES:
-            return f"{match}(reference, signature) is True (same_failure={match})"
+            return f"when {match}(reference, signature) says so"
         place = f"within {self.tolerance:g} m"
         if not reference.touched:
             touching = "touching no model, as the reference" if match == "touched" else ""

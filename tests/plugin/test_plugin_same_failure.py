@@ -185,3 +185,29 @@ def test_the_place_rule_says_the_minimal_world_fails_as_often_as_the_original(
     replayed = ddenv_replay(pytester)
     assert replayed.returncode == 0, replayed.stdout + replayed.stderr
     assert "reproduced: 5/5" in replayed.stdout
+
+
+def test_ddenv_reduce_takes_a_function_and_ddenv_replay_reapplies_it(pytester: pytest.Pytester) -> None:
+    """The command line, with the user's function given as FILE:FUNCTION: recorded by module name, imported
+    again by `ddenv replay` (from the --import the summary records)."""
+    pytester.makefile(".yaml", dither=DITHER_WORLD)
+    pytester.makepyfile(dither_code=DITHER_TEST.replace("RULE", ""))
+    reduced = subprocess.run(
+        [sys.executable, "-m", "pytest_ddenv.cli", "reduce", "dither.yaml", "--predicate", "no_goal_progress",
+         "--import", "dither_code.py", "--controller", "dither_code.py:BumpAndBackOff", "--seed", "17",
+         "--same-failure", "dither_code.py:same_place", "--media", "none", "--stages", "models", "--out", "out"],
+        cwd=pytester.path, capture_output=True, text=True, timeout=600,
+    )
+    assert reduced.returncode == 0, reduced.stderr
+    assert "same failure: when dither_code:same_place(reference, signature) says so" in reduced.stdout
+    summary = json.loads(Path(pytester.path, "out", "summary.json").read_text())
+    assert summary["same_failure"]["match"] == "dither_code:same_place"
+    assert summary["minimal_models"] == ["wall"] and summary["failure_rate"] == {"fails": 5, "runs": 5}
+    replayed = subprocess.run([sys.executable, "-m", "pytest_ddenv.cli", "replay", "out", "--runs", "3"],
+                              cwd=pytester.path, capture_output=True, text=True, timeout=600)
+    assert replayed.returncode == 0 and "reproduced: 3/3" in replayed.stdout, replayed.stdout + replayed.stderr
+    by_default = subprocess.run([sys.executable, "-m", "pytest_ddenv.cli", "replay", "out", "--runs", "3",
+                                 "--same-failure", "all"], cwd=pytester.path, capture_output=True, text=True,
+                                timeout=600)
+    assert by_default.returncode == 1 and "NOT reproduced: 0/3" in by_default.stdout
+    assert "; the same predicate fired at the same place but touching no model in 3 of 3 runs" in by_default.stdout
