@@ -246,8 +246,7 @@ class SameFailureRule:
         match = self.match_for(reference.predicate)
         if match in MATCHES:
             return same_failure(failure, reference, self.tolerance, match=match)
-        verdict = _call(match, reference, failure)
-        return bool(verdict)
+        return _call(match, reference, failure)
 
     def built_in(self) -> SameFailureRule:
         """This rule with "all" for every user function (for grouping other failures among themselves)."""

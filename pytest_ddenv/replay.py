@@ -84,7 +84,7 @@ class ReplayRun:
     run: Run | None = field(default=None, compare=False, repr=False)
     """The run itself (None when it raised)."""
     why: str = ""
-    """Why an "other" run is not the reference failure under the rule (`oracle.why_other`)."""
+    """Why a run whose failure is "other" is not the reference failure under the rule (`oracle.why_other`)."""
 
 
 FRESH_FIRST_ATTEMPT = 1000
@@ -160,7 +160,7 @@ class ReplayResult:
                 reason = why_other(run.failure, self.reference, self.rule)
                 reasons += [reason] if reason is not None else []
             elif run.outcome is Outcome.OTHER:
-                reasons.append(OtherReason(run.why, "the run raised an exception"))
+                reasons.append(OtherReason(f"the run raised {run.raised}", "the run raised an exception"))
         return most_common_reason(reasons, len(self.runs))
 
     def to_dict(self) -> dict[str, Any]:
@@ -286,8 +286,7 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
         except DdenvError:
             raise
         except Exception as error:  # noqa: BLE001 - the controller under test raised: another failure than the reference
-            raised = f"{type(error).__name__}: {error}"
-            results.append(ReplayRun(run_seed, Outcome.OTHER, None, raised, why=f"the run raised {raised}"))
+            results.append(ReplayRun(run_seed, Outcome.OTHER, None, f"{type(error).__name__}: {error}"))
             continue
         outcome = classify(run, reference, rule)
         reason = why_other(run.failure, reference, rule) if outcome is Outcome.OTHER and run.failure else None
