@@ -35,7 +35,7 @@ def result_lines(report: ReductionReport) -> list[str]:
         (f"simulations run: {report.cost.simulations} (confirmation, fresh-run, "
          f"speculative and picture runs included; {report.cost.cpu_seconds:.1f} s of worker CPU)"),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
-        same_failure_line(report),
+        *same_failure_lines(report),
         failure_rate_line(reduction),
         *stage_lines(report),
         *other_failure_lines(report),
@@ -51,15 +51,18 @@ def reproduction_lines(report: ReductionReport) -> list[str]:
     return [f"warning: {report.reproduction.describe()}"]
 
 
-def same_failure_line(report: ReductionReport) -> str:
+def same_failure_lines(report: ReductionReport) -> list[str]:
     """The rule that said which failures are the reference failure, as it applies to the reference."""
     from pytest_ddenv.oracle import FailureSignature
 
-    signature = report.reference_failure.get("signature")
+    reference = report.reference_failure
+    signature = reference.get("signature")
     if isinstance(signature, dict):
-        return f"same failure: {report.rule.describe(FailureSignature.from_dict(signature))}"
-    exception = report.reference_failure.get("exception_type", "the exception")
-    return f"same failure: {exception} raised at {report.reference_failure.get('location', '?')} (type and line)"
+        return [f"same failure: {report.rule.describe(FailureSignature.from_dict(signature))}"]
+    if "exception_type" in reference:
+        location = reference.get("location", "?")
+        return [f"same failure: {reference['exception_type']} raised at {location} (the same type at the same line)"]
+    return []
 
 
 OTHER_FAILURES_SHOWN = 5
