@@ -305,6 +305,11 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
                              "calibrated on the original world's failure rate)")
     reduce.add_argument("--tolerance", type=_positive_float, default=defaults.TOLERANCE, metavar="M",
                         help="same failure: failure position within this many metres (default 0.5)")
+    reduce.add_argument("--same-failure", default=defaults.SAME_FAILURE, metavar="RULE",
+                        help="which failures are the one reduced: 'all' (the default: same predicate, within the "
+                             "tolerance, touching one of the models it touched), 'place' (touched models ignored), "
+                             "'touched' (place ignored) or MODULE:FUNCTION, a function same_failure(reference, "
+                             "signature) -> bool")
     reduce.add_argument("--keep", action="append", default=[], metavar="MODEL", help="never remove this model")
     reduce.add_argument("--seed", type=_non_negative_int, default=defaults.SEED,
                         help="seed of the runs and the schemas")
@@ -354,6 +359,8 @@ def _add_replay(commands: Any, common: argparse.ArgumentParser) -> None:
                         help="re-run the seeds on which the reduction saw the minimal world fail (each should "
                              "fail again) instead of fresh ones")
     replay.add_argument("--tolerance", type=_positive_float, metavar="M", help="default: the recorded one")
+    replay.add_argument("--same-failure", metavar="RULE",
+                        help="all, place, touched or MODULE:FUNCTION (default: the recorded rule)")
     replay.add_argument("--animate", nargs="?", const="", default=None, metavar="GIF",
                         help="also write an animation of the first run that failed the same way (else the first "
                              "run): default ARTIFACT_DIR/replay.gif")
@@ -661,6 +668,7 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     world = with_scenario(arguments, load_world(arguments, arguments.world), arguments.world)
     predicates = _predicates(arguments.predicates)
     _check_predicate_models(predicates, world)
+    arguments.same_failure_match = _same_failure(arguments.same_failure)
     deflake = parse_deflake(arguments.deflake, "--deflake", DEFLAKE_POLICIES)
     keep = _keep(world, arguments.keep)
     priority = PRIORITY_ALIASES.get(arguments.priority, arguments.priority)
@@ -762,7 +770,8 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
 
     spec = dataclasses.replace(
         ReductionSpec(), partition=arguments.partition, priority=priority, n_partitions=arguments.n_partitions,
-        granularity=arguments.granularity, deflake=deflake, tolerance=arguments.tolerance, keep=keep,
+        granularity=arguments.granularity, deflake=deflake, tolerance=arguments.tolerance,
+        same_failure=arguments.same_failure_match, keep=keep,
         seed=arguments.seed, max_probes=arguments.max_probes, max_seconds=arguments.max_time,
         stages=arguments.stages, stage_probes=arguments.stage_probes,
     )
@@ -840,7 +849,19 @@ def _command_line(arguments: argparse.Namespace) -> list[str]:
               "--seed", str(arguments.seed)]
     if arguments.keep_other:
         words += ["--keep-other", str(arguments.keep_other)]
+    if arguments.same_failure != defaults.SAME_FAILURE:
+        words += ["--same-failure", arguments.same_failure]
     return words
+
+
+def _same_failure(text: str, option: str = "--same-failure") -> str:
+    """A match as `oracle.SameFailureRule` holds it: all, place, touched, or MODULE:FUNCTION loaded now (a
+    file path works as the module, as for --controller) and held as "module:qualname"."""
+    from pytest_ddenv.oracle import MATCHES, same_failure_match
+    from pytest_ddenv.user_code import load_attribute
+
+    given: Any = load_attribute(text, option=option) if text not in MATCHES and ":" in text else text
+    return same_failure_match(given, option)
 
 
 def _reduction_text(path: str, report: ReductionReport, pictures: Sequence[str], media: Sequence[str]) -> str:
@@ -873,7 +894,8 @@ def _cmd_replay(arguments: argparse.Namespace) -> int:
 
     with recording_detail(arguments.animate is not None):
         result = replay(arguments.artifacts, predicates=predicates, max_runs=arguments.runs,
-                        tolerance=arguments.tolerance, controller=controller, recorded=arguments.recorded)
+                        tolerance=arguments.tolerance, controller=controller, recorded=arguments.recorded,
+                        same_failure=None if arguments.same_failure is None else _same_failure(arguments.same_failure))
     reference = result.reference
     lines = [(f"{arguments.artifacts}: minimal world of {len(result.world)} models; reference failure: "
              f"{reference.predicate} at t = {reference.time:.2f} s at ({reference.position[0]:.2f}, "
@@ -881,7 +903,7 @@ def _cmd_replay(arguments: argparse.Namespace) -> int:
     for run in result.runs:
         what = "no failure" if run.failure is None else f"{run.failure.predicate} at t = {run.failure.time:.2f} s"
         what = f"raised {run.raised}" if run.raised else what
-        lines.append(f"  seed {run.seed}: {run.outcome.value} ({what})")
+        lines.append(f"  seed {run.seed}: {run.outcome.value} ({what})" + (f": {run.why}" if run.why else ""))
     lines.append(result.describe())
     data = result.to_dict()
     shown = [run for run in result.runs if run.run is not None]

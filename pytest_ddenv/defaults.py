@@ -18,3 +18,6 @@ TOLERANCE = 0.5
 """Metres between two failure positions of the same predicate that still count as the same failure."""
 SEED = 0
 """Base seed of the robot's noise and of the schemas' random choices."""
+SAME_FAILURE = "all"
+"""How a failure is matched with the reference (`oracle.SameFailureRule`): same predicate, within `TOLERANCE`,
+touching one of the models the reference touched."""

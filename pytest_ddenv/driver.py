@@ -25,12 +25,14 @@ from pytest_ddenv.code_identity import CodeIdentity
 from pytest_ddenv.execution import Pool, ProbeDeadline, WorkerError, WorkerStartError
 from pytest_ddenv.markers import ReductionSpec
 from pytest_ddenv.media import DEFAULT_MEDIA, PendingMedia, Shown
-from pytest_ddenv.other_failures import other_failures
+from pytest_ddenv.oracle import SameFailureRule
+from pytest_ddenv.other_failures import original_reproduction, other_failures
 from pytest_ddenv.predicates import FailureSignature
 from pytest_ddenv.probe import (
     ErrorInfo,
     FailureReference,
     ProbeResult,
+    check_rule,
     classify_result,
     keeps_start_support,
     make_probe,
@@ -114,6 +116,12 @@ class ReductionPlan:
     when unknown) -> command line; None: no command."""
     no_run_reason: str = ""
     """Why there is no `reference_run` when the caller knows better than "no run was made" (the run raised)."""
+    same_failure: SameFailureRule | None = None
+    """Which failures are the reference failure (None: `spec`'s match and tolerance, `spec.same_failure_rule()`)."""
+
+    @property
+    def rule(self) -> SameFailureRule:
+        return self.same_failure if self.same_failure is not None else self.spec.same_failure_rule()
 
 
 @dataclass
@@ -161,7 +169,8 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
     # This process waits for the workers: import meanwhile (a caller may have started it earlier).
     ahead = None if getattr(pool, "in_process", False) else import_ahead()
     try:
-        calls = _Calls(pool, plan.reference, spec.tolerance, deadline)
+        check_rule(plan.reference, plan.rule)  # a user's rule that cannot match the failure itself fails now
+        calls = _Calls(pool, plan.reference, plan.rule, deadline)
         with _sigterm_as_interrupt():
             confirmations: list[tuple[int, ProbeResult | None, str]] = []
             if not plan.confirmed:
@@ -178,7 +187,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
             with artifacts.FolderLock(plan.artifacts):
                 paths, prepared = artifacts.prepare(
                     plan.artifacts, problem,
-                    same_reference=lambda logged: same_reference(logged, plan.reference, spec.tolerance))
+                    same_reference=lambda logged: same_reference(logged, plan.reference, plan.rule))
                 log = ProbeLog(paths.log)
                 for text in prepared + log.notes:
                     note(text)
@@ -259,7 +268,8 @@ class _Locked:
                 self.paths, plan.world, self.best, test_id=plan.test_id, problem_fingerprint=self.problem.fingerprint,
                 replay_command=plan.replay_command, reference=plan.reference.to_dict(),
                 counts=self.cost(event.probes).to_json(),
-                extra={**plan.run_settings, "tolerance": plan.spec.tolerance, "notes": self.notes,
+                extra={**plan.run_settings, "tolerance": plan.spec.tolerance,
+                       "same_failure": plan.rule.to_json(), "notes": self.notes,
                        "world_notes": list(plan.world.notes)})
             self.record_usage()
         if self.on_progress is not None:
@@ -287,7 +297,7 @@ class _Locked:
         plan, calls, pool = self.plan, self.calls, self.pool
         spec, world = plan.spec, plan.world
         keep = (set(spec.keep) & set(world.names)) | {m.name for m in world.models if m.keep}
-        inner = make_probe(world, calls, plan.reference, tolerance=spec.tolerance)
+        inner = make_probe(world, calls, plan.reference, rule=plan.rule)
 
         def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
             calls.local.cancelled = False
@@ -350,14 +360,16 @@ class _Locked:
         self.record_usage(final=True)
         files, how = artifacts.write_minimal_world(paths, plan.world, reduction, model_paths=plan.model_paths)
         others, other_worlds = artifacts.write_other_worlds(
-            paths, plan.world, other_failures(self.log.records, plan.spec.tolerance), plan.keep_other,
-            plan.other_replay)
+            paths, plan.world, other_failures(self.log.records, rule=plan.rule, reference=plan.reference),
+            plan.keep_other, plan.other_replay)
         files = replace(files, other_worlds=other_worlds)
         report = ReductionReport(
             test=plan.test_id, world=plan.world.source or plan.world.name, reduction=reduction,
             reference_failure=plan.reference.to_dict(), replay=plan.replay_command,
             fingerprint=self.problem.fingerprint,
             files=files, cost=self.cost(reduction.probes), tolerance=plan.spec.tolerance, minimal_sdf=how,
+            same_failure=plan.rule,
+            reproduction=original_reproduction(self.log.records, plan.world.names, plan.reference, plan.rule),
             notes=tuple(self.notes), world_notes=tuple(plan.world.notes), stages=staged,
             stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
             run_settings=plan.run_settings, other_failures=others)
@@ -404,7 +416,7 @@ def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _C
         return probe
 
     context = StageContext(
-        base=plan.world.select(reduction.minimal), call=calls, reference=plan.reference, tolerance=spec.tolerance,
+        base=plan.world.select(reduction.minimal), call=calls, reference=plan.reference, rule=plan.rule,
         log=log, policy=policy, seed=spec.seed, budget=Budget(limit, lambda: calls.started, started, per_stage),
         executor=threads, workers=pool.size, wrap=wrap,
     )
@@ -420,10 +432,10 @@ class _Calls:
     """The driver's way to the pool: counts the probes it starts (the budget), stops them at the time
     budget's deadline, and keeps recent failing runs for the pictures (no extra simulation for them)."""
 
-    def __init__(self, pool: Pool, reference: FailureReference, tolerance: float, deadline: float | None) -> None:
+    def __init__(self, pool: Pool, reference: FailureReference, rule: SameFailureRule, deadline: float | None) -> None:
         self.pool = pool
         self.reference = reference
-        self.tolerance = tolerance
+        self.rule = rule
         self.deadline = deadline
         self.started = 0
         self.local = threading.local()
@@ -448,7 +460,7 @@ class _Calls:
             raise
         if not isinstance(result, ProbeResult):
             raise TypeError(f"the pool's job returned {type(result).__name__}, not a ProbeResult")
-        if result.run is not None and classify_result(result.error, self.reference, self.tolerance) is Outcome.FAIL:
+        if result.run is not None and classify_result(result.error, self.reference, self.rule) is Outcome.FAIL:
             with self._lock:
                 key = frozenset(world.names)
                 self._runs[key] = result.run
@@ -485,7 +497,7 @@ def _count(number: int, noun: str) -> str:
     return f"{number} {noun}{'' if number == 1 else 's'}"
 
 
-def same_reference(logged: Mapping[str, Any], reference: FailureReference, tolerance: float) -> bool:
+def same_reference(logged: Mapping[str, Any], reference: FailureReference, rule: SameFailureRule | float) -> bool:
     """Whether a run log's reference failure (`FailureReference.to_dict()`) is the failure being reduced now,
     under the same-failure rule the probes are judged by: a resumed log's verdicts were taken against it."""
     try:
@@ -495,8 +507,8 @@ def same_reference(logged: Mapping[str, Any], reference: FailureReference, toler
     except (KeyError, TypeError, ValueError, AttributeError):
         return False
     now = ErrorInfo(reference.exception_type, "", reference.location, signature=reference.signature)
-    return (classify_result(earlier, reference, tolerance) is Outcome.FAIL
-            and classify_result(now, FailureReference.of(earlier), tolerance) is Outcome.FAIL)
+    return (classify_result(earlier, reference, rule) is Outcome.FAIL
+            and classify_result(now, FailureReference.of(earlier), rule) is Outcome.FAIL)
 
 
 def _last_step(records: list[dict[str, Any]]) -> tuple[str, ...] | None:
@@ -581,7 +593,7 @@ def _confirm(plan: ReductionPlan, call: _Calls, note: Note,
             seen.append("error")
             confirmations.append((attempt, None, "error"))
             continue
-        outcome = classify_result(result.error, plan.reference, plan.spec.tolerance)
+        outcome = classify_result(result.error, plan.reference, plan.rule)
         confirmations.append((attempt, result, outcome.value))
         if outcome is Outcome.FAIL:
             return None
@@ -649,7 +661,7 @@ def _logged_run(call: _Calls, log: ProbeLog, world: World, attempt: int, purpose
     except Exception:  # noqa: BLE001 - pictures are a convenience
         _log_run(log, purpose, world.names, attempt, None, "error")
         return None, False
-    outcome = classify_result(result.error, call.reference, call.tolerance)
+    outcome = classify_result(result.error, call.reference, call.rule)
     _log_run(log, purpose, world.names, attempt, result, outcome.value)
     return result.run, outcome is Outcome.FAIL
 

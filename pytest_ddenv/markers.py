@@ -10,7 +10,7 @@ import inspect
 import math
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv import defaults
@@ -18,12 +18,15 @@ from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.validation import expected, is_integer, is_number
 
 if TYPE_CHECKING:
+    from pytest_ddenv.oracle import SameFailureRule
     from pytest_ddenv.predicates import PredicateSpec
 
 DDENV_KEYWORDS = (
-    "world", "partition", "priority", "n_partitions", "granularity", "deflake", "tolerance", "keep", "seed", "budget",
-    "skip_unsupported", "stages",
+    "world", "partition", "priority", "n_partitions", "granularity", "deflake", "tolerance", "same_failure", "keep",
+    "seed", "budget", "skip_unsupported", "stages",
 )
+SAME_FAILURE_KEYWORD = "same_failure"
+"""The `robot_failure` keyword that sets the predicate's own same-failure rule (not a predicate parameter)."""
 
 
 class MarkerError(DdenvError):
@@ -41,6 +44,9 @@ class ReductionSpec:
     granularity: str = defaults.GRANULARITY
     deflake: int | str = defaults.DEFLAKE
     tolerance: float = defaults.TOLERANCE
+    same_failure: str = defaults.SAME_FAILURE
+    """The test's same-failure match: "all", "place", "touched" or "module:qualname" of a user function
+    (`oracle.SameFailureRule`)."""
     keep: tuple[str, ...] = ()
     seed: int = defaults.SEED
     max_probes: int | None = None
@@ -52,6 +58,14 @@ class ReductionSpec:
     stage_probes: int | None = None
     """Simulations each stage after the models may start (None: all of them together at most twice the
     model-level simulations)."""
+
+    def same_failure_rule(self, predicates: Sequence[PredicateSpec] = ()) -> SameFailureRule:
+        """The rule that decides "same failure": this test's match and tolerance, and the predicates' own
+        matches (`robot_failure(..., same_failure=...)`)."""
+        from pytest_ddenv.oracle import SameFailureRule
+
+        return SameFailureRule(self.same_failure, self.tolerance,
+                               tuple((spec.name, spec.same_failure) for spec in predicates if spec.same_failure))
 
 
 def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> ReductionSpec:
@@ -92,6 +106,8 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
         updates["deflake"] = parse_deflake(values["deflake"], "ddenv(deflake=...)", DEFLAKE_POLICIES)
     if "tolerance" in values:
         updates["tolerance"] = _positive(values["tolerance"], "tolerance")
+    if "same_failure" in values:
+        updates["same_failure"] = parse_same_failure(values["same_failure"], "ddenv(same_failure=...)")
     if "keep" in values:
         keep = values["keep"]
         if isinstance(keep, str):
@@ -110,6 +126,17 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
     if "stages" in values:
         updates["stages"] = parse_stage_list(values["stages"], "ddenv(stages=...)")
     return ReductionSpec(**{**spec.__dict__, **updates})
+
+
+def parse_same_failure(value: Any, where: str) -> str:
+    """A same-failure match: "all", "place", "touched", or a module-level function `same_failure(reference,
+    signature) -> bool` (held as "module:qualname", so that `ddenv replay` can import it)."""
+    from pytest_ddenv.oracle import same_failure_match
+
+    try:
+        return same_failure_match(value, where)
+    except DdenvError as error:
+        raise MarkerError(str(error)) from None
 
 
 def parse_stage_list(value: Any, where: str) -> tuple[str, ...]:
@@ -148,12 +175,15 @@ def parse_failure_markers(markers: Sequence[tuple[Sequence[Any], Mapping[str, An
     """Validate each robot_failure marker by building its predicate (unknown names or parameters fail here).
 
     A marker holds a registered predicate's name with keyword parameters, a predicate object
-    (`robot_failure(OnSlope(max_pitch=0.3))`) or a plain function of the state (`robot_failure(tipped)`).
+    (`robot_failure(OnSlope(max_pitch=0.3))`) or a plain function of the state (`robot_failure(tipped)`), and
+    optionally the predicate's own same-failure rule (`same_failure="place"`, not a parameter of the predicate).
     """
     from pytest_ddenv.predicates import PREDICATES, predicate_spec
 
     specs = []
-    for args, kwargs in markers:
+    for args, given in markers:
+        kwargs = dict(given)
+        match = kwargs.pop(SAME_FAILURE_KEYWORD, None)
         if len(args) != 1:
             raise MarkerError(
                 "robot_failure(...) takes one positional argument: a predicate name, e.g. "
@@ -161,9 +191,13 @@ def parse_failure_markers(markers: Sequence[tuple[Sequence[Any], Mapping[str, An
                 f"registered predicates: {', '.join(sorted(PREDICATES))}"
             )
         try:
-            specs.append(predicate_spec(args[0], kwargs))
+            spec = predicate_spec(args[0], kwargs)
         except DdenvError as error:
             raise MarkerError(f"robot_failure({shown(args[0])}, ...): {error}") from error
+        if match is not None:
+            where = f"robot_failure({shown(args[0])}, same_failure=...)"
+            spec = replace(spec, same_failure=parse_same_failure(match, where))
+        specs.append(spec)
     return tuple(specs)
 
 

@@ -67,12 +67,13 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers",
         "ddenv(world=PATH, partition=..., priority=..., n_partitions=2, granularity='ddmin', deflake='auto', "
-        "tolerance=0.5, keep=(...), seed=0, budget=N, skip_unsupported=False, stages='models,explain,passing'): "
+        "tolerance=0.5, same_failure='all'|'place'|'touched'|function, keep=(...), seed=0, budget=N, "
+        "skip_unsupported=False, stages='models,explain,passing'): "
         "the world of a robot scenario test and how to reduce it when the test fails under --ddenv-reduce.",
     )
     config.addinivalue_line(
         "markers",
-        "robot_failure(NAME, **params): a failure predicate checked while the robot runs "
+        "robot_failure(NAME, **params, same_failure=...): a failure predicate checked while the robot runs "
         "(stuck, flipped, high_centered, fell, collided, timeout); stackable.",
     )
     options = config.stash[_options_key] = read_options(config)

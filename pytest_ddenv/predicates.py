@@ -510,15 +510,21 @@ class PredicateSpec:
     name: str
     params: Mapping[str, Any] = field(default_factory=dict)
     instance: Predicate | None = field(default=None, compare=False)
+    same_failure: str | None = None
+    """The predicate's own same-failure match ("all", "place", "touched", "module:qualname"; None: the test's),
+    from `robot_failure(..., same_failure=...)`; the oracle applies it (`oracle.SameFailureRule`)."""
 
     def build(self) -> Predicate:
         return self.instance if self.instance is not None else make_predicate(self.name, **dict(self.params))
 
     def to_json(self) -> dict[str, Any]:
-        """As recorded in summary.json: {"name", "params"}, plus "object" (its repr) for an instance."""
+        """As recorded in summary.json: {"name", "params"}, plus "object" (its repr) for an instance and
+        "same_failure" when the predicate has its own."""
         data: dict[str, Any] = {"name": self.name, "params": dict(self.params)}
         if self.instance is not None:
             data["object"] = repr(self.instance)[:300]
+        if self.same_failure is not None:
+            data["same_failure"] = self.same_failure
         return data
 
 

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pytest_ddenv import defaults
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.reduce import Observation as ProbeObservation
 from pytest_ddenv.reduce import Outcome, Trace
@@ -24,6 +25,7 @@ from pytest_ddenv.robot_world import RobotFailure
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:
+    from pytest_ddenv.oracle import OtherReason, SameFailureRule
     from pytest_ddenv.predicates import FailureSignature
     from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
     from pytest_ddenv.sim import Run
@@ -128,9 +130,10 @@ class FailureReference:
         }
 
 
-def classify_result(error: ErrorInfo | None, reference: FailureReference, tolerance: float) -> Outcome:
-    """Compare what a probe raised with the original failure."""
-    from pytest_ddenv.oracle import same_failure
+def classify_result(error: ErrorInfo | None, reference: FailureReference, rule: SameFailureRule | float) -> Outcome:
+    """Compare what a probe raised with the original failure: a predicate failure by `rule` (a
+    `SameFailureRule`, or the default rule with this tolerance), an exception by its type and line."""
+    from pytest_ddenv.oracle import as_rule
 
     if error is None:
         return Outcome.PASS
@@ -139,10 +142,48 @@ def classify_result(error: ErrorInfo | None, reference: FailureReference, tolera
     if error.signature is not None:
         if reference.signature is None:
             return Outcome.OTHER
-        return Outcome.FAIL if same_failure(error.signature, reference.signature, tolerance) else Outcome.OTHER
+        return Outcome.FAIL if as_rule(rule).same(error.signature, reference.signature) else Outcome.OTHER
     if reference.signature is None and error.type_name == reference.exception_type:
         return Outcome.FAIL if error.location == reference.location else Outcome.OTHER
     return Outcome.OTHER
+
+
+def check_rule(reference: FailureReference, rule: SameFailureRule) -> None:
+    """`SameFailureError` unless `rule` says the reference failure is the same as itself (a user's function that
+    cannot be called, raises, or says no), before any simulation."""
+    from pytest_ddenv.oracle import SameFailureError
+
+    if reference.signature is not None and not rule.same(reference.signature, reference.signature):
+        raise SameFailureError(f"the same-failure rule ({rule.describe(reference.signature)}) says the failure "
+                               f"being reduced ({reference.describe()}) is not the same as itself")
+
+
+def why_not_reproduced(found: Mapping[str, Any] | None, reference: FailureReference,
+                       rule: SameFailureRule) -> OtherReason | None:
+    """Why a probe whose failure the run log records as `found` (`signature_record`: a predicate's signature,
+    {"exception", "location"}, or None when the test passed) is not the reference failure; None when it is,
+    or when `found` cannot be read."""
+    from pytest_ddenv.oracle import FailureSignature, OtherReason, why_other
+
+    expected = reference.describe()
+    if found is None:
+        return OtherReason("the test passed", "the test passed (no failure)")
+    if "predicate" in found:
+        try:
+            signature = FailureSignature.from_dict(found)
+        except (KeyError, TypeError, ValueError, IndexError):
+            return None
+        if reference.signature is not None:
+            return why_other(signature, reference.signature, rule) if len(signature.pose) >= 3 else None
+        return OtherReason(f"the '{signature.predicate}' predicate fired instead of {expected}",
+                           f"the '{signature.predicate}' predicate fired instead")
+    if "exception" in found:
+        raised = f"{found['exception']} at {found.get('location', '?')}"
+        if reference.signature is None and raised == expected:
+            return None
+        return OtherReason(f"the test raised {raised} (the reference: {expected})", f"the test raised {raised}",
+                           f"the reference: {expected}")
+    return None
 
 
 def signature_record(error: ErrorInfo | None) -> Mapping[str, Any] | None:
@@ -172,11 +213,12 @@ ProbeCall = Callable[[World, int], ProbeResult]
 """call(world, attempt) -> ProbeResult: a pool's `call`, or a handler in this process."""
 
 
-def make_probe(world: World, call: ProbeCall, reference: FailureReference, *, tolerance: float,
+def make_probe(world: World, call: ProbeCall, reference: FailureReference, *,
+               tolerance: float = defaults.TOLERANCE, rule: SameFailureRule | None = None,
                build: Callable[[Candidate], World] | None = None) -> Probe:
     """A probe for the engine: run the test on `world.select(candidate)` (or on `build(candidate)`: the
     stages after the model-level reduction reduce shapes and simplifications, not models) and classify the
-    result.
+    result by `rule` (default: the default rule with `tolerance`), here in the calling process.
 
     What `call` itself raises (a worker that died twice, a test that cannot start in a worker) is an ERROR
     observation whose detail is the exception's text, never a verdict.
@@ -189,7 +231,7 @@ def make_probe(world: World, call: ProbeCall, reference: FailureReference, *, to
         except Exception as error:  # noqa: BLE001 - the pool could not run it: an error, with its reason
             return ProbeObservation(Outcome.ERROR, wall_time=time.perf_counter() - started,
                                     detail=f"{type(error).__name__}: {error}"[:DETAIL_LIMIT])
-        outcome = classify_result(result.error, reference, tolerance)
+        outcome = classify_result(result.error, reference, tolerance if rule is None else rule)
         run = result.run
         detail = ""
         if result.error is not None and outcome is not Outcome.FAIL:

@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING, Any
 from pytest_ddenv.reduce import Reduction
 
 if TYPE_CHECKING:
-    from pytest_ddenv.other_failures import OtherFailure
+    from pytest_ddenv.oracle import SameFailureRule
+    from pytest_ddenv.other_failures import OtherFailure, Reproduction
     from pytest_ddenv.stages import StagesOutcome
 
 SUMMARY_FORMAT = 1
@@ -97,6 +98,17 @@ class ReductionReport:
     """The caller's own entries of `summary.json` (predicates, scenario_seed, timeout, command, imports ...)."""
     other_failures: tuple[OtherFailure, ...] = ()
     """The other failures the reduction's probes met, grouped, largest first (`pytest_ddenv.other_failures`)."""
+    same_failure: SameFailureRule | None = None
+    """The rule that decided which failures are the reference failure (None: the default rule, `tolerance`)."""
+    reproduction: Reproduction | None = None
+    """Set when the original world's fresh runs rarely failed the same way: how often, and the reason seen most
+    (`other_failures.original_reproduction`)."""
+
+    @property
+    def rule(self) -> SameFailureRule:
+        from pytest_ddenv.oracle import SameFailureRule
+
+        return self.same_failure if self.same_failure is not None else SameFailureRule(tolerance=self.tolerance)
 
     @property
     def removed_models(self) -> list[str]:
@@ -147,6 +159,8 @@ class ReductionReport:
             "minimal_sdf": self.minimal_sdf,
             **dict(self.run_settings),
             "tolerance": self.tolerance,
+            "same_failure": self.rule.to_json(),
+            "original_reproduction": None if self.reproduction is None else self.reproduction.to_json(),
             "notes": list(self.notes),
             "world_notes": list(self.world_notes),
             **self.cost.to_json(),

@@ -78,6 +78,7 @@ class ReductionSession:
             },
             model_paths=self.model_paths, media=self.media, keep_other=self.keep_other,
             other_replay=self._other_replay, no_run_reason=no_run_reason(robot_world),
+            same_failure=self.spec.same_failure_rule(robot_world.predicates),
         )
         try:
             outcome = run_reduction(plan, pool, note=self.progress, on_progress=self._on_progress)

@@ -1,7 +1,8 @@
 """`ddenv replay`: re-run the minimal world of an artifacts folder and check that it still fails the same way.
 
 A scenario run here is what the simplest scenario test does (`robot_world.run()` with failure predicates and
-a controller): the same seeds (`RobotWorld`), the same `RobotFailure`, the same oracle. No pytest import.
+a controller): the same seeds (`RobotWorld`), the same `RobotFailure`, the same oracle and the same-failure rule
+the reduction recorded (`oracle.SameFailureRule`); each run that failed otherwise says why. No pytest import.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from pytest_ddenv.validation import expected
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:  # pragma: no cover
+    from pytest_ddenv.oracle import SameFailureRule
     from pytest_ddenv.predicates import FailureSignature
     from pytest_ddenv.probe import FailureReference
     from pytest_ddenv.sim import ControllerLike, Run
@@ -81,6 +83,8 @@ class ReplayRun:
     """What the run raised instead of finishing (a controller's exception), if anything."""
     run: Run | None = field(default=None, compare=False, repr=False)
     """The run itself (None when it raised)."""
+    why: str = ""
+    """Why a run whose failure is "other" is not the reference failure under the rule (`oracle.why_other`)."""
 
 
 FRESH_FIRST_ATTEMPT = 1000
@@ -97,10 +101,14 @@ class ReplayResult:
     world: World
     reference: FailureSignature
     predicates: tuple[PredicateSpec, ...]
-    tolerance: float
+    rule: SameFailureRule
     runs: tuple[ReplayRun, ...]
     fresh: bool = True
     original_rate: tuple[int, int] | None = None
+
+    @property
+    def tolerance(self) -> float:
+        return self.rule.tolerance
 
     @property
     def reproduced(self) -> int:
@@ -135,7 +143,25 @@ class ReplayResult:
         if self.original_rate is not None:
             text += (f"; the original world failed {self.original_rate[0]}/{self.original_rate[1]} fresh runs "
                      "in the reduction")
+        if 2 * self.reproduced < total:
+            reason = self.most_common_reason()
+            text += f"; {reason}" if reason else ""
         return text
+
+    def most_common_reason(self) -> str:
+        """Why the runs that failed otherwise did (the reason seen most, `oracle.most_common_reason`)."""
+        from pytest_ddenv.oracle import OtherReason, most_common_reason, why_other
+
+        reasons = []
+        for run in self.runs:
+            if run.outcome is Outcome.PASS:
+                reasons.append(OtherReason("the run passed", "the run passed (no failure)"))
+            elif run.outcome is Outcome.OTHER and run.failure is not None:
+                reason = why_other(run.failure, self.reference, self.rule)
+                reasons += [reason] if reason is not None else []
+            elif run.outcome is Outcome.OTHER:
+                reasons.append(OtherReason(f"the run raised {run.raised}", "the run raised an exception"))
+        return most_common_reason(reasons, len(self.runs))
 
     def to_dict(self) -> dict[str, Any]:
         low, high = self.interval
@@ -145,10 +171,12 @@ class ReplayResult:
             "reference_failure": self.reference.to_dict(),
             "predicates": predicates_to_json(self.predicates),
             "tolerance": self.tolerance,
+            "same_failure": self.rule.to_json(),
             "fresh": self.fresh,
             "runs": [
                 {"seed": run.seed, "outcome": run.outcome.value,
-                 "failure": None if run.failure is None else run.failure.to_dict(), "raised": run.raised or None}
+                 "failure": None if run.failure is None else run.failure.to_dict(), "raised": run.raised or None,
+                 "why": run.why or None}
                 for run in self.runs
             ],
             "reproduced": self.reproduced,
@@ -210,20 +238,41 @@ def recorded_seeds(log: Path, minimal: Sequence[str], fallback: int) -> list[int
     return seeds or [fallback]
 
 
+def recorded_rule(summary: Mapping[str, Any], where: Path) -> SameFailureRule:
+    """The same-failure rule the reduction recorded (`same_failure`), else the default rule with its tolerance
+    (a summary written before rules were recorded). A user's function is imported now (`ArtifactError`)."""
+    from pytest_ddenv.oracle import SameFailureError, SameFailureRule
+
+    try:
+        if "same_failure" in summary:
+            return SameFailureRule.from_json(summary["same_failure"], f"{where}: same_failure")
+        return SameFailureRule(tolerance=float(summary.get("tolerance", defaults.TOLERANCE)))
+    except (SameFailureError, TypeError, ValueError) as error:
+        raise ArtifactError(str(error)) from None
+
+
 def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None = None, max_runs: int = 10,
            tolerance: float | None = None, timeout: float | None = None,
-           controller: ControllerLike | None = None, recorded: bool = False) -> ReplayResult:
+           controller: ControllerLike | None = None, recorded: bool = False,
+           same_failure: str | None = None) -> ReplayResult:
     """Re-run the minimal world of an artifacts folder `max_runs` times on fresh seeds, which no probe of the
-    reduction used, and measure how often it fails the same way; with `recorded`, re-run instead the seeds
+    reduction used, and measure how often it fails the same way, by the recorded same-failure rule (or
+    `same_failure`, a match for every predicate, and `tolerance`); with `recorded`, re-run instead the seeds
     on which the reduction saw it fail (exact reproduction: each should fail again)."""
-    from pytest_ddenv.oracle import classify
+    from dataclasses import replace
+
+    from pytest_ddenv.oracle import classify, same_failure_match, why_other
     from pytest_ddenv.robot_world import ATTEMPT_SEED_STRIDE
 
     folder = Path(directory)
     summary, world = read_artifacts(folder)
     reference = recorded_signature(summary, folder / "summary.json")
     chosen = tuple(predicates) if predicates else recorded_predicates(summary, reference)
-    limit = float(summary.get("tolerance", defaults.TOLERANCE)) if tolerance is None else tolerance
+    rule = recorded_rule(summary, folder / "summary.json")
+    if same_failure is not None:
+        rule = replace(rule, match=same_failure_match(same_failure, "same_failure"), predicates=())
+    if tolerance is not None:
+        rule = replace(rule, tolerance=tolerance)
     run_timeout = timeout if timeout is not None else summary.get("timeout")
     seed = int(summary.get("scenario_seed", summary.get("seed", 0)))
     if recorded:
@@ -239,8 +288,10 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
         except Exception as error:  # noqa: BLE001 - the controller under test raised: another failure than the reference
             results.append(ReplayRun(run_seed, Outcome.OTHER, None, f"{type(error).__name__}: {error}"))
             continue
-        results.append(ReplayRun(run_seed, classify(run, reference, limit), run.failure, run=run))
+        outcome = classify(run, reference, rule)
+        reason = why_other(run.failure, reference, rule) if outcome is Outcome.OTHER and run.failure else None
+        results.append(ReplayRun(run_seed, outcome, run.failure, run=run, why="" if reason is None else reason.text))
     original = summary.get("original_failure_rate") or None
     original_rate = (int(original["fails"]), int(original["runs"])) if isinstance(original, Mapping) else None
-    return ReplayResult(folder, world, reference, chosen, limit, tuple(results), fresh=not recorded,
+    return ReplayResult(folder, world, reference, chosen, rule, tuple(results), fresh=not recorded,
                         original_rate=original_rate)

@@ -26,6 +26,7 @@ def result_lines(report: ReductionReport) -> list[str]:
     removed = report.removed_models
     earlier = f" ({reduction.resumed_probes} in earlier runs)" if reduction.resumed_probes else ""
     return [
+        *reproduction_lines(report),
         f"minimal world: {', '.join(reduction.minimal) or '(no models)'}",
         *needed_lines(reduction),
         f"removed ({len(removed)}): {listing(removed)}",
@@ -34,12 +35,34 @@ def result_lines(report: ReductionReport) -> list[str]:
         (f"simulations run: {report.cost.simulations} (confirmation, fresh-run, "
          f"speculative and picture runs included; {report.cost.cpu_seconds:.1f} s of worker CPU)"),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
+        *same_failure_lines(report),
         failure_rate_line(reduction),
         *stage_lines(report),
         *other_failure_lines(report),
         *(f"note: {text}" for text in report.notes),
         *(f"not simulated: {text}" for text in report.world_notes),
     ]
+
+
+def reproduction_lines(report: ReductionReport) -> list[str]:
+    """Up front, when the original world's fresh runs rarely failed the same way: how often and why not."""
+    if report.reproduction is None:
+        return []
+    return [f"warning: {report.reproduction.describe()}"]
+
+
+def same_failure_lines(report: ReductionReport) -> list[str]:
+    """The rule that said which failures are the reference failure, as it applies to the reference."""
+    from pytest_ddenv.oracle import FailureSignature
+
+    reference = report.reference_failure
+    signature = reference.get("signature")
+    if isinstance(signature, dict):
+        return [f"same failure: {report.rule.describe(FailureSignature.from_dict(signature))}"]
+    if "exception_type" in reference:
+        location = reference.get("location", "?")
+        return [f"same failure: {reference['exception_type']} raised at {location} (the same type at the same line)"]
+    return []
 
 
 OTHER_FAILURES_SHOWN = 5
@@ -58,6 +81,8 @@ def other_failure_lines(report: ReductionReport, limit: int = OTHER_FAILURES_SHO
             if failure.world_file is not None:
                 where += f" ({Path(failure.world_file).name})"
         lines.append(f"other failure: {failure.describe()}, {seen}, {where}")
+        if failure.why:
+            lines.append(f"  not the failure: {failure.why}")
     more = len(report.other_failures) - limit
     if more > 0:
         lines.append(f"and {more} more other failure{'s' if more != 1 else ''} (see summary.json)")

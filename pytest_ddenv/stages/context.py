@@ -29,6 +29,7 @@ from pytest_ddenv.reduce.deflake import ConfirmedRuns, DeflakePolicy
 from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
 
 if TYPE_CHECKING:
+    from pytest_ddenv.oracle import SameFailureRule
     from pytest_ddenv.sim import Run
     from pytest_ddenv.world import World
 
@@ -71,12 +72,13 @@ class Budget:
 @dataclass
 class StageContext:
     """`base`: the world the stages start from (the model-level minimal world); `call` runs the test on a
-    world; `wrap` turns a probe into the driver's (it stops probes at the time budget's deadline)."""
+    world; `rule` decides which failures are the reference failure; `wrap` turns a probe into the driver's (it
+    stops probes at the time budget's deadline)."""
 
     base: World
     call: ProbeCall
     reference: FailureReference
-    tolerance: float
+    rule: SameFailureRule
     log: ProbeLog
     policy: DeflakePolicy
     seed: int
@@ -100,7 +102,7 @@ class StageContext:
         left = self.budget.left(stage_begin)
         if left is not None and left <= 0:
             return None
-        probe = make_probe(self.base, self.call, self.reference, tolerance=self.tolerance, build=build)
+        probe = make_probe(self.base, self.call, self.reference, rule=self.rule, build=build)
         if invert:
             probe = _passing_probe(probe)
         reduction = reduce(
@@ -138,7 +140,7 @@ class StageContext:
                 view.write({"event": "probe", "purpose": "reduce", "candidate": [label], "attempt": attempt,
                             "outcome": "error", "detail": f"{type(error).__name__}: {error}"[:300]})
                 return Decided(None, _count(outcomes, passes), len(outcomes), error=str(error))
-            outcome = classify_result(last.error, self.reference, self.tolerance)
+            outcome = classify_result(last.error, self.reference, self.rule)
             record = signature_record(last.error)
             signature = None if record is None else dict(record)
             view.write({"event": "probe", "purpose": "reduce", "kind": "decide", "candidate": [label], "size": 1,
@@ -180,7 +182,7 @@ class StageContext:
                 except Exception:  # noqa: BLE001 - an error is no outcome of the seed
                     errors += 1
                     continue
-                outcome = classify_result(result.error, self.reference, self.tolerance)
+                outcome = classify_result(result.error, self.reference, self.rule)
                 view.write({"event": "probe", "purpose": "failure-rate", "candidate": [label], "size": 1,
                             "attempt": attempt, "outcome": outcome.value,
                             "signature": signature_record(result.error),

@@ -12,6 +12,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from pytest_ddenv.oracle import SameFailureRule
 from pytest_ddenv.probe import ErrorInfo, FailureReference, ProbeResult, make_probe
 from pytest_ddenv.reduce import ProbeLog, Reduction, reduce
 from pytest_ddenv.reduce.deflake import FixedReruns
@@ -70,8 +71,8 @@ def reduce_all(world: World, rule: Rule, stages: tuple[str, ...], log: ProbeLog 
     log = log or ProbeLog(None)
     models = reduce(world.names, make_probe(world, call, REFERENCE, tolerance=0.5), deflake=1, log=log,
                     partition="model2model", priority="sequential", failure_rate_runs=5)
-    context = StageContext(base=world.select(models.minimal), call=call, reference=REFERENCE, tolerance=0.5,
-                           log=log, policy=FixedReruns(1), seed=0,
+    context = StageContext(base=world.select(models.minimal), call=call, reference=REFERENCE,
+                           rule=SameFailureRule(), log=log, policy=FixedReruns(1), seed=0,
                            budget=Budget(limit, lambda: call.counter["calls"], call.counter["calls"]))  # type: ignore[attr-defined]
     outcome = run_stages(stages, context, models, minimal_run=None, folder=Path("/nonexistent"))
     return models, outcome, log
@@ -146,8 +147,8 @@ def test_a_resumed_reduction_reuses_every_stage_decision(tmp_path: Path) -> None
     first_log.close()
     log = ProbeLog(tmp_path / "runs.jsonl")
     call = call_of(fails)
-    context = StageContext(base=world.select(first_models.minimal), call=call, reference=REFERENCE, tolerance=0.5,
-                           log=log, policy=FixedReruns(1), seed=0,
+    context = StageContext(base=world.select(first_models.minimal), call=call, reference=REFERENCE,
+                           rule=SameFailureRule(), log=log, policy=FixedReruns(1), seed=0,
                            budget=Budget(None, lambda: call.counter["calls"]))  # type: ignore[attr-defined]
     again = run_stages(parse_stages("all"), context, first_models, minimal_run=None, folder=tmp_path)
     assert again.final == first.final and again.passing == first.passing
@@ -249,8 +250,8 @@ def test_a_stage_world_that_fails_less_often_is_never_the_result() -> None:
             return ProbeResult(None, None)
         return call(candidate_world, attempt)
 
-    context = StageContext(base=world.select(models.minimal), call=flaky_call, reference=REFERENCE, tolerance=0.5,
-                           log=log, policy=FixedReruns(1), seed=0,
+    context = StageContext(base=world.select(models.minimal), call=flaky_call, reference=REFERENCE,
+                           rule=SameFailureRule(), log=log, policy=FixedReruns(1), seed=0,
                            budget=Budget(None, lambda: call.counter["calls"]))  # type: ignore[attr-defined]
     outcome = run_stages(parse_stages("models,shapes"), context, models, minimal_run=None, folder=Path("/x"))
     shapes = outcome.result("shapes")
