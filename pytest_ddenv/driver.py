@@ -378,11 +378,35 @@ def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _C
         executor=threads, workers=pool.size, wrap=wrap,
     )
     try:
-        return run_stages(spec.stages or DEFAULT_STAGES, context, reduction, minimal_run=minimal_run,
-                          folder=paths.directory, log_only=spec.stages is None)
+        staged = run_stages(spec.stages or DEFAULT_STAGES, context, reduction, minimal_run=minimal_run,
+                            folder=paths.directory, log_only=spec.stages is None)
     finally:
         if threads is not None:
             threads.shutdown(wait=False, cancel_futures=True)
+    if plan.media != "none":
+        _stage_runs_to_show(staged, calls, log, spec.max_probes)
+    return staged
+
+
+def _stage_runs_to_show(staged: StagesOutcome, calls: _Calls, log: ProbeLog, max_probes: int | None) -> None:
+    """The runs `simplified.png` and `passing.png` draw, when the stages simulated none of them now (decided
+    from the log): one run of each world (attempt 0, logged as "picture", counted, within the budgets). The
+    passing world's run is kept only if it passed: a picture never shows a failing run as the passing one."""
+    for world, passing in ((staged.final if staged.changed and staged.final_run is None else None, False),
+                           (staged.passing if staged.passing_run is None else None, True)):
+        if world is None or not calls.may_start(max_probes):
+            continue
+        try:
+            result = calls(world, 0)
+        except Exception:  # noqa: BLE001 - pictures are a convenience
+            _log_run(log, "picture", world.names, 0, None, "error")
+            continue
+        outcome = classify_result(result.error, calls.reference, calls.tolerance)
+        _log_run(log, "picture", world.names, 0, result, outcome.value)
+        if not passing:
+            staged.final_run = result.run
+        elif outcome is Outcome.PASS:
+            staged.passing_run = result.run
 
 
 class _Calls:
@@ -628,7 +652,7 @@ def _pictures(world: World, reduction: Reduction, paths: artifacts.ArtifactPaths
         written = list(render.write_reduction_pictures(world, reduction, paths, original_run=original_run,
                                                        minimal_run=minimal_run))
         if staged is not None:
-            written += render.write_stage_pictures(staged, paths, minimal_run=minimal_run)
+            written += render.write_stage_pictures(staged, paths)
         return written
     except Exception as error:  # noqa: BLE001 - pictures are a convenience; never lose the reduction over one
         warnings.warn(f"ddenv: pictures not written: {type(error).__name__}: {error}", stacklevel=1)
