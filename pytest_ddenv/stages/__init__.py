@@ -43,8 +43,9 @@ NOISE = 0.2
 one standard deviation, one-sided) fails less often beyond the noise of those runs: the stage is reverted."""
 PASSING_RESERVE = 6
 """Simulations kept for the nearest passing world while the stages before it run."""
-CHECK_RESERVE = 10
-"""Simulations kept for the check that the world the stages changed is still 1-minimal (`minimality`)."""
+CHECK_RESERVE = 3
+"""Simulations kept per model (10 at most) for the check that the world the stages changed is still
+1-minimal (`minimality`)."""
 
 
 class StagesError(ValueError):
@@ -115,7 +116,8 @@ def run_stages(stages: Sequence[str], context: StageContext, models: Reduction, 
     begin = budget.started()
     simulating = [stage for stage in SIMULATING if stage in stages]
     passing_reserve = PASSING_RESERVE if "passing" in stages else 0
-    budget.reserve = (FINAL_RATE_RUNS + CHECK_RESERVE if simulating else 0) + passing_reserve
+    check_reserve = min(10, CHECK_RESERVE * len(context.base))
+    budget.reserve = (FINAL_RATE_RUNS + check_reserve if simulating else 0) + passing_reserve
     world = _simplify(context, simulating, models, outcome, minimal_run, folder)
     budget.share = None
     outcome.final, outcome.changed = world, world != context.base

@@ -159,11 +159,11 @@ def test_the_budget_bounds_every_stage_and_undecided_is_not_needed() -> None:
     world = make_world(30, culprit=11, mu=100.0)
     _, outcome, _ = reduce_all(world, fails, parse_stages("all"), limit=12)
     assert outcome.simulations <= 12
-    # a budget that cuts the attributes stage in the middle (10 of the 30 simulations are kept for the final
-    # world's rate and 10 for its 1-minimality check): what it did not decide is never "needed"
+    # a budget that cuts the attributes stage in the middle (10 of the simulations are kept for the final
+    # world's rate and 6 for its 1-minimality check): what it did not decide is never "needed"
     _, outcome, _ = reduce_all(make_world(3, culprit=1, mu=100.0), fails, parse_stages("models,attributes"),
-                               limit=30)
-    assert outcome.simulations <= 30
+                               limit=26)
+    assert outcome.simulations <= 26
     attributes = outcome.result("attributes")
     assert attributes is not None and attributes.incomplete == "budget: max_probes"
     undecided = {(p["model"], p["attribute"]) for p in attributes.details["undecided"]}
