@@ -43,21 +43,24 @@ HUSKY_WIDTH = 0.67
 
 
 def drawn(figure: Any) -> dict[str, Any]:
-    """What a picture's figure draws: its title, the runs' trajectories (legend label, points), the gids of
-    its collections and lines, the x range, and the points of each gid'd artist."""
+    """What a picture's figure draws: its title, the runs' trajectories (legend label, points), its markers
+    without lines (points), its scatters (points and whether they are filled), and the x range."""
+    from matplotlib.collections import PathCollection
+
     axes = figure.axes[0]
     runs = [(str(line.get_label()), np.column_stack(line.get_data()).astype(float)) for line in axes.get_lines()
             if str(line.get_label()).startswith("seed ")]
-    artists = [*axes.collections, *axes.get_lines()]
-    points: dict[str, Any] = {}
-    for artist in artists:
-        gid = artist.get_gid()
-        if gid and hasattr(artist, "get_offsets"):
-            points[gid] = np.asarray(artist.get_offsets(), dtype=float)
-        elif gid and hasattr(artist, "get_data"):
-            points[gid] = np.column_stack(artist.get_data()).astype(float)
-    return {"title": axes.get_title(), "runs": runs, "gids": {a.get_gid() for a in artists if a.get_gid()},
-            "xlim": axes.get_xlim(), "points": points}
+    markers = [np.column_stack(line.get_data()).astype(float) for line in axes.get_lines()
+               if line.get_marker() == "o" and line.get_linestyle() == "None"]
+    scatters = [(np.asarray(c.get_offsets(), dtype=float), len(c.get_facecolors()) > 0,
+                 tuple(np.round((c.get_facecolors() if len(c.get_facecolors()) else c.get_edgecolors())[0][:3], 3)))
+                for c in axes.collections if isinstance(c, PathCollection)]
+    halos = [(tuple(np.round(c.get_edgecolors()[0][:3], 3)), str(c.get_linestyle()[0]), c.get_gid())
+             for c in axes.collections if type(c).__name__ == "PatchCollection" and len(c.get_facecolors()) == 0]
+    legend = axes.get_legend()
+    return {"title": axes.get_title(), "runs": runs, "markers": markers, "scatters": scatters, "halos": halos,
+            "legend": [] if legend is None else [text.get_text() for text in legend.get_texts()],
+            "xlim": axes.get_xlim()}
 
 
 @pytest.fixture(scope="module")
@@ -163,15 +166,20 @@ def test_passing_png_draws_a_passing_run_of_the_passing_world(post_gap: tuple[di
         assert "reached the goal" in label and "stuck" not in label, label
 
 
+RED = (0.839, 0.153, 0.157)
+"""The colour of a probe that failed the same way."""
+
+
 def test_progress_steps_sit_on_their_accepting_probe_and_the_axis_reaches_the_last(
         post_gap: tuple[dict[str, Any], Path, Any]) -> None:
     summary, _, figures = post_gap
     progress = figures["progress.png"]
-    last = max(progress["points"][gid][:, 0].max() for gid in progress["points"] if gid.startswith("probes:"))
-    assert progress["xlim"][1] >= max(last, summary["probes"])
-    fails = progress["points"]["probes:fail"]
-    for x, size in progress["points"]["accepted-steps"]:
-        assert any(fx == x and fs == size for fx, fs in fails), f"no same-failure probe of size {size} at {x}"
+    dots = np.vstack([points for points, _, _ in progress["scatters"]])
+    assert progress["xlim"][1] >= max(dots[:, 0].max(), summary["probes"])  # the axis reaches the last probe
+    accepted_fails = np.vstack([points for points, filled, color in progress["scatters"] if filled and color == RED])
+    (steps,) = progress["markers"]
+    for x, size in steps:
+        assert any(fx == x and fs == size for fx, fs in accepted_fails), f"no same-failure probe of size {size} at {x}"
 
 
 WALL_WITH_TIMEOUT = textwrap.dedent(
@@ -195,7 +203,7 @@ def test_the_passing_world_is_searched_with_the_original_start_and_time_limit(tm
     (the `timeout` predicate: another failure) and no world would pass. The passing stage searches with the
     original start and time limit, where "without wall" passes (the models stage's log already says so)."""
     summary = reduce(tmp_path, WALL_WITH_TIMEOUT, "-p", STUCK, "-p", "timeout", "--stages", "models,time,passing",
-                     "--media", "none", "--stage-probes", "40")
+                     "--media", "pictures", "--stage-probes", "40")
     time = stage(summary, "time")
     assert time["timeout"] < 40 and time["start"][0] > 1.0  # shortened
     found = stage(summary, "passing")
@@ -214,3 +222,35 @@ def test_the_time_stage_shortens_the_ditch_without_media(tmp_path: Path) -> None
     time = stage(summary, "time")
     assert not any(finding.startswith("not shortened") for finding in time["findings"]), time["findings"]
     assert time["points"] >= 2
+
+
+PAD_AND_WALL = textwrap.dedent(
+    """\
+    format: 1
+    name: pad_and_wall
+    scenario:
+      start: {x: 0.0, y: 0.0, yaw: 0.0}
+      goal: {x: 8.0, y: 0.0}
+      timeout: 30
+    models:
+      - {name: start_pad, pose: [0, 0, 0.02], box: [2.0, 2.0, 0.04]}
+      - {name: crate, pose: [-3, 3, 0.25], box: [0.5, 0.5, 0.5]}
+      - {name: wall, pose: [4.0, 0, 0.5], box: [0.3, 4.0, 1.0]}
+      - {name: post, pose: [2, 5, 0.5], cylinder: {radius: 0.2, length: 1.0}}
+    """
+)
+
+
+def test_a_model_kept_by_a_precondition_is_drawn_in_its_own_style(
+        tmp_path: Path, pictures: dict[str, dict[str, Any]]) -> None:
+    """The pad under the robot's start is kept by a precondition, not shown needed: reduction.png draws it
+    apart from the wall the failure needs, with a legend entry that says so."""
+    summary = reduce(tmp_path, PAD_AND_WALL, "-p", STUCK, "--stages", "models", "--media", "pictures")
+    assert summary["minimal_models"] == ["start_pad", "wall"]
+    assert [entry["model"] for entry in summary["precondition_kept"]] == ["start_pad"]
+    picture = pictures["reduction.png"]
+    legend = [" ".join(text.split()) for text in picture["legend"]]
+    assert "kept by a precondition (not shown needed for the failure)" in legend, legend
+    styles = {(color, style) for color, style, _ in picture["halos"]}
+    assert len(picture["halos"]) == 2 and len(styles) == 2, picture["halos"]
+    assert {gid for _, _, gid in picture["halos"]} == {"precondition:start_pad", "needed:wall"}
