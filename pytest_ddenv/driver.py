@@ -389,24 +389,24 @@ def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _C
 
 
 def _stage_runs_to_show(staged: StagesOutcome, calls: _Calls, log: ProbeLog, max_probes: int | None) -> None:
-    """The runs `simplified.png` and `passing.png` draw, when the stages simulated none of them now (decided
-    from the log): one run of each world (attempt 0, logged as "picture", counted, within the budgets). The
-    passing world's run is kept only if it passed: a picture never shows a failing run as the passing one."""
-    for world, passing in ((staged.final if staged.changed and staged.final_run is None else None, False),
-                           (staged.passing if staged.passing_run is None else None, True)):
-        if world is None or not calls.may_start(max_probes):
-            continue
-        try:
-            result = calls(world, 0)
-        except Exception:  # noqa: BLE001 - pictures are a convenience
-            _log_run(log, "picture", world.names, 0, None, "error")
-            continue
-        outcome = classify_result(result.error, calls.reference, calls.tolerance)
-        _log_run(log, "picture", world.names, 0, result, outcome.value)
-        if not passing:
-            staged.final_run = result.run
-        elif outcome is Outcome.PASS:
-            staged.passing_run = result.run
+    """A passing run of the nearest passing world for `passing.png` when the stages decided it from the log
+    (by default, they simulate nothing): one run (attempt 0, logged as "picture", counted in the stages'
+    simulations, within their budget and the reduction's), kept only if it passed: a picture never shows a
+    failing run as the passing one."""
+    world = staged.passing
+    if world is None or staged.passing_run is not None or not calls.may_start(max_probes) or (
+            staged.budget is not None and staged.simulations >= staged.budget):
+        return
+    staged.simulations += 1
+    try:
+        result = calls(world, 0)
+    except Exception:  # noqa: BLE001 - pictures are a convenience
+        _log_run(log, "picture", world.names, 0, None, "error")
+        return
+    outcome = classify_result(result.error, calls.reference, calls.tolerance)
+    _log_run(log, "picture", world.names, 0, result, outcome.value)
+    if outcome is Outcome.PASS:
+        staged.passing_run = result.run
 
 
 class _Calls:
