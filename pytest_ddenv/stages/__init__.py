@@ -178,7 +178,7 @@ def _simplify(context: StageContext, simulating: Sequence[str], models: Reductio
     budget, base = context.budget, context.base
     world = base
     reference = models.failure_rate
-    shown = minimal_run  # a failing run of `world`, if any
+    shown = minimal_run  # a run of `world` (failing when one was simulated here) to take paths and pictures from
     if simulating:  # the minimal world's rate, on fresh runs measured as the stages' worlds will be
         reserve, budget.reserve = budget.reserve, 0
         fails, runs, _, failing = _rate(context, "minimal world", base, len(SIMULATING))

@@ -8,6 +8,7 @@ budget or an error left undecided); it never says more than the runs showed."""
 
 from __future__ import annotations
 
+import hashlib
 from typing import Any
 
 from pytest_ddenv.probe import start_support
@@ -24,6 +25,7 @@ def run(context: StageContext) -> StageResult:
     world = context.base
     begin = context.budget.started()
     support = start_support(world)
+    digest = hashlib.sha1(world.to_yaml().encode()).hexdigest()[:10]  # a resumed log answers for this world only
     needed: list[str] = []
     still_fails: list[str] = []
     undecided: list[str] = []
@@ -33,7 +35,8 @@ def run(context: StageContext) -> StageResult:
             why = "marked keep" if model.keep else "under the robot's start"
             findings.append(f"without {model.name}: not run ({why}: kept by a precondition, as in the models stage)")
             continue
-        decided = context.decide(STAGE, f"without {model.name}", world.without([model.name]), stage_begin=begin)
+        decided = context.decide(STAGE, f"without {model.name} (world {digest})", world.without([model.name]),
+                                 stage_begin=begin)
         runs = f"{decided.fails} of {decided.runs} runs failed the same way"
         if decided.verdict is None:
             undecided.append(model.name)

@@ -109,7 +109,8 @@ def run(context: StageContext) -> StageResult:
         path = path_points(context, context.run or (None if _logged_path(context) else _failing_run(context, begin)))
     if world.scenario is None or path is None:
         why = "the world has no scenario" if world.scenario is None else (
-            f"no failing run of the world it starts from (none given, none of {PATH_RUNS} runs failed the same way)")
+            f"no failing run of the world it starts from to take the path from (none of the at most {PATH_RUNS} "
+            "runs made failed the same way, or the budget ran out)")
         return StageResult(STAGE, world, simulations=context.budget.started() - begin,
                            findings=[f"not shortened: {why}"])
     points, failure_time = path
