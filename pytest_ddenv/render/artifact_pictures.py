@@ -56,7 +56,8 @@ def write_reduction_pictures(world: World, reduction: Reduction, paths: Artifact
 
 def write_stage_pictures(staged: StagesOutcome, paths: ArtifactPaths) -> list[Path]:
     """`simplified.png` (the world the stages left: the kept shapes, simplified models and the shortened
-    start, with a run of that very world: its start, its time limit) and `passing.png` (the nearest passing
+    start, with a run of that very world: its start, its time limit; the title names the stages it comes
+    from) and `passing.png` (the nearest passing
     world with a passing run of it), when found. A world without such a run is drawn without one, and its
     title says so."""
     written: list[Path] = []
@@ -64,7 +65,7 @@ def write_stage_pictures(staged: StagesOutcome, paths: ArtifactPaths) -> list[Pa
         rate = "" if staged.final_rate is None else f", fails {staged.final_rate[0]}/{staged.final_rate[1]} fresh runs"
         runs = () if staged.final_run is None else (staged.final_run,)
         missing = "" if runs else " (no run of it recorded)"
-        title = wrap(f"after the stages: kept shapes, simpler values, start{rate}{missing}", 70)
+        title = wrap(f"after the stages ({', '.join(staged.kept)}){rate}{missing}", 70)
         written.append(plot_world(staged.final, runs, path=paths.directory / "simplified.png", title=title))
     if staged.passing is not None:
         found = staged.result("passing")

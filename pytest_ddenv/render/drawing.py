@@ -41,7 +41,7 @@ def draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghoste
     """Footprints, largest first so small models stay visible on top of slabs and terrain.
 
     Highlighted models get an orange halo under their outline, `preconditioned` ones (kept by a precondition,
-    not shown needed) a dashed purple one; ghosted ones are faint and dashed. Each model's collection has the
+    not shown needed) a dashed magenta one; ghosted ones are faint and dashed. Each model's collection has the
     gid "model:NAME", each halo "needed:NAME" or "precondition:NAME".
     """
     from matplotlib.collections import PatchCollection

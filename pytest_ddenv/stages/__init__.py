@@ -86,6 +86,8 @@ class StagesOutcome:
     as many more as a stage's world gets."""
     rate_below: bool = False
     final_one_minimal: bool | None = None
+    kept: list[str] = field(default_factory=list)
+    """The stages whose world was kept (changed, and not reverted), in order: what made `final`."""
     passing: World | None = None
     simulations: int = 0
     probes: int = 0
@@ -217,6 +219,7 @@ def _simplify(context: StageContext, simulating: Sequence[str], models: Reductio
             continue
         world, outcome.final_rate, outcome.final_errors = result.world, (fails, runs), errors
         shown = failing
+        outcome.kept.append(stage)
     if world != base:
         outcome.final_run = shown
     return world
