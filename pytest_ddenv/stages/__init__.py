@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pytest_ddenv.probe import start_support
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedReruns
 from pytest_ddenv.stages import attributes, explain, minimality, passing, runs_kept, shapes, shorten, structure
 from pytest_ddenv.stages.context import FRESH_ATTEMPTS, Budget, StageContext
@@ -44,8 +45,8 @@ one standard deviation, one-sided) fails less often beyond the noise of those ru
 PASSING_RESERVE = 6
 """Simulations kept for the nearest passing world while the stages before it run."""
 CHECK_RESERVE = 3
-"""Simulations kept per model (10 at most) for the check that the world the stages changed is still
-1-minimal (`minimality`)."""
+"""Simulations kept per model it removes (10 at most) for the check that the world the stages changed is
+still 1-minimal (`minimality`)."""
 
 
 class StagesError(ValueError):
@@ -118,7 +119,8 @@ def run_stages(stages: Sequence[str], context: StageContext, models: Reduction, 
     begin = budget.started()
     simulating = [stage for stage in SIMULATING if stage in stages]
     passing_reserve = PASSING_RESERVE if "passing" in stages else 0
-    check_reserve = min(10, CHECK_RESERVE * len(context.base))
+    support = start_support(context.base)  # the check removes every model but this one and the `keep` ones
+    check_reserve = min(10, CHECK_RESERVE * sum(not m.keep and m.name != support for m in context.base.models))
     budget.reserve = (FINAL_RATE_RUNS + check_reserve if simulating else 0) + passing_reserve
     world = _simplify(context, simulating, models, outcome, minimal_run, folder)
     budget.share = None
