@@ -56,10 +56,9 @@ def write_reduction_pictures(world: World, reduction: Reduction, paths: Artifact
 
 def write_stage_pictures(staged: StagesOutcome, paths: ArtifactPaths) -> list[Path]:
     """`simplified.png` (the world the stages left: the kept shapes, simplified models and the shortened
-    start, with a run of that very world: its start, its time limit; the title names the stages it comes
-    from) and `passing.png` (the nearest passing
-    world with a passing run of it), when found. A world without such a run is drawn without one, and its
-    title says so."""
+    start, with a run of that very world, from its start and with its time limit; the title names the stages
+    it comes from) and `passing.png` (the nearest passing world with a passing run of it), when found. A world
+    without such a run is drawn without one, and its title says so."""
     written: list[Path] = []
     if staged.changed and staged.final is not None:
         rate = "" if staged.final_rate is None else f", fails {staged.final_rate[0]}/{staged.final_rate[1]} fresh runs"

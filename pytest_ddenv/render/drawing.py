@@ -41,8 +41,8 @@ def draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghoste
     """Footprints, largest first so small models stay visible on top of slabs and terrain.
 
     Highlighted models get an orange halo under their outline, `preconditioned` ones (kept by a precondition,
-    not shown needed) a dashed magenta one; ghosted ones are faint and dashed. Each model's collection has the
-    gid "model:NAME", each halo "needed:NAME" or "precondition:NAME".
+    not shown needed) a dashed magenta one (their gids: "needed:NAME", "precondition:NAME"); ghosted ones are
+    faint and dashed.
     """
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Polygon
@@ -61,7 +61,7 @@ def draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghoste
                                    linestyle="-" if needed else "--", zorder=zorder - 0.0005)
             halo.set_gid(f"{'needed' if needed else 'precondition'}:{footprint.name}")
             axes.add_collection(halo)
-        shape = axes.add_collection(PatchCollection(
+        axes.add_collection(PatchCollection(
             [Polygon(polygon, closed=True) for polygon in footprint.polygons],
             facecolor=_fill(model, shown[model.name]),
             edgecolor="#9a9a9a" if ghost else DYNAMIC_EDGE if model.dynamic and shown[model.name] else EDGE,
@@ -70,7 +70,6 @@ def draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghoste
             alpha=0.15 if ghost else 0.45 if terrain else 0.9,
             zorder=zorder,
         ))
-        shape.set_gid(f"model:{footprint.name}")
         for shading in footprint.shading:
             _draw_shading(axes, shading, alpha=0.1 if ghost else 0.5, zorder=zorder + 0.0002)
 

@@ -43,11 +43,11 @@ def draw_progress(steps: Sequence[tuple[int, int]], *, probes: int | None = None
     total = max(probes if probes is not None else 0, steps[-1][0], max((p for p, _, _ in probe_sizes), default=0))
     xs = [p for p, _ in steps] + [total]
     ys = [s for _, s in steps] + [steps[-1][1]]
-    axes.step(xs, ys, where="post", color="#1f77b4", linewidth=2.2, zorder=3, gid="world-size")
+    axes.step(xs, ys, where="post", color="#1f77b4", linewidth=2.2, zorder=3)
     handles: list[Any] = [Line2D([], [], color="#1f77b4", linewidth=2.2, label="current world size")]
     if len(steps) > 1:
         axes.plot([p for p, _ in steps[1:]], [s for _, s in steps[1:]], "o", color="#1f77b4",
-                  markeredgecolor="black", markersize=7, zorder=4, gid="accepted-steps")
+                  markeredgecolor="black", markersize=7, zorder=4)
         handles.append(Line2D([], [], marker="o", color="#1f77b4", markeredgecolor="black", linestyle="none",
                               label="accepted step\n(a smaller world fails)"))
     handles += _probe_dots(axes, probe_sizes, accepted)

@@ -10,6 +10,10 @@ mesh to its bounding box (then, in the next pass, to its convex hull), a positio
 value. Values are rounded along a ladder (1 m, 0.5 m, 0.1 m; 90, 15, 5 degrees): a rounding that broke the
 failure is tried again one rung finer in the next pass, at most `PASSES` passes, so the number of probes is
 bounded and the result is the roundest value that still fails.
+
+A simpler world must keep the cause (`structure`): no rung is coarser than a model's gap to its nearest
+neighbour, and a candidate that changes how two models stand to each other (overlap, touch, a gap narrower or
+wider than the robot) is refused before it is simulated and reported as a different structure.
 """
 
 from __future__ import annotations
