@@ -398,15 +398,9 @@ def _stage_runs_to_show(staged: StagesOutcome, calls: _Calls, log: ProbeLog, max
             staged.budget is not None and staged.simulations >= staged.budget):
         return
     staged.simulations += 1
-    try:
-        result = calls(world, 0)
-    except Exception:  # noqa: BLE001 - pictures are a convenience
-        _log_run(log, "picture", world.names, 0, None, "error")
-        return
-    outcome = classify_result(result.error, calls.reference, calls.tolerance)
-    _log_run(log, "picture", world.names, 0, result, outcome.value)
-    if outcome is Outcome.PASS:
-        staged.passing_run = result.run
+    run, _ = _logged_run(calls, log, world, 0, "picture", False)
+    if run is not None and log.records[-1].get("outcome") == Outcome.PASS.value:  # as it was classified
+        staged.passing_run = run
 
 
 class _Calls:
