@@ -421,11 +421,29 @@ def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _C
         executor=threads, workers=pool.size, wrap=wrap,
     )
     try:
-        return run_stages(spec.stages or DEFAULT_STAGES, context, reduction, minimal_run=minimal_run,
-                          folder=paths.directory, log_only=spec.stages is None)
+        staged = run_stages(spec.stages or DEFAULT_STAGES, context, reduction, minimal_run=minimal_run,
+                            folder=paths.directory, log_only=spec.stages is None)
     finally:
         if threads is not None:
             threads.shutdown(wait=False, cancel_futures=True)
+    if plan.media != "none":
+        _stage_runs_to_show(staged, calls, log, spec.max_probes)
+    return staged
+
+
+def _stage_runs_to_show(staged: StagesOutcome, calls: _Calls, log: ProbeLog, max_probes: int | None) -> None:
+    """A passing run of the nearest passing world for `passing.png` when the stages decided it from the log
+    (by default, they simulate nothing): one run (attempt 0, logged as "picture", counted in the stages'
+    simulations, within their budget and the reduction's), kept only if it passed: a picture never shows a
+    failing run as the passing one."""
+    world = staged.passing
+    if world is None or staged.passing_run is not None or not calls.may_start(max_probes) or (
+            staged.budget is not None and staged.simulations >= staged.budget):
+        return
+    staged.simulations += 1
+    run, _ = _logged_run(calls, log, world, 0, "picture", False)
+    if run is not None and log.records[-1].get("outcome") == Outcome.PASS.value:  # as it was classified
+        staged.passing_run = run
 
 
 class _Calls:
@@ -689,7 +707,7 @@ def _pictures(world: World, reduction: Reduction, paths: artifacts.ArtifactPaths
         written = list(render.write_reduction_pictures(world, reduction, paths, original_run=original_run,
                                                        minimal_run=minimal_run))
         if staged is not None:
-            written += render.write_stage_pictures(staged, paths, minimal_run=minimal_run)
+            written += render.write_stage_pictures(staged, paths)
         return written
     except Exception as error:  # noqa: BLE001 - pictures are a convenience; never lose the reduction over one
         warnings.warn(f"ddenv: pictures not written: {type(error).__name__}: {error}", stacklevel=1)

@@ -261,6 +261,63 @@ def test_progress_steps_are_drawn_at_the_probe_that_justified_them(tmp_path: Pat
         assert dots[number - 1] == (number, size, "fail")  # the dot just before the step is its own candidate
 
 
+PARALLEL_LOG = [  # the journal of a reduction on 2 workers (the two-post gap world), in the order it was written
+    ("start", ["a", "l", "c", "r", "b", "k"], None), *[("calibration", ["a", "l", "c", "r", "b", "k"], "fail")] * 3,
+    ("reduce", ["l", "r", "k"], "fail"), ("reduce", ["a", "c", "b"], "pass"), ("reduce", ["l", "r", "k"], "fail"),
+    ("accept", ["l", "r", "k"], None), ("step", ["l", "r", "k"], None),
+    ("reduce", ["l", "r"], "fail"), ("reduce", ["l", "r"], "fail"), ("accept", ["l", "r"], None),
+    ("reduce", ["k"], "pass"), ("reduce", ["k"], "pass"), ("reject", ["k"], None), ("step", ["l", "r"], None),
+    ("reduce", ["r"], "other"), ("reduce", ["l"], "other"), ("reduce", ["r"], "fail"), ("reduce", ["l"], "pass"),
+    ("reject", ["l"], None), ("reduce", ["r"], "other"), ("reject", ["r"], None),
+]
+
+
+def write_parallel_log(path: Path) -> None:
+    lines = []
+    for kind, candidate, outcome in PARALLEL_LOG:
+        if kind == "start":
+            lines.append({"event": "start", "resumed": 0, "elements": candidate, "keep": []})
+        elif outcome is not None:
+            lines.append({"event": "probe", "purpose": kind, "candidate": candidate, "size": len(candidate),
+                          "outcome": outcome})
+        else:
+            lines.append({"event": kind, "candidate": candidate})
+    path.write_text("".join(json.dumps(line) + "\n" for line in lines))
+
+
+def test_with_parallel_probes_a_step_sits_on_its_accepting_probe(tmp_path: Path) -> None:
+    """On 2 workers the runs of another candidate of the round are logged between the run that decided a
+    step and the step itself: the step is drawn on its own last same-failure run, not after them."""
+    log = tmp_path / "runs.jsonl"
+    write_parallel_log(log)
+    dots = render.probe_sizes_from_log(log)
+    steps = render.steps_from_log(log)
+    for number, size in steps[1:]:
+        assert dots[number - 1] == (number, size, "fail"), f"the step to {size} models is drawn at probe {number}"
+    assert len(dots) == 15  # every probe of the reduction: 3 calibration runs of the original world, 12 others
+    assert steps == [(0, 6), (6, 3), (8, 2)]
+
+
+def test_same_failure_probes_whose_world_was_not_accepted_are_drawn_apart(tmp_path: Path) -> None:
+    from pytest_ddenv.render.artifact_data import accepted_probes_from_log
+    from pytest_ddenv.render.progress_chart import NOT_ACCEPTED
+
+    log = tmp_path / "runs.jsonl"
+    write_parallel_log(log)
+    dots = render.probe_sizes_from_log(log)
+    accepted = accepted_probes_from_log(log)
+    assert accepted == {1, 2, 3, 4, 6, 7, 8}  # ["r"] failed once (probe 13), and its world was rejected
+    figure = render.draw_progress(render.steps_from_log(log), probes=15, probe_sizes=dots, accepted=accepted)
+    try:
+        axes = figure.axes[0]
+        hollow = next(c for c in axes.collections if c.get_gid() == "probes:fail-not-accepted")
+        assert hollow.get_offsets().tolist() == [[13.0, 1.0]] and len(hollow.get_facecolors()) == 0
+        assert NOT_ACCEPTED in [text.get_text() for text in axes.get_legend().get_texts()]
+        assert axes.get_xlim()[1] >= 15
+    finally:
+        pyplot().close(figure)
+
+
 def test_a_failure_found_by_an_assert_is_labelled_in_its_own_words(worlds: dict[str, World], tmp_path: Path) -> None:
     world = worlds["ditch"]
     run = fake_run([(0.0, 0.0), (3.0, 0.5)], failure=None)

@@ -8,24 +8,28 @@ from typing import Any
 
 
 def _last_reduction(log: Path) -> list[dict[str, Any]]:
-    """The model-level records of the last reduction in a run log (from its last ``start``)."""
+    """The model-level records of the last reduction in a run log (from its last ``start`` that is not a
+    resumed one: a resumed reduction goes on with the probes of the runs before it)."""
     from pytest_ddenv.reduce.log import read_records  # lazily: importing the pictures stays cheap
 
     records: list[dict[str, Any]] = []
     for record in read_records(log):
         if "stage" not in record:  # the stages after the models are not drawn here
-            if record.get("event") == "start":
+            if record.get("event") == "start" and not record.get("resumed"):
                 records = []
             records.append(record)
     return records
 
 
 def _is_reduction_probe(record: dict[str, Any]) -> bool:
-    return record.get("event") == "probe" and record.get("purpose", "reduce") == "reduce"
+    """A probe whose result the reduction used: its runs of candidates and its calibration runs of the
+    original world (what `Reduction.probes` counts)."""
+    return record.get("event") == "probe" and record.get("purpose", "reduce") in ("reduce", "calibration")
 
 
 def probe_sizes_from_log(log: Path) -> list[tuple[int, int, str]]:
-    """(probe number, candidate size, outcome) of the reduction probes of the last reduction in a run log."""
+    """(probe number, candidate size, outcome) of the probes of the last reduction in a run log: its runs of
+    candidates and its calibration runs, numbered in the order they were logged."""
     probes = [r for r in _last_reduction(log) if _is_reduction_probe(r)]
     return [(number, int(r.get("size", len(r.get("candidate", ())))), str(r.get("outcome", "")))
             for number, r in enumerate(probes, start=1)]
@@ -33,18 +37,42 @@ def probe_sizes_from_log(log: Path) -> list[tuple[int, int, str]]:
 
 def steps_from_log(log: Path) -> list[tuple[int, int]]:
     """(probe number, size) of the start and of every adopted world (``step``, ``back-off``) of the last
-    reduction in a run log, on the same probe numbering as `probe_sizes_from_log`: a step is drawn at the
-    last probe logged before it, the one that justified it. Empty when the log has no start."""
+    reduction in a run log, on the same numbering as `probe_sizes_from_log`. A step is drawn at the probe that
+    justified it, the last run of its candidate that failed the same way (with parallel probes, other
+    candidates' runs are often logged between that run and the step); a back-off, which no probe justifies,
+    where it happened. A step a resumed reduction adopts again from the log is drawn once. Empty when the
+    log has no start."""
     steps: list[tuple[int, int]] = []
+    adopted: set[tuple[frozenset[str], int]] = set()
+    last_fail: dict[frozenset[str], int] = {}
     probes = 0
     for record in _last_reduction(log):
-        if record.get("event") == "start":
+        if record.get("event") == "start" and not steps:
             steps.append((0, len(record.get("elements", ())) + len(record.get("keep", ()))))
         elif _is_reduction_probe(record):
             probes += 1
+            if record.get("outcome") == "fail":
+                last_fail[frozenset(record.get("candidate", ()))] = probes
         elif record.get("event") in ("step", "back-off") and isinstance(record.get("candidate"), list):
-            steps.append((probes, len(record["candidate"])))
+            key = frozenset(record["candidate"])
+            number = last_fail.get(key, probes) if record["event"] == "step" else probes
+            if (key, number) in adopted:
+                continue
+            adopted.add((key, number))
+            steps.append((max(number, steps[-1][0] if steps else 0), len(record["candidate"])))
     return steps
+
+
+def accepted_probes_from_log(log: Path) -> set[int]:
+    """The numbers (as in `probe_sizes_from_log`) of the probes that failed the same way on a world the
+    reduction adopted (a step, or the original world's calibration runs); the other same-failure probes
+    were not accepted (the deflake rule rejected their candidate, or another candidate was adopted first)."""
+    records = _last_reduction(log)
+    adopted = {frozenset(r["candidate"]) for r in records
+               if r.get("event") in ("step", "back-off") and isinstance(r.get("candidate"), list)}
+    numbered = [r for r in records if _is_reduction_probe(r)]
+    return {number for number, r in enumerate(numbered, start=1) if r.get("outcome") == "fail"
+            and (r.get("purpose") == "calibration" or frozenset(r.get("candidate", ())) in adopted)}
 
 
 def _reference_failure(summary: Path) -> dict[str, Any] | None:

@@ -6,12 +6,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pytest_ddenv.render.artifact_data import (
+    accepted_probes_from_log,
     probe_sizes_from_log,
     reference_pose,
     reference_text,
     steps_from_log,
 )
-from pytest_ddenv.render.canvas import models_text, wrap
+from pytest_ddenv.render.canvas import OUTCOME_COLORS, models_text, wrap
 from pytest_ddenv.render.progress_chart import plot_progress
 from pytest_ddenv.render.world_picture import plot_reduction, plot_world
 
@@ -38,32 +39,41 @@ def write_reduction_pictures(world: World, reduction: Reduction, paths: Artifact
                        f"({reduction.probes} probes, {status})")
     probe_sizes = probe_sizes_from_log(paths.log)
     steps = steps_from_log(paths.log) if probe_sizes else None
+    accepted = accepted_probes_from_log(paths.log) if steps else None
     written = [
         plot_reduction(world, reduction.minimal, path=paths.reduction_png, original_run=original_run,
                        minimal_run=minimal_run, failure_pose=failure_pose, title=reduction_title,
-                       failure_text=failure_text),
+                       failure_text=failure_text,
+                       precondition_kept=[name for name, _ in reduction.precondition_kept]),
         plot_progress(steps or reduction.steps, path=paths.progress_png,
-                      probes=len(probe_sizes) if steps else reduction.probes, probe_sizes=probe_sizes,
+                      probes=max(len(probe_sizes), reduction.probes) if steps else reduction.probes,
+                      probe_sizes=probe_sizes, accepted=accepted,
                       title=f"{name}: world size during the reduction ({status})",
                       note=_progress_note(reduction)),
     ]
     return written
 
 
-def write_stage_pictures(staged: StagesOutcome, paths: ArtifactPaths, *, minimal_run: Run | None = None) -> list[Path]:
+def write_stage_pictures(staged: StagesOutcome, paths: ArtifactPaths) -> list[Path]:
     """`simplified.png` (the world the stages left: the kept shapes, simplified models and the shortened
-    start, with the minimal world's failing run) and `passing.png` (the nearest passing world), when found."""
+    start, with a run of that very world, from its start and with its time limit; the title names the stages
+    it comes from) and `passing.png` (the nearest passing world with a passing run of it), when found. A world
+    without such a run is drawn without one, and its title says so."""
     written: list[Path] = []
-    runs = () if minimal_run is None else (minimal_run,)
     if staged.changed and staged.final is not None:
         rate = "" if staged.final_rate is None else f", fails {staged.final_rate[0]}/{staged.final_rate[1]} fresh runs"
-        written.append(plot_world(staged.final, runs, path=paths.directory / "simplified.png",
-                                  title=f"after the stages: kept shapes, simpler values, start{rate}"))
+        runs = () if staged.final_run is None else (staged.final_run,)
+        missing = "" if runs else " (no run of it recorded)"
+        title = wrap(f"after the stages ({', '.join(staged.kept)}){rate}{missing}", 70)
+        written.append(plot_world(staged.final, runs, path=paths.directory / "simplified.png", title=title))
     if staged.passing is not None:
         found = staged.result("passing")
         difference = "; ".join(found.details.get("difference", [])) if found is not None else ""
+        runs = () if staged.passing_run is None else (staged.passing_run,)
+        missing = "" if runs else " (no passing run of it recorded)"
         written.append(plot_world(staged.passing, runs, path=paths.directory / "passing.png",
-                                  title=wrap(f"nearest passing world: {difference}", 60)))
+                                  title=wrap(f"nearest passing world: {difference}{missing}", 60),
+                                  run_colors=(OUTCOME_COLORS["pass"],)))
     return written
 
 

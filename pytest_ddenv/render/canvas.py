@@ -25,6 +25,8 @@ FILL = {"static": "#b0b0b0", "dynamic": "#5b9bd5", "high": "#eb9486", "low": "#8
 EDGE = "#404040"
 DYNAMIC_EDGE = "#1f4e96"
 HIGHLIGHT = "#ff8c00"
+PRECONDITION = "#c51b7d"
+"""The halo of a model kept by a precondition (not shown needed for the failure), dashed magenta."""
 RUN_COLORS = ("#d62728", "#7b2cbf", "#ff7f0e", "#2ca02c", "#8c564b", "#e377c2")
 OUTCOME_COLORS = {"fail": "#d62728", "other": "#ff7f0e", "pass": "#2ca02c", "error": "#000000"}
 """Colour of a probe's outcome (failure poses, progress dots)."""

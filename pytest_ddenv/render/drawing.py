@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pytest_ddenv.geometry import FloatArray
-from pytest_ddenv.render.canvas import DYNAMIC_EDGE, EDGE, FILL, HIGHLIGHT, OUTCOME_COLORS, wrap
+from pytest_ddenv.render.canvas import DYNAMIC_EDGE, EDGE, FILL, HIGHLIGHT, OUTCOME_COLORS, PRECONDITION, wrap
 from pytest_ddenv.render.footprints import (
     HIGH_FRICTION,
     LOW_FRICTION,
@@ -37,10 +37,12 @@ ROBOT_FOOTPRINT = (0.99, 0.67)
 
 # -- models --------------------------------------------------------------------------------------------
 def draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghosted: frozenset[str] = frozenset(),
-                highlighted: frozenset[str] = frozenset()) -> None:
+                highlighted: frozenset[str] = frozenset(), preconditioned: frozenset[str] = frozenset()) -> None:
     """Footprints, largest first so small models stay visible on top of slabs and terrain.
 
-    Highlighted models get an orange halo under their outline; ghosted ones are faint and dashed.
+    Highlighted models get an orange halo under their outline, `preconditioned` ones (kept by a precondition,
+    not shown needed) a dashed magenta one (their gids: "needed:NAME", "precondition:NAME"); ghosted ones are
+    faint and dashed.
     """
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Polygon
@@ -49,12 +51,16 @@ def draw_models(axes: Axes, world: World, prints: Sequence[Footprint], *, ghoste
     shown = frictions_shown(world, prints)
     for layer, index in enumerate(order):
         model, footprint = world.models[index], prints[index]
-        ghost, strong = footprint.name in ghosted, footprint.name in highlighted
+        ghost, strong = footprint.name in ghosted, footprint.name in highlighted | preconditioned
         terrain = footprint.extent > TERRAIN_EXTENT
         zorder = 1 + layer * 0.001 + (0.5 if strong else 0.0)
         if strong:
-            axes.add_collection(PatchCollection([Polygon(_largest(footprint), closed=True)], facecolor="none",
-                                                edgecolor=HIGHLIGHT, linewidth=5.0, zorder=zorder - 0.0005))
+            needed = footprint.name not in preconditioned
+            halo = PatchCollection([Polygon(_largest(footprint), closed=True)], facecolor="none",
+                                   edgecolor=HIGHLIGHT if needed else PRECONDITION, linewidth=5.0 if needed else 3.5,
+                                   linestyle="-" if needed else "--", zorder=zorder - 0.0005)
+            halo.set_gid(f"{'needed' if needed else 'precondition'}:{footprint.name}")
+            axes.add_collection(halo)
         axes.add_collection(PatchCollection(
             [Polygon(polygon, closed=True) for polygon in footprint.polygons],
             facecolor=_fill(model, shown[model.name]),
@@ -205,7 +211,7 @@ def _fit_equal_aspect(axes: Axes, low: FloatArray, high: FloatArray) -> None:
 
 
 def draw_legend(axes: Axes, world: World, prints: Sequence[Footprint], *, ghosted: bool = False,
-                highlighted: bool = False) -> None:
+                highlighted: bool = False, preconditioned: bool = False) -> None:
     """The legend, right of the axes: the runs and markers drawn, then one entry per kind of model shown."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
@@ -217,6 +223,9 @@ def draw_legend(axes: Axes, world: World, prints: Sequence[Footprint], *, ghoste
     if highlighted:
         handles.append(Patch(facecolor="white", edgecolor=HIGHLIGHT, linewidth=2.5,
                              label="kept (needed for the failure)"))
+    if preconditioned:
+        handles.append(Patch(facecolor="white", edgecolor=PRECONDITION, linewidth=2.0, linestyle="--",
+                             label=wrap("kept by a precondition (not shown needed for the failure)")))
     if ghosted:
         handles.append(Patch(facecolor=FILL["static"], edgecolor="#9a9a9a", alpha=0.25, linestyle="--",
                              label="removed by the reduction"))

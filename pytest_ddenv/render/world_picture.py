@@ -34,29 +34,32 @@ if TYPE_CHECKING:  # pragma: no cover
 
 def plot_world(world: World, runs: Sequence[Run] = (), *, path: str | Path, title: str | None = None,
                failure_poses: Sequence[Sequence[float]] = (), failure_outcomes: Sequence[str] = (),
-               robot_footprint: tuple[float, float] | None = None) -> Path:
+               robot_footprint: tuple[float, float] | None = None, run_colors: Sequence[str] = ()) -> Path:
     """Write a top-down picture of `world` with `runs` (trajectories, failure poses) to `path` (PNG).
 
     `failure_poses` marks extra failure poses (x, y, z, roll, pitch, yaw) without trajectories, e.g. from
     a probe log, drawn with the first run's robot footprint (a Husky's without runs); `failure_outcomes`
     (one per pose: "fail", "other", ...) colours them by outcome (same failure red, another failure orange)
     with a legend entry each. `robot_footprint` (length, width) outlines them when there is no run (the
-    world's own robot; default a Husky's). Models the runs touched when they failed are labelled.
+    world's own robot; default a Husky's). `run_colors`: the runs' colours (default: red, purple, ...).
+    Models the runs touched when they failed are labelled.
     """
     return save(draw_world(world, runs, title=title, failure_poses=failure_poses,
-                           failure_outcomes=failure_outcomes, robot_footprint=robot_footprint), path)
+                           failure_outcomes=failure_outcomes, robot_footprint=robot_footprint,
+                           run_colors=run_colors), path)
 
 
 def draw_world(world: World, runs: Sequence[Run] = (), *, title: str | None = None,
                failure_poses: Sequence[Sequence[float]] = (), failure_outcomes: Sequence[str] = (),
-               robot_footprint: tuple[float, float] | None = None) -> Figure:
+               robot_footprint: tuple[float, float] | None = None, run_colors: Sequence[str] = ()) -> Figure:
     """The figure of `plot_world` (close it with `matplotlib.pyplot.close` when done)."""
     figure, axes = new_figure(WORLD_SIZE)
     prints = footprints(world)
     draw_models(axes, world, prints)
     draw_scenario(axes, world)
+    colors = tuple(run_colors) or RUN_COLORS
     for index, run in enumerate(runs):
-        draw_run(axes, run, RUN_COLORS[index % len(RUN_COLORS)], f"seed {run.seed}")
+        draw_run(axes, run, colors[index % len(colors)], f"seed {run.seed}")
     footprint = runs[0].footprint if runs else robot_footprint or ROBOT_FOOTPRINT  # the poses' robot
     outcomes = list(failure_outcomes) or ["fail"] * len(failure_poses)
     if len(outcomes) != len(failure_poses):
@@ -76,8 +79,12 @@ def draw_world(world: World, runs: Sequence[Run] = (), *, title: str | None = No
 
 def plot_reduction(world: World, minimal: Sequence[str], *, path: str | Path, original_run: Run | None = None,
                    minimal_run: Run | None = None, failure_pose: Sequence[float] | None = None,
-                   title: str | None = None, failure_text: str | None = None) -> Path:
+                   title: str | None = None, failure_text: str | None = None,
+                   precondition_kept: Sequence[str] = ()) -> Path:
     """Write the original world with removed models ghosted and the `minimal` models highlighted and labelled.
+
+    Models of `minimal` in `precondition_kept` (kept by a precondition, such as the one under the robot's
+    start, not shown needed for the failure) get a style of their own, with its own legend entry.
 
     `original_run` (wide, translucent) and `minimal_run` (thin, on top) are drawn with their failure poses;
     without an original run, `failure_pose` (the reference failure's pose) is marked instead. Each failure pose
@@ -86,19 +93,22 @@ def plot_reduction(world: World, minimal: Sequence[str], *, path: str | Path, or
     it was not found by a predicate.
     """
     figure = draw_reduction(world, minimal, original_run=original_run, minimal_run=minimal_run,
-                            failure_pose=failure_pose, title=title, failure_text=failure_text)
+                            failure_pose=failure_pose, title=title, failure_text=failure_text,
+                            precondition_kept=precondition_kept)
     return save(figure, path)
 
 
 def draw_reduction(world: World, minimal: Sequence[str], *, original_run: Run | None = None,
                    minimal_run: Run | None = None, failure_pose: Sequence[float] | None = None,
-                   title: str | None = None, failure_text: str | None = None) -> Figure:
+                   title: str | None = None, failure_text: str | None = None,
+                   precondition_kept: Sequence[str] = ()) -> Figure:
     """The figure of `plot_reduction` (close it with `matplotlib.pyplot.close` when done)."""
     kept = frozenset(minimal)
+    preconditioned = kept & frozenset(precondition_kept)
     removed = frozenset(world.names) - kept
     figure, axes = new_figure(WORLD_SIZE)
     prints = footprints(world)
-    draw_models(axes, world, prints, ghosted=removed, highlighted=kept)
+    draw_models(axes, world, prints, ghosted=removed, highlighted=kept - preconditioned, preconditioned=preconditioned)
     draw_scenario(axes, world)
     points: list[FloatArray] = []
     if original_run is not None:
@@ -116,6 +126,7 @@ def draw_reduction(world: World, minimal: Sequence[str], *, original_run: Run | 
     fit_view(axes, world, prints, points)
     default = f"{title_of(world, None).split(':')[0]}: {len(world)} → {models_text(len(kept))}"
     axes.set_title(title or default, fontsize=12)
-    draw_legend(axes, world, prints, ghosted=bool(removed), highlighted=True)
+    draw_legend(axes, world, prints, ghosted=bool(removed), highlighted=bool(kept - preconditioned),
+                preconditioned=bool(preconditioned))
     label_models(axes, figure, prints, [name for name in world.names if name in kept])
     return figure

@@ -3,8 +3,9 @@
 (`passing`). See docs/algorithm.md, "After the models".
 
 They start from the model-level minimal world and never change it: their result is a further world
-(`simplified.yaml`) and a passing one (`passing.yaml`). Each is logged in the reduction's `runs.jsonl` under
-its own ``stage`` key (so it resumes), and all of them share one simulation budget.
+(`simplified.yaml`), checked to be still 1-minimal (`minimality`), and a passing one (`passing.yaml`, searched
+with the original start and time limit). Each is logged in the reduction's `runs.jsonl` under its own
+``stage`` key (so it resumes), and all of them share one simulation budget.
 """
 
 from __future__ import annotations
@@ -15,8 +16,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pytest_ddenv.probe import start_support
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedReruns
-from pytest_ddenv.stages import attributes, explain, passing, shapes, shorten
+from pytest_ddenv.stages import attributes, explain, minimality, passing, runs_kept, shapes, shorten, structure
 from pytest_ddenv.stages.context import FRESH_ATTEMPTS, Budget, StageContext
 from pytest_ddenv.stages.result import StageResult
 
@@ -42,6 +44,9 @@ NOISE = 0.2
 one standard deviation, one-sided) fails less often beyond the noise of those runs: the stage is reverted."""
 PASSING_RESERVE = 6
 """Simulations kept for the nearest passing world while the stages before it run."""
+CHECK_RESERVE = 3
+"""Simulations kept per model it removes (10 at most) for the check that the world the stages changed is
+still 1-minimal (`minimality`)."""
 
 
 class StagesError(ValueError):
@@ -66,7 +71,10 @@ def parse_stages(value: str | Sequence[str]) -> tuple[str, ...]:
 class StagesOutcome:
     """What the stages after the models found. `final`: the world after shapes, attributes and time (the
     minimal world if they changed nothing); `final_rate`: its failure rate on fresh runs (None: unchanged
-    or not measured); `passing`: the nearest passing world, if found."""
+    or not measured); `final_one_minimal`: whether it is 1-minimal (None: not shown); `passing`: the
+    nearest passing world, if found (with the original start and time limit). `final_run` and
+    `passing_run`: a failing run of `final` and a passing run of `passing` simulated now, for the pictures
+    (None: none was)."""
 
     stages: tuple[str, ...]
     results: list[StageResult] = field(default_factory=list)
@@ -78,10 +86,15 @@ class StagesOutcome:
     """The minimal world's failure rate the stages compare with: its fresh runs of the models stage and
     as many more as a stage's world gets."""
     rate_below: bool = False
+    final_one_minimal: bool | None = None
+    kept: list[str] = field(default_factory=list)
+    """The stages whose world was kept (changed, and not reverted), in order: what made `final`."""
     passing: World | None = None
     simulations: int = 0
     probes: int = 0
     budget: int | None = None
+    final_run: Run | None = None
+    passing_run: Run | None = None
 
     def result(self, stage: str) -> StageResult | None:
         return next((result for result in self.results if result.stage == stage), None)
@@ -91,6 +104,7 @@ class StagesOutcome:
                 "budget": self.budget, "changed": self.changed,
                 "final_failure_rate": None if self.final_rate is None else list(self.final_rate),
                 "final_rate_below": self.rate_below, "final_rate_errors": self.final_errors,
+                "final_one_minimal": self.final_one_minimal,
                 "minimal_failure_rate": None if self.minimal_rate is None else list(self.minimal_rate),
                 "results": [result.to_dict() for result in self.results]}
 
@@ -104,14 +118,26 @@ def run_stages(stages: Sequence[str], context: StageContext, models: Reduction, 
     budget = context.budget
     begin = budget.started()
     simulating = [stage for stage in SIMULATING if stage in stages]
-    budget.reserve = (FINAL_RATE_RUNS if simulating else 0) + (PASSING_RESERVE if "passing" in stages else 0)
+    passing_reserve = PASSING_RESERVE if "passing" in stages else 0
+    support = start_support(context.base)  # the check removes every model but this one and the `keep` ones
+    check_reserve = min(10, CHECK_RESERVE * sum(not m.keep and m.name != support for m in context.base.models))
+    budget.reserve = (FINAL_RATE_RUNS + check_reserve if simulating else 0) + passing_reserve
     world = _simplify(context, simulating, models, outcome, minimal_run, folder)
     budget.share = None
     outcome.final, outcome.changed = world, world != context.base
-    budget.reserve = PASSING_RESERVE if "passing" in stages else 0
+    budget.reserve = passing_reserve
     if outcome.final_rate is not None and outcome.minimal_rate is not None:
         outcome.rate_below = rate_drops(outcome.final_rate, outcome.minimal_rate)
-    final_context = dataclasses.replace(context, base=world)
+    outcome.final_one_minimal = models.one_minimal
+    if outcome.changed:  # the stages changed the models: are they all still needed?
+        decisions = budget.decisions
+        checked = _record(outcome, minimality.run(dataclasses.replace(context, base=world)),
+                          budget.decisions - decisions)
+        outcome.final_one_minimal = checked.details["one_minimal"]
+    # explain and passing ask what the models do, under the scenario the failure was found with: a shorter
+    # start and time limit (the time stage) would make a passing world fail for want of time
+    searched = _with_scenario(world, context.base)
+    final_context = dataclasses.replace(context, base=searched)
     explained = None
     if "explain" in stages:
         decisions = budget.decisions
@@ -124,13 +150,20 @@ def run_stages(stages: Sequence[str], context: StageContext, models: Reduction, 
         decisions = budget.decisions
         simplified = outcome.result("attributes")
         kept = None if simplified is None or simplified.details.get("reverted") else simplified
-        found = _record(outcome, passing.run(final_context, explained, kept, final_is_minimal=not outcome.changed,
+        found = _record(outcome, passing.run(final_context, explained, kept, final_is_minimal=searched == context.base,
                                              search=not log_only), budget.decisions - decisions)
+        if searched != world:
+            found.findings.append("searched with the original start and time limit (not the time stage's)")
         if found.details.get("found"):
-            outcome.passing = found.world
+            outcome.passing, outcome.passing_run = found.world, found.run
     outcome.simulations = budget.started() - begin
     outcome.probes = budget.decisions
     return outcome
+
+
+def _with_scenario(world: World, original: World) -> World:
+    """`world` with the scenario (start, time limit) of `original`."""
+    return world if world.scenario == original.scenario else dataclasses.replace(world, scenario=original.scenario)
 
 
 def _record(outcome: StagesOutcome, result: StageResult, decisions: int) -> StageResult:
@@ -143,32 +176,39 @@ def _record(outcome: StagesOutcome, result: StageResult, decisions: int) -> Stag
 def _simplify(context: StageContext, simulating: Sequence[str], models: Reduction, outcome: StagesOutcome,
               minimal_run: Run | None, folder: Path) -> World:
     """The stages that change the world (shapes, attributes, time), each from the world the one before kept;
-    a stage's world is kept only if it fails about as often as the minimal world on fresh runs."""
+    a stage's world is kept only if it fails about as often as the minimal world on fresh runs. Shapes and
+    attributes may not change the world's structure (`structure`); the time stage searches along a failing
+    run of the world it starts from."""
     budget, base = context.budget, context.base
     world = base
     reference = models.failure_rate
+    shown = minimal_run  # a run of `world` (failing when one was simulated here) to take paths and pictures from
     if simulating:  # the minimal world's rate, on fresh runs measured as the stages' worlds will be
         reserve, budget.reserve = budget.reserve, 0
-        fails, runs, _ = _rate(context, "minimal world", base, len(SIMULATING))
+        fails, runs, _, failing = _rate(context, "minimal world", base, len(SIMULATING))
         budget.reserve = reserve
         reference = (reference[0] + fails, reference[1] + runs)
         outcome.minimal_rate = reference
+        shown = failing or shown
+    touched = structure.touched_at_failure(context.log.own_records(), base.names) | structure.touched_at_failure(
+        context.log.view("rates").own_records(), ["minimal world"])
     for number, stage in enumerate(simulating):
         decisions = budget.decisions
         left = budget.left()
         budget.share = None if left is None else left // (len(simulating) - number)  # the rest goes on
         here = dataclasses.replace(context, base=world)
+        kept_apart = dataclasses.replace(here, wrap=structure.touching_only_wrap(here.wrap, touched), run=shown)
         if stage == "shapes":
-            made = shapes.run(here)
+            made = shapes.run(kept_apart)
         elif stage == "attributes":
-            made = attributes.run(here, folder / "meshes")
+            made = attributes.run(kept_apart, folder / "meshes")
         else:
-            made = shorten.run(dataclasses.replace(here, run=minimal_run))
+            made = shorten.run(dataclasses.replace(here, run=shown))
         result = _record(outcome, made, budget.decisions - decisions)
         if result.world == world:
             continue
         reserve, budget.reserve = budget.reserve, budget.reserve - FINAL_RATE_RUNS
-        fails, runs, errors = _rate(context, f"{stage} world", result.world, number)
+        fails, runs, errors, failing = _rate(context, f"{stage} world", result.world, number)
         budget.reserve = reserve
         result.details["failure_rate"] = [fails, runs]
         if errors or runs == 0 or rate_drops((fails, runs), reference):
@@ -180,18 +220,24 @@ def _simplify(context: StageContext, simulating: Sequence[str], models: Reductio
             result.details["reverted"] = True
             continue
         world, outcome.final_rate, outcome.final_errors = result.world, (fails, runs), errors
+        shown = failing
+        outcome.kept.append(stage)
+    if world != base:
+        outcome.final_run = shown
     return world
 
 
-def _rate(context: StageContext, label: str, world: World, number: int) -> tuple[int, int, int]:
-    """(fails, runs, errors) of `world` on fresh runs: 5, then 10 unless each of the first 5 failed."""
+def _rate(context: StageContext, label: str, world: World, number: int) -> tuple[int, int, int, Run | None]:
+    """(fails, runs, errors) of `world` on fresh runs: 5, then 10 unless each of the first 5 failed; and one
+    of those runs that failed the same way (None: none simulated now)."""
     first = FRESH_ATTEMPTS + 100 * number
-    fails, runs, errors = context.measure("rates", label, world, FINAL_RATE_RUNS // 2, first_attempt=first)
+    fails, runs, errors, failing = runs_kept.measure(context, "rates", label, world, FINAL_RATE_RUNS // 2,
+                                                     first_attempt=first)
     if errors or fails == runs:
-        return fails, runs, errors
-    more = context.measure("rates", label, world, FINAL_RATE_RUNS - FINAL_RATE_RUNS // 2,
-                           first_attempt=first + FINAL_RATE_RUNS // 2)
-    return fails + more[0], runs + more[1], errors + more[2]
+        return fails, runs, errors, failing
+    more = runs_kept.measure(context, "rates", label, world, FINAL_RATE_RUNS - FINAL_RATE_RUNS // 2,
+                             first_attempt=first + FINAL_RATE_RUNS // 2)
+    return fails + more[0], runs + more[1], errors + more[2], failing or more[3]
 
 
 def rate_drops(rate: tuple[int, int], minimal: tuple[int, int]) -> bool:

@@ -10,6 +10,10 @@ mesh to its bounding box (then, in the next pass, to its convex hull), a positio
 value. Values are rounded along a ladder (1 m, 0.5 m, 0.1 m; 90, 15, 5 degrees): a rounding that broke the
 failure is tried again one rung finer in the next pass, at most `PASSES` passes, so the number of probes is
 bounded and the result is the roundest value that still fails.
+
+A simpler world must keep the cause (`structure`): no rung is coarser than a model's gap to its nearest
+neighbour, and a candidate that changes how two models stand to each other (overlap, touch, a gap narrower or
+wider than the robot) is refused before it is simulated and reported as a different structure.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from pytest_ddenv.probe import start_support
 from pytest_ddenv.reduce.types import Candidate
 from pytest_ddenv.stages.context import RATE_RUNS, StageContext
 from pytest_ddenv.stages.result import StageResult
+from pytest_ddenv.stages.structure import keeps_structure, nearest_gaps
 from pytest_ddenv.world import Model, Pose, Shape, World, load_mesh, resolve_mesh_path
 
 STAGE = "attributes"
@@ -70,10 +75,13 @@ def _degrees(value: float) -> str:
 
 def _ladder_proposal(model: Model, attribute: str, rung_from: int, get: Callable[[Model], float],
                      put: Callable[[Model, float], Model], steps: tuple[float, ...], *, positive: bool = False,
-                     shown: Callable[[float], str] = _number) -> Proposal | None:
-    """The first rung from `rung_from` that changes the value (None: the value is round at every rung)."""
+                     shown: Callable[[float], str] = _number, largest: float = math.inf) -> Proposal | None:
+    """The first rung from `rung_from`, no coarser than `largest`, that changes the value (None: the value is
+    round at every such rung)."""
     value = get(model)
     for rung in range(rung_from, len(steps)):
+        if steps[rung] > largest:
+            continue
         target = _rounded(value, steps[rung], positive=positive)
         if abs(target - value) > 1e-9:
             return Proposal(f"{model.name}:{attribute}", model.name, attribute, shown(value), shown(target),
@@ -127,11 +135,13 @@ def _dimensions(shape: Shape) -> str:
     return " x ".join(_number(float(v)) for v in values)
 
 
-def _size_proposal(model: Model, index: int, rung_from: int) -> Proposal | None:
+def _size_proposal(model: Model, index: int, rung_from: int, largest: float = math.inf) -> Proposal | None:
     shape = model.shapes[index]
     if shape.kind not in ("box", "cylinder", "sphere", "capsule"):
         return None
     for rung in range(rung_from, len(LENGTHS)):
+        if LENGTHS[rung] > largest:
+            continue
         simpler = _round_shape(shape, LENGTHS[rung])
         if simpler != shape:
             return Proposal(f"{model.name}:size#{index}", model.name, f"size#{index}", _dimensions(shape),
@@ -175,10 +185,14 @@ def proposals(world: World, rungs: dict[str, int] | None, folder: Path) -> list[
     `rungs` one rung finer (attributes without a ladder are not tried again)."""
     found: list[Proposal] = []
     support = start_support(world)
+    gaps = nearest_gaps(world)
     for model in world.models:
         if model.keep:
             continue
         candidates: list[Proposal | None] = []
+        gap = gaps[model.name]  # no rung coarser than the gap to its nearest neighbour
+        low, high = world.bounds(model.name)
+        reach = max(float(np.hypot(*(high - low)[:2])) / 2.0, 1e-6)  # how far a turn moves its far end
 
         if rungs is None:
             if model.mu != 1.0 or model.mu2 != 1.0:
@@ -201,15 +215,16 @@ def proposals(world: World, rungs: dict[str, int] | None, folder: Path) -> list[
         for key in ("x", "y") if not moves_start else ():
             rung = _rung(rungs, model.name, key)
             if rung is not None:
-                candidates.append(_ladder_proposal(model, key, rung, _pose_get(key), _pose_put(key), LENGTHS))
+                candidates.append(_ladder_proposal(model, key, rung, _pose_get(key), _pose_put(key), LENGTHS,
+                                                   largest=gap))
         rung = _rung(rungs, model.name, "yaw")
         if rung is not None and not moves_start:
             candidates.append(_ladder_proposal(model, "yaw", rung, _pose_get("yaw"), _pose_put("yaw"), ANGLES,
-                                               shown=_degrees))
+                                               shown=_degrees, largest=gap / reach))
         for index in range(len(model.shapes)):
             rung = _rung(rungs, model.name, f"size#{index}")
             if rung is not None and not moves_start:
-                candidates.append(_size_proposal(model, index, rung))
+                candidates.append(_size_proposal(model, index, rung, largest=gap))
             rung = _rung(rungs, model.name, f"mesh#{index}")
             if rung is not None:
                 candidates.append(_mesh_proposal(model, index, rung, world.source, folder))
@@ -244,11 +259,13 @@ def run(context: StageContext, folder: Path) -> StageResult:
     begin = context.budget.started()
     held: list[Proposal] = []
     broke: dict[str, Proposal] = {}
+    refused: dict[str, tuple[Proposal, str]] = {}
     undecided: list[Proposal] = []
     rate: list[int] | None = None
     probes = 0
     incomplete: str | None = None
     rungs: dict[str, int] | None = None
+    width = None if context.run is None else float(context.run.footprint[1])  # the robot's, for its gaps
     for number in range(PASSES):
         offered = proposals(world, rungs, folder)
         if not offered:
@@ -260,7 +277,7 @@ def run(context: StageContext, folder: Path) -> StageResult:
             return simplified(base, [proposal for proposal in offered if proposal.name not in kept])
 
         reduction = context.reduce_edits(f"{STAGE}-{number + 1}", tuple(by_name), build, stage_begin=begin,
-                                         rate_runs=RATE_RUNS)
+                                         preconditions=(keeps_structure(world, build, width),), rate_runs=RATE_RUNS)
         if reduction is None:
             incomplete = "budget: no probes left"
             break
@@ -270,6 +287,7 @@ def run(context: StageContext, folder: Path) -> StageResult:
         held.extend(passed)
         for proposal in passed:
             broke.pop(proposal.name, None)
+            refused.pop(proposal.name, None)
         world = build(reduction.minimal)
         if reduction.failure_rate[1]:
             rate = list(reduction.failure_rate)
@@ -277,15 +295,25 @@ def run(context: StageContext, folder: Path) -> StageResult:
             undecided = [by_name[name] for name in reduction.minimal]
             for proposal in undecided:
                 broke.pop(proposal.name, None)
+                refused.pop(proposal.name, None)
             incomplete = reduction.incomplete_reason
             break
+        different = dict(reduction.precondition_kept)  # applying it alone would change the structure
         for name in needed:
-            broke[name] = by_name[name]
+            if name in different:
+                refused[name] = (by_name[name], different[name])
+                broke.pop(name, None)
+            else:
+                broke[name] = by_name[name]
+                refused.pop(name, None)
         rungs = {name: by_name[name].rung for name in needed}
     findings = [f"{p.model}: {p.attribute} {p.before} -> {p.after} (the failure holds)" for p in held]
     findings += [f"{p.model}: the failure needs {p.attribute} {p.before} (not {p.after})" for p in broke.values()]
+    findings += [f"{p.model}: {p.attribute} {p.before} -> {p.after} not applied: it {why}"
+                 for p, why in refused.values()]
     findings += [f"{p.model}: {p.attribute} {p.before} -> {p.after} not decided ({incomplete})" for p in undecided]
     details: dict[str, Any] = {"held": [_as_dict(p) for p in held], "broke": [_as_dict(p) for p in broke.values()],
+                               "different_structure": [{**_as_dict(p), "why": why} for p, why in refused.values()],
                                "undecided": [_as_dict(p) for p in undecided]}
     if rate is not None:
         details["failure_rate"] = rate

@@ -14,13 +14,16 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.probe import start_support
 from pytest_ddenv.reduce.types import Candidate
 from pytest_ddenv.stages.context import Decided, StageContext
 from pytest_ddenv.stages.result import StageResult
 from pytest_ddenv.world import World
+
+if TYPE_CHECKING:
+    from pytest_ddenv.sim import Run
 
 STAGE = "passing"
 MAX_SINGLES = 3
@@ -92,7 +95,8 @@ def run(context: StageContext, explained: StageResult | None, attributes: StageR
     for name in order[:MAX_SINGLES]:
         decided = context.decide(STAGE, name, changes[name](final), passes=True, stage_begin=begin)
         if decided.verdict:
-            return _found(STAGE, context, final, changes, (name,), decided.fails, decided.runs, begin)
+            return _found(STAGE, context, final, changes, (name,), decided.fails, decided.runs, begin,
+                          run=decided.run)
         if decided.verdict is None:
             return _none(context, begin, "budget: no probes left" if not decided.error else f"error: {decided.error}")
     everything = tuple(changes)
@@ -107,11 +111,12 @@ def run(context: StageContext, explained: StageResult | None, attributes: StageR
                                      invert=True, stage_begin=begin)
     if reduction is None:
         return _found(STAGE, context, final, changes, everything, decided.fails, decided.runs, begin,
-                      incomplete="budget: no probes left")
+                      incomplete="budget: no probes left", run=decided.run)
     verdict: Decided = context.decide(STAGE, " + ".join(reduction.minimal), applied(final, changes, reduction.minimal),
                                       passes=True, stage_begin=begin)
     return _found(STAGE, context, final, changes, reduction.minimal, verdict.fails, verdict.runs, begin,
-                  incomplete=None if reduction.one_minimal else reduction.incomplete_reason)
+                  incomplete=None if reduction.one_minimal else reduction.incomplete_reason,
+                  run=verdict.run if verdict.verdict else None)
 
 
 def _known_passing(explained: StageResult | None) -> list[tuple[str, dict[str, Any]]]:
@@ -128,14 +133,14 @@ def _known_passing(explained: StageResult | None) -> list[tuple[str, dict[str, A
 
 def _found(stage: str, context: StageContext, final: World, changes: dict[str, Callable[[World], World]],
            chosen: Candidate, passes: int, runs: int, begin: int, *, source: str = "simulated",
-           incomplete: str | None = None) -> StageResult:
+           incomplete: str | None = None, run: Run | None = None) -> StageResult:
     world = applied(final, changes, chosen)
     text = "; ".join(chosen)
     origin = ", from the log" if source == "log" else ""
     findings = [f"nearest passing world: {text} (passes {passes} of {runs} runs{origin})"]
     return StageResult(stage, world, simulations=context.budget.started() - begin, findings=findings,
                        details={"difference": list(chosen), "passes": passes, "runs": runs, "source": source,
-                                "found": True}, incomplete=incomplete)
+                                "found": True}, incomplete=incomplete, run=run)
 
 
 def _none(context: StageContext, begin: int, incomplete: str | None, text: str = "") -> StageResult:

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from pytest_ddenv.reduce import Reduction
+    from pytest_ddenv.sim import Run
     from pytest_ddenv.world import World
 
 
@@ -28,6 +29,9 @@ class StageResult:
     differences: dict[str, Callable[[World], World]] = field(default_factory=dict)
     """Changes of the final world that each broke the failure here (what the nearest passing world may
     apply), by their description."""
+    run: Run | None = None
+    """A run of `world` that shows what the stage says of it (the nearest passing world: a passing run), when
+    one was simulated now (None: decided from the log, or nothing to show)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"stage": self.stage, "probes": self.probes, "simulations": self.simulations,

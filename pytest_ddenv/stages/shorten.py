@@ -1,6 +1,9 @@
 """Stage `time`: shorten the scenario. The latest start pose along the failing trajectory that still gives
 the same failure (binary search over points of the path, at most `MAX_POINTS`), then the shortest time limit
-(the failure's time from the new start plus a margin), each decided by the deflake rule."""
+(the failure's time from the new start plus a margin), each decided by the deflake rule. A start is rounded
+to the finest rung of the attributes stage's ladder (0.1 m, 5 degrees). The path is that of a failing run of
+the world the stage starts from: the one it is given, else one run here (logged, counted) when the log does
+not hold the path yet."""
 
 from __future__ import annotations
 
@@ -12,6 +15,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pytest_ddenv.stages import runs_kept
+from pytest_ddenv.stages.attributes import ANGLES, LENGTHS
 from pytest_ddenv.stages.context import StageContext
 from pytest_ddenv.stages.result import StageResult
 from pytest_ddenv.world import Pose, World
@@ -26,6 +31,8 @@ MIN_SPACING = 0.25
 """Metres between two start points at least."""
 TIME_MARGIN = 1.0
 """Simulated seconds left after the failure's time in the shortened time limit."""
+PATH_RUNS = 3
+"""Runs (attempts 0, 1, ...) at most to get a failing run of the world when none was given."""
 
 
 def start_points(run: Run, failure_time: float) -> list[tuple[float, int]]:
@@ -51,10 +58,16 @@ def start_points(run: Run, failure_time: float) -> list[tuple[float, int]]:
 
 
 def moved(world: World, point: Point) -> World:
-    """`world` with the robot starting (at rest, on what is under it) at `point` of the path."""
+    """`world` with the robot starting (at rest, on what is under it) at `point` of the path, rounded to the
+    finest rung of the ladder (0.1 m, 5 degrees)."""
     assert world.scenario is not None
-    start = Pose(point.x, point.y, 0.0, 0.0, 0.0, point.yaw)
+    start = Pose(_round(point.x, LENGTHS[-1]), _round(point.y, LENGTHS[-1]), 0.0, 0.0, 0.0,
+                 _round(point.yaw, ANGLES[-1]))
     return dataclasses.replace(world, scenario=dataclasses.replace(world.scenario, start=start, start_z_given=False))
+
+
+def _round(value: float, step: float) -> float:
+    return round(round(value / step) * step, 9) + 0.0  # + 0.0: never -0.0
 
 
 @dataclass(frozen=True)
@@ -88,12 +101,18 @@ def path_points(context: StageContext, trajectory: Run | None) -> tuple[list[Poi
 
 
 def run(context: StageContext) -> StageResult:
+    """`context.run`: a failing run of `context.base` (None: one is run here if the log lacks the path)."""
     world = context.base
     begin = context.budget.started()
-    path = path_points(context, context.run) if world.scenario is not None else None
+    path = None
+    if world.scenario is not None:
+        path = path_points(context, context.run or (None if _logged_path(context) else _failing_run(context, begin)))
     if world.scenario is None or path is None:
-        why = "the world has no scenario" if world.scenario is None else "no failing run of the minimal world"
-        return StageResult(STAGE, world, findings=[f"not shortened: {why}"])
+        why = "the world has no scenario" if world.scenario is None else (
+            f"no failing run of the world it starts from to take the path from (none of the at most {PATH_RUNS} "
+            "runs made failed the same way, or the budget ran out)")
+        return StageResult(STAGE, world, simulations=context.budget.started() - begin,
+                           findings=[f"not shortened: {why}"])
     points, failure_time = path
     search = _latest_start(context, world, points, begin)
     good = search.good
@@ -125,6 +144,21 @@ def run(context: StageContext) -> StageResult:
                     "saved_sim_seconds_passing": round(saved_passing, 3)})
     return StageResult(STAGE, shortened, probes=0, simulations=context.budget.started() - begin, findings=findings,
                        details=details, incomplete=incomplete)
+
+
+def _logged_path(context: StageContext) -> bool:
+    return any(record.get("event") == "path" for record in context.log.view(STAGE).own_records())
+
+
+def _failing_run(context: StageContext, begin: int) -> Run | None:
+    """A run of `context.base` that fails the same way: attempts 0, 1, ... (at most `PATH_RUNS`), logged in
+    the stage's view as runs of "path run" and counted by the budget."""
+    for attempt in range(PATH_RUNS):
+        _, runs, errors, failing = runs_kept.measure(context, STAGE, "path run", context.base, 1,
+                                                     first_attempt=attempt, stage_begin=begin)
+        if failing is not None or (runs == 0 and not errors):  # found, or no budget left
+            return failing
+    return None
 
 
 @dataclass
