@@ -679,8 +679,10 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     problem = folder_problem(_artifacts_folder(arguments))
     if problem is not None:
         raise UsageError(f"{'--out' if arguments.out else 'the artifacts folder'}: {problem}")
-    job = ScenarioJob(tuple(predicates), seed=arguments.seed, timeout=arguments.timeout,
-                      controller=arguments.controller, imports=tuple(arguments.imports))
+    # --timeout is in the world's scenario (with_scenario), not a per-run override: the time stage's shorter
+    # limit must apply to its candidates
+    job = ScenarioJob(tuple(predicates), seed=arguments.seed, controller=arguments.controller,
+                      imports=tuple(arguments.imports))
     progress = ProgressLine(sys.stderr, quiet=arguments.quiet)
     in_process = job.handler() if executor is None and arguments.workers == 1 else None
     ahead: threading.Thread | None = None

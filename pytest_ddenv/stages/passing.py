@@ -114,9 +114,13 @@ def run(context: StageContext, explained: StageResult | None, attributes: StageR
                       incomplete="budget: no probes left", run=decided.run)
     verdict: Decided = context.decide(STAGE, " + ".join(reduction.minimal), applied(final, changes, reduction.minimal),
                                       passes=True, stage_begin=begin)
+    if not verdict.verdict:  # its check did not pass (or could not run): the world shown passing is the answer
+        why = ("budget: no probes left" if verdict.verdict is None else
+               f"{' + '.join(reduction.minimal)} passed only {verdict.fails} of {verdict.runs} runs when checked")
+        return _found(STAGE, context, final, changes, everything, decided.fails, decided.runs, begin,
+                      incomplete=why, run=decided.run)
     return _found(STAGE, context, final, changes, reduction.minimal, verdict.fails, verdict.runs, begin,
-                  incomplete=None if reduction.one_minimal else reduction.incomplete_reason,
-                  run=verdict.run if verdict.verdict else None)
+                  incomplete=None if reduction.one_minimal else reduction.incomplete_reason, run=verdict.run)
 
 
 def _known_passing(explained: StageResult | None) -> list[tuple[str, dict[str, Any]]]:
