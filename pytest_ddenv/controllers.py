@@ -45,7 +45,8 @@ class GoToGoal:
     scenario's goal tolerance), it drives on at `search_speed` m/s: straight ahead for `search_spacing / 2` m
     (the estimate of a wheeled robot mostly drifts ahead of the truth: wheels slip), then outward on a spiral
     around the estimated goal whose turns are `search_spacing` m apart, out to `search_radius` m; then it
-    drives back to the estimated goal and stops there. `search_radius=0`: it stops where its estimate says the goal is (no search).
+    drives back to the estimated goal and stops there. `search_radius=0`: it stops where its estimate says
+    the goal is, with no search.
     """
 
     max_speed: float = 1.0
