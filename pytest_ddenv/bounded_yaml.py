@@ -8,9 +8,9 @@ in YAML 1.2 form (`1e9`, `2.5E-3`) are numbers, not the strings PyYAML's YAML 1.
 and, where known, the field.
 
 The C reader (libyaml) of newer PyYAML wheels refuses nesting beyond its own limit (1000) while it scans ahead,
-which can come before this composer counts 64 levels; the document is then read again with PyYAML's
-pure-Python parser, which has no such limit, so that the error is this module's, with its line and field,
-whatever PyYAML is installed.
+which can come before this composer counts 64 levels; the text up to where it stopped is then read again
+with PyYAML's pure-Python parser, which has no such limit, so that the error is this module's, with its line
+and field, whatever PyYAML is installed.
 """
 
 from __future__ import annotations
@@ -221,8 +221,17 @@ def _load(text: str) -> Any:
     except yaml.MarkedYAMLError as error:
         if isinstance(error, _LimitError) or "nesting depth" not in str(error.problem):
             raise
-    # libyaml's own nesting limit (PyYAML 6.0.4 wheels): the pure-Python parser finds this module's.
-    return yaml.load(text, Loader=_PythonLoader)
+        refused = error
+    # libyaml's own nesting limit (PyYAML 6.0.4 wheels) came first. The pure-Python parser (about 3 times
+    # slower) reads the text up to where libyaml stopped, which holds this module's limit too, and says where.
+    mark = refused.problem_mark
+    try:
+        yaml.load(text if mark is None else text[:mark.index + 1], Loader=_PythonLoader)
+    except _LimitError:
+        raise
+    except yaml.YAMLError:
+        pass
+    raise _LimitError(f"lists and mappings nested more than {MAX_DEPTH} deep", mark)
 
 
 def _clipped(text: str) -> str:

@@ -57,3 +57,14 @@ def test_a_world_file_nested_deeper_than_libyaml_allows_names_the_file(tmp_path:
     with pytest.raises(WorldError, match=r"deep.yaml:2, field 'models\[0\]\[0\]\[0\]\.\.\.\[0\]\[0\]': lists and "
                                          r"mappings nested more than 64 deep"):
         World.load(path)
+
+
+def test_nesting_after_other_models_and_wide_characters_names_its_line() -> None:
+    """The pure-Python parser reads only up to where libyaml stopped: the limit is found there, past models
+    and names of characters that take several bytes in UTF-8."""
+    models = "".join(f"  - {{name: kiste_{i}_äöü_箱, pose: [{i}, 0, 0.5], box: [0.3, 4, 1]}}\n" for i in range(500))
+    text = "format: 1\nmodels:\n" + models + "  - " + "[" * 2000 + "]" * 2000 + "\n"
+    with pytest.raises(WorldError) as raised:
+        load_document(text, "deep.yaml")
+    assert str(raised.value) == (f"deep.yaml:{3 + 500}, field 'models[500][0][0]...[0][0]': lists and mappings "
+                                 f"nested more than {MAX_DEPTH} deep")
