@@ -6,6 +6,11 @@ MAX_ALIAS_NODES nodes (no "billion laughs"), no recursive aliases, no duplicate 
 in YAML 1.2 form (`1e9`, `2.5E-3`) are numbers, not the strings PyYAML's YAML 1.1 rules make of them; the
 `Dumper` quotes strings that would read as such numbers. Every error is a `WorldError` naming the line
 and, where known, the field.
+
+The C reader (libyaml) of newer PyYAML wheels refuses nesting beyond its own limit (1000) while it scans ahead,
+which can come before this composer counts 64 levels; the text up to where it stopped is then read again
+with PyYAML's pure-Python parser, which has no such limit, so that the error is this module's, with its line
+and field, whatever PyYAML is installed.
 """
 
 from __future__ import annotations
@@ -46,9 +51,12 @@ class _Open:
     keys: dict[tuple[str, str], int] = dataclass_field(default_factory=dict)
 
 
-class _Loader(_SafeLoader):  # type: ignore[valid-type,misc]
-    """yaml's safe loader (the C one when available) with an iterative composer that enforces the limits: the
-    C composer recurses and crashes the process on a document nested 100000 deep."""
+_ComposerBase: Any = object  # a mixin of the loaders below: their methods as types-PyYAML leaves them (untyped)
+
+
+class _BoundedComposer(_ComposerBase):  # type: ignore[misc]
+    """An iterative composer that enforces the limits, for yaml's safe loaders: the C composer recurses and
+    crashes the process on a document nested 100000 deep."""
 
     def get_single_node(self) -> yaml.Node | None:
         self.get_event()  # stream start
@@ -162,21 +170,31 @@ def _path(stack: list[_Open], last: str | None = None) -> str | None:
     return text or None
 
 
+class _Loader(_BoundedComposer, _SafeLoader):  # type: ignore[valid-type,misc]
+    """yaml's safe loader, the C one when available, with the bounded composer."""
+
+
+class _PythonLoader(_BoundedComposer, yaml.SafeLoader):
+    """yaml's pure-Python safe loader with the bounded composer: reads again what libyaml refused as nested
+    too deep, to say where this module's limit is broken."""
+
+
 class Dumper(_SafeDumper):  # type: ignore[valid-type,misc]
     """Quotes the strings `_Loader` would read as numbers (a model named 1e5 is written '1e5')."""
 
 
 _EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
 for _first in "-+.0123456789":  # YAML 1.2 (and JSON) numbers with an exponent: 1e9, 2.5E-3
-    _Loader.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT, [_first])
-    Dumper.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT, [_first])
-_Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_yaml_int)
+    for _resolving in (_Loader, _PythonLoader, Dumper):
+        _resolving.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT, [_first])
+for _constructing in (_Loader, _PythonLoader):
+    _constructing.add_constructor("tag:yaml.org,2002:int", _constructing.construct_yaml_int)
 
 
 def load_document(text: str, source: str | None) -> Any:
     """The YAML document in `text`, read within the limits (WorldError naming the line otherwise)."""
     try:
-        return yaml.load(text, Loader=_Loader)
+        return _load(text)
     except _LimitError as error:
         line = error.problem_mark.line + 1 if error.problem_mark is not None else None
         raise WorldError(str(error.problem), source=source, line=line, field=error.path) from None
@@ -195,6 +213,25 @@ def load_document(text: str, source: str | None) -> Any:
         raise WorldError(f"YAML error: {_clipped(str(error))}", source=source) from None
     except (ValueError, OverflowError) as error:  # e.g. an integer of more than 4300 digits
         raise WorldError(f"unreadable value: {_clipped(str(error))}", source=source) from None
+
+
+def _load(text: str) -> Any:
+    try:
+        return yaml.load(text, Loader=_Loader)
+    except yaml.MarkedYAMLError as error:
+        if isinstance(error, _LimitError) or "nesting depth" not in str(error.problem):
+            raise
+        refused = error
+    # libyaml's own nesting limit (PyYAML 6.0.4 wheels) came first. The pure-Python parser (about 3 times
+    # slower) reads the text up to where libyaml stopped, which holds this module's limit too, and says where.
+    mark = refused.problem_mark
+    try:
+        yaml.load(text if mark is None else text[:mark.index + 1], Loader=_PythonLoader)
+    except _LimitError:
+        raise
+    except yaml.YAMLError:
+        pass
+    raise _LimitError(f"lists and mappings nested more than {MAX_DEPTH} deep", mark)
 
 
 def _clipped(text: str) -> str:

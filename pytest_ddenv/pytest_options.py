@@ -196,7 +196,7 @@ def read_options(config: pytest.Config) -> DdenvOptions:
     in place of a test's own failure at the end."""
     try:
         reduce = bool(_setting(config, "ddenv_reduce"))
-    except pytest.UsageError as error:
+    except (pytest.UsageError, ValueError) as error:  # pytest before 9.2 raises ValueError for a bad ini bool
         raise pytest.UsageError(f"{_where(config, 'ddenv_reduce')}: expected true or false (or 1/0, yes/no, "
                                 f"on/off): {error}") from None
     deflake = _setting(config, "ddenv_deflake")

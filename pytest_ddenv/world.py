@@ -805,7 +805,10 @@ def check_mesh_file(path: Path, scale: tuple[float, float, float], fail: Callabl
         mesh = load_mesh(path, scale)
     except WorldError as error:
         cause = error.__cause__
-        detail = "" if cause is None or isinstance(cause, ImportError) else f" ({str(cause).splitlines()[0][:120]})"
+        # trimesh's own failures say nothing about the file: an optional module missing, or (trimesh 4) a
+        # TypeError when it decodes binary garbage as text with no encoding detector installed.
+        uninformative = cause is None or isinstance(cause, (ImportError, TypeError))
+        detail = "" if uninformative else f" ({str(cause).splitlines()[0][:120]})"
         raise fail(f"not a mesh file: {shown_path(path)} cannot be read as {path.suffix or 'a mesh'}{detail}"
                    ) from None
     vertices = np.asarray(getattr(mesh, "vertices", ()), dtype=float)
