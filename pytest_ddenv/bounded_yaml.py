@@ -3,9 +3,10 @@
 PyYAML's safe loader with an iterative composer (the C composer recurses and crashes the process on a
 document nested 100000 deep) that enforces: nesting at most MAX_DEPTH deep, aliases that add at most
 MAX_ALIAS_NODES nodes (no "billion laughs"), no recursive aliases, no duplicate keys, one document. Numbers
-in YAML 1.2 form (`1e9`, `2.5E-3`) are numbers, not the strings PyYAML's YAML 1.1 rules make of them; the
-`Dumper` quotes strings that would read as such numbers. Every error is a `WorldError` naming the line
-and, where known, the field.
+in YAML 1.2 form (`1e9`, `2.5E-3`) are numbers, not the strings PyYAML's YAML 1.1 rules make of them, and
+`1:30` is a string, as in YAML 1.2, not a YAML 1.1 base-60 number (whose conversion is quadratic in its
+length); a scalar with an explicit tag (`!!float abc`) must fit it. The `Dumper` quotes strings that would
+read as numbers. Every error is a `WorldError` naming the line and, where known, the field.
 """
 
 from __future__ import annotations
