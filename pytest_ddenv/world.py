@@ -44,13 +44,12 @@ MAX_MESH_BYTES = 256 * 1024 * 1024
 """Largest mesh file read."""
 MAX_IMAGE_BYTES = 64 * 1024 * 1024
 """Largest heightmap image file read."""
-HEIGHTMAP_ENGINE_SAMPLES = (1 if sys.platform == "darwin" else 8) * 1024 * 1024 // 4
-"""The most heights pybullet's heightfield takes: its command stream holds 8 MiB of float32 heights (1 MiB on
-macOS); past it the heights it reads are garbage or the process crashes (measured on Linux, pybullet 3.2.7:
-1448 x 1448 and 2048 x 1024 pixels right, 1449 x 1449 and 2049 x 1024 wrong, 4096 x 4096 a segmentation fault)."""
 HEIGHTMAP_SIDE = 1025 if sys.platform != "darwin" else 257
 MAX_HEIGHTMAP_PIXELS = HEIGHTMAP_SIDE * HEIGHTMAP_SIDE
-"""Most pixels of a heightmap image: about half of HEIGHTMAP_ENGINE_SAMPLES (a quarter on macOS)."""
+"""Most pixels of a heightmap image. pybullet passes a heightfield's heights through a buffer of 8 MiB of float32
+(1 MiB on macOS): 2 097 152 heights (262 144); past it the heights it reads are garbage or the process crashes
+(measured on Linux, pybullet 3.2.7: 1448 x 1448 and 2048 x 1024 pixels right, 1449 x 1449 and 2049 x 1024
+wrong, 4096 x 4096 a segmentation fault). The limit is about half of that (a quarter on macOS)."""
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\ud800-\udfff\ufffe\uffff]")
 
 
@@ -433,7 +432,7 @@ def _points(points: object) -> FloatArray:
     """`points` as an (N, 3) array of finite numbers (WorldError naming the first bad point otherwise)."""
     try:
         array = np.asarray(points, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         array = np.empty((0, 0))
     if array.ndim not in (1, 2) or array.shape[-1] != 3:
         raise WorldError(expected("points x, y, z (an array of shape (3,) or (N, 3))", points,
@@ -665,7 +664,7 @@ def polyline_problem(points: Sequence[Sequence[float]]) -> str | None:
         return f"an outline needs at least 3 points, got {len(points)}"
     try:
         array = np.asarray(points, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         array = np.empty(0)
     if array.shape != (len(points), 2) or not np.all(np.isfinite(array)):
         return "every point must be two finite numbers [x, y]"
@@ -818,23 +817,22 @@ def check_shape(shape: Shape, *, source: str | None = None, model: str | None = 
         positive("height", shape.height)
     if shape.kind == "mesh":
         sizes("scale", shape.scale)
-    if shape.kind in ("mesh", "heightmap"):
-        if not shape.mesh or not isinstance(shape.mesh, str):
-            raise fail("file", f"missing; a {shape.kind} needs a file")
+    if shape.kind in ("mesh", "heightmap") and (not shape.mesh or not isinstance(shape.mesh, str)):
+        raise fail("file", f"missing; a {shape.kind} needs a file")
+    if shape.kind == "heightmap" and not static:
+        raise fail(None, "a heightmap is terrain and must be static; remove the model's mass or 'static: false'")
+    if files and shape.kind in ("mesh", "heightmap"):
+        assert shape.mesh is not None
         path = resolve_relative(shape.mesh, source)
         problem = regular_file_problem(path, "mesh file" if shape.kind == "mesh" else "heightmap image file")
-        if files and problem is not None:
+        if problem is not None:
             raise fail("file", problem)
-    if shape.kind == "heightmap":
-        if not static:
-            raise fail(None, "a heightmap is terrain and must be static; remove the model's mass or "
-                             "'static: false'")
-        if files:
+        if shape.kind == "heightmap":
             _check_image(path, fail)
 
 
 def _check_image(path: Path, fail: Callable[[str | None, str], WorldError]) -> None:
-    """The heightmap image is a regular file that opens (header only) with 2 x 2 to MAX_HEIGHTMAP_PIXELS pixels."""
+    """The heightmap image is a regular file that opens (its header) with 2 x 2 to MAX_HEIGHTMAP_PIXELS pixels."""
     with _heightmap_image(path, lambda reason: fail("file", reason)):
         pass
 
@@ -901,9 +899,9 @@ def check_mesh_file(path: Path, scale: tuple[float, float, float], fail: Callabl
         mesh = load_mesh(path, scale)
     except WorldError as error:
         cause = error.__cause__
-        if cause is None:  # not finite vertices
+        if cause is None:  # vertices that are not finite
             raise fail(error.reason) from None
-        detail = "" if cause is None or isinstance(cause, ImportError) else f" ({str(cause).splitlines()[0][:120]})"
+        detail = "" if isinstance(cause, ImportError) else f" ({str(cause).splitlines()[0][:120]})"
         raise fail(f"not a mesh file: {shown_path(path)} cannot be read as {path.suffix or 'a mesh'}{detail}"
                    ) from None
     vertices = np.asarray(getattr(mesh, "vertices", ()), dtype=float)

@@ -63,7 +63,10 @@ def number_problem(value: Any, *, positive: bool = False, non_negative: bool = F
     when asked), or None."""
     if not is_real(value):
         return expected("a number", value)
-    number = float(value)
+    try:
+        number = float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        number = math.inf
     if not math.isfinite(number):
         return expected("a finite number", value)
     if positive and number <= 0:
