@@ -1,9 +1,9 @@
 """Every row of the bad-input table in docs/reliability.md, checked: the input is made, given to its interface
-(`ddenv`, `pytest` with an option, an ini file or a marker), and the message the table shows must be what is
-printed, on one line; `ddenv` exits 2 for it and prints it in its `--json` object too.
+(`ddenv`, `pytest` with an option, an ini file or a marker, the Python API), and the message the table shows
+must be what is printed, on one line; `ddenv` exits 2 for it and prints it in its `--json` object too.
 
 The table is read from the page: a row's first cell is its id, a key of `CASES` below. In a message, `…`
-stands for a part that changes from machine to machine (a temporary folder).
+stands for a part that changes from machine to machine (a temporary folder, the libyaml version's field).
 """
 
 from __future__ import annotations
@@ -86,8 +86,9 @@ def _read_only(path: Path) -> None:
 
 @dataclass(frozen=True)
 class Case:
-    """An input and the command that reads it: `ddenv ...` (in-process, exit code 2 unless `code`) or
-    `pytest ...` (in a subprocess, exit code `code`). `files`: text, bytes, or a function making the path."""
+    """An input and the command that reads it: `ddenv ...` (in-process, exit code 2 unless `code`),
+    `pytest ...` (in a subprocess, exit code `code`) or `python CODE` (see `python`). `files`: text, bytes, or a
+    function making the path."""
 
     command: tuple[str, ...]
     files: dict[str, str | bytes | Callable[[Path], None]] = field(default_factory=dict)
