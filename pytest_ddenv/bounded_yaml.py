@@ -3,9 +3,10 @@
 PyYAML's safe loader with an iterative composer (the C composer recurses and crashes the process on a
 document nested 100000 deep) that enforces: nesting at most MAX_DEPTH deep, aliases that add at most
 MAX_ALIAS_NODES nodes (no "billion laughs"), no recursive aliases, no duplicate keys, one document. Numbers
-in YAML 1.2 form (`1e9`, `2.5E-3`) are numbers, not the strings PyYAML's YAML 1.1 rules make of them; the
-`Dumper` quotes strings that would read as such numbers. Every error is a `WorldError` naming the line
-and, where known, the field.
+in YAML 1.2 form (`1e9`, `2.5E-3`) are numbers, not the strings PyYAML's YAML 1.1 rules make of them, and
+`1:30` is a string, as in YAML 1.2, not a YAML 1.1 base-60 number (whose conversion is quadratic in its
+length); a scalar with an explicit tag (`!!float abc`) must fit it. The `Dumper` quotes strings that would
+read as numbers. Every error is a `WorldError` naming the line and, where known, the field.
 
 The C reader (libyaml) of newer PyYAML wheels refuses nesting beyond its own limit (1000) while it scans ahead,
 which can come before this composer counts 64 levels; the text up to where it stopped is then read again
@@ -31,6 +32,12 @@ MAX_ALIAS_NODES = 100_000
 _SafeLoader: type[yaml.SafeLoader] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 _SafeDumper: type[yaml.SafeDumper] = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 _MERGE_TAG = "tag:yaml.org,2002:merge"
+_STR_TAG, _INT_TAG, _FLOAT_TAG = "tag:yaml.org,2002:str", "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
+_TAGGED_VALUES = {_INT_TAG: "an integer", _FLOAT_TAG: "a number", "tag:yaml.org,2002:bool": "true or false",
+                  "tag:yaml.org,2002:timestamp": "a date (YYYY-MM-DD, with a time or not)"}
+"""What a scalar with each of these explicit tags must be, in words."""
+_INTEGER = re.compile(r"^[-+]?(?:0b[01]+|0x[0-9a-fA-F]+|0[0-7]*|[1-9][0-9]*)$")
+"""An integer as PyYAML's YAML 1.1 constructor reads it (underscores removed), base-60 left out."""
 
 
 class _LimitError(yaml.MarkedYAMLError):
@@ -75,7 +82,7 @@ class _BoundedComposer(_ComposerBase):  # type: ignore[misc]
         added = 0
         node: yaml.Node
         while True:
-            event = self.get_event()
+            event = self.get_event()  # libyaml's own nesting limit: see _load
             if isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
                 done = stack.pop()
                 node, size = done.node, done.size
@@ -117,11 +124,17 @@ class _BoundedComposer(_ComposerBase):  # type: ignore[misc]
                               _path(stack))
         kind: type[yaml.Node]
         if isinstance(event, yaml.ScalarEvent):
-            tag = event.tag if event.tag not in (None, "!") else self.resolve(yaml.ScalarNode, event.value,
-                                                                               event.implicit)
+            explicit = event.tag not in (None, "!")
+            tag = event.tag if explicit else self.resolve(yaml.ScalarNode, event.value, event.implicit)
+            if not explicit and tag in (_INT_TAG, _FLOAT_TAG) and ":" in event.value:
+                tag = _STR_TAG  # 1:30 is text, as in YAML 1.2, not a YAML 1.1 base-60 number (quadratic to read)
             # The C parser's marks are yaml._yaml.Mark, which types-PyYAML's nodes leave out.
-            node: yaml.Node = yaml.ScalarNode(tag, event.value, event.start_mark, event.end_mark,  # type: ignore[arg-type]
-                                              style=event.style)
+            scalar = yaml.ScalarNode(tag, event.value, event.start_mark, event.end_mark,  # type: ignore[arg-type]
+                                     style=event.style)
+            problem = self._tagged_problem(scalar) if explicit else None
+            if problem is not None:
+                raise _LimitError(problem, event.start_mark, _path(stack))
+            node: yaml.Node = scalar
         else:
             kind = yaml.SequenceNode if isinstance(event, yaml.SequenceStartEvent) else yaml.MappingNode
             tag = event.tag if event.tag not in (None, "!") else self.resolve(kind, None, event.implicit)
@@ -129,6 +142,25 @@ class _BoundedComposer(_ComposerBase):  # type: ignore[misc]
         if event.anchor is not None:
             anchors[event.anchor] = node
         return node
+
+    def _tagged_problem(self, node: yaml.ScalarNode) -> str | None:
+        """Why the value of a scalar with an explicit tag (`!!float abc`) cannot be read as its tag says, or
+        None. Checked while composing, where the field is known (constructing it later would say neither the
+        field nor, for some tags, anything but a Python error)."""
+        tag, value = node.tag, node.value
+        what = _TAGGED_VALUES.get(tag)
+        if what is None:
+            return None
+        written = f"{shown(value)} is not {what} (tag !!{tag.rsplit(':', 1)[-1]})"
+        if tag in (_INT_TAG, _FLOAT_TAG) and ":" in value:
+            return f"{written}: YAML 1.1 base-60 numbers (1:30) are not read; write the number in base 10"
+        if tag == _INT_TAG:
+            return None if _INTEGER.match(value.replace("_", "")) else written
+        try:
+            self.yaml_constructors[tag](self, node)
+        except (ValueError, IndexError, KeyError, AttributeError, TypeError, OverflowError):
+            return written
+        return None
 
     def construct_yaml_int(self, node: yaml.ScalarNode) -> int:
         try:

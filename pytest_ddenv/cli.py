@@ -27,6 +27,7 @@ from pytest_ddenv.cli_world import (
     check_robot,
     dropped_models,
     load_world,
+    same_file,
     with_scenario,
 )
 from pytest_ddenv.errors import DdenvError, shown
@@ -459,7 +460,7 @@ def _cmd_convert(arguments: argparse.Namespace) -> int:
         if path.suffix.lower() not in (*YAML_SUFFIXES, *SDF_SUFFIXES):
             raise UsageError(f"{path}: unknown {role} format {path.suffix or '(no extension)'!r}; "
                              "use .yaml/.yml (ddenv YAML) or .sdf/.world (Gazebo SDF)")
-    if source.resolve() == target.resolve():
+    if same_file(source, target):
         raise UsageError(f"{target}: the output would overwrite the input")
     world = load_world(arguments, arguments.input)
     try:

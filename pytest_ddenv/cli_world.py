@@ -12,8 +12,9 @@ import os
 import sys
 from pathlib import Path
 
-from pytest_ddenv.errors import DdenvError, shown
+from pytest_ddenv.errors import DdenvError, shown, shown_path
 from pytest_ddenv.world import Pose, RobotDescription, Scenario, World, resolve_relative
+from pytest_ddenv.world_files import MISSING, dangling_link, file_kind
 
 NO_SCENARIO_HELP = (
     "give one with --start X,Y[,YAW] --goal X,Y [--robot NAME] [--timeout S], or --scenario FILE.yaml (a "
@@ -64,10 +65,11 @@ def load_world(arguments: argparse.Namespace, path: str, *, warn: bool = True) -
     """The world file at `path`, read with the command's --model-path and --skip-unsupported; with `warn`, one
     warning line on stderr naming the models --skip-unsupported dropped."""
     file = Path(path)
-    if not file.exists():
-        raise UsageError(f"{path}: no such world file")
-    if file.is_dir():
-        raise UsageError(f"{path}: is a folder, not a world file")
+    kind = file_kind(file)
+    if kind == MISSING:
+        raise UsageError(f"{shown_path(path)}: no such world file{dangling_link(file)}")
+    if kind == "a folder":
+        raise UsageError(f"{shown_path(path)}: is a folder, not a world file")
     folders = [os.path.expanduser(folder) for value in getattr(arguments, "model_paths", [])
                for folder in value.split(os.pathsep) if folder]
     for folder in folders:
@@ -78,6 +80,15 @@ def load_world(arguments: argparse.Namespace, path: str, *, warn: bool = True) -
     if warning is not None:
         print(f"ddenv: warning: {warning}", file=sys.stderr)
     return world
+
+
+def same_file(first: Path, second: Path) -> bool:
+    """Whether two paths name the same file (False when either cannot be resolved: a loop of symbolic links,
+    whose reader or writer then says so)."""
+    try:
+        return first.resolve() == second.resolve()
+    except (OSError, RuntimeError):
+        return False
 
 
 def check_robot(world: World) -> None:
@@ -120,8 +131,11 @@ def with_scenario(arguments: argparse.Namespace, world: World, path: str) -> Wor
 
 def _scenario_file(path: str) -> Scenario:
     file = Path(path)
-    if not file.is_file():
-        raise UsageError(f"--scenario {path}: no such file")
+    kind = file_kind(file)
+    if kind == MISSING:
+        raise UsageError(f"--scenario {shown_path(path)}: no such file{dangling_link(file)}")
+    if kind is not None:
+        raise UsageError(f"--scenario {shown_path(path)}: {kind}, not a file")
     holder = World.load(file)
     if holder.scenario is None:
         raise UsageError(f"--scenario {path}: the file has no 'scenario:' block")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import reprlib
 from pathlib import Path
 from typing import Any
@@ -55,7 +56,8 @@ class WorldError(DdenvError):
     def _render(self) -> str:
         where: list[str] = []
         if self.source is not None:
-            where.append(self.source if self.line is None else f"{self.source}:{self.line}")
+            source = printable(self.source)
+            where.append(source if self.line is None else f"{source}:{self.line}")
         elif self.line is not None:
             where.append(f"line {self.line}")
         if self.model is not None:
@@ -111,9 +113,19 @@ def shown(value: object, limit: int = SHOWN_CHARACTERS) -> str:
     return text if len(text) <= 2 * limit else f"{text[:2 * limit - 3]}..."
 
 
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\ud800-\udfff]")
+
+
+def printable(text: str) -> str:
+    """`text` with its control characters (a newline in a file name, ...) escaped as Python writes them
+    (`\\n`, `\\x07`): an error message stays one line."""
+    return _CONTROL.sub(lambda found: repr(found.group())[1:-1], text)
+
+
 def shown_path(path: object) -> str:
-    """A path (or URI) for an error message, as it is, clipped to about PATH_CHARACTERS characters."""
-    text = str(path)
+    """A path (or URI) for an error message, as it is (control characters escaped, see `printable`), clipped to
+    about PATH_CHARACTERS characters."""
+    text = printable(str(path))
     if len(text) <= PATH_CHARACTERS:
         return text
     half = PATH_CHARACTERS // 2

@@ -5,13 +5,15 @@ No pytest import: the same object serves the pytest fixture, the `ddenv` command
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
+from os import PathLike
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pytest_ddenv.errors import DdenvError, ScenarioError
-from pytest_ddenv.validation import expected
+from pytest_ddenv.errors import DdenvError, ScenarioError, WorldError, shown
+from pytest_ddenv.validation import expected, is_flag, is_integral, is_real
 from pytest_ddenv.world import World
 
 if TYPE_CHECKING:
@@ -74,6 +76,18 @@ def failure_predicates(values: Sequence[PredicateSpec | str | Predicate] | str |
     return tuple(specs)
 
 
+def checked_world(world: World, where: str) -> World:
+    """`world`, if it is a `World` whose values the simulator takes (`world_values.check_world_values`);
+    a `WorldError` saying so at `where` otherwise (a path is no world: `World.load(path)` reads one)."""
+    from pytest_ddenv.world_values import check_world_values
+
+    if not isinstance(world, World):
+        hint = f"; read a world file with World.load({shown(str(world))})" if isinstance(world, (str, PathLike)) else ""
+        raise WorldError(expected("a World", world, where) + hint)
+    check_world_values(world)
+    return world
+
+
 class RobotWorld:
     """A world bound to a scenario test: run the robot in it, see the runs made so far.
 
@@ -92,8 +106,14 @@ class RobotWorld:
         attempt: int = 0,
         max_wall_time: float | None = DEFAULT_MAX_WALL_TIME,
     ) -> None:
-        self.world = world
+        self.world = checked_world(world, "RobotWorld(world=...)")
         self.predicates = failure_predicates(predicates)
+        for name, value in (("seed", seed), ("attempt", attempt)):
+            if not is_integral(value) or value < 0:
+                raise ScenarioError(expected("an integer >= 0", value, f"RobotWorld({name}=...)"))
+        if max_wall_time is not None and not (is_real(max_wall_time) and 0 < max_wall_time < math.inf):
+            raise ScenarioError(expected("a number of seconds > 0 or None", max_wall_time,
+                                         "RobotWorld(max_wall_time=...)"))
         self.seed = seed
         self.attempt = attempt
         self.max_wall_time = max_wall_time
@@ -113,6 +133,7 @@ class RobotWorld:
         """The same test setup (predicates, seed, time limits) on another world: a world the test generates
         (``@given(world=strategies.worlds())``: ``robot_world.rebound(world).run()``), or a reduction
         probe's candidate world and attempt. `attempt` defaults to this one's."""
+        world = checked_world(world, "robot_world.rebound(world=...)")
         bound = RobotWorld(world, predicates=self.predicates, seed=self.seed,
                            attempt=self.attempt if attempt is None else attempt, max_wall_time=self.max_wall_time)
         self.rebound_to = bound
@@ -156,6 +177,13 @@ class RobotWorld:
         if self.world is NO_WORLD_YET:
             raise ScenarioError("robot_world has no world in a @given test: run the drawn one, "
                                 "robot_world.rebound(world).run()")
+        if settings is not None and not isinstance(settings, RunSettings):
+            raise ScenarioError(expected("a RunSettings (pytest_ddenv.RunSettings(...)) or None", settings,
+                                         "RobotWorld.run(settings=...)"))
+        if not is_flag(raise_on_failure):
+            raise ScenarioError(expected("True or False", raise_on_failure, "RobotWorld.run(raise_on_failure=...)"))
+        if seed is not None and (not is_integral(seed) or seed < 0):
+            raise ScenarioError(expected("an integer >= 0 or None", seed, "RobotWorld.run(seed=...)"))
         effective_seed = (self.seed if seed is None else seed) + self.attempt * ATTEMPT_SEED_STRIDE
         self.run_error = None
         try:

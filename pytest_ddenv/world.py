@@ -6,11 +6,13 @@ engine's `Geometry` protocol (`centroids(names)` and `distances(points, names)`)
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import math
 import os
 import re
+import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,16 +21,20 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from pytest_ddenv import geometry
-from pytest_ddenv.errors import WorldError, shown_path
+from pytest_ddenv.errors import WorldError, shown, shown_path
 from pytest_ddenv.geometry import FloatArray
-from pytest_ddenv.validation import is_finite_number, is_integer
+from pytest_ddenv.validation import expected, is_finite_number, is_integer
+from pytest_ddenv.world_files import MISSING, file_kind, read_regular, regular_file_problem
 
 if TYPE_CHECKING:
+    import PIL.Image
     import shapely
 
 ShapeKind = Literal["box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap"]
 SHAPE_KINDS: tuple[ShapeKind, ...] = ("box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap")
 TagValue = str | int | float | bool
+YAML_SUFFIXES = (".yaml", ".yml")
+SDF_SUFFIXES = (".sdf", ".world")
 MAX_NAME_LENGTH = 256
 """Longest model (or world, robot, joint) name."""
 MAX_SOLVER_ITERATIONS = 10_000
@@ -36,6 +42,14 @@ TIMESTEP_RANGE = (1e-6, 1.0)
 """Smallest and largest simulation timestep (s)."""
 MAX_MESH_BYTES = 256 * 1024 * 1024
 """Largest mesh file read."""
+MAX_IMAGE_BYTES = 64 * 1024 * 1024
+"""Largest heightmap image file read."""
+HEIGHTMAP_SIDE = 1025 if sys.platform != "darwin" else 257
+MAX_HEIGHTMAP_PIXELS = HEIGHTMAP_SIDE * HEIGHTMAP_SIDE
+"""Most pixels of a heightmap image. pybullet passes a heightfield's heights through a buffer of 8 MiB of float32
+(1 MiB on macOS): 2 097 152 heights (262 144); past it the heights it reads are garbage or the process crashes
+(measured on Linux, pybullet 3.2.7: 1448 x 1448 and 2048 x 1024 pixels right, 1449 x 1449 and 2049 x 1024
+wrong, 4096 x 4096 a segmentation fault). The limit is about half of that (a quarter on macOS)."""
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\ud800-\udfff\ufffe\uffff]")
 
 
@@ -212,8 +226,15 @@ class World:
     """What the world file holds that is not simulated, and why (joints, plugins, lights, dropped models)."""
 
     def __post_init__(self) -> None:
+        if isinstance(self.models, list):
+            object.__setattr__(self, "models", tuple(self.models))
+        if not isinstance(self.models, tuple):
+            raise WorldError(expected("a tuple of Models", self.models, "World(models=...)"), source=self.source)
         seen: set[str] = set()
         for index, model in enumerate(self.models):
+            if not isinstance(model, Model):
+                raise WorldError(expected("a Model", model, "World(models=...)"), source=self.source,
+                                 model=f"#{index}")
             if model.name in seen:
                 raise WorldError(
                     f"duplicate model name '{model.name}'; names must be unique",
@@ -234,19 +255,25 @@ class World:
         """
         from pytest_ddenv import world_yaml
 
+        if not isinstance(path, (str, os.PathLike)):
+            raise WorldError(expected("a world file's path (a str or os.PathLike)", path, "World.load(path=...)"))
         path = Path(path)
-        if path.suffix.lower() in (".world", ".sdf"):
+        if path.suffix.lower() in SDF_SUFFIXES:
             return cls.from_sdf(path, model_paths=model_paths, skip_unsupported=skip_unsupported)
         return world_yaml.load_yaml(path)
 
     @classmethod
     def from_sdf(cls, path: str | os.PathLike[str], *, model_paths: Sequence[str | os.PathLike[str]] = (),
                  skip_unsupported: bool = False) -> World:
-        """Import a Gazebo SDF world or model file as Gazebo simulates it (see docs/sdf.md)."""
+        """Import a Gazebo SDF world or model file as Gazebo simulates it (see docs/sdf.md); its values must be
+        within what the simulator takes (`world_values`)."""
         from pytest_ddenv import sdf
+        from pytest_ddenv.world_values import check_world_values
 
-        return sdf.load_sdf(Path(path), model_paths=[Path(folder) for folder in model_paths],
-                            skip_unsupported=skip_unsupported)
+        world = sdf.load_sdf(Path(path), model_paths=[Path(folder) for folder in model_paths],
+                             skip_unsupported=skip_unsupported)
+        check_world_values(world)
+        return world
 
     def to_sdf(self) -> str:
         """An SDF 1.6 world that Gazebo loads, SDF 1.8 if it has a capsule (see docs/sdf.md)."""
@@ -269,15 +296,34 @@ class World:
         return world_yaml.dump_yaml(self, None if relative_to is None else Path(relative_to))
 
     def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the world, as YAML or SDF by extension, atomically (write then rename)."""
+        """Write the world, as YAML (`.yaml`, `.yml`) or SDF (`.sdf`, `.world`) by extension, atomically (write
+        then rename). A value the simulator cannot take (`world_values`), another extension or a place that
+        cannot be written is a WorldError naming the file; nothing is left behind."""
+        from pytest_ddenv.world_values import check_world_values
+
+        if not isinstance(path, (str, os.PathLike)):
+            raise WorldError(expected("a file path (a str or os.PathLike)", path, "World.save(path=...)"))
         path = Path(path)
-        if path.suffix.lower() in (".world", ".sdf"):
-            text = self.to_sdf()
-        else:
-            text = self.to_yaml(relative_to=path.parent)
+        suffix = path.suffix.lower()
+        if suffix not in (*YAML_SUFFIXES, *SDF_SUFFIXES):
+            raise WorldError(f"unknown world file extension {suffix or '(none)'!r}; name it .yaml or .yml (ddenv "
+                             "YAML), or .sdf or .world (Gazebo SDF)", source=path)
+        check_world_values(self)
+        kind = file_kind(path)
+        if kind is not None and kind != MISSING:  # a folder, a device, a FIFO: never replaced by the file
+            raise WorldError(f"is {kind}, not a world file; give the world file's name", source=path)
+        text = self.to_sdf() if suffix in SDF_SUFFIXES else self.to_yaml(relative_to=path.parent)
         temporary = path.with_name(f".{path.name}.tmp{os.getpid()}")
-        temporary.write_text(text, encoding="utf-8")
-        os.replace(temporary, path)
+        try:
+            temporary.write_text(text, encoding="utf-8")
+            os.replace(temporary, path)
+        except OSError as error:
+            with contextlib.suppress(OSError):
+                temporary.unlink()
+            problem = error.strerror or str(error)
+            if isinstance(error, FileNotFoundError) and not path.parent.is_dir():
+                problem = f"the folder {shown_path(path.parent)} does not exist"
+            raise WorldError(f"cannot write the world file: {problem}", source=path) from None
 
     # -- models --------------------------------------------------------------------------------------
     @property
@@ -333,11 +379,13 @@ class World:
     def _checked(self, names: Iterable[str]) -> frozenset[str]:
         if isinstance(names, str):
             raise TypeError("pass a collection of model names, not a single string")
+        if not isinstance(names, Iterable):
+            raise TypeError(expected("a collection of model names", names))
         chosen = frozenset(names)
-        unknown = sorted(chosen - self._index.keys())
+        unknown = sorted(map(repr, chosen - self._index.keys()))
         if unknown:
             raise WorldError(
-                f"unknown model name(s) {', '.join(repr(n) for n in unknown)}; "
+                f"unknown model name(s) {', '.join(unknown)}; "
                 f"the world has: {', '.join(self.names) or '(no models)'}",
                 source=self.source,
             )
@@ -370,12 +418,30 @@ class World:
 
         Uses every shape's real extent (a 20 m slab is 0 m away from a robot driving on it).
         """
+        if isinstance(names, str):
+            raise TypeError("pass a collection of model names, not a single string")
         chosen = self.names if names is None else tuple(names)
-        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        points = _points(points)
         result = np.empty((len(points), len(chosen)))
         for column, name in enumerate(chosen):
             result[:, column] = _model_geometry(self.model(name), self.source).distance(points)
         return result
+
+
+def _points(points: object) -> FloatArray:
+    """`points` as an (N, 3) array of finite numbers (WorldError naming the first bad point otherwise)."""
+    try:
+        array = np.asarray(points, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        array = np.empty((0, 0))
+    if array.ndim not in (1, 2) or array.shape[-1] != 3:
+        raise WorldError(expected("points x, y, z (an array of shape (3,) or (N, 3))", points,
+                                  "World.distances(points=...)"))
+    array = array.reshape(-1, 3)
+    bad = np.flatnonzero(~np.all(np.isfinite(array), axis=1))
+    if len(bad):
+        raise WorldError(f"World.distances(points=...): point #{bad[0]} is not finite: {array[bad[0]].tolist()}")
+    return array
 
 
 @dataclass(frozen=True)
@@ -497,25 +563,34 @@ def resolve_relative(file: str, source: str | None) -> Path:
 def load_mesh(path: Path, scale: tuple[float, float, float]) -> object:
     """A trimesh.Trimesh of the file's geometry with `scale` applied (loaded once per process).
 
-    Only the geometry is read: materials and textures are not loaded (a texture file that is missing or
-    unreadable costs nothing and logs nothing). A Collada file goes to trimesh without its appearance
-    elements (`pytest_ddenv.sdf.collada_geometry`), since trimesh's Collada reader has no option to skip
-    materials and logs a traceback for every texture it cannot open.
+    The file is read only if it is a regular file within MAX_MESH_BYTES (`world_files.read_regular`). Only the
+    geometry is read: materials and textures are not loaded (a texture file that is missing or unreadable
+    costs nothing and logs nothing). A Collada file goes to trimesh without its appearance elements
+    (`pytest_ddenv.sdf.collada_geometry`), since trimesh's Collada reader has no option to skip materials and
+    logs a traceback for every texture it cannot open. A vertex that is not a finite number is an error
+    (trimesh would drop it with its triangles).
     """
     import io
 
     import trimesh
 
+    data = None if path.suffix.lower() == ".dae" else read_regular(path, MAX_MESH_BYTES, "mesh file")
     try:
-        if path.suffix.lower() == ".dae":
+        if data is None:
             from pytest_ddenv.sdf import collada_geometry
 
             geometry_only = io.BytesIO(collada_geometry(path))
-            loaded = trimesh.load(geometry_only, file_type="dae", force="mesh")
+            loaded = trimesh.load(geometry_only, file_type="dae", force="mesh", process=False)
         else:
-            loaded = trimesh.load(str(path), force="mesh", skip_materials=True)
+            loaded = trimesh.load(io.BytesIO(data), file_type=path.suffix.lower().lstrip("."), force="mesh",
+                                  skip_materials=True, process=False)
     except Exception as error:  # trimesh raises many types for unreadable files
         raise WorldError(f"cannot read mesh file: {error}", source=str(path)) from error
+    if not np.all(np.isfinite(np.asarray(getattr(loaded, "vertices", ()), dtype=float))):
+        raise WorldError(f"the mesh file {shown_path(path)} has vertices that are not finite numbers",
+                         source=str(path))
+    if callable(getattr(loaded, "process", None)):
+        loaded.process()  # type: ignore[attr-defined]  # merge duplicate vertices, as trimesh.load does by default
     if math.prod(scale) != 1.0 or scale != (1.0, 1.0, 1.0):
         loaded.apply_scale(np.array(scale))  # type: ignore[no-untyped-call]  # trimesh leaves it unannotated
     return loaded
@@ -579,18 +654,23 @@ def polyline_mesh(points: tuple[tuple[float, float], ...], height: float) -> obj
 
 
 def polyline_problem(points: Sequence[Sequence[float]]) -> str | None:
-    """What makes `points` an invalid polyline outline, or None: fewer than 3 points, non-finite numbers,
-    collinear points (no area), or an outline that crosses itself."""
+    """What makes `points` an invalid polyline outline, or None: fewer than 3 points, non-finite numbers or
+    numbers beyond `world_values.MAX_MAGNITUDE`, collinear points (no area), or an outline that crosses itself."""
     import shapely
+
+    from pytest_ddenv.world_values import MAX_MAGNITUDE
 
     if len(points) < 3:
         return f"an outline needs at least 3 points, got {len(points)}"
     try:
         array = np.asarray(points, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         array = np.empty(0)
     if array.shape != (len(points), 2) or not np.all(np.isfinite(array)):
         return "every point must be two finite numbers [x, y]"
+    if np.abs(array).max() > MAX_MAGNITUDE:
+        return (f"every point must be within -1e9 to 1e9 m (the simulator does not handle larger numbers), got "
+                f"{np.abs(array).max():g}")
     spread = np.linalg.svd(array - array.mean(axis=0), compute_uv=False)
     if spread[1] <= 1e-9 * max(spread[0], 1e-300):
         return "the points are collinear: the outline has no area"
@@ -604,22 +684,53 @@ def polyline_problem(points: Sequence[Sequence[float]]) -> str | None:
 def load_heightmap(path: Path) -> FloatArray:
     """The heights (rows, columns) in 0..1 of a grayscale image: black 0, white 1 (8-bit: value / 255,
     16-bit: value / 65535; colour images are converted to grey). Row 0 is the image's top row, which is
-    the +y edge of the heightmap seen from above; column 0 is its -x edge. Read once per process."""
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as image:
+    the +y edge of the heightmap seen from above; column 0 is its -x edge. Read once per process, only if it
+    is a regular file of at most MAX_IMAGE_BYTES and MAX_HEIGHTMAP_PIXELS pixels (WorldError otherwise)."""
+    with _heightmap_image(path, lambda message: WorldError(message, source=path)) as image:
+        try:
             if image.mode in HEIGHTMAP_MODES_16_BIT:
                 heights = np.asarray(image, dtype=np.float64) / 65535.0
             else:
                 heights = np.asarray(image.convert("L"), dtype=np.float64) / 255.0
-    except (OSError, UnidentifiedImageError, ValueError) as error:
-        raise WorldError(f"cannot read the heightmap image: {error}", source=path) from error
+        except (OSError, ValueError) as error:
+            raise WorldError(f"cannot read the heightmap image: {error}", source=path) from error
     if heights.ndim != 2 or min(heights.shape) < 2:
         raise WorldError(f"a heightmap image needs at least 2 x 2 pixels, got {heights.shape[::-1]}", source=path)
     heights = np.clip(heights, 0.0, 1.0)
     heights.setflags(write=False)
     return heights
+
+
+@contextlib.contextmanager
+def _heightmap_image(path: Path, fail: Callable[[str], WorldError]) -> Iterator[PIL.Image.Image]:
+    """The image at `path`, opened (its header read, its pixels not yet decoded) from the bytes of a regular
+    file, with at least 2 x 2 and at most MAX_HEIGHTMAP_PIXELS pixels; `fail(reason)` otherwise."""
+    import io
+    import warnings
+
+    from PIL import Image, UnidentifiedImageError
+
+    problem = regular_file_problem(path, "heightmap image file")
+    if problem is not None:
+        raise fail(problem)
+    data = read_regular(path, MAX_IMAGE_BYTES, "heightmap image")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # refused below, by its size
+            image = Image.open(io.BytesIO(data))
+    except Image.DecompressionBombError:
+        raise fail(f"the heightmap image {shown_path(path)} has more than {2 * (Image.MAX_IMAGE_PIXELS or 0)} pixels; "
+                   f"a heightmap has at most {MAX_HEIGHTMAP_PIXELS}") from None
+    except (OSError, UnidentifiedImageError, ValueError) as error:
+        raise fail(f"cannot read the heightmap image {shown_path(path)}: {error}") from error
+    with image:
+        width, height = image.size
+        if min(width, height) < 2:
+            raise fail(f"a heightmap image needs at least 2 x 2 pixels, {shown_path(path)} has {width} x {height}")
+        if width * height > MAX_HEIGHTMAP_PIXELS:
+            raise fail(f"the heightmap image {shown_path(path)} has {width} x {height} pixels; a heightmap has at "
+                       f"most {MAX_HEIGHTMAP_PIXELS} ({HEIGHTMAP_SIDE} x {HEIGHTMAP_SIDE}): scale the image down")
+        yield image
 
 
 @functools.lru_cache(maxsize=16)
@@ -660,14 +771,16 @@ def _heightmap_distance(placed: _PlacedShape, local: FloatArray) -> FloatArray:
 
 # -- validation of shapes made from data --------------------------------------------------------------------
 def check_shape(shape: Shape, *, source: str | None = None, model: str | None = None, field: str | None = None,
-                static: bool = True, keys: Mapping[str, str] | None = None) -> None:
+                static: bool = True, keys: Mapping[str, str] | None = None, files: bool = True) -> None:
     """Raise a `WorldError` naming the file, model and field if `shape` is not a valid shape of its kind.
 
     For readers of world files: `field` is where the shape is (e.g. "shapes[0].polyline"); the bad value is
     named `field.KEY` with KEY one of radius, length, size, points, height, file, scale, renamed by `keys`
     (e.g. {"points": "point", "file": "uri"} for SDF). `static`: whether the model is static (a heightmap
-    must be: it is terrain).
+    must be: it is terrain). Sizes are positive numbers within `world_values.MAX_MAGNITUDE`. `files`: whether
+    the mesh or heightmap file is checked too (a regular file; a heightmap's image opens).
     """
+    from pytest_ddenv.world_values import number_problem
 
     def fail(key: str | None, message: str) -> WorldError:
         name = None if key is None else (keys or {}).get(key, key)
@@ -677,16 +790,22 @@ def check_shape(shape: Shape, *, source: str | None = None, model: str | None = 
     def positive(key: str, value: float | None) -> None:
         if value is None:
             raise fail(key, f"missing; a {shape.kind} needs a {key}")
-        if not (math.isfinite(value) and value > 0):
-            raise fail(key, f"expected a positive, finite number, got {value}")
+        problem = number_problem(value, positive=True)
+        if problem is not None:
+            raise fail(key, problem)
+
+    def sizes(key: str, values: object) -> None:
+        if not isinstance(values, (tuple, list)) or len(values) != 3:
+            raise fail(key, f"expected 3 {key}s (x, y, z), got {shown(values)}")
+        for value in values:
+            problem = number_problem(value, positive=True)
+            if problem is not None:
+                raise fail(key, f"{problem} (in {shown(list(values))})")
 
     if shape.kind not in SHAPE_KINDS:
         raise fail(None, f"unknown shape kind {shape.kind!r}; expected one of {', '.join(SHAPE_KINDS)}")
     if shape.kind in ("box", "heightmap"):
-        if shape.size is None or len(shape.size) != 3:
-            raise fail("size", f"expected 3 sizes (x, y, z), got {shape.size}")
-        if not all(math.isfinite(v) and v > 0 for v in shape.size):
-            raise fail("size", f"expected positive, finite sizes, got {list(shape.size)}")
+        sizes("size", shape.size)
     if shape.kind in ("cylinder", "capsule", "sphere"):
         positive("radius", shape.radius)
     if shape.kind in ("cylinder", "capsule"):
@@ -696,57 +815,31 @@ def check_shape(shape: Shape, *, source: str | None = None, model: str | None = 
         if problem is not None:
             raise fail("points", problem)
         positive("height", shape.height)
-    if shape.kind in ("mesh", "heightmap"):
-        if not shape.mesh:
-            raise fail("file", f"missing; a {shape.kind} needs a file")
+    if shape.kind == "mesh":
+        sizes("scale", shape.scale)
+    if shape.kind in ("mesh", "heightmap") and (not shape.mesh or not isinstance(shape.mesh, str)):
+        raise fail("file", f"missing; a {shape.kind} needs a file")
+    if shape.kind == "heightmap" and not static:
+        raise fail(None, "a heightmap is terrain and must be static; remove the model's mass or 'static: false'")
+    if files and shape.kind in ("mesh", "heightmap"):
+        assert shape.mesh is not None
         path = resolve_relative(shape.mesh, source)
-        what = "mesh" if shape.kind == "mesh" else "heightmap image"
-        if not is_file(path):
-            raise fail("file", f"{what} file not found: {shown_path(path)}")
-    if shape.kind == "heightmap":
-        if not static:
-            raise fail(None, "a heightmap is terrain and must be static; remove the model's mass or "
-                             "'static: false'")
-        _check_image(path, fail)
+        problem = regular_file_problem(path, "mesh file" if shape.kind == "mesh" else "heightmap image file")
+        if problem is not None:
+            raise fail("file", problem)
+        if shape.kind == "heightmap":
+            _check_image(path, fail)
 
 
 def _check_image(path: Path, fail: Callable[[str | None, str], WorldError]) -> None:
-    """The heightmap image opens (header only) and has at least 2 x 2 pixels."""
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as image:
-            width, height = image.size
-    except (OSError, UnidentifiedImageError) as error:
-        raise fail("file", f"cannot read the heightmap image {path}: {error}") from error
-    if min(width, height) < 2:
-        raise fail("file", f"a heightmap image needs at least 2 x 2 pixels, {path} has {width} x {height}")
+    """The heightmap image is a regular file that opens (its header) with 2 x 2 to MAX_HEIGHTMAP_PIXELS pixels."""
+    with _heightmap_image(path, lambda reason: fail("file", reason)):
+        pass
 
 
 # -- validation of names, physics and mesh files (shared by the YAML and SDF readers) ---------------------
-def read_bounded(path: Path, limit: int, what: str = "world file") -> bytes:
-    """The bytes of `path`, refusing more than `limit` bytes (read in chunks: memory stays near the file's
-    size) and devices such as /dev/zero (WorldError naming the file)."""
-    import stat
-
-    try:
-        with path.open("rb") as handle:
-            mode = os.fstat(handle.fileno()).st_mode
-            if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-                raise WorldError(f"not a {what}: a device, not a file", source=path)
-            chunks: list[bytes] = []
-            total = 0
-            while total <= limit:
-                chunk = handle.read(min(1 << 20, limit + 1 - total))
-                if not chunk:
-                    break
-                chunks.append(chunk)
-                total += len(chunk)
-    except OSError as error:
-        raise WorldError(f"cannot read {what}: {error.strerror or error}", source=path) from error
-    if total > limit:
-        raise WorldError(f"{what} is larger than the {limit} byte limit; refusing to read it", source=path)
-    return b"".join(chunks)
+read_bounded = read_regular
+"""The name the SDF reader imports (`world_files.read_regular`)."""
 
 
 def text_problem(text: str, *, allowed: str = "") -> str | None:
@@ -776,8 +869,6 @@ def name_problem(name: str) -> str | None:
 def solver_iterations_problem(value: object) -> str | None:
     """Why `value` is not a solver iteration count, or None (a whole number from 1 to MAX_SOLVER_ITERATIONS;
     a float such as 1e3 counts when it is whole)."""
-    from pytest_ddenv.errors import shown
-
     if not (is_integer(value) or (is_finite_number(value) and float(value).is_integer())) \
             or not 1 <= value <= MAX_SOLVER_ITERATIONS:
         return f"expected a whole number from 1 to {MAX_SOLVER_ITERATIONS}, got {shown(value)}"
@@ -795,6 +886,9 @@ def timestep_problem(value: float) -> str | None:
 def check_mesh_file(path: Path, scale: tuple[float, float, float], fail: Callable[[str], WorldError]) -> None:
     """Raise `fail(reason)` unless `path` is a mesh file with triangles and finite vertices (read now, once per
     process, so that a garbage or non-mesh file is refused when the world is loaded, not in the simulator)."""
+    problem = regular_file_problem(path, "mesh file")
+    if problem is not None:
+        raise fail(problem)
     try:
         size = path.stat().st_size
     except OSError as error:
@@ -805,10 +899,11 @@ def check_mesh_file(path: Path, scale: tuple[float, float, float], fail: Callabl
         mesh = load_mesh(path, scale)
     except WorldError as error:
         cause = error.__cause__
-        # trimesh's own failures say nothing about the file: an optional module missing, or (trimesh 4) a
+        if cause is None:  # vertices that are not finite
+            raise fail(error.reason) from None
+        # trimesh's own failures that say nothing about the file: an optional module missing, or (trimesh 4) a
         # TypeError when it decodes binary garbage as text with no encoding detector installed.
-        uninformative = cause is None or isinstance(cause, (ImportError, TypeError))
-        detail = "" if uninformative else f" ({str(cause).splitlines()[0][:120]})"
+        detail = "" if isinstance(cause, (ImportError, TypeError)) else f" ({str(cause).splitlines()[0][:120]})"
         raise fail(f"not a mesh file: {shown_path(path)} cannot be read as {path.suffix or 'a mesh'}{detail}"
                    ) from None
     vertices = np.asarray(getattr(mesh, "vertices", ()), dtype=float)

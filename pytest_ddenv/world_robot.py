@@ -11,9 +11,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Protocol
 
-from pytest_ddenv.errors import shown_path
 from pytest_ddenv.validation import is_flag
-from pytest_ddenv.world import DRIVE_KINDS, LaserMount, RobotDescription, is_file, resolve_relative
+from pytest_ddenv.world import DRIVE_KINDS, LaserMount, RobotDescription, resolve_relative
+from pytest_ddenv.world_files import regular_file_problem
 
 ROBOT_KEYS = (
     "urdf", "drive", "left_wheels", "right_wheels", "wheel_radius", "track", "track_factor", "max_wheel_torque",
@@ -48,8 +48,9 @@ def parse_robot(reader: FieldReader, value: Any) -> str | RobotDescription:
             raise reader.fail(f"{FIELD}.{key}", "missing; a robot mapping needs urdf, left_wheels and right_wheels")
     urdf = reader.text(data["urdf"], f"{FIELD}.urdf")
     resolved = resolve_relative(urdf, reader.source)
-    if not is_file(resolved):
-        raise reader.fail(f"{FIELD}.urdf", f"URDF file not found: {shown_path(resolved)}")
+    problem = regular_file_problem(resolved, "URDF file")
+    if problem is not None:
+        raise reader.fail(f"{FIELD}.urdf", problem)
     drive = data.get("drive", "differential")
     if drive not in DRIVE_KINDS:
         raise reader.fail(f"{FIELD}.drive", f"expected one of {', '.join(DRIVE_KINDS)}, got {drive!r}")

@@ -21,7 +21,6 @@ from pytest_ddenv.errors import (
     ScenarioError,
     WorldError,
     shown,
-    shown_path,
 )
 from pytest_ddenv.validation import expected, is_flag, is_number
 from pytest_ddenv.world import (
@@ -36,7 +35,6 @@ from pytest_ddenv.world import (
     World,
     check_mesh_file,
     check_shape,
-    is_file,
     name_problem,
     read_bounded,
     resolve_mesh_path,
@@ -44,7 +42,9 @@ from pytest_ddenv.world import (
     text_problem,
     timestep_problem,
 )
+from pytest_ddenv.world_files import regular_file_problem
 from pytest_ddenv.world_robot import parse_robot, rebased, robot_dict
+from pytest_ddenv.world_values import MAX_GRAVITY, MAX_MAGNITUDE, magnitude_problem
 
 FORMAT_VERSION = 1
 TOP_LEVEL_KEYS = ("format", "name", "physics", "ground", "scenario", "models")
@@ -84,7 +84,9 @@ class _Reader:
                 )
         return value
 
-    def number(self, value: Any, field: str, *, positive: bool = False, non_negative: bool = False) -> float:
+    def number(self, value: Any, field: str, *, positive: bool = False, non_negative: bool = False,
+               limit: float = MAX_MAGNITUDE) -> float:
+        """A finite number, at most `limit` in absolute value (what the simulator takes, `world_values`)."""
         if not is_number(value):
             raise self.wrong(field, "a number", value, _number_hint(value))
         try:
@@ -97,12 +99,16 @@ class _Reader:
             raise self.fail(field, expected("a positive number", number))
         if non_negative and number < 0:
             raise self.fail(field, expected("a number >= 0", number))
+        problem = magnitude_problem(number, limit)
+        if problem is not None:
+            raise self.fail(field, problem)
         return number
 
-    def numbers(self, value: Any, field: str, counts: tuple[int, ...], *, positive: bool = False) -> list[float]:
+    def numbers(self, value: Any, field: str, counts: tuple[int, ...], *, positive: bool = False,
+                limit: float = MAX_MAGNITUDE) -> list[float]:
         if not isinstance(value, (list, tuple)) or len(value) not in counts:
             raise self.wrong(field, f"a list of {' or '.join(str(c) for c in counts)} numbers", value)
-        return [self.number(item, f"{field}[{i}]", positive=positive) for i, item in enumerate(value)]
+        return [self.number(item, f"{field}[{i}]", positive=positive, limit=limit) for i, item in enumerate(value)]
 
     def pose(self, value: Any, field: str) -> Pose:
         return Pose(*self.numbers(value, field, (3, 6)))
@@ -172,6 +178,8 @@ def load_yaml(path: str | os.PathLike[str]) -> World:
 
 
 def parse_yaml(text: str, *, source: str | os.PathLike[str] | None = None) -> World:
+    if not isinstance(text, (str, bytes)):
+        raise WorldError(expected("YAML text (a str)", text, "World.from_yaml(text=...)"))
     source_name = str(source) if source is not None else None
     document = load_document(text, source_name)
     reader = _Reader(source_name)
@@ -180,9 +188,11 @@ def parse_yaml(text: str, *, source: str | os.PathLike[str] | None = None) -> Wo
         raise reader.fail("format", f"unknown format version {shown(root['format'])}; this reader supports "
                                     f"{FORMAT_VERSION}")
     name = reader.name(root["name"], "name") if "name" in root else (Path(source_name).stem if source_name else "")
-    models_value = root.get("models") or []
+    models_value = root.get("models")
+    if models_value is None:  # no 'models' key, or 'models:' with nothing after it
+        models_value = []
     if not isinstance(models_value, list):
-        raise reader.wrong("models", "a list of models", models_value)
+        raise reader.wrong("models", "a list of models", models_value, " (write 'models: []' for none)")
     models = []
     seen: dict[str, int] = {}
     for index, item in enumerate(models_value):
@@ -304,8 +314,9 @@ def _parse_shape(reader: _Reader, raw: Any, field: str) -> Shape:
         raise reader.fail(f"{where}.file", "missing; a mesh needs a file (.stl, .obj, .dae)")
     mesh_file = reader.text(spec["file"], f"{where}.file")
     path = resolve_mesh_path(mesh_file, reader.source)
-    if not is_file(path):
-        raise reader.fail(f"{where}.file", f"mesh file not found: {shown_path(path)}")
+    problem = regular_file_problem(path, "mesh file")
+    if problem is not None:
+        raise reader.fail(f"{where}.file", problem)
     scale_value = spec.get("scale", 1.0)
     if isinstance(scale_value, (list, tuple)):
         scale = reader.numbers(scale_value, f"{where}.scale", (3,), positive=True)
@@ -433,7 +444,7 @@ def _parse_physics(reader: _Reader, value: Any) -> Physics:
         return Physics()
     data = reader.mapping(value, "physics", PHYSICS_KEYS)
     default = Physics()
-    gravity = reader.numbers(data.get("gravity", list(default.gravity)), "physics.gravity", (3,))
+    gravity = reader.numbers(data.get("gravity", list(default.gravity)), "physics.gravity", (3,), limit=MAX_GRAVITY)
     iterations = data.get("solver_iterations", default.solver_iterations)
     problem = solver_iterations_problem(iterations)
     if problem is not None:

@@ -177,10 +177,12 @@ PAGES: dict[str, Page] = {
         "register_robot(\"rover\"": ("ROBOTS['rover'] is MyRover", "MyRover().mass == 20.0",
                                     "not MyRover().has_laser or MyRover().laser.min_range == 0.5"),
     }, slow=True),
-    "world-format.md": Page(checks={"world.distances(": (
-        "world.distances(points).shape == (len(points), len(world))",
-        "'cinder_block' not in World.load('minimal.yaml')",
-    )}),
+    "world-format.md": Page(
+        files={"far.yaml": "format: 1\nmodels:\n  - {name: crate, pose: [1e20, 0, 0], box: [1, 1, 1]}\n"},
+        checks={"world.distances(": (
+            "world.distances(points).shape == (len(points), len(world))",
+            "'cinder_block' not in World.load('minimal.yaml')",
+        )}),
 }
 
 # A tiny world for checks that simulate: a bare ground, the goal 2 m ahead.

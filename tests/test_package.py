@@ -79,7 +79,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     # DESIGN.md section 3, in order: each module may import its own layer and the ones above it only
     ("foundations", ("errors", "validation", "defaults", "outcome", "bounded_yaml", "geometry", "detail",
                      "alarm", "code_identity")),
-    ("world model", ("world", "world_yaml", "world_robot", "sdf", "strategies")),
+    ("world model", ("world", "world_files", "world_values", "world_yaml", "world_robot", "sdf", "strategies")),
     ("simulation", ("predicates", "sim", "controllers")),
     ("oracle verdict and the test's view", ("oracle", "robot_world", "gym_env", "reported")),
     ("reduction", ("reduce",)),

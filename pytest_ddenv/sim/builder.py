@@ -22,6 +22,7 @@ from pytest_ddenv.world import (
     polyline_polygon,
     resolve_mesh_path,
 )
+from pytest_ddenv.world_files import regular_file_problem
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
@@ -229,8 +230,9 @@ def _heightfield_data(path: Path) -> tuple[int, int, list[float]]:
 
 def _mesh_shape(p: Any, client: int, shape: Shape, model: Model, source: str | None, frame: dict[str, Any]) -> int:
     path: Path = resolve_mesh_path(shape.mesh, source)
-    if not path.exists():
-        raise WorldError(f"mesh file not found: {path}", source=source, model=model.name, field="mesh")
+    problem = regular_file_problem(path, "mesh file")  # pybullet would wait forever on a FIFO
+    if problem is not None:
+        raise WorldError(problem, source=source, model=model.name, field="mesh")
     flags = p.GEOM_FORCE_CONCAVE_TRIMESH if model.static else 0
     if path.suffix.lower() in _NATIVE_MESH_SUFFIXES:
         index = p.createCollisionShape(p.GEOM_MESH, fileName=str(path), meshScale=list(shape.scale),

@@ -26,6 +26,7 @@ from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.sim.urdf_geometry import UrdfGeometry, check_wheel_joints, measure_urdf, urdf_joint_names
 from pytest_ddenv.validation import expected
 from pytest_ddenv.world import DRIVE_KINDS, LaserMount, RobotDescription, resolve_relative
+from pytest_ddenv.world_files import regular_file_problem
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
@@ -129,8 +130,9 @@ class WheeledRobot(Robot):
     ) -> None:
         self.urdf = str(urdf)
         self.source = source
-        if not os.path.isfile(self.urdf):
-            raise ScenarioError(f"URDF file not found: {self.urdf}", source=source, field="scenario.robot.urdf")
+        problem = regular_file_problem(Path(self.urdf), "URDF file")  # pybullet would wait forever on a FIFO
+        if problem is not None:
+            raise ScenarioError(problem, source=source, field="scenario.robot.urdf")
         self.left, self.right = tuple(left_wheels), tuple(right_wheels)
         if not self.left or not self.right:
             raise ScenarioError("a wheeled robot needs at least one left and one right wheel joint",

@@ -10,12 +10,14 @@ import math
 import os
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.world import LaserMount
+from pytest_ddenv.world_files import regular_file_problem
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
@@ -72,7 +74,11 @@ def check_wheel_joints(urdf: str, joints: Collection[str], left: Sequence[str], 
 
 
 def _load(p: Any, client: int, urdf: str, flags: int, source: str | None) -> int:
-    """`urdf` loaded at the origin in the scratch `client`."""
+    """`urdf` loaded at the origin in the scratch `client` (if it is a regular file: pybullet would wait forever
+    on a FIFO)."""
+    problem = regular_file_problem(Path(urdf), "URDF file")
+    if problem is not None:
+        raise ScenarioError(problem, source=source, field="scenario.robot.urdf")
     try:
         with silenced():
             return int(p.loadURDF(urdf, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], flags=flags, physicsClientId=client))

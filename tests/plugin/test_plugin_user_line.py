@@ -76,14 +76,20 @@ def test_an_error_in_the_users_controller_shows_the_test_line_then_the_controlle
 
 def test_a_bug_inside_pytest_ddenv_keeps_its_frames(wall_project: pytest.Pytester) -> None:
     """Frames are hidden for errors that are the user's; an exception pytest-ddenv did not mean to raise keeps
-    them, so that it can be reported and fixed. (A run settings object of the wrong type is not checked and
-    breaks deep inside the simulator.)"""
+    them, so that it can be reported and fixed. (The bug is injected: the simulator's world builder is given
+    no world, and breaks inside builder.py.)"""
+    wall_project.makeconftest("""
+        import pytest_ddenv.sim.builder as builder
+        import pytest_ddenv.sim.engine as engine
+
+        engine.build_world = lambda p, client, world, friction: builder.build_world(p, client, None, friction)
+        """)
     wall_project.makepyfile(test_scenario=textwrap.dedent("""\
         import pytest
 
         @pytest.mark.ddenv(world="wall.yaml")
         def test_drives(robot_world):
-            robot_world.run(settings=object())
+            robot_world.run()
         """))
     result = wall_project.runpytest_subprocess("-p", "no:cacheprovider")
     result.assert_outcomes(failed=1)

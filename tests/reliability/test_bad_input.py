@@ -1,9 +1,9 @@
 """Every row of the bad-input table in docs/reliability.md, checked: the input is made, given to its interface
-(`ddenv`, `pytest` with an option, an ini file or a marker), and the message the table shows must be what is
-printed, on one line; `ddenv` exits 2 for it and prints it in its `--json` object too.
+(`ddenv`, `pytest` with an option, an ini file or a marker, the Python API), and the message the table shows
+must be what is printed, on one line; `ddenv` exits 2 for it and prints it in its `--json` object too.
 
 The table is read from the page: a row's first cell is its id, a key of `CASES` below. In a message, `…`
-stands for a part that changes from machine to machine (a temporary folder).
+stands for a part that changes from machine to machine (a temporary folder, the libyaml version's field).
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import subprocess
 import sys
 import textwrap
 import tracemalloc
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -85,8 +86,9 @@ def _read_only(path: Path) -> None:
 
 @dataclass(frozen=True)
 class Case:
-    """An input and the command that reads it: `ddenv ...` (in-process, exit code 2 unless `code`) or
-    `pytest ...` (in a subprocess, exit code `code`). `files`: text, bytes, or a function making the path."""
+    """An input and the command that reads it: `ddenv ...` (in-process, exit code 2 unless `code`),
+    `pytest ...` (in a subprocess, exit code `code`) or `python CODE` (see `python`). `files`: text, bytes, or a
+    function making the path."""
 
     command: tuple[str, ...]
     files: dict[str, str | bytes | Callable[[Path], None]] = field(default_factory=dict)
@@ -224,6 +226,124 @@ CASES: dict[str, Case] = {
 }
 
 
+# -- issue 28: world files, values and the Python API ---------------------------------------------------------
+def _fifo(path: Path) -> None:
+    os.mkfifo(path)
+
+
+def _link_to(target: str) -> Callable[[Path], None]:
+    """A symbolic link to `target` (itself: a loop; a missing file: a dangling link)."""
+    return lambda path: path.symlink_to(target)
+
+
+def _png(width: int, height: int) -> Callable[[Path], None]:
+    def make(path: Path) -> None:
+        from PIL import Image
+
+        Image.new("L", (width, height), 40).save(path)
+
+    return make
+
+
+def _png_header(width: int, height: int) -> bytes:
+    """A PNG that says it has `width` x `height` pixels and holds none (a decompression bomb's header)."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return len(data).to_bytes(4, "big") + kind + data + zlib.crc32(kind + data).to_bytes(4, "big")
+
+    header = width.to_bytes(4, "big") + height.to_bytes(4, "big") + bytes([8, 0, 0, 0, 0])
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IEND", b"")
+
+
+def _models(*lines: str) -> str:
+    return HEAD + "models:\n" + "".join(f"  - {line}\n" for line in lines)
+
+
+def _robot(urdf: str) -> str:
+    return HEAD + ("scenario:\n  robot: {urdf: " + urdf + ", left_wheels: [l], right_wheels: [r]}\n"
+                   "  start: {x: 0, y: 0}\n  goal: {x: 4, y: 0}\n  timeout: 20\n")
+
+
+def python(code: str, files: dict[str, str | bytes | Callable[[Path], None]] | None = None) -> Case:
+    """Python code run in a folder holding `files` (yard.yaml by default), with `from pytest_ddenv import *` and
+    `world = World.load('yard.yaml')`: it must raise the table's error (`Type: message`)."""
+    return Case(("python", code), {"yard.yaml": YARD, **(files or {})})
+
+
+NAN_STL = "solid t\nfacet normal 0 0 1\nouter loop\nvertex nan 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n"
+BOX = "Shape('box', size=(1, 1, 1))"
+WORLD_MODEL_CASES: dict[str, Case] = {
+    # world files that are not regular files
+    "fifo-world": ddenv("check", "yard.yaml", files={"yard.yaml": _fifo}, subprocess=True),
+    "loop-world": check("loop.yaml", _link_to("loop.yaml")),
+    "dangling-world": check("gone.yaml", _link_to("moved.yaml")),
+    "newline-name": check("bad\n.yaml", YARD.replace("box: [0.3, 4, 1]", "box: [0.3, 4, 1], mass: heavy")),
+    # YAML values
+    "models-mapping": check("m.yaml", HEAD + "models: {}\n"),
+    "models-empty-text": check("m.yaml", HEAD + "models: ''\n"),
+    "models-zero": check("m.yaml", HEAD + "models: 0\n"),
+    "models-false": check("m.yaml", HEAD + "models: false\n"),
+    "base-60": check("slow.yaml", _models("{name: crate, box: [1, 1, 1], mass: 1" + ":0" * 1_000_000 + "}")),
+    "base-60-tag": check("tag.yaml", _models("{name: crate, box: [1, 1, 1], mass: !!int 1:30}")),
+    "float-tag": check("tag.yaml", _models("{name: crate, box: [1, 1, 1], mass: !!float abc}")),
+    "int-tag": check("tag.yaml", _models("{name: crate, box: [1, 1, 1], mass: !!int abc}")),
+    "bool-tag": check("tag.yaml", _models("{name: crate, box: [1, 1, 1], keep: !!bool maybe}")),
+    "timestamp-tag": check("tag.yaml", HEAD.replace("name: yard", "name: !!timestamp noon")),
+    "huge-box": check("huge.yaml", _models("{name: crate, box: [1e39, 1e39, 1]}")),
+    "huge-radius": check("huge.yaml", _models("{name: drum, cylinder: {radius: 1e38, length: 1}}")),
+    "far-pose": check("far.yaml", _models("{name: crate, pose: [1e20, 0, 0], box: [1, 1, 1]}")),
+    "far-goal": check("far.yaml", HEAD + SCENARIO.replace("x: 4", "x: 1e20")),
+    "far-polyline": check("far.yaml", _models("{name: curb, polyline: {points: [[0, 0], [1e20, 0], [0, 1]], height: 1}}")),
+    "huge-mesh-scale": check("crate.yaml", _models("{name: crate, mesh: {file: crate.stl, scale: 1e39}}"),
+                             **{"crate.stl": NAN_STL.replace("nan", "0.5")}),
+    "gravity-overflow": check("g.yaml", HEAD + "physics: {gravity: [0, 0, -1e300]}\n"),
+    "gravity-strong": check("g.yaml", HEAD + "physics: {gravity: [0, 0, -1e4]}\n"),
+    "sdf-far-pose": check("far.world", SDF.format(f"<model name='m'><pose>1e20 0 0 0 0 0</pose>{BOX_LINK}</model>")),
+    # meshes, heightmaps and URDFs
+    "mesh-folder": check("crate.yaml", _models("{name: crate, mesh: {file: crate.stl}}"),
+                         **{"crate.stl/part.stl": "solid"}),
+    "mesh-fifo": check("crate.yaml", _models("{name: crate, mesh: {file: crate.stl}}"), **{"crate.stl": _fifo}),
+    "mesh-device": check("crate.yaml", _models("{name: crate, mesh: {file: /dev/zero}}")),
+    "mesh-loop": check("crate.yaml", _models("{name: crate, mesh: {file: crate.stl}}"),
+                       **{"crate.stl": _link_to("crate.stl")}),
+    "mesh-nan": check("crate.yaml", _models("{name: crate, mesh: {file: crate.stl}}"), **{"crate.stl": NAN_STL}),
+    "heightmap-big": check("hill.yaml", _models("{name: hill, heightmap: {file: hill.png, size: [20, 20, 1]}}"),
+                           **{"hill.png": _png(1500, 1500)}),
+    "heightmap-bomb": check("hill.yaml", _models("{name: hill, heightmap: {file: hill.png, size: [20, 20, 1]}}"),
+                            **{"hill.png": _png_header(20_000, 20_000)}),
+    "heightmap-folder": check("hill.yaml", _models("{name: hill, heightmap: {file: hill.png, size: [20, 20, 1]}}"),
+                              **{"hill.png/x.png": "x"}),
+    "heightmap-fifo": check("hill.yaml", _models("{name: hill, heightmap: {file: hill.png, size: [20, 20, 1]}}"),
+                            **{"hill.png": _fifo}),
+    "urdf-folder": check("robot.yaml", _robot("robot"), **{"robot/robot.urdf": "<robot/>"}),
+    "urdf-fifo": check("robot.yaml", _robot("robot.urdf"), **{"robot.urdf": _fifo}),
+    "urdf-device": check("robot.yaml", _robot("/dev/zero")),
+    # ddenv convert and run
+    "convert-folder": ddenv("convert", "yard.yaml", "out.sdf", files={"yard.yaml": YARD, "out.sdf/keep": "x"}),
+    "convert-no-folder": ddenv("convert", "yard.yaml", "new/yard.sdf", files={"yard.yaml": YARD}),
+    "convert-loop": ddenv("convert", "loop.yaml", "yard.sdf", files={"loop.yaml": _link_to("loop.yaml")}),
+    "scenario-folder": ddenv("run", "yard.yaml", "--scenario", "scenarios", files={"yard.yaml": YARD,
+                                                                                   "scenarios/a.yaml": YARD}),
+    # the Python API
+    "api-robotworld-path": python("RobotWorld('yard.yaml')"),
+    "api-robotworld-none": python("RobotWorld(None)"),
+    "api-rebound-path": python("RobotWorld(world).rebound('yard.yaml')"),
+    "api-run-settings": python("RobotWorld(world).run(settings='fast')"),
+    "api-seed-text": python("RobotWorld(world, seed='1')"),
+    "api-attempt-negative": python("RobotWorld(world, attempt=-1).run()"),
+    "api-load-number": python("World.load(42)"),
+    "api-from-yaml-none": python("World.from_yaml(None)"),
+    "api-models-text": python("World(models='crate')"),
+    "api-save-extension": python("world.save('yard.txt')"),
+    "api-save-negative-box": python(f"World(models=(Model('crate', (Shape('box', size=(-1, 1, 1)),)),)).save('c.yaml')"),
+    "api-save-nan-pose": python(f"World(models=(Model('crate', ({BOX},), Pose(x=float('nan'))),)).save('c.yaml')"),
+    "api-save-shape-kind": python("World(models=(Model('crate', (Shape('cube', size=(1, 1, 1)),)),)).save('c.yaml')"),
+    "api-huge-gravity": python("RobotWorld(World(physics=Physics(gravity=(0, 0, -1e300))))"),
+    "api-distances-nan": python("world.distances([[float('nan'), 0, 0]])"),
+    "api-distances-2d": python("world.distances([[0, 0]])"),
+}
+CASES.update(WORLD_MODEL_CASES)
+
+
 # -- the table ----------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Row:
@@ -286,6 +406,19 @@ def _ddenv(case: Case, folder: Path, capsys: pytest.CaptureFixture[str], *extra:
     return code, captured.out, captured.err
 
 
+def _python(code: str) -> str:
+    """`Type: message` of the DdenvError `code` raised; what it returned, if it raised none."""
+    import pytest_ddenv
+
+    namespace = {name: getattr(pytest_ddenv, name) for name in pytest_ddenv.__all__}
+    namespace["world"] = World.load("yard.yaml")
+    try:
+        result = eval(code, namespace)  # noqa: S307 - the table's own code
+    except pytest_ddenv.DdenvError as error:
+        return f"{type(error).__name__}: {error}"
+    return f"(no error: returned {result!r})"
+
+
 @pytest.mark.parametrize("identifier", sorted(CASES))
 def test_bad_input_gets_the_message_of_the_table(identifier: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                  capsys: pytest.CaptureFixture[str], request: pytest.FixtureRequest
@@ -309,6 +442,13 @@ def test_bad_input_gets_the_message_of_the_table(identifier: str, tmp_path: Path
             data = json.loads(out)
             assert code == 2 and data["ok"] is False and data["exit_code"] == 2
             assert pattern.fullmatch("ddenv: error: " + data["error"]), data
+        return
+    if case.command[0] == "python":
+        _make(tmp_path, case.files)
+        monkeypatch.chdir(tmp_path)
+        printed = _python(case.command[1])
+        assert pattern.fullmatch(printed), f"{row.message!r} is not:\n{printed}"
+        assert not list(tmp_path.glob(".*.tmp*")), "a temporary file was left behind"
         return
     pytester: pytest.Pytester = request.getfixturevalue("pytester")
     _make(pytester.path, case.files)

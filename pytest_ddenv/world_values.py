@@ -1,0 +1,209 @@
+"""The numbers a world may hold: what the simulator takes, checked for every world however it was made.
+
+pybullet computes in double precision, yet its contacts change from about 1e15 m on (a robot in a box of
+1e12 m touches it as in a box of 10 m; in a box of 1e15 m it is found "0.49 m deep", and in a cylinder of
+radius 1e38 m it touches nothing) and its bounding boxes overflow past about 1e30. A gravity beyond about
+1000 m/s^2 breaks its contacts too (the Husky sinks into the ground, or drives backwards at 10 000 m/s^2).
+So every length, coordinate, mass and other value of a world is at most MAX_MAGNITUDE in absolute value, and
+each axis of gravity at most MAX_GRAVITY: a world beyond is refused with one error naming the file, the
+model and the field, never simulated with parts silently missing.
+
+The YAML reader checks each value as it reads it (`magnitude_problem`); `check_world_values` checks a whole
+`World` the same way, for the worlds other readers and the Python API make (`World.load`, `World.save`,
+`RobotWorld`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import Any
+
+from pytest_ddenv.errors import ScenarioError, WorldError
+from pytest_ddenv.validation import expected, is_flag, is_real
+from pytest_ddenv.world import (
+    Ground,
+    LaserMount,
+    Model,
+    Physics,
+    Pose,
+    RobotDescription,
+    Scenario,
+    Shape,
+    World,
+    check_shape,
+    name_problem,
+    solver_iterations_problem,
+    timestep_problem,
+)
+
+MAX_MAGNITUDE = 1e9
+"""The largest absolute value of a length (m), coordinate (m), mass (kg) or other number of a world."""
+MAX_GRAVITY = 100.0
+"""The largest absolute value of each axis of gravity (m/s^2; about 10 g)."""
+Fail = Callable[[str, str], WorldError]
+"""Makes the error for a field and a reason."""
+
+
+def magnitude_problem(value: float, limit: float = MAX_MAGNITUDE) -> str | None:
+    """Why the finite number `value` is beyond what the simulator takes, or None."""
+    if abs(value) <= limit:
+        return None
+    return (f"expected a number from -{_written(limit)} to {_written(limit)}, got {value:g} (the simulator does "
+            "not handle larger numbers)")
+
+
+def _written(limit: float) -> str:
+    return "1e9" if limit == MAX_MAGNITUDE else f"{limit:g}"
+
+
+def number_problem(value: Any, *, positive: bool = False, non_negative: bool = False,
+                   limit: float = MAX_MAGNITUDE) -> str | None:
+    """Why `value` is not a number of a world (a real, finite, within `limit`, and positive or non-negative
+    when asked), or None."""
+    if not is_real(value):
+        return expected("a number", value)
+    try:
+        number = float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        number = math.inf
+    if not math.isfinite(number):
+        return expected("a finite number", value)
+    if positive and number <= 0:
+        return expected("a positive number", number)
+    if non_negative and number < 0:
+        return expected("a number >= 0", number)
+    return magnitude_problem(number, limit)
+
+
+def check_world_values(world: World) -> None:
+    """Raise a `WorldError` (a `ScenarioError` for the scenario) naming the world's source, the model and the
+    field of the first value the simulator cannot take: a wrong type, a number that is not finite or beyond
+    MAX_MAGNITUDE (MAX_GRAVITY for gravity), a negative size, a bad name. Files are not opened."""
+    if not isinstance(world, World):
+        raise WorldError(expected("a World", world))
+    for index, model in enumerate(world.models):
+        check_model_values(model, index, world.source)
+    if world.scenario is not None:
+        _check_scenario(world.scenario, world.source)
+    _check_physics(world.physics, world.source)
+    if world.ground is not None:
+        _check_ground(world.ground, world.source)
+
+
+def check_model_values(model: Model, index: int, source: str | None) -> None:
+    """`check_world_values` for the model at `index` of a world read from `source`."""
+    if not isinstance(model, Model):
+        raise WorldError(expected("a Model", model), source=source, model=f"#{index}")
+    name = model.name
+    problem = name_problem(name) if isinstance(name, str) else expected("a non-empty string", name)
+    if problem is not None:
+        raise WorldError(problem, source=source, model=f"#{index}", field="name")
+    label = f"'{name}' (#{index})"
+
+    def fail(field: str, reason: str) -> WorldError:
+        return WorldError(reason, source=source, model=label, field=field)
+
+    if not isinstance(model.shapes, (tuple, list)) or not model.shapes:
+        raise fail("shapes", expected("a non-empty tuple of Shapes", model.shapes))
+    for number, shape in enumerate(model.shapes):
+        where = f"shapes[{number}]"
+        if not isinstance(shape, Shape):
+            raise fail(where, expected("a Shape", shape))
+        _check_pose(shape.pose, f"{where}.pose", fail)
+        check_shape(shape, source=source, model=label, field=where, static=model.static, files=False)
+    _check_pose(model.pose, "pose", fail)
+    for field in ("static", "keep"):
+        if not is_flag(getattr(model, field)):
+            raise fail(field, expected("true or false", getattr(model, field)))
+    if model.mass is not None:
+        _check_number(model.mass, "mass", fail, positive=True)
+    for field in ("mu", "mu2", "restitution"):
+        _check_number(getattr(model, field), field, fail, non_negative=True)
+    color = model.color
+    if not isinstance(color, (tuple, list)) or len(color) != 4 or not all(
+            is_real(c) and 0.0 <= c <= 1.0 for c in color):
+        raise fail("color", expected("4 components (red, green, blue, alpha) between 0 and 1", color))
+    if not isinstance(model.tags, Mapping):
+        raise fail("tags", expected("a mapping of tag names to values", model.tags))
+
+
+def _check_number(value: Any, field: str, fail: Fail, *, positive: bool = False, non_negative: bool = False,
+                  limit: float = MAX_MAGNITUDE) -> None:
+    problem = number_problem(value, positive=positive, non_negative=non_negative, limit=limit)
+    if problem is not None:
+        raise fail(field, problem)
+
+
+def _check_numbers(values: Iterable[tuple[str, Any]], fail: Fail, **rule: Any) -> None:
+    for field, value in values:
+        _check_number(value, field, fail, **rule)
+
+
+def _check_pose(pose: Any, field: str, fail: Fail, axes: Sequence[str] = ()) -> None:
+    if not isinstance(pose, Pose):
+        raise fail(field, expected("a Pose", pose))
+    values = pose.as_list()
+    names = axes or [f"{field}[{index}]" for index in range(6)]
+    _check_numbers(zip(names, values, strict=False), fail)
+
+
+def _check_scenario(scenario: Scenario, source: str | None) -> None:
+    def fail(field: str, reason: str) -> ScenarioError:
+        return ScenarioError(reason, source=source, field=f"scenario.{field}")
+
+    if not isinstance(scenario, Scenario):
+        raise ScenarioError(expected("a Scenario", scenario), source=source, field="scenario")
+    robot = scenario.robot
+    if isinstance(robot, RobotDescription):
+        _check_robot(robot, fail)
+    elif not isinstance(robot, str) or not robot:
+        raise fail("robot", expected("a registered robot's name or a RobotDescription", robot))
+    _check_pose(scenario.start, "start", fail, [f"start.{axis}" for axis in ("x", "y", "z", "roll", "pitch", "yaw")])
+    goal = scenario.goal
+    if not isinstance(goal, (tuple, list)) or len(goal) != 3:
+        raise fail("goal", expected("(x, y, z or None)", goal))
+    _check_numbers(zip(("goal.x", "goal.y", "goal.z"), goal if goal[2] is not None else goal[:2], strict=False), fail)
+    _check_number(scenario.goal_tolerance, "goal_tolerance", fail, positive=True)
+    _check_number(scenario.timeout, "timeout", fail, positive=True)
+
+
+def _check_robot(robot: RobotDescription, fail: Fail) -> None:
+    for field in ("wheel_radius", "track", "track_factor"):
+        if getattr(robot, field) is not None:
+            _check_number(getattr(robot, field), f"robot.{field}", fail, positive=True)
+    _check_number(robot.max_wheel_torque, "robot.max_wheel_torque", fail, positive=True)
+    if isinstance(robot.laser, LaserMount):
+        mount = robot.laser
+        _check_numbers(((f"robot.laser.{key}", getattr(mount, key)) for key in ("height", "x", "y", "yaw")), fail)
+        _check_number(mount.min_range, "robot.laser.min_range", fail, non_negative=True)
+    elif not is_flag(robot.laser):
+        raise fail("robot.laser", expected("true, false or a LaserMount", robot.laser))
+
+
+def _check_physics(physics: Physics, source: str | None) -> None:
+    def fail(field: str, reason: str) -> WorldError:
+        return WorldError(reason, source=source, field=f"physics.{field}")
+
+    if not isinstance(physics, Physics):
+        raise WorldError(expected("a Physics", physics), source=source, field="physics")
+    gravity = physics.gravity
+    if not isinstance(gravity, (tuple, list)) or len(gravity) != 3:
+        raise fail("gravity", expected("3 numbers (m/s^2)", gravity))
+    _check_numbers(((f"gravity[{axis}]", value) for axis, value in enumerate(gravity)), fail, limit=MAX_GRAVITY)
+    _check_number(physics.timestep, "timestep", fail, positive=True)
+    problem = timestep_problem(physics.timestep) or solver_iterations_problem(physics.solver_iterations)
+    if problem is not None:
+        raise fail("timestep" if "timestep" in problem else "solver_iterations", problem)
+
+
+def _check_ground(ground: Ground, source: str | None) -> None:
+    def fail(field: str, reason: str) -> WorldError:
+        return WorldError(reason, source=source, field=f"ground.{field}")
+
+    if not isinstance(ground, Ground):
+        raise WorldError(expected("a Ground or None", ground), source=source, field="ground")
+    _check_number(ground.z, "z", fail)
+    _check_numbers(((field, getattr(ground, field)) for field in ("mu", "mu2", "restitution")), fail,
+                   non_negative=True)
+
