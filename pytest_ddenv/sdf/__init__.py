@@ -9,17 +9,24 @@ trimesh. See docs/sdf.md for what is supported.
 
 from __future__ import annotations
 
+from pytest_ddenv.sdf._bodies import MAX_COLLISIONS
 from pytest_ddenv.sdf._collada import collada_geometry
+from pytest_ddenv.sdf._includes import MAX_INCLUDES
 from pytest_ddenv.sdf._paths import MODEL_PATH_VARIABLES, model_search_paths
 from pytest_ddenv.sdf._reader import DDENV_NS, load_sdf, parse_sdf
 from pytest_ddenv.sdf._surgical import SurgeryError, cut_models
+from pytest_ddenv.sdf._tree import MAX_LINKS, MAX_MODELS
 from pytest_ddenv.sdf._values import UnsupportedSdfError
 from pytest_ddenv.sdf._writer import dump_sdf
 from pytest_ddenv.sdf._xml import MAX_FILE_BYTES
 
 __all__ = [
     "DDENV_NS",
+    "MAX_COLLISIONS",
     "MAX_FILE_BYTES",
+    "MAX_INCLUDES",
+    "MAX_LINKS",
+    "MAX_MODELS",
     "MODEL_PATH_VARIABLES",
     "SurgeryError",
     "UnsupportedSdfError",

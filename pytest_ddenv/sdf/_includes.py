@@ -17,6 +17,8 @@ MIN_VERSION = (1, 2)
 """Oldest SDF read: libsdformat converts 1.2 and 1.3 to 1.4 without changing models (physics elements only)."""
 MAX_CONFIG_VERSION = (1, 9)
 MAX_INCLUDE_DEPTH = 16
+MAX_INCLUDES = 10_000
+"""Most `<include>`s read for one world, at every depth: a tree 16 deep and 8 wide would be 8**16 files."""
 BUILTIN_GROUND = """<sdf version="1.6"><model name="ground_plane"><static>true</static><link name="link">
 <collision name="collision"><geometry><plane><normal>0 0 1</normal><size>100 100</size></plane></geometry>
 <surface><friction><ode><mu>100</mu><mu2>50</mu2></ode></friction></surface></collision></link></model></sdf>"""
@@ -53,6 +55,7 @@ class Documents:
         self.values = values
         self.lines: Lines = values.lines
         self.search_paths = search_paths
+        self.count = 0  # the includes read so far (MAX_INCLUDES)
 
     def read_root(self, data: bytes | str, source: str | None) -> ET.Element:
         root = parse_xml(data, source, self.lines)
@@ -84,6 +87,11 @@ class Documents:
         if depth > MAX_INCLUDE_DEPTH:
             raise values.error(f"includes nested more than {MAX_INCLUDE_DEPTH} deep (a cycle?) at {shown_uri}", element,
                                model=label)
+        self.count += 1
+        if self.count > MAX_INCLUDES:
+            raise values.error(f"more than {MAX_INCLUDES} <include>s in one world (counting every level; this one is "
+                               f"{shown_uri}); flatten the model tree or split the world", element, model=label,
+                               field="include")
         if is_remote(uri):
             raise values.unsupported("include", f"remote URI {shown_uri} (Gazebo Fuel models are never fetched: "
                                      "download the model and add its folder to the model path)", uri_element,

@@ -60,9 +60,15 @@ class _Loader:
     # documents ------------------------------------------------------------------------------------------
     def load(self, data: bytes | str, base_dir: Path | None) -> World:
         root = self.documents.read_root(data, self.source)
-        world = root.find("world")
-        if world is not None:
-            return self.world(world, base_dir)
+        worlds = root.findall("world")
+        if len(worlds) > 1:
+            first, second = worlds[0], worlds[1]
+            raise self.values.error(
+                f"a second <world> ({shown(second.get('name') or '')}; the first, {shown(first.get('name') or '')}, "
+                f"is at line {self.values.lines.of(first)[1]}); pytest-ddenv reads one world per file: put each in a "
+                "file of its own", second, field="world")
+        if worlds:
+            return self.world(worlds[0], base_dir)
         model = root.find("model")
         if model is not None:
             name = Path(self.source).stem if self.source else (model.get("name") or "")
@@ -86,6 +92,7 @@ class _Loader:
         problem = name_problem(name) if name else None
         if problem is not None:
             raise self.values.error(f"{problem}; got {shown(name)}", element, field="world/@name")
+        self.ddenv.check_world(element)
         frames = Frames(self.values, None, {"world"})
         nodes: list[ModelNode] = []
         for child in element:
@@ -104,7 +111,7 @@ class _Loader:
             self.add_frame(frames, node)
         frames.check()
         state = element.find("state")
-        states = self.states(state) if state is not None else {}
+        states = self.states(state, {node.name: node.origin for node in nodes}) if state is not None else {}
         ground, models = self.assemble(nodes, frames, states)
         return World(
             models=tuple(models),
@@ -183,8 +190,7 @@ class _Loader:
 
     def raw(self, node: ModelNode, frames: Frames) -> Raw:
         pose = frames.resolve(node.name, node.origin)
-        keep_element = node.element.find(f"{{{DDENV_NS}}}keep")
-        keep = self.values.boolean(keep_element, "ddenv:keep", node.name) if keep_element is not None else False
+        keep = self.ddenv.keep(node.element, node.name)
         return self.bodies.raw(node, pose, keep, self.ddenv.tags(node.element, node.name))
 
     def note(self, node: ModelNode) -> None:
@@ -195,8 +201,18 @@ class _Loader:
             self.notes.lights.extend(part.lights)
 
     # state --------------------------------------------------------------------------------------------
-    def states(self, element: ET.Element) -> dict[str, State]:
+    def states(self, element: ET.Element, models: dict[str, ET.Element]) -> dict[str, State]:
+        """The model entries of a `<state>`; its `<insertions>` of models the world already has are refused (Gazebo
+        would load a second model of that name), other insertions are noted (not read)."""
         values = self.values
+        for inserted in element.findall("insertions/model"):
+            name = (inserted.get("name") or "").strip()
+            if name in models:
+                raise values.error(f"the <state> inserts a model {shown(name)}, but the world already has a model "
+                                   f"{shown(name)} (line {values.lines.of(models[name])[1]}); Gazebo would load two "
+                                   "models of that name: remove one of them", inserted, model=name,
+                                   field="state/insertions/model")
+            self.notes.insertions.append(name)
         states = {}
         for model in element.findall("model"):
             name = model.get("name") or ""

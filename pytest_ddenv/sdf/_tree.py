@@ -23,6 +23,10 @@ from pytest_ddenv.world import Pose, name_problem
 
 MAX_NESTING = 64
 """Deepest nesting of models in models (includes included); deeper trees are refused, not a RecursionError."""
+MAX_MODELS = 10_000
+"""Most models read for one world, nested and included ones counted; more are refused (bounded time)."""
+MAX_LINKS = 50_000
+"""Most links read for one world (in all its models); more are refused (bounded time)."""
 
 
 @dataclass
@@ -78,6 +82,8 @@ class TreeReader:
     def __init__(self, values: Values, documents: Documents) -> None:
         self.values = values
         self.documents = documents
+        self.count = 0  # the models read so far (MAX_MODELS)
+        self.links = 0  # the links read so far (MAX_LINKS)
 
     def model(
         self, element: ET.Element, base_dir: Path | None, name: str, *, origin: ET.Element, top: str = "",
@@ -94,6 +100,10 @@ class TreeReader:
         if level > MAX_NESTING:
             raise self.values.error(f"models nested more than {MAX_NESTING} deep; flatten the model tree", element,
                                     model=top, field="model")
+        self.count += 1
+        if self.count > MAX_MODELS:
+            raise self.values.error(f"more than {MAX_MODELS} models in one world (nested and included ones counted); "
+                                    "split the world", element, model=top or name, field="model")
         top = top or name
         own = static if static is not None else bool(self.values.child_boolean(element, "static", "", top))
         scoped = f"{parent.scoped}{name}::" if parent is not None else ""
@@ -129,6 +139,10 @@ class TreeReader:
             if child.tag in ("link", "frame", "joint") and not label:
                 raise values.error(f"a <{child.tag}> needs a name attribute", child, model=top, field="name")
             if child.tag == "link":
+                self.links += 1
+                if self.links > MAX_LINKS:
+                    raise values.error(f"more than {MAX_LINKS} links in one world; split the world", child, model=top,
+                                       field="link")
                 pose, relative_to = values.pose(child, where, top)
                 node.frames.add(label, Frame(pose, relative(relative_to), child, kind="link"))
                 node.links.append(LinkSpec(child, f"{node.scoped}{label}", label, node.frames, base_dir,
