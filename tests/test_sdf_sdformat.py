@@ -71,9 +71,10 @@ def stock_models(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(autouse=True)
-def no_model_path_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+def no_model_path_from_the_environment(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     for variable in MODEL_PATH_VARIABLES:
         monkeypatch.delenv(variable, raising=False)
+    monkeypatch.setenv("GZ_FUEL_CACHE_PATH", str(tmp_path / "empty-fuel-cache"))  # whatever this machine caches
 
 
 # -- exported worlds --------------------------------------------------------------------------------------

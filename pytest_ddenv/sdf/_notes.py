@@ -29,7 +29,7 @@ class Notes:
 
     def drop(self, name: str, error: UnsupportedSdfError) -> None:
         where = f" ({error.where})" if error.where else ""
-        self.dropped.append(f"dropped {name}: unsupported <{error.element}>: {error.detail}{where}")
+        self.dropped.append(f"dropped {name}: {error.summary}{where}")
 
     def lines(self) -> tuple[str, ...]:
         joints = [f"{name} ({count} joint{'s' if count != 1 else ''})" for name, count in self.joints]

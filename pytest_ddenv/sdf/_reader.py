@@ -21,7 +21,7 @@ from pytest_ddenv.sdf._bodies import BodyReader, Raw, State
 from pytest_ddenv.sdf._collada import collada_unit
 from pytest_ddenv.sdf._ddenv import DdenvElements
 from pytest_ddenv.sdf._frames import Frame, Frames, compose
-from pytest_ddenv.sdf._includes import Documents, IncludedLight
+from pytest_ddenv.sdf._includes import Documents, IncludedLight, is_legacy
 from pytest_ddenv.sdf._notes import Notes
 from pytest_ddenv.sdf._paths import model_search_paths
 from pytest_ddenv.sdf._shapes import GeometryReader
@@ -46,6 +46,7 @@ class _Loader:
         self.bodies = BodyReader(self.values, GeometryReader(self.values, search_paths), self.notes)
         self.ddenv = DdenvElements(self.values)
         self.skip_unsupported = skip_unsupported
+        self.legacy = False  # the file is older than SDF 1.7
 
     def guarded(self, name: str, read: Callable[[], T]) -> T | None:
         """`read()`, or None when it raises UnsupportedSdfError and such models are skipped (with a note)."""
@@ -60,6 +61,7 @@ class _Loader:
     # documents ------------------------------------------------------------------------------------------
     def load(self, data: bytes | str, base_dir: Path | None) -> World:
         root = self.documents.read_root(data, self.source)
+        self.legacy = is_legacy(root)
         worlds = root.findall("world")
         if len(worlds) > 1:
             first, second = worlds[0], worlds[1]
@@ -77,7 +79,8 @@ class _Loader:
 
     def model_file(self, root: ET.Element, base_dir: Path | None, name: str) -> World:
         nodes = [self.guarded(model.get("name") or "", lambda model=model: self.trees.model(  # type: ignore[misc]
-            model, base_dir, (model.get("name") or "").strip(), origin=model)) for model in root.findall("model")]
+            model, base_dir, (model.get("name") or "").strip(), origin=model, legacy=self.legacy))
+            for model in root.findall("model")]
         frames = Frames(self.values, None, {"world"})
         present = [node for node in nodes if node is not None]
         for node in present:
@@ -99,7 +102,7 @@ class _Loader:
             label = (child.get("name") or "").strip()
             if child.tag == "model":
                 node = self.guarded(label, lambda child=child, label=label: self.trees.model(  # type: ignore[misc]
-                    child, base_dir, label, origin=child))
+                    child, base_dir, label, origin=child, legacy=self.legacy))
             elif child.tag == "include":
                 node = self.guarded(label, lambda child=child: self.include(child, base_dir))  # type: ignore[misc]
             else:
@@ -149,7 +152,7 @@ class _Loader:
         node = self.trees.model(
             included.model, included.base_dir, included.name, origin=element, static=included.static,
             pose=included.pose or (self.values.pose(included.model, "", included.name)[0], ""),
-            placement=included.placement,
+            placement=included.placement, legacy=included.legacy,
         )
         node.plugins.extend(plugin_name(plugin) for plugin in element.findall("plugin"))
         return node
