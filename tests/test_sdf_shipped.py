@@ -365,3 +365,16 @@ def test_a_cached_fuel_include_is_cut_by_its_model_name(home: Path, tmp_path: Pa
     cut = cut_models(path, {"construction_cone"})
     assert "Construction Cone" not in cut and "Ground Plane" in cut
     assert parse_sdf(cut, source=path) == loaded.without(["construction_cone"])
+
+
+# -- a scenario for a Gazebo world on the command line: negative coordinates ------------------------------------------
+@pytest.mark.parametrize("form", [["--start", "-5,-1", "--goal", "-3,-1"], ["--start", "-5,-1,-0.1", "--goal=-3,-1"]])
+def test_start_and_goal_may_be_negative(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                        capsys: pytest.CaptureFixture[str], form: list[str]) -> None:
+    (tmp_path / "yard.world").write_text(world(GROUND, '<model name="far"><static>1</static><pose>9 9 0.5 0 0 0</pose>'
+                                               '<link name="l">' + BOX.format("1 1 1") + "</link></model>"))
+    monkeypatch.chdir(tmp_path)
+    code = cli.main(["run", "yard.world", *form, "--timeout", "10", "--no-picture", "--json"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert json.loads(captured.out)["reached_goal"] is True
