@@ -396,8 +396,8 @@ def test_unresolvable_include_names_the_model_and_the_paths(tmp_path: Path) -> N
 def test_remote_include_is_not_fetched(tmp_path: Path) -> None:
     path = write(tmp_path, '<sdf version="1.6"><world name="w"><include>'
                            "<uri>https://fuel.gazebosim.org/1.0/OpenRobotics/models/Cone</uri></include></world></sdf>")
-    with pytest.raises(sdf.UnsupportedSdfError, match="Gazebo Fuel model OpenRobotics/Cone is not downloaded here "
-                                                      r"\(pytest-ddenv never downloads\)"):
+    with pytest.raises(sdf.UnsupportedSdfError, match="Gazebo Fuel model OpenRobotics/Cone is not here: not "
+                                                      "in the Fuel cache"):
         load_sdf(path)
 
 

@@ -393,7 +393,7 @@ def test_each_unsupported_model_is_named_once() -> None:
 
 def test_fuel_include_is_unsupported_and_dropped() -> None:
     with pytest.raises(UnsupportedSdfError, match="Gazebo Fuel model OpenRobotics/Construction Cone is not "
-                                                  "downloaded here") as error:
+                                                  "here") as error:
         corpus("fuel_include")
     assert error.value.model == "cone" and error.value.line == 11 and "gz fuel download -u" in str(error.value)
     world = corpus("fuel_include", skip=True)

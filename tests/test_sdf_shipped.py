@@ -129,14 +129,15 @@ def test_a_missing_fuel_model_says_how_to_get_it(home: Path, tmp_path: Path) -> 
         parse_sdf(text, source=str(tmp_path / "w.world"), model_paths=[tmp_path])
     message = str(caught.value)
     assert caught.value.model == "cone" and caught.value.field == "include/uri"
-    cache = home / ".gz" / "fuel" / "fuel.gazebosim.org" / "openrobotics" / "models" / "construction cone"
-    assert f"download it with `gz fuel download -u '{CONE_URL}'`" in message
-    assert str(cache) in message and "'construction_cone'" in message and str(tmp_path) in message
+    caches = f"{home / '.gz' / 'fuel'}, {home / '.ignition' / 'fuel'}"
+    assert f"not in the Fuel cache ({caches}: fuel.gazebosim.org/openrobotics/models/construction cone/VERSION)" in message
+    assert f"nor on the model path ({tmp_path}) as a folder 'Construction Cone' or 'construction_cone'" in message
+    assert f"; get it with: gz fuel download -u '{CONE_URL}'; to load the world without" in message
     assert "unsupported <" not in message and "never fetched" not in message
     skipped = parse_sdf(text, source=str(tmp_path / "w.world"), skip_unsupported=True)
     assert skipped.names == ("kept",)
     assert skipped.notes[0].startswith("dropped cone: Gazebo Fuel model OpenRobotics/Construction Cone is not "
-                                       "downloaded here")
+                                       "here")
 
 
 def test_a_remote_uri_that_is_not_fuel_says_so(tmp_path: Path) -> None:

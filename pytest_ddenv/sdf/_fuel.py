@@ -80,34 +80,33 @@ def fuel_caches(environ: Mapping[str, str] | None = None) -> tuple[Path, ...]:
 class FuelModelMissing(Exception):
     """A Fuel model that is neither in the Fuel cache nor on the model path."""
 
-    def __init__(self, fuel: FuelUri, searched: Sequence[Path], search_paths: Sequence[Path]) -> None:
+    def __init__(self, fuel: FuelUri, caches: Sequence[Path], search_paths: Sequence[Path]) -> None:
         self.fuel = fuel
-        self.searched = tuple(searched)
+        self.caches = tuple(caches)
         self.search_paths = tuple(search_paths)
         super().__init__(fuel.uri)
 
     def describe(self) -> str:
         fuel = self.fuel
-        cache = ", ".join(str(path) for path in self.searched) or "(no cache folder)"
-        names = " or ".join(shown(name, PATH_CHARACTERS) for name in fuel.folder_names)
-        on_path = (f"nor on the model path ({', '.join(str(path) for path in self.search_paths)}) as a folder "
-                   f"{names}" if self.search_paths else f"and no model path is set (a folder {names} on it is used)")
-        version = f" version {fuel.version}" if fuel.version.isdigit() else ""
-        return (f"Gazebo Fuel model {fuel.owner}/{fuel.name}{version} is not downloaded here (pytest-ddenv never "
-                f"downloads): it is not in the Fuel cache ({cache}) {on_path}; download it with "
-                f"`gz fuel download -u {shown(fuel.model_url, PATH_CHARACTERS)}` (into ~/.gz/fuel, or "
-                f"${FUEL_CACHE_VARIABLES[0]}), or copy its folder to the model path")
+        version = fuel.version if fuel.version.isdigit() else "VERSION"
+        layout = f"{fuel.server}/{fuel.owner.lower()}/models/{fuel.name.lower()}/{version}"
+        cache = f"{', '.join(str(path) for path in self.caches)}: {shown(layout, PATH_CHARACTERS)[1:-1]}"
+        names = " or ".join(shown(name, PATH_CHARACTERS) for name in dict.fromkeys(fuel.folder_names[::2]))
+        paths = ", ".join(str(path) for path in self.search_paths) or "none set"
+        pinned = f" version {fuel.version}" if fuel.version.isdigit() else ""
+        return (f"Gazebo Fuel model {fuel.owner}/{fuel.name}{pinned} is not here: not in the Fuel cache "
+                f"({cache}) nor on the model path ({paths}) as a folder {names}; get it with: gz fuel download -u "
+                f"{shown(fuel.model_url, PATH_CHARACTERS)}")
 
 
 def resolve_fuel(fuel: FuelUri, search_paths: Sequence[Path], environ: Mapping[str, str] | None = None) -> Path:
     """The local folder (or file) of a Fuel URI: the cache's version folder, else a model path folder named after
     the model. Raises FuelModelMissing."""
-    searched: list[Path] = []
+    caches = fuel_caches(environ)
     servers = SAME_SERVERS if fuel.server in SAME_SERVERS else (fuel.server,)
-    for cache in fuel_caches(environ):
+    for cache in caches:
         for server in servers:
             models = cache / server / fuel.owner.lower() / "models"
-            searched.append(models / fuel.name.lower())
             folder = _version_folder(_entry(models, fuel.name), fuel.version)
             if folder is not None:
                 return folder / fuel.file if fuel.file else folder
@@ -115,7 +114,7 @@ def resolve_fuel(fuel: FuelUri, search_paths: Sequence[Path], environ: Mapping[s
         for name in fuel.folder_names:
             if exists(directory / name):
                 return directory / name / fuel.file if fuel.file else directory / name
-    raise FuelModelMissing(fuel, searched, search_paths)
+    raise FuelModelMissing(fuel, caches, search_paths)
 
 
 def _entry(folder: Path, name: str) -> Path | None:

@@ -145,7 +145,7 @@ class Documents:
         if ground:
             root = parse_xml(BUILTIN_GROUND, "(built-in model://ground_plane)", self.lines)
             return self.included(root, None, element, name, label, uri)
-        if unresolved.remote:  # what it names is not on this machine: the model can be skipped
+        if unresolved.remote:  # what it names is not here: the model can be skipped
             raise self.values.unavailable("include", unresolved.reason, element.find("uri"), model=label,
                                           field="include/uri")
         raise self.values.error(f"cannot resolve include {unresolved.describe()}", element, model=label,
