@@ -73,8 +73,14 @@ def parse_fuel_uri(uri: str) -> FuelUri | None:
 def fuel_caches(environ: Mapping[str, str] | None = None) -> tuple[Path, ...]:
     """The Fuel cache folders searched, in order."""
     environ = os.environ if environ is None else environ
-    given = [Path(environ[variable]).expanduser() for variable in FUEL_CACHE_VARIABLES if environ.get(variable)]
-    return tuple(dict.fromkeys(given or [Path(folder).expanduser() for folder in DEFAULT_CACHES]))
+    given = [Path(environ[variable]) for variable in FUEL_CACHE_VARIABLES if environ.get(variable)]
+    folders: list[Path] = []
+    for folder in given or [Path(folder) for folder in DEFAULT_CACHES]:
+        try:
+            folders.append(folder.expanduser())
+        except RuntimeError:  # no home folder to expand "~" to: no such cache
+            continue
+    return tuple(dict.fromkeys(folders))
 
 
 class FuelModelMissing(Exception):
