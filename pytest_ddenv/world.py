@@ -702,9 +702,12 @@ def check_shape(shape: Shape, *, source: str | None = None, model: str | None = 
             raise fail("size", f"expected 3 sizes (x, y, z), got {shape.size}")
         if not all(math.isfinite(v) and v > 0 for v in shape.size):
             raise fail("size", f"expected positive, finite sizes, got {list(shape.size)}")
-    if shape.kind in ("cylinder", "capsule", "sphere", "cone"):
+    if shape.kind in ("cylinder", "capsule", "sphere"):
         positive("radius", shape.radius)
-    if shape.kind in ("cylinder", "capsule", "cone"):
+    if shape.kind in ("cylinder", "capsule"):
+        positive("length", shape.length)
+    if shape.kind == "cone":
+        positive("radius", shape.radius)
         positive("length", shape.length)
     if shape.kind == "polyline":
         problem = polyline_problem(shape.points or ())
