@@ -254,6 +254,13 @@ def test_a_dynamic_cone_falls_and_stands_on_its_base() -> None:
     assert axis > 0.999
 
 
+def test_a_cone_is_scaled_by_the_state_as_a_cylinder_is() -> None:
+    text = cone_world().replace("</model></world>", '</model><state world_name="w"><model name="cone">'
+                                                    "<scale>2 2 0.5</scale></model></state></world>")
+    shape = parse_sdf(text, source="cone.world").model("cone").shapes[0]
+    assert (shape.kind, shape.radius, shape.length) == ("cone", 1.0, 0.6)
+
+
 def test_a_cone_round_trips_through_yaml_and_sdf(tmp_path: Path) -> None:
     loaded = parse_sdf(cone_world(), source=str(tmp_path / "cone.world"))
     assert World.from_yaml(loaded.to_yaml()).models == loaded.models

@@ -260,7 +260,7 @@ def _scaled(shape: Shape, scale: tuple[float, float, float]) -> Shape:
     if shape.kind == "box":
         assert shape.size is not None
         return dataclasses.replace(shape, size=(shape.size[0] * sx, shape.size[1] * sy, shape.size[2] * sz))
-    if shape.kind in ("cylinder", "capsule"):
+    if shape.kind in ("cylinder", "capsule", "cone"):
         assert shape.radius is not None and shape.length is not None
         return dataclasses.replace(shape, radius=shape.radius * max(sx, sy), length=shape.length * sz)
     if shape.kind == "sphere":

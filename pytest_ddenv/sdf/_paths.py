@@ -93,8 +93,6 @@ def resolve_uri(uri: str, base_dir: Path | None, search_paths: Sequence[Path]) -
         path = Path(uri).expanduser()
         if not path.is_absolute():
             return _relative_path(uri, path, base_dir, search_paths)
-    if not path.is_absolute() and base_dir is not None:
-        path = base_dir / path
     if not exists(path):
         raise UnresolvedURI(uri, (), f"file not found: {shown_path(path)}", hint=False)
     return path

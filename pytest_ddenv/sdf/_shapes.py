@@ -20,7 +20,7 @@ from pytest_ddenv.errors import PATH_CHARACTERS, WorldError, shown, shown_path
 from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._collada import collada_unit
 from pytest_ddenv.sdf._paths import UnresolvedURI, resolve_uri
-from pytest_ddenv.sdf._values import UnsupportedSdfError, Values
+from pytest_ddenv.sdf._values import Values
 from pytest_ddenv.world import Pose, Shape, check_mesh_file, check_shape, is_file
 
 MESH_SUFFIXES = (".stl", ".obj", ".dae")
@@ -160,8 +160,6 @@ class GeometryReader:
         try:
             unit = collada_unit(path) if path.suffix.lower() == ".dae" else 1.0
         except WorldError as error:
-            if isinstance(error, UnsupportedSdfError):
-                raise
             raise self.values.unavailable("mesh", f"cannot read {shown_path(path)}: {error.reason}", uri,
                                           model=model, field=f"{where}/uri") from None
         shape = Shape("mesh", mesh=str(path.resolve()), scale=(scale[0] * unit, scale[1] * unit, scale[2] * unit))
