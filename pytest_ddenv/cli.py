@@ -12,6 +12,7 @@ import argparse
 import json
 import math
 import os
+import re
 import shlex
 import sys
 import threading
@@ -379,7 +380,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     arguments_list = list(sys.argv[1:] if argv is None else argv)
     try:
-        arguments = parser.parse_args(arguments_list)
+        arguments = parser.parse_args(negative_values_joined(arguments_list))
     except _ArgumentError as error:
         return _fail(str(error), as_json="--json" in arguments_list)
     except SystemExit as exit_:  # --help, --version
@@ -407,6 +408,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         hint = "" if arguments.debug else " (run with --debug for the traceback)"
         message = f"internal error: {type(error).__name__}: {error}{hint}"
         return _fail(message, as_json=arguments.json, code=EXIT_INTERNAL)
+
+
+def negative_values_joined(words: Sequence[str]) -> list[str]:
+    """`--start -5,-1` as `--start=-5,-1`: argparse takes a value that starts with '-' for an option (unless it
+    is one plain number), so coordinates that start with a minus are joined to their option first."""
+    joined: list[str] = []
+    for word in words:
+        if joined and joined[-1] in ("--start", "--goal") and re.match(r"-\.?\d", word):
+            joined[-1] = f"{joined[-1]}={word}"
+        else:
+            joined.append(word)
+    return joined
 
 
 def _traceback_if(debug: bool) -> None:

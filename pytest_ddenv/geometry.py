@@ -94,6 +94,39 @@ def capsule_bounds(translation: FloatArray, rotation: FloatArray, radius: float,
     return translation - half_axis - radius, translation + half_axis + radius
 
 
+def cone_distance(local_points: FloatArray, radius: float, length: float) -> FloatArray:
+    """Distance from points (in the cone frame) to a z-axis cone whose base (of `radius`) is at z = -length/2
+    and tip at z = +length/2, as SDF's `<cone>`; 0 inside. The distance in the half-plane (r, z) of each point
+    to the triangle the cone turns."""
+    r = np.hypot(local_points[:, 0], local_points[:, 1])
+    z = local_points[:, 2]
+    half = length / 2.0
+    inside = (z >= -half) & (z <= half) & (r <= radius * (half - z) / length)
+    base = _segment_distance(r, z, (0.0, -half), (radius, -half))
+    side = _segment_distance(r, z, (radius, -half), (0.0, half))
+    return np.where(inside, 0.0, np.minimum(base, side))
+
+
+def cone_bounds(translation: FloatArray, rotation: FloatArray, radius: float,
+                length: float) -> tuple[FloatArray, FloatArray]:
+    """Exact axis-aligned bounds (low, high) of a cone placed at (translation, rotation): its base disc and tip."""
+    axis = rotation[:, 2]
+    base = translation - axis * length / 2.0
+    tip = translation + axis * length / 2.0
+    disc = radius * np.sqrt(np.clip(1.0 - axis**2, 0.0, 1.0))
+    return np.minimum(base - disc, tip), np.maximum(base + disc, tip)
+
+
+def _segment_distance(r: FloatArray, z: FloatArray, start: tuple[float, float],
+                      end: tuple[float, float]) -> FloatArray:
+    """Distance from the 2D points (r, z) to the segment from `start` to `end`."""
+    (r0, z0), (r1, z1) = start, end
+    dr, dz = r1 - r0, z1 - z0
+    t = np.clip(((r - r0) * dr + (z - z0) * dz) / (dr * dr + dz * dz), 0.0, 1.0)
+    distance: FloatArray = np.hypot(r - (r0 + t * dr), z - (z0 + t * dz))
+    return distance
+
+
 def prism_distance(planar_distance: FloatArray, local_z: FloatArray, height: float) -> FloatArray:
     """Distance to a prism (a planar region extruded from z = 0 to `height`), given each point's distance to
     the region in the xy plane (0 inside it) and its local z; 0 inside."""

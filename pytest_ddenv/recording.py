@@ -43,6 +43,7 @@ from pytest_ddenv.world import (
     Pose,
     Shape,
     World,
+    cone_mesh,
     load_heightmap,
     load_mesh,
     polyline_mesh,
@@ -243,7 +244,7 @@ def _log_model(writer: _Writer, entity: str, model: Model, world: World, run: Ru
     for kind, archetype in _primitives(rr, shapes, rgba):
         writer.static(f"{entity}/{kind}", archetype)
     for index, shape in enumerate(shapes):
-        if shape.kind in ("mesh", "polyline", "heightmap"):
+        if shape.kind in ("mesh", "polyline", "heightmap", "cone"):
             writer.static(f"{entity}/mesh{index}", _mesh(rr, shape, world.source, rgba))
 
 
@@ -296,6 +297,9 @@ def _mesh(rr: Any, shape: Shape, source: str | None, rgba: Sequence[float]) -> A
     if shape.kind == "polyline":
         assert shape.points is not None and shape.height is not None
         mesh: Any = polyline_mesh(shape.points, shape.height)
+    elif shape.kind == "cone":
+        assert shape.radius is not None and shape.length is not None
+        mesh = cone_mesh(shape.radius, shape.length)
     elif shape.kind == "heightmap":
         assert shape.size is not None
         heights = load_heightmap(resolve_mesh_path(shape.mesh, source))

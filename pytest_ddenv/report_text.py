@@ -129,7 +129,8 @@ def needed_lines(reduction: Reduction) -> list[str]:
              f"kept by a precondition, not shown needed: {kept}"]
     if reduction.without_precondition_kept is not None:
         fails, runs = reduction.without_precondition_kept
-        lines.append(f"without them (precondition bypassed) the failure reproduced in {fails}/{runs} runs")
+        lines.append(f"without them (precondition bypassed) the failure reproduced in {fails}/{runs} runs" if runs
+                     else "without them (precondition bypassed) the check could not run (none of its runs finished)")
     return lines
 
 

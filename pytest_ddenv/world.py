@@ -30,8 +30,8 @@ if TYPE_CHECKING:
     import PIL.Image
     import shapely
 
-ShapeKind = Literal["box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap"]
-SHAPE_KINDS: tuple[ShapeKind, ...] = ("box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap")
+ShapeKind = Literal["box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap", "cone"]
+SHAPE_KINDS: tuple[ShapeKind, ...] = ("box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap", "cone")
 TagValue = str | int | float | bool
 YAML_SUFFIXES = (".yaml", ".yml")
 SDF_SUFFIXES = (".sdf", ".world")
@@ -95,7 +95,8 @@ class Shape:
     polyline: `points` (the outline in the local xy plane, closed implicitly) extruded along z from 0 to
     `height`, as Gazebo extrudes an SDF `<polyline>`. heightmap: `mesh` (a grayscale image, absolute or
     relative to the world file; black = 0, white = the full height) stretched over `size` (x, y extent and the
-    z range), centred on the shape's pose in x and y, from z = 0 up.
+    z range), centred on the shape's pose in x and y, from z = 0 up. cone: `radius` (of its base) and `length`
+    (axis along local z, the base at -length/2 and the tip at +length/2, as SDF's `<cone>`).
     """
 
     kind: ShapeKind
@@ -485,9 +486,10 @@ class _ModelGeometry:
                 assert shape.radius is not None
                 lows.append(placed.translation - shape.radius)
                 highs.append(placed.translation + shape.radius)
-            elif shape.kind == "capsule":
+            elif shape.kind in ("capsule", "cone"):
                 assert shape.radius is not None and shape.length is not None
-                low, high = geometry.capsule_bounds(placed.translation, placed.rotation, shape.radius, shape.length)
+                bounds = geometry.capsule_bounds if shape.kind == "capsule" else geometry.cone_bounds
+                low, high = bounds(placed.translation, placed.rotation, shape.radius, shape.length)
                 lows.append(low)
                 highs.append(high)
             else:  # mesh, polyline, heightmap: their vertices
@@ -513,6 +515,9 @@ class _ModelGeometry:
             elif shape.kind == "capsule":
                 assert shape.radius is not None and shape.length is not None
                 d = geometry.capsule_distance(local, shape.radius, shape.length)
+            elif shape.kind == "cone":
+                assert shape.radius is not None and shape.length is not None
+                d = geometry.cone_distance(local, shape.radius, shape.length)
             elif shape.kind == "polyline":
                 d = _polyline_distance(shape, local)
             elif shape.kind == "heightmap":
@@ -625,6 +630,16 @@ def _mesh_distance(placed: _PlacedShape, local: FloatArray) -> FloatArray:
         inside = mesh.contains(local)  # type: ignore[attr-defined]
         distance = np.where(inside, 0.0, distance)
     return distance
+
+
+@functools.lru_cache(maxsize=256)
+def cone_mesh(radius: float, length: float, sections: int = 32) -> object:
+    """A trimesh.Trimesh of a cone (`Shape` kind "cone": base at z = -length/2, tip at +length/2)."""
+    import trimesh
+
+    mesh = trimesh.creation.cone(radius, length, sections=sections)
+    mesh.apply_translation([0.0, 0.0, -length / 2.0])
+    return mesh
 
 
 # -- polylines and heightmaps -------------------------------------------------------------------------------
@@ -809,6 +824,9 @@ def check_shape(shape: Shape, *, source: str | None = None, model: str | None = 
     if shape.kind in ("cylinder", "capsule", "sphere"):
         positive("radius", shape.radius)
     if shape.kind in ("cylinder", "capsule"):
+        positive("length", shape.length)
+    if shape.kind == "cone":
+        positive("radius", shape.radius)
         positive("length", shape.length)
     if shape.kind == "polyline":
         problem = polyline_problem(shape.points or ())

@@ -333,9 +333,9 @@ def _required(reader: _Reader, spec: Mapping[str, Any], where: str, keys: tuple[
             raise reader.fail(f"{where}.{key}", f"missing; {what}")
 
 
-def _radius_and_length(reader: _Reader, value: Any, where: str, pose: Pose, kind: Literal["cylinder", "capsule"],
-                       needs: str) -> Shape:
-    """A cylinder or capsule: `needs` says what is missing when radius or length is."""
+def _radius_and_length(reader: _Reader, value: Any, where: str, pose: Pose,
+                       kind: Literal["cylinder", "capsule", "cone"], needs: str) -> Shape:
+    """A cylinder, capsule or cone: `needs` says what is missing when radius or length is."""
     spec = reader.mapping(value, where, ("radius", "length"))
     _required(reader, spec, where, ("radius", "length"), needs)
     return Shape(
@@ -349,6 +349,11 @@ def _radius_and_length(reader: _Reader, value: Any, where: str, pose: Pose, kind
 def _parse_capsule(reader: _Reader, value: Any, where: str, pose: Pose) -> Shape:
     return _radius_and_length(reader, value, where, pose, "capsule",
                               "a capsule needs radius and length (m, the cylinder part between the half-spheres)")
+
+
+def _parse_cone(reader: _Reader, value: Any, where: str, pose: Pose) -> Shape:
+    return _radius_and_length(reader, value, where, pose, "cone",
+                              "a cone needs radius (of its base) and length (m, base to tip)")
 
 
 def _parse_polyline(reader: _Reader, value: Any, where: str, pose: Pose) -> Shape:
@@ -380,7 +385,7 @@ def _parse_heightmap(reader: _Reader, value: Any, where: str, pose: Pose) -> Sha
 
 
 _SHAPE_PARSERS: dict[str, Callable[[_Reader, Any, str, Pose], Shape]] = {
-    "capsule": _parse_capsule, "polyline": _parse_polyline, "heightmap": _parse_heightmap,
+    "capsule": _parse_capsule, "polyline": _parse_polyline, "heightmap": _parse_heightmap, "cone": _parse_cone,
 }
 
 
@@ -520,7 +525,7 @@ def _shape_dict(shape: Shape, source: str | None, relative_to: Path | None) -> d
         spec = {"radius": shape.radius, "length": shape.length}
     elif shape.kind == "sphere":
         spec = {"radius": shape.radius}
-    elif shape.kind == "capsule":
+    elif shape.kind in ("capsule", "cone"):
         spec = {"radius": shape.radius, "length": shape.length}
     elif shape.kind == "polyline":
         assert shape.points is not None

@@ -6,6 +6,9 @@
   top-level models, static exactly when all their links are static in Gazebo (a model, or any model around it,
   is static), and every box, cylinder, sphere, capsule and mesh collision at the pose libsdformat resolves.
 * The lenient-text variants (byte-order mark, CRLF, Latin-1 bytes, ...) load in both.
+* Gazebo worlds as shipped (issue 28): a world of Fuel URIs read from a Fuel cache laid out by the test, a bare
+  include name, an SDF 1.5 model with a link and a joint of the same name, cones, and a misspelt geometry
+  (which libsdformat loads as an empty geometry with a warning, and pytest-ddenv refuses).
 
 `.ci/run` installs Debian's libsdformat-dev when it can; elsewhere these tests are skipped with the reason.
 """
@@ -71,9 +74,10 @@ def stock_models(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(autouse=True)
-def no_model_path_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+def no_model_path_from_the_environment(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     for variable in MODEL_PATH_VARIABLES:
         monkeypatch.delenv(variable, raising=False)
+    monkeypatch.setenv("GZ_FUEL_CACHE_PATH", str(tmp_path / "empty-fuel-cache"))  # whatever this machine caches
 
 
 # -- exported worlds --------------------------------------------------------------------------------------
@@ -178,6 +182,13 @@ def test_corpus_files_libsdformat_loads_are_loaded_alike(
         with pytest.raises(WorldError):
             load_sdf(path, model_paths=[MODELS])
         return
+    if path.name.startswith("misspelt_"):  # libsdformat: a warning and an empty geometry; pytest-ddenv: an error
+        assert not theirs.errors and {kind for model in theirs.models.values() for _, kind, _ in model.collisions} == {
+            "other"}
+        with pytest.raises(WorldError, match="unknown geometry <bx>") as refused:
+            load_sdf(path, model_paths=[MODELS])
+        assert not isinstance(refused.value, UnsupportedSdfError)
+        return
     if theirs.errors:
         pytest.skip(f"libsdformat refuses {path.name}: {theirs.errors[0]}")
     try:
@@ -194,6 +205,56 @@ def test_corpus_holds_what_libsdformat_refuses_only_on_purpose(sdformat_dump: Pa
     bad = {path.name for path in corpus_files() if path.name.startswith("bad_")}  # refused by both, on purpose
     assert refused - bad == {"fuel_include.world", "merge_in_world.world", "surgical_fuel.world"}  # no network
     assert bad <= refused
+
+
+# -- Gazebo worlds as shipped (issue 28) --------------------------------------------------------------------
+def test_cones_are_placed_where_libsdformat_places_their_collisions(sdformat_dump: Path, stock_models: Path) -> None:
+    """libsdformat 12 predates `<cone>` (libsdformat 14): it loads the world with an empty geometry there, at the
+    collision pose it resolves, which is where the cone is."""
+    path = CORPUS / "cone.world"
+    theirs = run_dump(sdformat_dump, path, stock_models)
+    assert not theirs.errors
+    world = load_sdf(path)
+    for name in ("traffic_cone", "toppled"):
+        (collision, kind, pose), = theirs.models[name].collisions
+        ours = world.model(name)
+        assert kind == "other" and [shape.kind for shape in ours.shapes] == ["cone"]
+        assert_same_pose(np.array(ours.pose.compose(ours.shapes[0].pose).as_list()), pose, collision)
+    assert (world.model("toppled").shapes[0].radius, world.model("toppled").shapes[0].length) == (1.0, 1.0)
+
+
+def test_a_world_of_fuel_uris_reads_the_fuel_cache_as_libsdformat_reads_the_cached_models(
+    sdformat_dump: Path, stock_models: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The cache is laid out as `gz fuel download` lays it out, in a home folder of the test. libsdformat (which
+    does not read the Fuel cache itself: Gazebo's fuel tools give it the folder) loads the same world with each
+    Fuel URI replaced by the cached version folder the fuel tools pick, Ground Plane and Sun by the stock ones."""
+    home = tmp_path / "home"
+    cone = home / ".gz" / "fuel" / "fuel.gazebosim.org" / "openrobotics" / "models" / "construction cone"
+    shutil.copytree(MODELS / "static_block", cone / "1")
+    shutil.copytree(MODELS / "cone_barrel", cone / "2")
+    monkeypatch.setenv("HOME", str(home))
+    monkeypatch.delenv("GZ_FUEL_CACHE_PATH")
+    original = DATA / "fuel_cache.world"
+    world = load_sdf(original)
+    assert world.names == ("cone_latest", "cone_first", "cone_tip") and world.ground is not None
+    assert [len(world.model(name).shapes) for name in world.names] == [2, 1, 2]  # version 2 (a barrel), 1, tip: 2
+    text = original.read_text()
+    for fuel, local in (
+        ("https://fuel.gazebosim.org/1.0/OpenRobotics/models/Ground Plane", "model://ground_plane"),
+        ("https://fuel.gazebosim.org/1.0/OpenRobotics/models/Sun", "model://sun"),
+        ("https://fuel.gazebosim.org/1.0/OpenRobotics/models/Construction Cone<", f"{cone / '2'}<"),
+        ("https://fuel.gazebosim.org/1.0/OpenRobotics/models/Construction%20Cone/1", str(cone / "1")),
+        ("https://fuel.ignitionrobotics.org/1.0/openrobotics/models/construction cone/tip", str(cone / "2")),
+    ):
+        assert fuel in text
+        text = text.replace(fuel, local)
+    resolved = tmp_path / "fuel_cache_resolved.world"
+    resolved.write_text(text)
+    theirs = run_dump(sdformat_dump, resolved, stock_models)
+    assert not theirs.errors, theirs.errors
+    assert set(theirs.models) == {*world.names, "ground_plane"}
+    compare(world, theirs, resolved)
 
 
 # -- lenient text ------------------------------------------------------------------------------------------

@@ -20,6 +20,11 @@ MODELS = [str(DATA / "models")]
 CORPUS = DATA / "corpus"
 
 
+@pytest.fixture(autouse=True)
+def no_fuel_cache(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("GZ_FUEL_CACHE_PATH", str(tmp_path / "empty-fuel-cache"))  # whatever this machine caches
+
+
 @pytest.fixture(scope="module")
 def world() -> World:
     return World.load(WORLD, model_paths=MODELS)

@@ -51,10 +51,10 @@ def test_duplicate_model_name(tmp_path: Path) -> None:
 
 
 def test_unknown_shape_type(tmp_path: Path) -> None:
-    error = error_of(tmp_path, "format: 1\nmodels:\n  - {name: cone1, shapes: [{cone: [1, 2]}]}\n")
-    assert "model 'cone1' (#0)" in str(error)
+    error = error_of(tmp_path, "format: 1\nmodels:\n  - {name: torus1, shapes: [{torus: [1, 2]}]}\n")
+    assert "model 'torus1' (#0)" in str(error)
     assert error.field == "shapes[0]"
-    assert "unknown shape type 'cone'" in str(error) and "box, cylinder, sphere, mesh" in str(error)
+    assert "unknown shape type 'torus'" in str(error) and "box, cylinder, sphere, mesh" in str(error)
 
 
 @pytest.mark.parametrize(

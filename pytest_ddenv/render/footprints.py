@@ -155,6 +155,10 @@ def _shape_points(shape: Shape, source: str | None) -> FloatArray:
     if shape.kind == "sphere":
         assert shape.radius is not None
         return _sphere_points(shape.radius)
+    if shape.kind == "cone":  # its base rim and tip
+        assert shape.radius is not None and shape.length is not None
+        rim = geometry.cylinder_extent_points(shape.radius, shape.length, segments=48)[48:]
+        return np.vstack([rim, [[0.0, 0.0, shape.length / 2.0]]])
     if shape.kind == "polyline":  # the outline at z = 0, then at its height
         assert shape.points is not None and shape.height is not None
         outline = np.asarray(shape.points, dtype=np.float64)

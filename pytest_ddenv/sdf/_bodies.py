@@ -23,6 +23,8 @@ from pytest_ddenv.sdf._values import Values
 from pytest_ddenv.world import Ground, Model, Pose, Shape, TagValue
 
 GAZEBO_DEFAULT_MASS = 1.0  # Gazebo gives a link without <inertial> a mass of 1 kg
+MAX_COLLISIONS = 50_000
+"""Most collisions read for one world (in all its links); more are refused (bounded time)."""
 
 
 @dataclass
@@ -77,6 +79,7 @@ class BodyReader:
         self.values = values
         self.geometry = geometry
         self.notes = notes
+        self.collisions = 0  # the collisions read so far (MAX_COLLISIONS)
 
     # reading --------------------------------------------------------------------------------------------
     def raw(self, node: ModelNode, pose: Pose, keep: bool, tags: dict[str, TagValue]) -> Raw:
@@ -103,6 +106,10 @@ class BodyReader:
         where = f"link '{spec.name}'"
         collisions = []
         for child in spec.element.findall("collision"):
+            self.collisions += 1
+            if self.collisions > MAX_COLLISIONS:
+                raise self.values.error(f"more than {MAX_COLLISIONS} collisions in one world; split the world", child,
+                                        model=model, field=f"{where}/collision")
             collision = self.collision(child, f"{where}/collision '{child.get('name') or ''}'", spec, model)
             if collision is not None:
                 collisions.append(collision)
@@ -253,7 +260,7 @@ def _scaled(shape: Shape, scale: tuple[float, float, float]) -> Shape:
     if shape.kind == "box":
         assert shape.size is not None
         return dataclasses.replace(shape, size=(shape.size[0] * sx, shape.size[1] * sy, shape.size[2] * sz))
-    if shape.kind in ("cylinder", "capsule"):
+    if shape.kind in ("cylinder", "capsule", "cone"):
         assert shape.radius is not None and shape.length is not None
         return dataclasses.replace(shape, radius=shape.radius * max(sx, sy), length=shape.length * sz)
     if shape.kind == "sphere":

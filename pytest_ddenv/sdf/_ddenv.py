@@ -23,9 +23,33 @@ from pytest_ddenv.world import (
     timestep_problem,
 )
 
+WORLD_ELEMENTS = ("scenario", "physics")
+MODEL_ELEMENTS = ("keep", "tag")
+SCENARIO_ELEMENTS = ("start", "goal", "robot_description")
+ATTRIBUTES = {
+    "scenario": ("robot", "timeout", "goal_tolerance"),
+    "start": ("x", "y", "z", "yaw"),
+    "goal": ("x", "y", "z"),
+    "physics": ("timestep", "solver_iterations"),
+    "tag": ("name", "type"),
+    "keep": (),
+    "robot_description": ("urdf", "drive", "left_wheels", "right_wheels", "wheel_radius", "track", "track_factor",
+                          "max_wheel_torque", "laser", "name"),
+}
+"""The attributes of each `ddenv:` element (what `dump_sdf` writes); any other is a typo, refused."""
+REQUIRED = {
+    "start": 'give the robot\'s start as x=".." y=".." (and yaw=".." for its heading)',
+    "goal": 'give the goal as x=".." y=".." (and z=".." for a 3D goal)',
+}
+
 
 class DdenvElements:
-    """Reads the `ddenv:` elements (and the world's gravity) of a world read by `Values`."""
+    """Reads the `ddenv:` elements (and the world's gravity) of a world read by `Values`.
+
+    As strictly as the YAML reader reads a world's `scenario:` and `physics:`: an unknown `ddenv:` element or
+    attribute, a second one of an element that is single, a start or goal without x or y are errors naming
+    file:line and field (a goal without x was read as x = 0, the start: "reached the goal at t = 0.00 s").
+    """
 
     def __init__(self, values: Values) -> None:
         self.values = values
@@ -43,9 +67,57 @@ class DdenvElements:
     def boolean(self, element: ET.Element, where: str, model: str | None) -> bool:
         return self.values.boolean(element, where, model)
 
+    # structure --------------------------------------------------------------------------------------------
+    def check_world(self, world: ET.Element) -> None:
+        """The world's `ddenv:` children: known, and each at most once."""
+        self.known_children(world, WORLD_ELEMENTS, "the world", None, kind=WorldError)
+        for tag in WORLD_ELEMENTS:
+            self.single(world, tag, "a world", None, kind=ScenarioError if tag == "scenario" else WorldError)
+
+    def keep(self, element: ET.Element, model: str) -> bool:
+        """A top-level model's `<ddenv:keep>` (its `ddenv:` children checked: known, one keep at most)."""
+        self.known_children(element, MODEL_ELEMENTS, f"model '{model}'", model, kind=WorldError)
+        keep = self.single(element, "keep", "a model", model, kind=WorldError)
+        if keep is None:
+            return False
+        self.known_attributes(keep, model, WorldError)
+        return self.boolean(keep, "ddenv:keep", model)
+
+    def known_children(
+        self, parent: ET.Element, known: tuple[str, ...], where: str, model: str | None, *, kind: type[WorldError]
+    ) -> None:
+        for child in parent:
+            name = ddenv_name(child.tag)
+            if name is not None and name not in known:
+                raise self.error(f"unknown element ddenv:{name} in {where}; expected: {', '.join(known)}", child,
+                                 model=model, field=f"ddenv:{name}", kind=kind)
+
+    def known_attributes(self, element: ET.Element, model: str | None, kind: type[WorldError]) -> None:
+        name = local_name(element.tag)
+        allowed = ATTRIBUTES[name]
+        for key in element.attrib:
+            attribute = ddenv_name(key) if key.startswith("{") else key
+            if attribute is not None and attribute not in allowed:
+                expected = f"expected one of: {', '.join(allowed)}" if allowed else "it takes none"
+                raise self.error(f"unknown attribute {shown(attribute)}; {expected}", element, model=model,
+                                 field=f"ddenv:{name}/@{attribute}", kind=kind)
+
+    def single(
+        self, parent: ET.Element, tag: str, holder: str, model: str | None, *, kind: type[WorldError]
+    ) -> ET.Element | None:
+        """`parent`'s only `ddenv:tag` child (None when it has none); a second one is an error."""
+        found = parent.findall(f"{{{DDENV_NS}}}{tag}")
+        if len(found) > 1:
+            first = self.values.lines.of(found[0])[1]
+            raise self.error(f"a second ddenv:{tag} (the first is at line {first}); {holder} has one", found[1],
+                             model=model, field=f"ddenv:{tag}", kind=kind)
+        return found[0] if found else None
+
+    # values -----------------------------------------------------------------------------------------------
     def tags(self, element: ET.Element, model: str) -> dict[str, TagValue]:
         tags: dict[str, TagValue] = {}
         for tag in element.findall(f"{{{DDENV_NS}}}tag"):
+            self.known_attributes(tag, model, WorldError)
             name = tag.get("name") or ""
             text = tag.text or ""
             kind = tag.get("type", "str")
@@ -60,7 +132,10 @@ class DdenvElements:
 
 
     def physics(self, world: ET.Element) -> Physics:
+        """The world's gravity and `ddenv:physics`; Gazebo's own step (not simulated) must be a positive number."""
         default = Physics()
+        for step in world.findall("physics/max_step_size"):
+            self.values.number(step, "physics/max_step_size", None, positive=True)
         gravity_element = world.find("gravity")
         if gravity_element is None:
             gravity_element = world.find("physics/gravity")  # SDF 1.4
@@ -71,6 +146,7 @@ class DdenvElements:
         settings = world.find(f"{{{DDENV_NS}}}physics")
         timestep, iterations = default.timestep, default.solver_iterations
         if settings is not None:
+            self.known_attributes(settings, None, WorldError)
             timestep = self.attribute_number(settings, "timestep", timestep, positive=True)
             problem = timestep_problem(timestep)
             if problem is not None:
@@ -99,20 +175,28 @@ class DdenvElements:
         return value
 
     def scenario(self, world: ET.Element) -> Scenario | None:
-        element = world.find(f"{{{DDENV_NS}}}scenario")
+        element = self.single(world, "scenario", "a world", None, kind=ScenarioError)
         if element is None:
             return None
-        start = element.find(f"{{{DDENV_NS}}}start")
-        goal = element.find(f"{{{DDENV_NS}}}goal")
+        self.known_attributes(element, None, ScenarioError)
+        self.known_children(element, SCENARIO_ELEMENTS, "ddenv:scenario", None, kind=ScenarioError)
+        start, goal, description = (self.single(element, tag, "a scenario", None, kind=ScenarioError)
+                                    for tag in SCENARIO_ELEMENTS)
         if start is None or goal is None:
             raise self.error("ddenv:scenario needs ddenv:start and ddenv:goal", element, field="ddenv:scenario",
                              kind=ScenarioError)
+        for point in (start, goal):
+            self.known_attributes(point, None, ScenarioError)
+            name = local_name(point.tag)
+            for key in ("x", "y"):
+                if point.get(key) is None:
+                    raise self.error(f"missing; {REQUIRED[name]}", point, field=f"ddenv:{name}/@{key}",
+                                     kind=ScenarioError)
         default = Scenario()
 
         def number(owner: ET.Element, name: str, fallback: float, *, positive: bool = False) -> float:
             return self.attribute_number(owner, name, fallback, positive=positive, kind=ScenarioError)
 
-        description = element.find(f"{{{DDENV_NS}}}robot_description")
         return Scenario(
             robot=element.get("robot", default.robot) if description is None else self.robot(description),
             start=Pose(x=number(start, "x", 0.0), y=number(start, "y", 0.0), z=number(start, "z", 0.0),
@@ -131,6 +215,8 @@ class DdenvElements:
 
         def fail(message: str, name: str) -> WorldError:
             return self.error(message, element, field=f"{field}/@{name}", kind=ScenarioError)
+
+        self.known_attributes(element, None, ScenarioError)
 
         urdf = element.get("urdf", "")
         if not urdf or not is_file(resolve_relative(urdf, self.source)):  # relative: to the SDF file
@@ -164,3 +250,9 @@ class DdenvElements:
             wheel_radius=optional("wheel_radius"), track=optional("track"), track_factor=optional("track_factor"),
             max_wheel_torque=optional("max_wheel_torque") or 20.0, laser=laser, name=element.get("name", ""),
         )
+
+
+def ddenv_name(tag: str) -> str | None:
+    """The local name of a tag (or attribute key) in the `ddenv:` namespace, None for any other."""
+    prefix = f"{{{DDENV_NS}}}"
+    return tag[len(prefix):] if tag.startswith(prefix) else None

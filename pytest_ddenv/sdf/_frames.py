@@ -7,7 +7,9 @@ Names may be scoped into nested models (`inner::link`, `inner::__model__`).
 
 As libsdformat does, every name a scope's entries give (a pose's `relative_to`, a frame's `attached_to`, a
 joint's `<parent>` and `<child>`) must name a frame of the scope, whether or not a pose is resolved through it
-(`Frames.check`).
+(`Frames.check`). Before SDF 1.7 a link, joint or frame may share its name with another kind of entry: as
+libsdformat does, the later kind is renamed (`NAME_link`, `NAME_joint`, `NAME_frame`, then `NAME_joint0`, ...)
+when the entries are added in libsdformat's order (models, links, joints, frames).
 """
 
 from __future__ import annotations
@@ -41,22 +43,31 @@ class Frame:
 class Frames:
     """The named frames of one scope, each resolvable to a pose in the scope's own frame."""
 
-    def __init__(self, values: Values, model: str | None, roots: Collection[str]) -> None:
+    def __init__(self, values: Values, model: str | None, roots: Collection[str], *, legacy: bool = False) -> None:
         self.values = values
         self.model = model
+        self.legacy = legacy  # SDF before 1.7: a name shared by two kinds of entry renames the later one
         self.roots = frozenset(roots) | {""}
         self.entries: dict[str, Frame] = {}
         self.scopes: dict[str, Frames] = {}
         self._cache: dict[str, Pose] = {}
 
-    def add(self, name: str, frame: Frame, scope: Frames | None = None) -> None:
+    def add(self, name: str, frame: Frame, scope: Frames | None = None) -> str:
+        """Add the frame `name`; returns the name it has (renamed as libsdformat renames before SDF 1.7)."""
         if name in self.entries:
-            what = f"model '{self.model}'" if self.model else "the world"
-            raise self.values.error(f"two frames, links, joints or models named '{name}' in {what}", frame.element,
-                                    model=self.model, field="name")
+            if self.legacy and frame.kind in ("link", "joint", "frame") and self.entries[name].kind != frame.kind:
+                renamed, number = f"{name}_{frame.kind}", 0
+                while renamed in self.entries:
+                    renamed, number = f"{name}_{frame.kind}{number}", number + 1
+                name = renamed
+            else:
+                what = f"model '{self.model}'" if self.model else "the world"
+                raise self.values.error(f"two frames, links, joints or models named '{name}' in {what}",
+                                        frame.element, model=self.model, field="name")
         self.entries[name] = frame
         if scope is not None:
             self.scopes[name] = scope
+        return name
 
     def exists(self, name: str, *, roots: bool = True) -> bool:
         """Whether `name` is a frame of this scope (`roots`: its own frame names, `__model__` or `world`, too)."""

@@ -8,7 +8,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pytest_ddenv.errors import PATH_CHARACTERS, shown
-from pytest_ddenv.sdf._paths import UnresolvedURI, is_remote, resolve_uri
+from pytest_ddenv.sdf._fuel import parse_fuel_uri
+from pytest_ddenv.sdf._paths import UnresolvedURI, resolve_uri
 from pytest_ddenv.sdf._values import Values
 from pytest_ddenv.sdf._xml import Lines, parse_xml, read_limited
 from pytest_ddenv.world import Pose, is_file
@@ -17,12 +18,16 @@ MIN_VERSION = (1, 2)
 """Oldest SDF read: libsdformat converts 1.2 and 1.3 to 1.4 without changing models (physics elements only)."""
 MAX_CONFIG_VERSION = (1, 9)
 MAX_INCLUDE_DEPTH = 16
+MAX_INCLUDES = 10_000
+"""Most `<include>`s read for one world, at every depth: a tree 16 deep and 8 wide would be 8**16 files."""
 BUILTIN_GROUND = """<sdf version="1.6"><model name="ground_plane"><static>true</static><link name="link">
 <collision name="collision"><geometry><plane><normal>0 0 1</normal><size>100 100</size></plane></geometry>
 <surface><friction><ode><mu>100</mu><mu2>50</mu2></ode></friction></surface></collision></link></model></sdf>"""
 """Gazebo's stock `model://ground_plane`, used when that include is not on the model path."""
 LIGHT_ONLY_MODELS = ("sun",)
 """Stock `model://` includes that hold only a light; skipped when they are not on the model path."""
+FUEL_GROUND = ("ground plane", "ground_plane")
+"""Fuel's `OpenRobotics/Ground Plane`: the built-in ground when it is not in the Fuel cache or on the model path."""
 
 
 @dataclass
@@ -37,6 +42,7 @@ class Included:
     static: bool | None
     placement: str
     merge: bool
+    legacy: bool  # from a file before SDF 1.7 (libsdformat's name rules of then)
 
 
 @dataclass
@@ -53,6 +59,7 @@ class Documents:
         self.values = values
         self.lines: Lines = values.lines
         self.search_paths = search_paths
+        self.count = 0  # the includes read so far (MAX_INCLUDES)
 
     def read_root(self, data: bytes | str, source: str | None) -> ET.Element:
         root = parse_xml(data, source, self.lines)
@@ -79,15 +86,17 @@ class Documents:
         if not uri:
             raise values.error("an <include> needs a <uri>", element, field="include/uri")
         name = (element.findtext("name") or "").strip()
-        label = name or uri.rstrip("/").rsplit("/", 1)[-1]
+        fuel = parse_fuel_uri(uri)
+        label = name or (fuel.name if fuel is not None else uri.rstrip("/").rsplit("/", 1)[-1])
         shown_uri = shown(uri, PATH_CHARACTERS)
         if depth > MAX_INCLUDE_DEPTH:
             raise values.error(f"includes nested more than {MAX_INCLUDE_DEPTH} deep (a cycle?) at {shown_uri}", element,
                                model=label)
-        if is_remote(uri):
-            raise values.unsupported("include", f"remote URI {shown_uri} (Gazebo Fuel models are never fetched: "
-                                     "download the model and add its folder to the model path)", uri_element,
-                                     model=label, field="include/uri")
+        self.count += 1
+        if self.count > MAX_INCLUDES:
+            raise values.error(f"more than {MAX_INCLUDES} <include>s in one world (counting every level; this one is "
+                               f"{shown_uri}); flatten the model tree or split the world", element, model=label,
+                               field="include")
         try:
             path = resolve_uri(uri, base_dir, self.search_paths)
         except UnresolvedURI as unresolved:
@@ -117,17 +126,28 @@ class Documents:
             raise values.error("an <include> with a <placement_frame> needs a <pose>", element, model=label,
                                field="include/placement_frame")
         merge = (element.get("merge") or "").strip().lower() in ("true", "1")
-        return Included(model, base_dir, element, name or model.get("name") or "", pose, static, placement, merge)
+        return Included(model, base_dir, element, name or model.get("name") or "", pose, static, placement, merge,
+                        is_legacy(root))
 
     def builtin(
         self, uri: str, unresolved: UnresolvedURI, element: ET.Element, name: str, label: str
     ) -> Included | IncludedLight:
-        stock = uri.removeprefix("model://").strip("/")
-        if uri.startswith("model://") and stock in LIGHT_ONLY_MODELS:
+        """Gazebo's stock sun and ground plane (`model://` or Fuel) when they are not here; else the error."""
+        if unresolved.fuel is not None:
+            stock = unresolved.fuel.name.casefold()
+            light, ground = stock in LIGHT_ONLY_MODELS, stock in FUEL_GROUND
+        else:
+            stock = uri.removeprefix("model://").strip("/")
+            light = uri.startswith("model://") and stock in LIGHT_ONLY_MODELS
+            ground = uri.startswith("model://") and stock == "ground_plane"
+        if light:
             return IncludedLight(name or stock)
-        if uri.startswith("model://") and stock == "ground_plane":
+        if ground:
             root = parse_xml(BUILTIN_GROUND, "(built-in model://ground_plane)", self.lines)
             return self.included(root, None, element, name, label, uri)
+        if unresolved.remote:  # what it names is not here: the model can be skipped
+            raise self.values.unavailable("include", unresolved.reason, element.find("uri"), model=label,
+                                          field="include/uri")
         raise self.values.error(f"cannot resolve include {unresolved.describe()}", element, model=label,
                                 field="include/uri")
 
@@ -161,3 +181,8 @@ def version_numbers(text: str) -> tuple[int, ...] | None:
         return tuple(int(part) for part in "".join(text.split()).split("."))
     except ValueError:
         return None
+
+
+def is_legacy(root: ET.Element) -> bool:
+    """Whether the document of `root` (an `<sdf>`) is older than SDF 1.7, whose name rules are looser."""
+    return (version_numbers(root.get("version") or "") or (0,)) < (1, 7)

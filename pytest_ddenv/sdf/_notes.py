@@ -25,10 +25,11 @@ class Notes:
     planes: list[str] = field(default_factory=list)
     holes: list[tuple[str, int]] = field(default_factory=list)
     without_collisions: list[str] = field(default_factory=list)
+    insertions: list[str] = field(default_factory=list)
 
     def drop(self, name: str, error: UnsupportedSdfError) -> None:
         where = f" ({error.where})" if error.where else ""
-        self.dropped.append(f"dropped {name}: unsupported <{error.element}>: {error.detail}{where}")
+        self.dropped.append(f"dropped {name}: {error.summary}{where}")
 
     def lines(self) -> tuple[str, ...]:
         joints = [f"{name} ({count} joint{'s' if count != 1 else ''})" for name, count in self.joints]
@@ -42,6 +43,8 @@ class Notes:
              "Gazebo's collision planes are infinite"),
             ("polyline holes filled", holes, "Gazebo cuts outlines inside another one out of the extrusion"),
             ("models without collisions", self.without_collisions, "nothing to touch: skipped"),
+            ("<state> insertions", self.insertions,
+             "Gazebo inserts them when it loads the world, pytest-ddenv does not read them: write them as models"),
         ]
         return (*self.dropped, *(f"{kind}: {listing(names)}; {why}" for kind, names, why in kinds if names))
 

@@ -8,6 +8,7 @@ from pathlib import Path
 from urllib.parse import unquote, urlparse
 
 from pytest_ddenv.errors import PATH_CHARACTERS, shown, shown_path
+from pytest_ddenv.sdf._fuel import FuelModelMissing, FuelUri, parse_fuel_uri, resolve_fuel
 from pytest_ddenv.world import exists
 
 MODEL_PATH_VARIABLES = ("GAZEBO_MODEL_PATH", "GZ_SIM_RESOURCE_PATH", "IGN_GAZEBO_RESOURCE_PATH", "SDF_PATH")
@@ -35,11 +36,14 @@ def model_search_paths(
 class UnresolvedURI(Exception):
     """A URI that names no existing file; `searched` lists the places that were tried."""
 
-    def __init__(self, uri: str, searched: Sequence[Path], reason: str = "not found", *, hint: bool = True) -> None:
+    def __init__(self, uri: str, searched: Sequence[Path], reason: str = "not found", *, hint: bool = True,
+                 fuel: FuelUri | None = None, remote: bool = False) -> None:
         self.uri = uri
         self.searched = tuple(searched)
         self.reason = reason
         self.hint = hint  # whether adding a folder to the model path may help
+        self.fuel = fuel  # a Fuel model that is not here
+        self.remote = remote or fuel is not None  # a remote URI: what it names is not here (never fetched)
         super().__init__(uri)
 
     def describe(self) -> str:
@@ -62,13 +66,21 @@ def is_remote(uri: str) -> bool:
 
 
 def resolve_uri(uri: str, base_dir: Path | None, search_paths: Sequence[Path]) -> Path:
-    """The local path a URI names: `model://NAME/rest` through `search_paths`, `file://` and plain paths
-    (relative ones against `base_dir`). Remote URIs are never fetched. Raises UnresolvedURI."""
+    """The local path a URI names: `model://NAME/rest` through `search_paths`, a Gazebo Fuel URL through the
+    local Fuel cache (then `search_paths` by the model's name), `file://` and plain paths (relative ones against
+    `base_dir`, then through `search_paths`, as Gazebo finds `<uri>x500</uri>` on its resource path). Remote
+    files are never fetched. Raises UnresolvedURI."""
     uri = uri.strip()
     if is_remote(uri):
-        raise UnresolvedURI(uri, (), "remote URIs are not fetched (no network access); download the model and "
-                                     "add its folder to the model path (--model-path, --ddenv-model-path or "
-                                     "GAZEBO_MODEL_PATH)")
+        fuel = parse_fuel_uri(uri)
+        if fuel is None:
+            raise UnresolvedURI(uri, (), f"{shown(uri, PATH_CHARACTERS)} is not a Gazebo Fuel model URL; remote "
+                                "files are never downloaded: download it and name it by its local path", hint=False,
+                                remote=True)
+        try:
+            return resolve_fuel(fuel, search_paths)
+        except FuelModelMissing as missing:
+            raise UnresolvedURI(uri, (), missing.describe(), hint=False, fuel=fuel) from None
     if uri.startswith("model://"):
         return _model_file(uri, search_paths)
     if uri.startswith("file://"):
@@ -79,11 +91,20 @@ def resolve_uri(uri: str, base_dir: Path | None, search_paths: Sequence[Path]) -
         path = Path(rest)
     else:
         path = Path(uri).expanduser()
-    if not path.is_absolute() and base_dir is not None:
-        path = base_dir / path
+        if not path.is_absolute():
+            return _relative_path(uri, path, base_dir, search_paths)
     if not exists(path):
         raise UnresolvedURI(uri, (), f"file not found: {shown_path(path)}", hint=False)
     return path
+
+
+def _relative_path(uri: str, relative: Path, base_dir: Path | None, search_paths: Sequence[Path]) -> Path:
+    """A plain relative path: in the including file's folder, then in each folder of the model path."""
+    folders = tuple(dict.fromkeys([base_dir if base_dir is not None else Path.cwd(), *search_paths]))
+    for folder in folders:
+        if exists(folder / relative):
+            return folder / relative
+    raise UnresolvedURI(uri, folders, "not found")
 
 
 def _model_file(uri: str, search_paths: Sequence[Path]) -> Path:

@@ -21,7 +21,7 @@ from pytest_ddenv.sdf._bodies import BodyReader, Raw, State
 from pytest_ddenv.sdf._collada import collada_unit
 from pytest_ddenv.sdf._ddenv import DdenvElements
 from pytest_ddenv.sdf._frames import Frame, Frames, compose
-from pytest_ddenv.sdf._includes import Documents, IncludedLight
+from pytest_ddenv.sdf._includes import Documents, IncludedLight, is_legacy
 from pytest_ddenv.sdf._notes import Notes
 from pytest_ddenv.sdf._paths import model_search_paths
 from pytest_ddenv.sdf._shapes import GeometryReader
@@ -46,6 +46,7 @@ class _Loader:
         self.bodies = BodyReader(self.values, GeometryReader(self.values, search_paths), self.notes)
         self.ddenv = DdenvElements(self.values)
         self.skip_unsupported = skip_unsupported
+        self.legacy = False  # the file is older than SDF 1.7
 
     def guarded(self, name: str, read: Callable[[], T]) -> T | None:
         """`read()`, or None when it raises UnsupportedSdfError and such models are skipped (with a note)."""
@@ -60,9 +61,16 @@ class _Loader:
     # documents ------------------------------------------------------------------------------------------
     def load(self, data: bytes | str, base_dir: Path | None) -> World:
         root = self.documents.read_root(data, self.source)
-        world = root.find("world")
-        if world is not None:
-            return self.world(world, base_dir)
+        self.legacy = is_legacy(root)
+        worlds = root.findall("world")
+        if len(worlds) > 1:
+            first, second = worlds[0], worlds[1]
+            raise self.values.error(
+                f"a second <world> ({shown(second.get('name') or '')}; the first, {shown(first.get('name') or '')}, "
+                f"is at line {self.values.lines.of(first)[1]}); pytest-ddenv reads one world per file: put each in a "
+                "file of its own", second, field="world")
+        if worlds:
+            return self.world(worlds[0], base_dir)
         model = root.find("model")
         if model is not None:
             name = Path(self.source).stem if self.source else (model.get("name") or "")
@@ -71,7 +79,8 @@ class _Loader:
 
     def model_file(self, root: ET.Element, base_dir: Path | None, name: str) -> World:
         nodes = [self.guarded(model.get("name") or "", lambda model=model: self.trees.model(  # type: ignore[misc]
-            model, base_dir, (model.get("name") or "").strip(), origin=model)) for model in root.findall("model")]
+            model, base_dir, (model.get("name") or "").strip(), origin=model, legacy=self.legacy))
+            for model in root.findall("model")]
         frames = Frames(self.values, None, {"world"})
         present = [node for node in nodes if node is not None]
         for node in present:
@@ -86,13 +95,14 @@ class _Loader:
         problem = name_problem(name) if name else None
         if problem is not None:
             raise self.values.error(f"{problem}; got {shown(name)}", element, field="world/@name")
+        self.ddenv.check_world(element)
         frames = Frames(self.values, None, {"world"})
         nodes: list[ModelNode] = []
         for child in element:
             label = (child.get("name") or "").strip()
             if child.tag == "model":
                 node = self.guarded(label, lambda child=child, label=label: self.trees.model(  # type: ignore[misc]
-                    child, base_dir, label, origin=child))
+                    child, base_dir, label, origin=child, legacy=self.legacy))
             elif child.tag == "include":
                 node = self.guarded(label, lambda child=child: self.include(child, base_dir))  # type: ignore[misc]
             else:
@@ -104,7 +114,7 @@ class _Loader:
             self.add_frame(frames, node)
         frames.check()
         state = element.find("state")
-        states = self.states(state) if state is not None else {}
+        states = self.states(state, {node.name: node.origin for node in nodes}) if state is not None else {}
         ground, models = self.assemble(nodes, frames, states)
         return World(
             models=tuple(models),
@@ -142,7 +152,7 @@ class _Loader:
         node = self.trees.model(
             included.model, included.base_dir, included.name, origin=element, static=included.static,
             pose=included.pose or (self.values.pose(included.model, "", included.name)[0], ""),
-            placement=included.placement,
+            placement=included.placement, legacy=included.legacy,
         )
         node.plugins.extend(plugin_name(plugin) for plugin in element.findall("plugin"))
         return node
@@ -183,8 +193,7 @@ class _Loader:
 
     def raw(self, node: ModelNode, frames: Frames) -> Raw:
         pose = frames.resolve(node.name, node.origin)
-        keep_element = node.element.find(f"{{{DDENV_NS}}}keep")
-        keep = self.values.boolean(keep_element, "ddenv:keep", node.name) if keep_element is not None else False
+        keep = self.ddenv.keep(node.element, node.name)
         return self.bodies.raw(node, pose, keep, self.ddenv.tags(node.element, node.name))
 
     def note(self, node: ModelNode) -> None:
@@ -195,8 +204,18 @@ class _Loader:
             self.notes.lights.extend(part.lights)
 
     # state --------------------------------------------------------------------------------------------
-    def states(self, element: ET.Element) -> dict[str, State]:
+    def states(self, element: ET.Element, models: dict[str, ET.Element]) -> dict[str, State]:
+        """The model entries of a `<state>`; its `<insertions>` of models the world already has are refused (Gazebo
+        would load a second model of that name), other insertions are noted (not read)."""
         values = self.values
+        for inserted in element.findall("insertions/model"):
+            name = (inserted.get("name") or "").strip()
+            if name in models:
+                raise values.error(f"the <state> inserts a model {shown(name)}, but the world already has a model "
+                                   f"{shown(name)} (line {values.lines.of(models[name])[1]}); Gazebo would load two "
+                                   "models of that name: remove one of them", inserted, model=name,
+                                   field="state/insertions/model")
+            self.notes.insertions.append(name)
         states = {}
         for model in element.findall("model"):
             name = model.get("name") or ""

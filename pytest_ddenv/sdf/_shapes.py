@@ -1,7 +1,10 @@
-"""SDF `<geometry>` to `Shape`s: box, cylinder, sphere, capsule, polyline, heightmap, mesh; planes apart.
+"""SDF `<geometry>` to `Shape`s: box, cylinder, sphere, capsule, cone, polyline, heightmap, mesh; planes apart.
 
 A missing size element takes its default from the SDF specification, as libsdformat fills it in (a `<box>`
-without `<size>` is 1 x 1 x 1 m in Gazebo); an empty or unreadable one is an error, as in libsdformat.
+without `<size>` is 1 x 1 x 1 m in Gazebo); an empty or unreadable one is an error, as in libsdformat. An
+element of `<geometry>` that is no geometry (`<bx>`, a typo) is an error: libsdformat warns and simulates no
+collision at all. A mesh or heightmap file that is missing or cannot be read makes the model unavailable
+(`UnavailableSdfError`: `skip_unsupported` drops it).
 """
 
 from __future__ import annotations
@@ -16,13 +19,13 @@ import numpy as np
 from pytest_ddenv.errors import PATH_CHARACTERS, WorldError, shown, shown_path
 from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._collada import collada_unit
-from pytest_ddenv.sdf._paths import UnresolvedURI, is_remote, resolve_uri
+from pytest_ddenv.sdf._paths import UnresolvedURI, resolve_uri
 from pytest_ddenv.sdf._values import Values
 from pytest_ddenv.world import Pose, Shape, check_mesh_file, check_shape, is_file
 
 MESH_SUFFIXES = (".stl", ".obj", ".dae")
 HEIGHTMAP_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
-SUPPORTED_GEOMETRY = ("box", "cylinder", "sphere", "capsule", "polyline", "heightmap", "mesh", "plane")
+SUPPORTED_GEOMETRY = ("box", "cylinder", "sphere", "capsule", "cone", "polyline", "heightmap", "mesh", "plane")
 UNSUPPORTED_GEOMETRY = {
     "ellipsoid": "ellipsoids are not simulated",
     "image": "image-extruded geometry is not simulated",
@@ -49,6 +52,10 @@ class GeometryReader:
 
     def read(self, geometry: ET.Element, where: str, base_dir: Path | None, model: str) -> Geometry | None:
         """The shapes of a `<geometry>`, or None when it holds none (`<empty/>` or nothing: no collision)."""
+        unknown = next((child for child in geometry if child.tag not in SDF_GEOMETRY and "}" not in child.tag), None)
+        if unknown is not None:
+            raise self.values.error(f"unknown geometry <{shown(unknown.tag)[1:-1]}>; expected one of: "
+                                    f"{', '.join(SDF_GEOMETRY)}", unknown, model=model, field=f"{where}/geometry")
         kinds = [child for child in geometry if child.tag in SDF_GEOMETRY]
         if not kinds or all(child.tag == "empty" for child in kinds):
             return None
@@ -90,6 +97,10 @@ class GeometryReader:
         if element.tag == "sphere":
             radius = values.child_number(element, "radius", where, model, positive=True, default=1.0)
             return Shape("sphere", radius=radius)
+        if element.tag == "cone":  # SDF 1.11: its base at -length/2, its tip at +length/2
+            radius = values.child_number(element, "radius", where, model, positive=True, default=1.0)
+            length = values.child_number(element, "length", where, model, positive=True, default=1.0)
+            return Shape("cone", radius=radius, length=length)
         default_radius = 0.5 if element.tag == "capsule" else 1.0
         radius = values.child_number(element, "radius", where, model, positive=True, default=default_radius)
         length = values.child_number(element, "length", where, model, default=1.0)
@@ -145,10 +156,15 @@ class GeometryReader:
         if min(scale) <= 0:
             raise self.values.error(f"mesh scales must be positive, got {scale}", element.find("scale"), model=model,
                                     field=f"{where}/scale")
-        unit = collada_unit(path) if path.suffix.lower() == ".dae" else 1.0
+        uri = element.find("uri")
+        try:
+            unit = collada_unit(path) if path.suffix.lower() == ".dae" else 1.0
+        except WorldError as error:
+            raise self.values.unavailable("mesh", f"cannot read {shown_path(path)}: {error.reason}", uri,
+                                          model=model, field=f"{where}/uri") from None
         shape = Shape("mesh", mesh=str(path.resolve()), scale=(scale[0] * unit, scale[1] * unit, scale[2] * unit))
-        check_mesh_file(path.resolve(), shape.scale, lambda reason: self.values.error(
-            reason, element.find("uri"), model=model, field=f"{where}/uri"))
+        check_mesh_file(path.resolve(), shape.scale, lambda reason: self.values.unavailable(
+            "mesh", reason, uri, model=model, field=f"{where}/uri"))
         return shape
 
     def file(
@@ -162,18 +178,14 @@ class GeometryReader:
             raise self.values.error(f"a <{tag}> needs a <uri>", element if uri_element is None else uri_element,
                                     model=model, field=f"{where}/uri")
         shown_uri = shown(uri, PATH_CHARACTERS)
-        if is_remote(uri):
-            raise self.values.unsupported(tag, f"remote URI {shown_uri} (never fetched: download the model and add "
-                                          "its folder to the model path)", uri_element, model=model,
-                                          field=f"{where}/uri")
         try:
             path = resolve_uri(uri, base_dir, self.search_paths)
         except UnresolvedURI as unresolved:
-            raise self.values.error(f"missing {tag} file {unresolved.describe()}", uri_element, model=model,
-                                    field=f"{where}/uri") from None
+            raise self.values.unavailable(tag, f"missing {tag} file {unresolved.describe()}", uri_element,
+                                          model=model, field=f"{where}/uri") from None
         if not is_file(path):
-            raise self.values.error(f"{tag} {shown_uri} is not a file: {shown_path(path)}", uri_element,
-                                    model=model, field=f"{where}/uri")
+            raise self.values.unavailable(tag, f"{tag} {shown_uri} is not a file: {shown_path(path)}", uri_element,
+                                          model=model, field=f"{where}/uri")
         if path.suffix.lower() not in suffixes:
             suffix = shown(path.suffix or "(no extension)")
             detail = f"format {suffix} of {shown_uri}; supported: {', '.join(suffixes)}"

@@ -19,7 +19,7 @@ from pathlib import Path
 from pytest_ddenv.errors import DdenvError, WorldError
 from pytest_ddenv.sdf._ddenv import DDENV_NS, DdenvElements
 from pytest_ddenv.sdf._includes import Documents, IncludedLight
-from pytest_ddenv.sdf._paths import UnresolvedURI, is_remote, model_search_paths
+from pytest_ddenv.sdf._paths import UnresolvedURI, model_search_paths
 from pytest_ddenv.sdf._surgical_refs import relative_paths, removed_reference
 from pytest_ddenv.sdf._surgical_text import (
     STATE_PATHS,
@@ -110,8 +110,8 @@ def cut_file(path: Path, removed: Collection[str], *, model_paths: Iterable[str 
 
 def _top_level_names(children: list[ET.Element], path: Path, model_paths: Iterable[str | Path]) -> list[str | None]:
     """The model name of each top-level element: None for an element that is no model (a light, a plugin, an
-    include of a light); a remote or unsupported include named as the import names it when it drops it (its
-    `<name>`, else the URI's last segment), without fetching or reading it."""
+    include of a light); an include that is unsupported or not on this machine (a Fuel model not downloaded)
+    named as the import names it when it drops it (its `<name>`, else the model's name in the URI)."""
     documents = Documents(Values(Lines(), str(path)), model_search_paths(model_paths))
     names: list[str | None] = []
     for child in children:
@@ -120,9 +120,6 @@ def _top_level_names(children: list[ET.Element], path: Path, model_paths: Iterab
         elif child.tag == "include":
             uri = (child.findtext("uri") or "").strip()
             label = (child.findtext("name") or "").strip() or uri.rstrip("/").rsplit("/", 1)[-1]
-            if is_remote(uri):
-                names.append(label)
-                continue
             try:
                 included = documents.include(child, path.resolve().parent, 0)
             except UnsupportedSdfError as error:

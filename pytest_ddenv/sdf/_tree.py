@@ -5,6 +5,8 @@ Static, as Gazebo simulates it: a link is static when its model or any model aro
 included model's. A merged include (`<include merge="true">`, SDF 1.9) adds the included model's links, frames,
 joints and nested models to the model around it, placed by a proxy frame `_merged__NAME__model__`; as in
 libsdformat 12, the merged model's own `<static>` (and the include's) no longer applies: the parent's does.
+A model of a file before SDF 1.7 (`legacy`) is read in libsdformat's order (nested models, then links, joints,
+frames), so that a link and a joint of the same name are renamed as libsdformat renames them.
 """
 
 from __future__ import annotations
@@ -23,6 +25,12 @@ from pytest_ddenv.world import Pose, name_problem
 
 MAX_NESTING = 64
 """Deepest nesting of models in models (includes included); deeper trees are refused, not a RecursionError."""
+MAX_MODELS = 10_000
+"""Most models read for one world, nested and included ones counted; more are refused (bounded time)."""
+MAX_LINKS = 50_000
+"""Most links read for one world (in all its models); more are refused (bounded time)."""
+LEGACY_ORDER = {"model": 0, "include": 0, "link": 1, "joint": 2, "frame": 3}
+"""libsdformat's order of a model's children before SDF 1.7: who is renamed when two kinds share a name."""
 
 
 @dataclass
@@ -78,13 +86,16 @@ class TreeReader:
     def __init__(self, values: Values, documents: Documents) -> None:
         self.values = values
         self.documents = documents
+        self.count = 0  # the models read so far (MAX_MODELS)
+        self.links = 0  # the links read so far (MAX_LINKS)
 
     def model(
         self, element: ET.Element, base_dir: Path | None, name: str, *, origin: ET.Element, top: str = "",
         static: bool | None = None, parent: ModelNode | None = None, depth: int = 0,
-        pose: tuple[Pose, str] | None = None, placement: str = "",
+        pose: tuple[Pose, str] | None = None, placement: str = "", legacy: bool = False,
     ) -> ModelNode:
-        """The tree of a `<model>` element named `name` (`static`: an include's override)."""
+        """The tree of a `<model>` element named `name` (`static`: an include's override; `legacy`: from a file
+        before SDF 1.7)."""
         if not name:
             raise self.values.error("a model needs a name attribute", element, model=top or None, field="name")
         problem = name_problem(name)
@@ -94,6 +105,10 @@ class TreeReader:
         if level > MAX_NESTING:
             raise self.values.error(f"models nested more than {MAX_NESTING} deep; flatten the model tree", element,
                                     model=top, field="model")
+        self.count += 1
+        if self.count > MAX_MODELS:
+            raise self.values.error(f"more than {MAX_MODELS} models in one world (nested and included ones counted); "
+                                    "split the world", element, model=top or name, field="model")
         top = top or name
         own = static if static is not None else bool(self.values.child_boolean(element, "static", "", top))
         scoped = f"{parent.scoped}{name}::" if parent is not None else ""
@@ -107,7 +122,7 @@ class TreeReader:
             name=name, scoped=scoped, element=element, origin=origin, base_dir=base_dir,
             static=(parent is not None and parent.static) or own, static_from=static_from,
             static_element=static_element,
-            frames=Frames(self.values, top, {"__model__", element.get("name") or "", name}),
+            frames=Frames(self.values, top, {"__model__", element.get("name") or "", name}, legacy=legacy),
             pose=pose if pose is not None else self.values.pose(element, "", top),
             placement=placement or (element.get("placement_frame") or "").strip(), level=level,
         )
@@ -123,14 +138,21 @@ class TreeReader:
         def relative(frame: str) -> str:
             return proxy if proxy and frame in ("", "__model__") else frame
 
-        for child in element:
+        children = list(element)
+        if node.frames.legacy:
+            children.sort(key=lambda child: LEGACY_ORDER.get(child.tag, len(LEGACY_ORDER)))
+        for child in children:
             label = (child.get("name") or "").strip()
             where = f"{child.tag} '{node.scoped}{label}'"
             if child.tag in ("link", "frame", "joint") and not label:
                 raise values.error(f"a <{child.tag}> needs a name attribute", child, model=top, field="name")
             if child.tag == "link":
+                self.links += 1
+                if self.links > MAX_LINKS:
+                    raise values.error(f"more than {MAX_LINKS} links in one world; split the world", child, model=top,
+                                       field="link")
                 pose, relative_to = values.pose(child, where, top)
-                node.frames.add(label, Frame(pose, relative(relative_to), child, kind="link"))
+                label = node.frames.add(label, Frame(pose, relative(relative_to), child, kind="link"))
                 node.links.append(LinkSpec(child, f"{node.scoped}{label}", label, node.frames, base_dir,
                                            node.static, node.static_from, node.static_element))
                 node.sensors.extend(f"{top}::{node.scoped}{label}::{s.get('name') or ''}"
@@ -151,7 +173,7 @@ class TreeReader:
             elif child.tag == "model":
                 pose, relative_to = values.pose(child, where, top)
                 nested = self.model(child, base_dir, label, origin=child, top=top, parent=node, depth=depth,
-                                    pose=(pose, relative(relative_to)))
+                                    pose=(pose, relative(relative_to)), legacy=node.frames.legacy)
                 self.add_nested(node, nested)
             elif child.tag == "include":
                 self.include(node, child, base_dir, top, depth, relative)
@@ -178,7 +200,8 @@ class TreeReader:
             return
         nested = self.model(included.model, included.base_dir, included.name, origin=element, top=top,
                             static=included.static, parent=node, depth=depth + 1,
-                            pose=(pose, relative(relative_to)), placement=included.placement)
+                            pose=(pose, relative(relative_to)), placement=included.placement,
+                            legacy=included.legacy)
         self.add_nested(node, nested)
 
     def add_nested(self, node: ModelNode, nested: ModelNode) -> None:

@@ -29,8 +29,12 @@ class UnsupportedSdfError(WorldError):
     ) -> None:
         self.element = element
         self.detail = detail
-        super().__init__(f"unsupported <{element}>: {detail}; {SKIP_HINT}", source=source, model=model, field=field,
-                         line=line)
+        super().__init__(f"{self.summary}; {SKIP_HINT}", source=source, model=model, field=field, line=line)
+
+    @property
+    def summary(self) -> str:
+        """What is wrong, without the hint (the line of a dropped model in `World.notes`)."""
+        return f"unsupported <{self.element}>: {self.detail}"
 
     @property
     def where(self) -> str:
@@ -38,6 +42,15 @@ class UnsupportedSdfError(WorldError):
         if self.source is None:
             return f"line {self.line}" if self.line is not None else ""
         return self.source if self.line is None else f"{self.source}:{self.line}"
+
+
+class UnavailableSdfError(UnsupportedSdfError):
+    """What a model needs cannot be had here: a Gazebo Fuel model not downloaded, a mesh or heightmap file missing
+    or unreadable. Skipped as an unsupported element is (`skip_unsupported=True` drops the model)."""
+
+    @property
+    def summary(self) -> str:
+        return self.detail
 
 
 class Values:
@@ -59,6 +72,12 @@ class Values:
     ) -> UnsupportedSdfError:
         source, line = self.lines.of(element) if element is not None else (None, None)
         return UnsupportedSdfError(tag, detail, source=source or self.source, model=model, field=field, line=line)
+
+    def unavailable(
+        self, tag: str, detail: str, element: ET.Element | None, *, model: str | None = None, field: str | None = None
+    ) -> UnavailableSdfError:
+        source, line = self.lines.of(element) if element is not None else (None, None)
+        return UnavailableSdfError(tag, detail, source=source or self.source, model=model, field=field, line=line)
 
     def floats(self, element: ET.Element, count: Sequence[int], where: str, model: str | None) -> list[float]:
         text = (element.text or "").split()

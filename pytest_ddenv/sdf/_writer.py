@@ -30,6 +30,8 @@ from pytest_ddenv.world import (
 SDF_VERSION = "1.6"
 CAPSULE_SDF_VERSION = "1.8"
 """The first SDF version with `<capsule>` (libsdformat 11+); written only for worlds that have one."""
+CONE_SDF_VERSION = "1.11"
+"""The first SDF version with `<cone>` (libsdformat 14+, Gazebo Harmonic); written only for worlds that have one."""
 GAZEBO_PHYSICS = {"max_step_size": "0.001", "real_time_factor": "1", "real_time_update_rate": "1000"}
 GROUND_COLOR = (0.8, 0.8, 0.8, 1.0)
 ET.register_namespace("ddenv", DDENV_NS)
@@ -70,10 +72,10 @@ def _geometry(parent: ET.Element, shape: Shape, source: str | None) -> None:
         _sub(cylinder, "length", _number(shape.length or 0.0))
     elif shape.kind == "sphere":
         _sub(_sub(geometry, "sphere"), "radius", _number(shape.radius or 0.0))
-    elif shape.kind == "capsule":  # SDF 1.8+: `dump_sdf` writes that version when a capsule is present
-        capsule = _sub(geometry, "capsule")
-        _sub(capsule, "radius", _number(shape.radius or 0.0))
-        _sub(capsule, "length", _number(shape.length or 0.0))
+    elif shape.kind in ("capsule", "cone"):  # SDF 1.8+ and 1.11+: `dump_sdf` writes that version for them
+        element = _sub(geometry, shape.kind)
+        _sub(element, "radius", _number(shape.radius or 0.0))
+        _sub(element, "length", _number(shape.length or 0.0))
     elif shape.kind == "polyline":
         assert shape.points is not None
         polyline = _sub(geometry, "polyline")
@@ -249,9 +251,10 @@ def _robot_description(parent: ET.Element, robot: RobotDescription, source: str 
 
 def dump_sdf(world: World) -> str:
     """The world as SDF text (a `<world>` with a sun, Gazebo physics, the ground plane and the models): version
-    1.6, or 1.8 when a model has a capsule (1.6 has no `<capsule>`)."""
-    capsules = any(shape.kind == "capsule" for model in world.models for shape in model.shapes)
-    root = ET.Element("sdf", version=CAPSULE_SDF_VERSION if capsules else SDF_VERSION)
+    1.6, or 1.8 when a model has a capsule (1.6 has no `<capsule>`), 1.11 when one has a cone."""
+    kinds = {shape.kind for model in world.models for shape in model.shapes}
+    version = CONE_SDF_VERSION if "cone" in kinds else CAPSULE_SDF_VERSION if "capsule" in kinds else SDF_VERSION
+    root = ET.Element("sdf", version=version)
     element = _sub(root, "world", name=world.name or "default")
     _sub(element, "gravity", _numbers(world.physics.gravity))
     physics = _sub(element, "physics", name="default_physics", default="0", type="ode")

@@ -16,6 +16,7 @@ from pytest_ddenv.world import (
     Pose,
     Shape,
     World,
+    cone_mesh,
     load_heightmap,
     load_mesh,
     polyline_mesh,
@@ -29,7 +30,7 @@ __tracebackhide__ = hidden_in_tracebacks
 
 GROUND_BODY_NAME = "<ground>"
 _NATIVE_MESH_SUFFIXES = (".obj", ".stl")
-_OWN_LINK_KINDS = ("mesh", "polyline", "heightmap")
+_OWN_LINK_KINDS = ("mesh", "polyline", "heightmap", "cone")
 """Shapes that `createCollisionShapeArray` cannot hold: a compound with one of them has a link per shape."""
 
 
@@ -160,6 +161,10 @@ def _single_shape(p: Any, client: int, shape: Shape, model: Model, source: str |
         return int(p.createCollisionShape(p.GEOM_CAPSULE, radius=shape.radius, height=shape.length, **frame))
     if shape.kind == "polyline":
         return _polyline_shape(p, shape, model, source, frame)
+    if shape.kind == "cone":  # pybullet has no cone: a convex mesh (the centre of mass at its mid-height)
+        assert shape.radius is not None and shape.length is not None
+        mesh: Any = cone_mesh(shape.radius, shape.length)
+        return int(p.createCollisionShape(p.GEOM_MESH, vertices=np.asarray(mesh.vertices).tolist(), **frame))
     if shape.kind == "heightmap":
         return _heightfield_shape(p, client, shape, model, source)
     return _mesh_shape(p, client, shape, model, source, frame)

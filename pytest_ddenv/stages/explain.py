@@ -121,7 +121,9 @@ def _why_not_run(models: Reduction, element: str) -> str:
     for name, reason in models.precondition_kept:
         if name == element:
             bypassed = models.without_precondition_kept
-            tail = "" if bypassed is None else (f"; with the precondition bypassed for every such model the "
-                                                f"failure reproduced in {bypassed[0]}/{bypassed[1]} runs")
+            tail = "" if bypassed is None else (
+                f"; with the precondition bypassed for every such model the failure reproduced in {bypassed[0]}/"
+                f"{bypassed[1]} runs" if bypassed[1] else "; with the precondition bypassed for every such model the "
+                "check could not run (none of its runs finished)")
             return f"not run: kept by a precondition ({reason}){tail}"
     return "not run (kept, or the budget ran out before it was checked)"

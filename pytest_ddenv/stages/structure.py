@@ -54,6 +54,9 @@ def _local_points(shape: Shape, source: str | None) -> FloatArray:
         return np.vstack([rims, ends])
     if shape.kind == "sphere" and shape.radius is not None:
         return cylinder_extent_points(shape.radius, 2 * shape.radius)
+    if shape.kind == "cone" and shape.radius is not None and shape.length is not None:  # its base rim and tip
+        rim = cylinder_extent_points(shape.radius, shape.length)
+        return np.vstack([rim[len(rim) // 2:], [[0.0, 0.0, shape.length / 2.0]]])
     if shape.kind == "polyline" and shape.points is not None and shape.height is not None:
         ring = np.asarray(shape.points, dtype=float)
         return np.vstack([np.column_stack([ring, np.zeros(len(ring))]),

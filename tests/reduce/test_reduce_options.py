@@ -179,6 +179,28 @@ def test_preconditions_skip_candidates_without_probing() -> None:
     assert result.without_precondition_kept == (3, 3), "the failure reproduces without the ground too"
 
 
+def test_a_precondition_bypass_check_whose_runs_all_errored_says_it_could_not_run() -> None:
+    """Issue 28: "the failure reproduced in 0/0 runs" when the bypass runs could not start; now "could not run"."""
+    from pytest_ddenv.report_text import needed_lines
+
+    ground = "m0000"
+    oracle = SetOracle(CULPRITS)
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+        if ground not in candidate:  # a world without the ground cannot even start
+            return Observation(Outcome.ERROR, seed=attempt)
+        return oracle(candidate, attempt)
+
+    result = reduce(names(24), probe, preconditions=[lambda c: None if ground in c else "spawns on m0000"], deflake=0)
+    assert result.without_precondition_kept == (0, 0)
+    lines = needed_lines(result)
+    assert lines[-1] == "without them (precondition bypassed) the check could not run (none of its runs finished)"
+    assert not any("0/0" in line for line in lines)
+    from pytest_ddenv.stages.explain import _why_not_run  # the explain stage's "without m0000" says the same
+
+    assert _why_not_run(result, ground).endswith("the check could not run (none of its runs finished)")
+
+
 def test_keep_elements_stay_in_every_candidate() -> None:
     keep = {"m0001", "m0010"}
     oracle = SetOracle(CULPRITS)

@@ -122,6 +122,50 @@ FRAME_CHAIN = SDF.format(
     + "<collision name='c'><geometry><box><size>1 1 1</size></box></geometry></collision></link></model>"
 )
 SELF_INCLUDE = "<sdf version='1.7'><model name='loop'><include><uri>loop.sdf</uri></include></model></sdf>\n"
+# issue 28, SDF: what was accepted silently, ran unbounded or said too little
+DDENV_SDF = SDF.replace("<sdf version='1.7'>",
+                        "<sdf version='1.7' xmlns:ddenv='https://github.com/pytest-ddenv/pytest-ddenv/sdf'>")
+SDF_WALL = f"<model name='wall'><static>true</static><pose>2 0 0.5 0 0 0</pose>{BOX_LINK}</model>"
+GROUND_INCLUDE = "<include><uri>model://ground_plane</uri></include>"
+BOX_COLLISION = "<collision name='c'><geometry><box><size>1 1 1</size></box></geometry></collision>"
+
+
+def _scenario(start: str = "x='0' y='0'", goal: str = "x='4' y='0'", attributes: str = "timeout='20'",
+              inside: str = "") -> str:
+    return (f"<ddenv:scenario robot='husky' {attributes}><ddenv:start {start}/><ddenv:goal {goal}/>{inside}"
+            "</ddenv:scenario>")
+
+
+def _geometry(geometry: str, name: str = "wall") -> str:
+    return (f"<model name='{name}'><static>true</static><link name='l'><collision name='c'><geometry>{geometry}"
+            "</geometry></collision></link></model>")
+
+
+def _wide_includes(path: Path) -> None:
+    """8 includes per level, 8 levels: 8**8 models (ran past 300 s)."""
+    for level in range(8):
+        body = BOX_LINK if level == 7 else "".join(
+            f"<include><name>c{i}</name><uri>model://level_{level + 1}</uri></include>" for i in range(8))
+        (path.parent / f"level_{level}").mkdir()
+        (path.parent / f"level_{level}" / "model.sdf").write_text(
+            f"<sdf version='1.7'><model name='level_{level}'><static>true</static>{body}</model></sdf>")
+    path.write_text(SDF.format("".join(f"<include><name>top{i}</name><uri>model://level_0</uri></include>"
+                                       for i in range(8))))
+
+
+def _many_models(path: Path) -> None:
+    path.write_text("<sdf version='1.7'><world name='yard'>\n" + "".join(
+        f"<model name='m{i}'><static>true</static>{BOX_LINK}</model>\n" for i in range(10_001)) + "</world></sdf>\n")
+
+
+def _many_links(path: Path) -> None:
+    path.write_text(SDF.format("<model name='m'><static>true</static>" + "".join(
+        f"<link name='l{i}'>{BOX_COLLISION}</link>" for i in range(50_001)) + "</model>"))
+
+
+SDF_LINK_JOINT = SDF.format(f"<model name='arm'><link name='base'>{BOX_COLLISION}</link><link name='attachment'>"
+                            f"{BOX_COLLISION}</link><joint name='attachment' type='fixed'><parent>base</parent>"
+                            "<child>attachment</child></joint></model>")
 
 CASES: dict[str, Case] = {
     # YAML world files
@@ -177,6 +221,44 @@ CASES: dict[str, Case] = {
     "sdf-include-cycle": check("yard.world", SDF.format("<include><uri>loop.sdf</uri></include>"),
                                **{"loop.sdf": SELF_INCLUDE}),
     "sdf-infinite": check("far.world", SDF.format(f"<model name='m'><pose>1e400 0 0 0 0 0</pose>{BOX_LINK}</model>")),
+    "sdf-goal-without-x": ddenv("run", "goal.world", "--no-picture", files={"goal.world": DDENV_SDF.format(
+        GROUND_INCLUDE + _scenario(goal="y='0'") + SDF_WALL)}),
+    "sdf-start-without-y": ddenv("run", "start.world", "--no-picture", files={"start.world": DDENV_SDF.format(
+        GROUND_INCLUDE + _scenario(start="x='0' yaw='0'") + SDF_WALL)}),
+    "sdf-scenario-attribute": check("typo.world", DDENV_SDF.format(_scenario(attributes="timeout='20' time_out='60'")
+                                                                   + SDF_WALL)),
+    "sdf-start-attribute": check("typo.world", DDENV_SDF.format(_scenario(start="x='0' y='0' theta='1.57'") + SDF_WALL)),
+    "sdf-second-goal": check("goals.world", DDENV_SDF.format(_scenario(inside="<ddenv:goal x='8' y='0'/>") + SDF_WALL)),
+    "sdf-second-scenario": check("two.world", DDENV_SDF.format(_scenario() + _scenario(goal="x='9' y='9'") + SDF_WALL)),
+    "sdf-ddenv-element": check("typo.world", DDENV_SDF.format("<ddenv:scenaro robot='husky'/>" + SDF_WALL)),
+    "sdf-ddenv-physics": check("typo.world", DDENV_SDF.format("<ddenv:physics timestep='0.01' solver_iteration='50'/>"
+                                                              + SDF_WALL)),
+    "sdf-keep-twice": check("keep.world", DDENV_SDF.format(
+        f"<model name='wall'><ddenv:keep>true</ddenv:keep><ddenv:keep>false</ddenv:keep>{BOX_LINK}</model>")),
+    "sdf-goal-nan": check("nan.world", DDENV_SDF.format(_scenario(goal="x='nan' y='0'") + SDF_WALL)),
+    "sdf-second-world": check("two.world", f"<sdf version='1.7'><world name='a'>{SDF_WALL}</world><world name='b'>"
+                                           f"{SDF_WALL}</world></sdf>\n"),
+    "sdf-state-insertion": check("saved.world", SDF.format(f"{SDF_WALL}<state world_name='yard'><insertions>{SDF_WALL}"
+                                                           "</insertions></state>")),
+    "sdf-max-step-size": check("step.world", SDF.format("<physics name='p' type='ode'><max_step_size>-1</max_step_size>"
+                                                        f"</physics>{SDF_WALL}")),
+    "sdf-state-scale": check("scale.world", SDF.format(f"{SDF_WALL}<state world_name='yard'><model name='wall'>"
+                                                       "<scale>0 1 1</scale></model></state>")),
+    "sdf-include-breadth": ddenv("check", "wide.world", "--model-path", ".", files={"wide.world": _wide_includes}),
+    "sdf-many-models": check("many.world", _many_models),
+    "sdf-many-links": check("links.world", _many_links),
+    "sdf-misspelt-geometry": check("typo.world", SDF.format(_geometry("<bx><size>0.2 4 1</size></bx>"))),
+    "sdf-two-geometries": check("two.world", SDF.format(_geometry("<box><size>1 1 1</size></box><sphere><radius>1"
+                                                                  "</radius></sphere>"))),
+    "sdf-cone-radius": check("cone.world", SDF.format(_geometry("<cone><radius>-1</radius></cone>", "cone"))),
+    "sdf-cone-length": check("cone.world", SDF.format(_geometry("<cone><length>tall</length></cone>", "cone"))),
+    "sdf-fuel-missing": check("fuel.world", SDF.format("<include><uri>https://fuel.gazebosim.org/1.0/o/models/x</uri>"
+                                                       "</include>")),
+    "sdf-remote-not-fuel": check("remote.world", SDF.format("<include><uri>https://example.com/crate.sdf</uri>"
+                                                            "</include>")),
+    "sdf-link-joint-1-7": check("arm.world", SDF_LINK_JOINT),
+    "cli-start-negative": ddenv("run", "yard.world", "--start", "-5,x", "--goal", "1,1",
+                                files={"yard.world": SDF.format(GROUND_INCLUDE + SDF_WALL)}),
     # ddenv options
     "cli-collided-unknown": ddenv("run", "yard.yaml", "-p", "collided:models=[wal]", files={"yard.yaml": YARD}),
     "cli-out-file": ddenv("reduce", "yard.yaml", "-p", "stuck", "--out", "notes.txt",
