@@ -11,7 +11,7 @@ Variants, on each world and noise seed:
   `GoToGoal`, copied): the same commands, so the same trajectory, bit for bit (checked);
 - scan: the same function, but it also reads the laser scan every tick (numpy: the clearance in a corridor
   ahead and the nearest hit) before returning the same command: the same trajectory again;
-- avoid: `AvoidObstacles(GoToGoal())` from pytest_ddenv.controllers (reads the scan every tick and turns away
+- avoid: `AvoidObstacles(GoToGoal())` from pytest_ddenv.sim.controllers (reads the scan every tick and turns away
   from what lies ahead: the robot drives differently, so its physics cost differs too).
 
 Every run goes through the probe path of `ddenv run/reduce`: a `ScenarioJob` (no predicates, `timeout=`
@@ -46,8 +46,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import load, machine, table, write_json
 
-from pytest_ddenv.controllers import AvoidObstacles, GoToGoal
-from pytest_ddenv.scenario_job import ScenarioJob
+from pytest_ddenv.sim.controllers import AvoidObstacles, GoToGoal
+from pytest_ddenv.driver.scenario_job import ScenarioJob
 from pytest_ddenv.sim import Command, ControllerLike, Observation, RunSettings
 from pytest_ddenv.world import World
 

@@ -44,11 +44,11 @@ from common import open_pool, warm
 
 from pytest_ddenv.driver import ReductionOutcome, ReductionPlan, run_reduction
 from pytest_ddenv.execution import LocalPool, Pool, PoolStats, cpu_count
-from pytest_ddenv.markers import ReductionSpec
+from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.oracle import PredicateSpec
-from pytest_ddenv.probe import FailureReference, ProbeResult
+from pytest_ddenv.scenario.probe import FailureReference, ProbeResult
 from pytest_ddenv.reduce import Reduction
-from pytest_ddenv.scenario_job import ScenarioJob
+from pytest_ddenv.driver.scenario_job import ScenarioJob
 from pytest_ddenv.world import World
 
 ROOT = Path(__file__).resolve().parent.parent

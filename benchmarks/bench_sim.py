@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from pytest_ddenv.oracle import PredicateSpec, make_predicate
-from pytest_ddenv.scenario_job import ScenarioJob
+from pytest_ddenv.driver.scenario_job import ScenarioJob
 from pytest_ddenv.sim import RunSettings, Simulator
 from pytest_ddenv.world import Model, Pose, Scenario, Shape, World
 

@@ -30,9 +30,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from pytest_ddenv.oracle import FailureSignature, PredicateSpec
-from pytest_ddenv.probe import FailureReference, classify_result
+from pytest_ddenv.scenario.probe import FailureReference, classify_result
 from pytest_ddenv.reduce import Outcome
-from pytest_ddenv.scenario_job import ScenarioJob
+from pytest_ddenv.driver.scenario_job import ScenarioJob
 from pytest_ddenv.world import World
 
 STUCK = "stuck:window=5,min_progress=0.2"

@@ -5,7 +5,7 @@ reduce` (pytest_ddenv/driver.py): the test is a `ScenarioJob` (the world's scena
 predicates and noise seed: `RobotWorld(candidate, predicates, seed, attempt).run()`), served by a
 `pytest_ddenv.execution` pool (`make_pool(job, workers, in_process=job.handler())`: 1 worker = the job's
 handler in this process, as `ddenv reduce --workers 1`; N > 1 = N persistent local worker processes); the
-probe is `pytest_ddenv.probe.make_probe(world, pool.call, ...)` (same failure = same predicate, failure
+probe is `pytest_ddenv.scenario.probe.make_probe(world, pool.call, ...)` (same failure = same predicate, failure
 position within `tolerance` of the reference `FailureSignature`); the reference trace is the original
 failing run's; the only precondition is `keeps_start_support(world)`, and `keep: true` models are kept.
 With more than one worker the engine gets a ThreadPoolExecutor of as many threads, as the driver does.
@@ -47,16 +47,10 @@ from typing import Any
 
 from pytest_ddenv.execution import Pool, check_executor, make_pool, resolve_workers
 from pytest_ddenv.oracle import PredicateSpec
-from pytest_ddenv.probe import (
-    FailureReference,
-    ProbeResult,
-    keeps_start_support,
-    make_probe,
-    trace_of,
-)
+from pytest_ddenv.scenario.probe import FailureReference, ProbeResult, keeps_start_support, make_probe, trace_of
 from pytest_ddenv.reduce import Observation, Outcome, Reduction, reduce
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedReruns
-from pytest_ddenv.scenario_job import ScenarioJob
+from pytest_ddenv.driver.scenario_job import ScenarioJob
 from pytest_ddenv.world import World
 
 ROOT = Path(__file__).resolve().parent.parent

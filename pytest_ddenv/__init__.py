@@ -6,25 +6,15 @@ registration. Simulation names are imported on first use, so that loading the py
 """
 
 from importlib import import_module
-from importlib.metadata import PackageNotFoundError, version
 from typing import TYPE_CHECKING, Any
 
+from pytest_ddenv._version import __version__
 from pytest_ddenv.errors import DdenvError, ReductionError, ScenarioError, WorldError
-from pytest_ddenv.world import (
-    Ground,
-    LaserMount,
-    Model,
-    Physics,
-    Pose,
-    RobotDescription,
-    Scenario,
-    Shape,
-    World,
-)
+from pytest_ddenv.world.model import Ground, LaserMount, Model, Physics, Pose, RobotDescription, Scenario, Shape, World
 
 if TYPE_CHECKING:
-    from pytest_ddenv.predicates import FailureSignature, Predicate, RobotState, predicate, register_predicate
-    from pytest_ddenv.robot_world import RobotFailure, RobotWorld
+    from pytest_ddenv.oracle.predicates import FailureSignature, Predicate, RobotState, predicate, register_predicate
+    from pytest_ddenv.scenario.robot_world import RobotFailure, RobotWorld
     from pytest_ddenv.sim import (
         Command,
         ControllerError,
@@ -39,11 +29,6 @@ if TYPE_CHECKING:
         register_robot,
     )
 
-try:
-    __version__ = version("pytest-ddenv")
-except PackageNotFoundError:  # running from a source tree that was not installed
-    __version__ = "0.0.0"
-
 _LAZY = {
     "Command": "pytest_ddenv.sim",
     "ControllerError": "pytest_ddenv.sim",
@@ -56,13 +41,13 @@ _LAZY = {
     "WheelCommand": "pytest_ddenv.sim",
     "WheeledRobot": "pytest_ddenv.sim",
     "register_robot": "pytest_ddenv.sim",
-    "FailureSignature": "pytest_ddenv.predicates",
-    "Predicate": "pytest_ddenv.predicates",
-    "RobotState": "pytest_ddenv.predicates",
-    "register_predicate": "pytest_ddenv.predicates",
-    "predicate": "pytest_ddenv.predicates",
-    "RobotFailure": "pytest_ddenv.robot_world",
-    "RobotWorld": "pytest_ddenv.robot_world",
+    "FailureSignature": "pytest_ddenv.oracle.predicates",
+    "Predicate": "pytest_ddenv.oracle.predicates",
+    "RobotState": "pytest_ddenv.oracle.predicates",
+    "register_predicate": "pytest_ddenv.oracle.predicates",
+    "predicate": "pytest_ddenv.oracle.predicates",
+    "RobotFailure": "pytest_ddenv.scenario.robot_world",
+    "RobotWorld": "pytest_ddenv.scenario.robot_world",
 }
 
 

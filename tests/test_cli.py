@@ -16,9 +16,10 @@ from typing import Any
 
 import pytest
 
-from pytest_ddenv import __version__, cli
-from pytest_ddenv.progress import Heartbeat, ProgressLine
-from pytest_ddenv.scenario_job import ScenarioJob
+from pytest_ddenv import __version__
+from pytest_ddenv.cli import main as cli
+from pytest_ddenv.driver.progress import Heartbeat, ProgressLine
+from pytest_ddenv.driver.scenario_job import ScenarioJob
 from pytest_ddenv.world import World
 
 STUCK = "stuck:window=2.0,min_progress=0.2"
@@ -335,7 +336,7 @@ def test_the_failure_rate_line_compares_with_the_original_and_warns() -> None:
     from dataclasses import replace
 
     from pytest_ddenv.reduce import Rate, reduce
-    from pytest_ddenv.report_text import failure_rate_line
+    from pytest_ddenv.driver.report_text import failure_rate_line
 
     solid = reduce(("a", "b"), lambda candidate, attempt: _observation("a" in candidate), deflake="auto",
                    failure_rate_runs=4)

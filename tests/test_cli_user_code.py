@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from pytest_ddenv import cli
+from pytest_ddenv.cli import main as cli
 from pytest_ddenv.oracle import PREDICATES
 from pytest_ddenv.sim import ROBOTS
 

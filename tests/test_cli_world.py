@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from pytest_ddenv import cli
+from pytest_ddenv.cli import main as cli
 
 DATA = Path(__file__).resolve().parent / "data" / "sdf"
 SCENARIO = "format: 1\nscenario: {robot: husky, start: {x: 0, y: 0, yaw: 0}, goal: {x: 5, y: 0}, timeout: 4}\n"

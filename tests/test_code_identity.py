@@ -11,12 +11,13 @@ from pathlib import Path
 
 import pytest
 
-from pytest_ddenv import World, artifacts
-from pytest_ddenv.code_identity import CodeIdentity, collected_elsewhere, identify
-from pytest_ddenv.driver import same_reference
-from pytest_ddenv.predicates import FailureSignature
-from pytest_ddenv.probe import FailureReference
-from pytest_ddenv.problem import problem_of
+from pytest_ddenv import World
+from pytest_ddenv.driver import artifacts
+from pytest_ddenv.driver.code_identity import CodeIdentity, collected_elsewhere, identify
+from pytest_ddenv.driver.run import same_reference
+from pytest_ddenv.oracle.predicates import FailureSignature
+from pytest_ddenv.scenario.probe import FailureReference
+from pytest_ddenv.driver.problem import problem_of
 
 WORLD = World.from_yaml("format: 1\nmodels:\n  - {name: wall, pose: [2, 0, 0.5], box: [0.3, 4, 1]}\n")
 

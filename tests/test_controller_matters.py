@@ -9,11 +9,11 @@ import pytest
 
 from pytest_ddenv.driver import ReductionPlan, run_reduction
 from pytest_ddenv.execution import LocalPool
-from pytest_ddenv.markers import ReductionSpec
+from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.oracle import PredicateSpec, predicate_spec
-from pytest_ddenv.probe import FailureReference
-from pytest_ddenv.scenario_job import ScenarioJob
-from pytest_ddenv.user_code import import_user_code
+from pytest_ddenv.scenario.probe import FailureReference
+from pytest_ddenv.driver.scenario_job import ScenarioJob
+from pytest_ddenv.driver.user_code import import_user_code
 from pytest_ddenv.world import World
 
 ROOT = Path(__file__).resolve().parent.parent

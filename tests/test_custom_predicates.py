@@ -19,7 +19,7 @@ from pytest_ddenv.oracle import (
     predicate_spec,
     signature,
 )
-from pytest_ddenv.robot_world import RobotFailure
+from pytest_ddenv.scenario.robot_world import RobotFailure
 
 WALL_WORLD = """
 format: 1

@@ -523,7 +523,7 @@ def run_command(block: Block, command: Command, request: pytest.FixtureRequest,
                 capsys: pytest.CaptureFixture[str]) -> None:
     where = f"{block.where}: `{command.text}`"
     if command.argv[0] == "ddenv":
-        from pytest_ddenv.cli import main
+        from pytest_ddenv.cli.main import main
 
         capsys.readouterr()
         code = main(command.argv[1:])

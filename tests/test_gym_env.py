@@ -17,11 +17,11 @@ from plugin.conftest import WALL_WORLD  # the same small world as the plugin tes
 gymnasium = pytest.importorskip("gymnasium")
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
-from pytest_ddenv.controllers import GoToGoal  # noqa: E402
+from pytest_ddenv.sim.controllers import GoToGoal  # noqa: E402
 from pytest_ddenv.errors import ScenarioError  # noqa: E402
-from pytest_ddenv.gym_env import FAILURE_PENALTY, GOAL_BONUS, RobotEnv  # noqa: E402
+from pytest_ddenv.scenario.gym_env import FAILURE_PENALTY, GOAL_BONUS, RobotEnv  # noqa: E402
 from pytest_ddenv.oracle import PredicateSpec  # noqa: E402
-from pytest_ddenv.robot_world import ATTEMPT_SEED_STRIDE, RobotFailure, RobotWorld  # noqa: E402
+from pytest_ddenv.scenario.robot_world import ATTEMPT_SEED_STRIDE, RobotFailure, RobotWorld  # noqa: E402
 from pytest_ddenv.sim import ControllerError, ControllerTimeout, Run, RunSettings  # noqa: E402
 from pytest_ddenv.world import World  # noqa: E402
 
@@ -320,8 +320,8 @@ def test_bad_options(stuck_world: RobotWorld) -> None:
 
 def test_missing_gymnasium_is_a_clear_import_error(monkeypatch: pytest.MonkeyPatch, stuck_world: RobotWorld) -> None:
     monkeypatch.setitem(sys.modules, "gymnasium", None)
-    monkeypatch.delitem(sys.modules, "pytest_ddenv.gym_env")
+    monkeypatch.delitem(sys.modules, "pytest_ddenv.scenario.gym_env")
     with pytest.raises(ImportError, match=r"pip install 'pytest-ddenv\[gym\]'"):
-        importlib.import_module("pytest_ddenv.gym_env")
+        importlib.import_module("pytest_ddenv.scenario.gym_env")
     with pytest.raises(ImportError, match="make_env"):
         stuck_world.make_env()

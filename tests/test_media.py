@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pytest_ddenv.animate import HEIGHT, WIDTH, frame_times, write_animation
+from pytest_ddenv.media.animate import HEIGHT, WIDTH, frame_times, write_animation
 from pytest_ddenv.detail import recording_detail
 from pytest_ddenv.execution import LocalPool
-from pytest_ddenv.media import MediaChoiceError, PendingMedia, Shown, media_choice
+from pytest_ddenv.media.writer import MediaChoiceError, PendingMedia, Shown, media_choice
 from pytest_ddenv.oracle import PredicateSpec
-from pytest_ddenv.scenario_job import ScenarioJob
+from pytest_ddenv.driver.scenario_job import ScenarioJob
 from pytest_ddenv.sim import Run, simulate
 from pytest_ddenv.world import World
 

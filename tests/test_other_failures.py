@@ -1,4 +1,4 @@
-"""The other failures a reduction meets (`pytest_ddenv.other_failures`): grouped from the run log, reported,
+"""The other failures a reduction meets (`pytest_ddenv.driver.other_failures`): grouped from the run log, reported,
 their smallest worlds kept as `other-<k>.yaml` (`--ddenv-keep-other`, `ddenv reduce --keep-other`).
 
 The grouping runs on synthetic log records; one real `ddenv reduce` of the rubble scenario (slow) keeps two
@@ -16,12 +16,12 @@ from typing import Any
 
 import pytest
 
-from pytest_ddenv import cli
-from pytest_ddenv.artifacts import ArtifactPaths, write_other_worlds
-from pytest_ddenv.other_failures import OtherFailure, other_failures
+from pytest_ddenv.cli import main as cli
+from pytest_ddenv.driver.artifacts import ArtifactPaths, write_other_worlds
+from pytest_ddenv.driver.other_failures import OtherFailure, other_failures
 from pytest_ddenv.reduce import Reduction
-from pytest_ddenv.reduction_report import Cost, ReductionReport, ReportFiles
-from pytest_ddenv.report_text import other_failure_lines, result_lines
+from pytest_ddenv.driver.report import Cost, ReductionReport, ReportFiles
+from pytest_ddenv.driver.report_text import other_failure_lines, result_lines
 from pytest_ddenv.world import World
 
 ROOT = Path(__file__).resolve().parent.parent

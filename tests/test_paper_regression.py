@@ -12,10 +12,10 @@ import pytest
 
 from pytest_ddenv.driver import ReductionPlan, run_reduction
 from pytest_ddenv.execution import LocalPool
-from pytest_ddenv.markers import ReductionSpec
+from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.oracle import PredicateSpec
-from pytest_ddenv.probe import FailureReference
-from pytest_ddenv.scenario_job import ScenarioJob
+from pytest_ddenv.scenario.probe import FailureReference
+from pytest_ddenv.driver.scenario_job import ScenarioJob
 from pytest_ddenv.world import World
 
 WORLDS = Path(__file__).resolve().parent.parent / "worlds"

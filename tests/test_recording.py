@@ -1,4 +1,4 @@
-"""The 3D recording (`pytest_ddenv.recording`): real runs written to a real `.rrd` file and read back with
+"""The 3D recording (`pytest_ddenv.media.recording`): real runs written to a real `.rrd` file and read back with
 rerun's own reader (`rerun.chunk.RrdReader`)."""
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from pytest_ddenv.detail import recording_detail
 from pytest_ddenv.oracle import PREDICATES
-from pytest_ddenv.recording import (
+from pytest_ddenv.media.recording import (
     INSTALL_HINT,
     RecordingInfo,
     RecordingUnavailable,

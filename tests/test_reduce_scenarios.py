@@ -9,10 +9,10 @@ import pytest
 from pytest_ddenv import World
 from pytest_ddenv.oracle import PredicateSpec
 from pytest_ddenv.oracle import classify
-from pytest_ddenv.probe import keeps_start_support, make_probe, trace_of
+from pytest_ddenv.scenario.probe import keeps_start_support, make_probe, trace_of
 from pytest_ddenv.reduce import Outcome, reduce
-from pytest_ddenv.replay import reference_of
-from pytest_ddenv.scenario_job import ScenarioJob, run_scenario
+from pytest_ddenv.cli.replay import reference_of
+from pytest_ddenv.driver.scenario_job import ScenarioJob, run_scenario
 
 WORLDS = Path(__file__).resolve().parent.parent / "worlds"
 STUCK = (PredicateSpec("stuck", {"window": 5.0, "min_progress": 0.2}),)

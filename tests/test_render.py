@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from pytest_ddenv import render
-from pytest_ddenv.artifacts import ArtifactPaths
+from pytest_ddenv.driver import picture_data, pictures
+from pytest_ddenv.driver.artifacts import ArtifactPaths
 from pytest_ddenv.oracle import FailureSignature
 from pytest_ddenv.reduce import Reduction
-from pytest_ddenv.render.artifact_data import reference_pose, reference_text
+from pytest_ddenv.driver.picture_data import reference_pose, reference_text
 from pytest_ddenv.render.canvas import pyplot
 from pytest_ddenv.sim import Run, RunSettings
 from pytest_ddenv.world import World
@@ -176,12 +177,12 @@ def test_reduction_pictures_in_an_artifacts_folder(worlds: dict[str, World], tmp
     ]
     paths.log.write_text("".join(json.dumps(line) + "\n" for line in log_lines))
     paths.summary.write_text(json.dumps({"reference_failure": {"signature": {"pose": [0, -1, 0.2, 0, 0, 0.3]}}}))
-    written = render.write_reduction_pictures(world, reduction, paths)
+    written = pictures.write_reduction_pictures(world, reduction, paths)
     assert written == [paths.reduction_png, paths.progress_png]
     assert png_size(paths.reduction_png) == render.WORLD_SIZE
     assert png_size(paths.progress_png) == render.PROGRESS_SIZE
     assert min(p.stat().st_size for p in written) > 5_000
-    assert render.probe_sizes_from_log(paths.log)[:2] == [(1, 18, "pass"), (2, 18, "fail")]
+    assert picture_data.probe_sizes_from_log(paths.log)[:2] == [(1, 18, "pass"), (2, 18, "fail")]
 
 
 def test_reduction_picture_with_both_runs(worlds: dict[str, World], tmp_path: Path) -> None:
@@ -189,7 +190,7 @@ def test_reduction_picture_with_both_runs(worlds: dict[str, World], tmp_path: Pa
     reduction = fake_reduction(world, world.names[:4])
     paths = ArtifactPaths(tmp_path)
     run = scenario_run(world)
-    written = render.write_reduction_pictures(world, reduction, paths, original_run=run, minimal_run=run)
+    written = pictures.write_reduction_pictures(world, reduction, paths, original_run=run, minimal_run=run)
     assert [png_size(path) for path in written] == [render.WORLD_SIZE, render.PROGRESS_SIZE]
 
 
@@ -254,8 +255,8 @@ def test_progress_steps_are_drawn_at_the_probe_that_justified_them(tmp_path: Pat
 
     log = tmp_path / "runs.jsonl"
     reduce(names, probe, partition="even", priority="sequential", deflake=1, log=log, failure_rate_runs=0)
-    dots = render.probe_sizes_from_log(log)
-    steps = render.steps_from_log(log)
+    dots = picture_data.probe_sizes_from_log(log)
+    steps = picture_data.steps_from_log(log)
     assert steps[0] == (0, 12) and steps[-1][1] == 2 and len(steps) > 2
     for number, size in steps[1:]:
         assert dots[number - 1] == (number, size, "fail")  # the dot just before the step is its own candidate
@@ -290,8 +291,8 @@ def test_with_parallel_probes_a_step_sits_on_its_accepting_probe(tmp_path: Path)
     step and the step itself: the step is drawn on its own last same-failure run, not after them."""
     log = tmp_path / "runs.jsonl"
     write_parallel_log(log)
-    dots = render.probe_sizes_from_log(log)
-    steps = render.steps_from_log(log)
+    dots = picture_data.probe_sizes_from_log(log)
+    steps = picture_data.steps_from_log(log)
     for number, size in steps[1:]:
         assert dots[number - 1] == (number, size, "fail"), f"the step to {size} models is drawn at probe {number}"
     assert len(dots) == 15  # every probe of the reduction: 3 calibration runs of the original world, 12 others
@@ -299,15 +300,15 @@ def test_with_parallel_probes_a_step_sits_on_its_accepting_probe(tmp_path: Path)
 
 
 def test_same_failure_probes_whose_world_was_not_accepted_are_drawn_apart(tmp_path: Path) -> None:
-    from pytest_ddenv.render.artifact_data import accepted_probes_from_log
+    from pytest_ddenv.driver.picture_data import accepted_probes_from_log
     from pytest_ddenv.render.progress_chart import NOT_ACCEPTED
 
     log = tmp_path / "runs.jsonl"
     write_parallel_log(log)
-    dots = render.probe_sizes_from_log(log)
+    dots = picture_data.probe_sizes_from_log(log)
     accepted = accepted_probes_from_log(log)
     assert accepted == {1, 2, 3, 4, 6, 7, 8}  # ["r"] failed once (probe 13), and its world was rejected
-    figure = render.draw_progress(render.steps_from_log(log), probes=15, probe_sizes=dots, accepted=accepted)
+    figure = render.draw_progress(picture_data.steps_from_log(log), probes=15, probe_sizes=dots, accepted=accepted)
     try:
         axes = figure.axes[0]
         hollow = next(c for c in axes.collections if c.get_gid() == "probes:fail-not-accepted")
@@ -403,7 +404,7 @@ def test_labels_never_hide_the_goal_or_a_failure_outline(name: str, worlds: dict
 
 def test_failure_poses_without_a_run_are_outlined_with_the_worlds_own_robot() -> None:
     """`ddenv show` of a probe log draws the poses with the world's robot (here a URDF diffbot), not a Husky."""
-    from pytest_ddenv.cli import _robot_footprint
+    from pytest_ddenv.cli.main import _robot_footprint
 
     world = World.load(ROOT / "examples" / "robots" / "diffbot_world.yaml")
     footprint = _robot_footprint(world)

@@ -1,4 +1,4 @@
-"""`ddenv replay` (pytest_ddenv.replay.replay): the minimal world re-run on fresh seeds, its failure rate with a
+"""`ddenv replay` (pytest_ddenv.cli.replay.replay): the minimal world re-run on fresh seeds, its failure rate with a
 confidence interval next to the original world's, or the recorded failing seeds for exact reproduction."""
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from pytest_ddenv import cli
-from pytest_ddenv.replay import FRESH_FIRST_ATTEMPT, replay
-from pytest_ddenv.robot_world import ATTEMPT_SEED_STRIDE
+from pytest_ddenv.cli import main as cli
+from pytest_ddenv.cli.replay import FRESH_FIRST_ATTEMPT, replay
+from pytest_ddenv.scenario.robot_world import ATTEMPT_SEED_STRIDE
 
 WORLD = """format: 1
 name: wall

@@ -9,8 +9,8 @@ import pytest
 
 from pytest_ddenv import RobotWorld, World
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.probe import trace_of
-from pytest_ddenv.robot_world import RobotFailure
+from pytest_ddenv.scenario.probe import trace_of
+from pytest_ddenv.scenario.robot_world import RobotFailure
 
 WORLD = World.from_yaml("""
 format: 1

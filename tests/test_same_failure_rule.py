@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from pytest_ddenv.markers import MarkerError, ReductionSpec, parse_ddenv_marker, parse_failure_markers
+from pytest_ddenv.driver.markers import MarkerError, ReductionSpec, parse_ddenv_marker, parse_failure_markers
 from pytest_ddenv.oracle import (
     FailureSignature,
     SameFailureError,
@@ -23,12 +23,12 @@ from pytest_ddenv.oracle import (
     same_failure_match,
     why_other,
 )
-from pytest_ddenv.other_failures import original_reproduction, other_failures
-from pytest_ddenv.probe import ErrorInfo, FailureReference, check_rule, classify_result, why_not_reproduced
+from pytest_ddenv.driver.other_failures import original_reproduction, other_failures
+from pytest_ddenv.scenario.probe import ErrorInfo, FailureReference, check_rule, classify_result, why_not_reproduced
 from pytest_ddenv.reduce import Outcome, Reduction
-from pytest_ddenv.reduction_report import Cost, ReductionReport, ReportFiles
-from pytest_ddenv.replay import ArtifactError, recorded_rule
-from pytest_ddenv.report_text import result_lines
+from pytest_ddenv.driver.report import Cost, ReductionReport, ReportFiles
+from pytest_ddenv.cli.replay import ArtifactError, recorded_rule
+from pytest_ddenv.driver.report_text import result_lines
 
 REF = FailureSignature("no_goal_progress", 13.85, (1.35, 0.0, 0.15, 0.0, 0.0, 0.0), ("wall",))
 

@@ -18,7 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from pytest_ddenv import cli, sdf
+from pytest_ddenv.cli import main as cli
+from pytest_ddenv import sdf
 from pytest_ddenv.errors import ScenarioError, WorldError
 from pytest_ddenv.sdf import load_sdf, parse_sdf
 

@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pytest_ddenv import World, geometry
+from pytest_ddenv import World
+from pytest_ddenv.world import geometry
 from pytest_ddenv.errors import WorldError
 from pytest_ddenv.sdf import MODEL_PATH_VARIABLES, UnsupportedSdfError, load_sdf
 from pytest_ddenv.sdf._includes import BUILTIN_GROUND
@@ -343,7 +344,7 @@ def test_the_minimal_sdf_of_a_real_reduction_loads_in_libsdformat(
     scenario, and (beside the original, as the summary says) loads in libsdformat as the minimal world."""
     import json
 
-    from pytest_ddenv import cli
+    from pytest_ddenv.cli import main as cli
 
     shutil.copy(DATA / "features.world", tmp_path / "features.world")
     shutil.copytree(DATA / "meshes", tmp_path / "meshes")

@@ -20,7 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from pytest_ddenv import World, cli, sdf
+from pytest_ddenv import World, sdf
+from pytest_ddenv.cli import main as cli
 from pytest_ddenv.errors import WorldError
 from pytest_ddenv.sdf import UnsupportedSdfError, load_sdf, parse_sdf
 

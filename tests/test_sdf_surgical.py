@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from pytest_ddenv import World
-from pytest_ddenv.artifacts import write_minimal_sdf
+from pytest_ddenv.driver.artifacts import write_minimal_sdf
 from pytest_ddenv.sdf import SurgeryError, cut_models, parse_sdf
 from pytest_ddenv.sdf._surgical import cut_file
 from pytest_ddenv.world import Physics, Pose, Scenario

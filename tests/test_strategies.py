@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from hypothesis.errors import InvalidArgument
 
 from pytest_ddenv import Ground, Model, Pose, Scenario, ScenarioError, Shape, World
-from pytest_ddenv.robot_world import RobotWorld
+from pytest_ddenv.scenario.robot_world import RobotWorld
 from pytest_ddenv.strategies import (
     DEFAULT_REGION,
     DEFAULT_SCENARIO,

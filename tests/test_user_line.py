@@ -8,10 +8,10 @@ from typing import Any
 
 import pytest
 
-from pytest_ddenv.predicates import FailureSignature
+from pytest_ddenv.oracle.predicates import FailureSignature
 from pytest_ddenv.reduce import Observation, Outcome, Rate, Reduction, reduce
-from pytest_ddenv.report_text import failure_rate_line
-from pytest_ddenv.robot_world import RobotWorld
+from pytest_ddenv.driver.report_text import failure_rate_line
+from pytest_ddenv.scenario.robot_world import RobotWorld
 from pytest_ddenv.sim import ControllerError, Simulator
 from pytest_ddenv.sim.control import wrap_angle
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from pytest_ddenv.markers import parse_ddenv_marker
+from pytest_ddenv.driver.markers import parse_ddenv_marker
 from pytest_ddenv.reduce.partition import PARTITION_ALIASES
 from pytest_ddenv.validation import is_finite_number, is_flag, is_integer, is_integral, is_number, is_real
 

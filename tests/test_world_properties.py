@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pytest_ddenv import Ground, Model, Pose, Scenario, Shape, World
-from pytest_ddenv.geometry import to_local
+from pytest_ddenv.world.geometry import to_local
 
 # Tag values may hold any character but control characters other than tab and newline (docs/reliability.md).
 TAG_CHARACTERS = st.characters(blacklist_categories=("Cc", "Cs")) | st.sampled_from("\t\n")

@@ -20,8 +20,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from pytest_ddenv import __version__, defaults
-from pytest_ddenv.cli_world import (
+from pytest_ddenv import defaults
+from pytest_ddenv._version import __version__
+from pytest_ddenv.cli.world_options import (
     UsageError,
     add_scenario_options,
     add_world_options,
@@ -31,14 +32,14 @@ from pytest_ddenv.cli_world import (
     same_file,
     with_scenario,
 )
+from pytest_ddenv.driver.progress import ProgressLine
 from pytest_ddenv.errors import DdenvError, shown
-from pytest_ddenv.predicates import PredicateSpec, check_predicate_models
-from pytest_ddenv.progress import ProgressLine
+from pytest_ddenv.oracle.predicates import PredicateSpec, check_predicate_models
 
 if TYPE_CHECKING:  # pragma: no cover
-    from pytest_ddenv.reduction_report import ReductionReport
+    from pytest_ddenv.driver.report import ReductionReport
     from pytest_ddenv.sim import Run
-    from pytest_ddenv.world import World
+    from pytest_ddenv.world.model import World
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -85,7 +86,7 @@ def _at_least_two(text: str) -> int:
 
 
 def _media(text: str) -> str:
-    from pytest_ddenv.media import MediaChoiceError, media_choice
+    from pytest_ddenv.media.writer import MediaChoiceError, media_choice
 
     try:
         return media_choice(text, "--media")
@@ -95,7 +96,7 @@ def _media(text: str) -> str:
 
 def _resolved_media(given: str | None) -> str:
     """--media, else $DDENV_MEDIA, else all."""
-    from pytest_ddenv.media import MediaChoiceError, media_choice
+    from pytest_ddenv.media.writer import MediaChoiceError, media_choice
 
     try:
         return media_choice(given, "--media")
@@ -153,7 +154,7 @@ def parse_predicate(text: str) -> PredicateSpec:
 
     Values are numbers, true/false, none, or [a,b,...] lists of names; validated by `oracle.make_predicate`.
     """
-    from pytest_ddenv.predicates import make_predicate
+    from pytest_ddenv.oracle.predicates import make_predicate
 
     name, _, rest = text.partition(":")
     if not name.strip():
@@ -505,7 +506,7 @@ def _world_stem(path: str) -> str:
 def _user_code(arguments: argparse.Namespace) -> Any:
     """Import the --import modules now (their registrations are needed to read the options) and load the
     --controller; returns the controller (None: the built-in law)."""
-    from pytest_ddenv.user_code import import_user_code, load_attribute
+    from pytest_ddenv.driver.user_code import import_user_code, load_attribute
 
     for spec in arguments.imports:
         import_user_code(spec)
@@ -514,7 +515,7 @@ def _user_code(arguments: argparse.Namespace) -> Any:
 
 
 def _cmd_run(arguments: argparse.Namespace) -> int:
-    from pytest_ddenv.scenario_job import run_scenario
+    from pytest_ddenv.driver.scenario_job import run_scenario
 
     controller = _user_code(arguments)
     world = with_scenario(arguments, load_world(arguments, arguments.world), arguments.world)
@@ -557,7 +558,7 @@ def _cmd_run(arguments: argparse.Namespace) -> int:
 
 
 def _run_raised(arguments: argparse.Namespace, world: World, error: Exception) -> int:
-    from pytest_ddenv.probe import describe_error
+    from pytest_ddenv.scenario.probe import describe_error
 
     info = describe_error(error, None)
     notes = "".join(f" {note}" for note in getattr(error, "__notes__", ()))
@@ -615,14 +616,14 @@ def _cmd_show(arguments: argparse.Namespace) -> int:
 
 def _simulated_run(world: World) -> Run:
     from pytest_ddenv.detail import recording_detail
-    from pytest_ddenv.scenario_job import run_scenario
+    from pytest_ddenv.driver.scenario_job import run_scenario
 
     with recording_detail():
         return run_scenario(world, (), seed=0)
 
 
 def _animate(target: str, world: World, run: Run, title: str) -> Any:
-    from pytest_ddenv.animate import write_animation
+    from pytest_ddenv.media.animate import write_animation
 
     return write_animation(Path(target), world, run, title=title)
 
@@ -672,10 +673,10 @@ def _read_runs(path: Path) -> tuple[list[Run], list[list[float]], list[str]]:
 
 # -- reduce ------------------------------------------------------------------------------------------------
 def _cmd_reduce(arguments: argparse.Namespace) -> int:
+    from pytest_ddenv.driver.markers import parse_deflake
+    from pytest_ddenv.driver.scenario_job import ScenarioJob
     from pytest_ddenv.execution import check_executor, make_pool
-    from pytest_ddenv.markers import parse_deflake
     from pytest_ddenv.reduce import DEFLAKE_POLICIES, PRIORITY_ALIASES
-    from pytest_ddenv.scenario_job import ScenarioJob
 
     _user_code(arguments)
     arguments.media = _resolved_media(arguments.media)
@@ -687,8 +688,8 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     keep = _keep(world, arguments.keep)
     priority = PRIORITY_ALIASES.get(arguments.priority, arguments.priority)
     executor = check_executor(arguments.executor)
-    from pytest_ddenv.artifacts import folder_problem
-    from pytest_ddenv.driver import IMPORT_AHEAD_WAIT, import_ahead
+    from pytest_ddenv.driver.artifacts import folder_problem
+    from pytest_ddenv.driver.run import IMPORT_AHEAD_WAIT, import_ahead
 
     problem = folder_problem(_artifacts_folder(arguments))
     if problem is not None:
@@ -778,11 +779,11 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
             progress: ProgressLine) -> tuple[Any, bool]:
     import dataclasses
 
-    from pytest_ddenv.driver import ReductionPlan, run_reduction
-    from pytest_ddenv.markers import ReductionSpec
-    from pytest_ddenv.probe import FailureReference
+    from pytest_ddenv.cli.replay import predicates_to_json
+    from pytest_ddenv.driver.markers import ReductionSpec
+    from pytest_ddenv.driver.run import ReductionPlan, run_reduction
     from pytest_ddenv.reduce import ReductionInterrupted
-    from pytest_ddenv.replay import predicates_to_json
+    from pytest_ddenv.scenario.probe import FailureReference
 
     spec = dataclasses.replace(
         ReductionSpec(), partition=arguments.partition, priority=priority, n_partitions=arguments.n_partitions,
@@ -821,7 +822,7 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
 def _code_under_test(arguments: argparse.Namespace) -> Any:
     """The code under test of `ddenv reduce`: the modules loaded from the current folder and from the folders of
     the --import and --controller files (all imported by now), with those files themselves."""
-    from pytest_ddenv.code_identity import identify
+    from pytest_ddenv.driver.code_identity import identify
 
     specs = [*arguments.imports, *([arguments.controller.rpartition(":")[0]] if arguments.controller else [])]
     files = [Path(spec).expanduser() if spec.endswith(".py") or os.sep in spec
@@ -873,15 +874,15 @@ def _command_line(arguments: argparse.Namespace) -> list[str]:
 def _same_failure(text: str, option: str = "--same-failure") -> str:
     """A match as `oracle.SameFailureRule` holds it: all, place, touched, or MODULE:FUNCTION loaded now (a
     file path works as the module, as for --controller) and held as "module:qualname"."""
-    from pytest_ddenv.oracle import MATCHES, same_failure_match
-    from pytest_ddenv.user_code import load_attribute
+    from pytest_ddenv.driver.user_code import load_attribute
+    from pytest_ddenv.oracle.verdict import MATCHES, same_failure_match
 
     given: Any = load_attribute(text, option=option) if text not in MATCHES and ":" in text else text
     return same_failure_match(given, option)
 
 
 def _reduction_text(path: str, report: ReductionReport, pictures: Sequence[str], media: Sequence[str]) -> str:
-    from pytest_ddenv.report_text import result_lines, status_of
+    from pytest_ddenv.driver.report_text import result_lines, status_of
 
     reduction = report.reduction
     return "\n".join([
@@ -897,8 +898,8 @@ def _reduction_text(path: str, report: ReductionReport, pictures: Sequence[str],
 
 # -- replay ------------------------------------------------------------------------------------------------
 def _cmd_replay(arguments: argparse.Namespace) -> int:
+    from pytest_ddenv.cli.replay import read_artifacts, replay
     from pytest_ddenv.outcome import Outcome
-    from pytest_ddenv.replay import read_artifacts, replay
 
     if not arguments.imports and not arguments.controller:  # what the reduction itself used, if recorded
         summary, _ = read_artifacts(Path(arguments.artifacts))

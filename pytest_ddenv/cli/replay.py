@@ -14,19 +14,19 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv import defaults
+from pytest_ddenv.driver.scenario_job import run_scenario
 from pytest_ddenv.errors import DdenvError
-from pytest_ddenv.predicates import PredicateSpec
+from pytest_ddenv.oracle.predicates import PredicateSpec
 from pytest_ddenv.reduce import Outcome
 from pytest_ddenv.reduce.log import read_records
-from pytest_ddenv.robot_world import RobotFailure
-from pytest_ddenv.scenario_job import run_scenario
+from pytest_ddenv.scenario.robot_world import RobotFailure
 from pytest_ddenv.validation import expected
-from pytest_ddenv.world import World
+from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:  # pragma: no cover
-    from pytest_ddenv.oracle import SameFailureRule
-    from pytest_ddenv.predicates import FailureSignature
-    from pytest_ddenv.probe import FailureReference
+    from pytest_ddenv.oracle.predicates import FailureSignature
+    from pytest_ddenv.oracle.verdict import SameFailureRule
+    from pytest_ddenv.scenario.probe import FailureReference
     from pytest_ddenv.sim import ControllerLike, Run
 
 REFERENCE_LOCATION = "ddenv"
@@ -45,7 +45,7 @@ def predicates_to_json(predicates: Sequence[PredicateSpec]) -> list[dict[str, An
 def predicates_from_json(data: Any) -> tuple[PredicateSpec, ...]:
     """The inverse of `predicates_to_json`, validated by building each predicate. A predicate the test gave
     as an object is found by its name among the registered ones (`ddenv --import` the module registering it)."""
-    from pytest_ddenv.predicates import PREDICATES, predicate_spec
+    from pytest_ddenv.oracle.predicates import PREDICATES, predicate_spec
 
     if not isinstance(data, list):
         raise ArtifactError(expected("a list of {name, params}", data, "'predicates'"))
@@ -66,7 +66,7 @@ def predicates_from_json(data: Any) -> tuple[PredicateSpec, ...]:
 
 def reference_of(run: Run) -> FailureReference:
     """The failure a reduction of this run's world must reproduce."""
-    from pytest_ddenv.probe import FailureReference
+    from pytest_ddenv.scenario.probe import FailureReference
 
     if run.failure is None:
         raise ValueError("the run did not fail")
@@ -150,7 +150,7 @@ class ReplayResult:
 
     def most_common_reason(self) -> str:
         """Why the runs that failed otherwise did (the reason seen most, `oracle.most_common_reason`)."""
-        from pytest_ddenv.oracle import OtherReason, most_common_reason, why_other
+        from pytest_ddenv.oracle.verdict import OtherReason, most_common_reason, why_other
 
         reasons = []
         for run in self.runs:
@@ -206,7 +206,7 @@ def read_artifacts(directory: Path) -> tuple[dict[str, Any], World]:
 
 
 def recorded_signature(summary: Mapping[str, Any], where: Path) -> FailureSignature:
-    from pytest_ddenv.predicates import FailureSignature
+    from pytest_ddenv.oracle.predicates import FailureSignature
 
     signature = (summary.get("reference_failure") or {}).get("signature")
     if not isinstance(signature, Mapping):
@@ -241,7 +241,7 @@ def recorded_seeds(log: Path, minimal: Sequence[str], fallback: int) -> list[int
 def recorded_rule(summary: Mapping[str, Any], where: Path) -> SameFailureRule:
     """The same-failure rule the reduction recorded (`same_failure`), else the default rule with its tolerance
     (a summary written before rules were recorded). A user's function is imported now (`ArtifactError`)."""
-    from pytest_ddenv.oracle import SameFailureError, SameFailureRule
+    from pytest_ddenv.oracle.verdict import SameFailureError, SameFailureRule
 
     try:
         if "same_failure" in summary:
@@ -261,8 +261,8 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
     on which the reduction saw it fail (exact reproduction: each should fail again)."""
     from dataclasses import replace
 
-    from pytest_ddenv.oracle import classify, same_failure_match, why_other
-    from pytest_ddenv.robot_world import ATTEMPT_SEED_STRIDE
+    from pytest_ddenv.oracle.verdict import classify, same_failure_match, why_other
+    from pytest_ddenv.scenario.robot_world import ATTEMPT_SEED_STRIDE
 
     folder = Path(directory)
     summary, world = read_artifacts(folder)

@@ -22,15 +22,15 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self
 
+from pytest_ddenv.driver.problem import Problem
+from pytest_ddenv.driver.report import SUMMARY_FORMAT, ReductionReport, ReportFiles, identity_json
 from pytest_ddenv.errors import DdenvError, ReductionError
-from pytest_ddenv.problem import Problem
 from pytest_ddenv.reduce import Reduction
 from pytest_ddenv.reduce.log import parse_record, sync_directory, write_failure
-from pytest_ddenv.reduction_report import SUMMARY_FORMAT, ReductionReport, ReportFiles, identity_json
-from pytest_ddenv.world import World
+from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:
-    from pytest_ddenv.other_failures import OtherFailure
+    from pytest_ddenv.driver.other_failures import OtherFailure
     from pytest_ddenv.stages import StagesOutcome
 
 try:

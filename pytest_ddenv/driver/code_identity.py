@@ -28,7 +28,8 @@ DIGEST_LENGTH = 16
 ALWAYS_VERSIONED = ("pytest-ddenv", "pybullet")
 """Distributions whose version is part of every identity: the plugin and the simulator (a run is bit-identical
 only with the same pybullet)."""
-_OWN_PACKAGE = Path(__file__).resolve().parent
+_OWN_PACKAGE = Path(__file__).resolve().parents[1]
+"""The folder of pytest_ddenv (this module is in its `driver/`)."""
 
 
 @dataclass(frozen=True)

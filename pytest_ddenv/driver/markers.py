@@ -18,8 +18,8 @@ from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.validation import expected, is_integer, is_number
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle import SameFailureRule
-    from pytest_ddenv.predicates import PredicateSpec
+    from pytest_ddenv.oracle.predicates import PredicateSpec
+    from pytest_ddenv.oracle.verdict import SameFailureRule
 
 DDENV_KEYWORDS = (
     "world", "partition", "priority", "n_partitions", "granularity", "deflake", "tolerance", "same_failure", "keep",
@@ -62,7 +62,7 @@ class ReductionSpec:
     def same_failure_rule(self, predicates: Sequence[PredicateSpec] = ()) -> SameFailureRule:
         """The rule that decides "same failure": this test's match and tolerance, and the predicates' own
         matches (`robot_failure(..., same_failure=...)`)."""
-        from pytest_ddenv.oracle import SameFailureRule
+        from pytest_ddenv.oracle.verdict import SameFailureRule
 
         return SameFailureRule(self.same_failure, self.tolerance,
                                tuple((spec.name, spec.same_failure) for spec in predicates if spec.same_failure))
@@ -131,7 +131,7 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
 def parse_same_failure(value: Any, where: str) -> str:
     """A same-failure match: "all", "place", "touched", or a module-level function `same_failure(reference,
     signature) -> bool` (held as "module:qualname", so that `ddenv replay` can import it)."""
-    from pytest_ddenv.oracle import same_failure_match
+    from pytest_ddenv.oracle.verdict import same_failure_match
 
     try:
         return same_failure_match(value, where)
@@ -178,7 +178,7 @@ def parse_failure_markers(markers: Sequence[tuple[Sequence[Any], Mapping[str, An
     (`robot_failure(OnSlope(max_pitch=0.3))`) or a plain function of the state (`robot_failure(tipped)`), and
     optionally the predicate's own same-failure rule (`same_failure="place"`, not a parameter of the predicate).
     """
-    from pytest_ddenv.predicates import PREDICATES, predicate_spec
+    from pytest_ddenv.oracle.predicates import PREDICATES, predicate_spec
 
     specs = []
     for args, given in markers:

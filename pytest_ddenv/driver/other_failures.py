@@ -31,8 +31,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pytest_ddenv import defaults
-from pytest_ddenv.oracle import FailureSignature, OtherReason, SameFailureError, SameFailureRule, most_common_reason
-from pytest_ddenv.probe import FailureReference, why_not_reproduced
+from pytest_ddenv.oracle.predicates import FailureSignature
+from pytest_ddenv.oracle.verdict import OtherReason, SameFailureError, SameFailureRule, most_common_reason
+from pytest_ddenv.scenario.probe import FailureReference, why_not_reproduced
 
 MODEL_LEVEL = "models"
 """The name `OtherFailure.seen_in` gives the model-level reduction (and the driver's own runs)."""

@@ -77,7 +77,7 @@ def accepted_probes_from_log(log: Path) -> set[int]:
 
 def _reference_failure(summary: Path) -> dict[str, Any] | None:
     """The ``reference_failure`` object of a summary.json (None: no such file, key or object)."""
-    from pytest_ddenv.artifacts import read_summary
+    from pytest_ddenv.driver.artifacts import read_summary
 
     data = read_summary(summary)
     reference = None if data is None else data.get("reference_failure")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pytest_ddenv.render.artifact_data import (
+from pytest_ddenv.driver.picture_data import (
     accepted_probes_from_log,
     probe_sizes_from_log,
     reference_pose,
@@ -17,11 +17,11 @@ from pytest_ddenv.render.progress_chart import plot_progress
 from pytest_ddenv.render.world_picture import plot_reduction, plot_world
 
 if TYPE_CHECKING:  # pragma: no cover
-    from pytest_ddenv.artifacts import ArtifactPaths
+    from pytest_ddenv.driver.artifacts import ArtifactPaths
     from pytest_ddenv.reduce import Reduction
     from pytest_ddenv.sim import Run
     from pytest_ddenv.stages import StagesOutcome
-    from pytest_ddenv.world import World
+    from pytest_ddenv.world.model import World
 
 
 def write_reduction_pictures(world: World, reduction: Reduction, paths: ArtifactPaths, *,

@@ -13,11 +13,11 @@ from importlib.metadata import version
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from pytest_ddenv.code_identity import CodeIdentity, digest
+from pytest_ddenv.driver.code_identity import CodeIdentity, digest
 from pytest_ddenv.reduce.log import LOG_FORMAT
 
 if TYPE_CHECKING:
-    from pytest_ddenv.world import World
+    from pytest_ddenv.world.model import World
 
 PARTS = {"world": "the world", "settings": "the reduction settings", "test": "the test function's source"}
 """The parts of a problem besides the code, and how a note names them."""
@@ -86,7 +86,7 @@ def world_files(world: World) -> list[Path]:
     """The files a world's simulation reads besides the world file itself: its meshes and heightmap images
     and its robot's URDF (given in the world file, or registered with `register_robot` as a description)."""
     from pytest_ddenv.sim.robot import ROBOTS
-    from pytest_ddenv.world import RobotDescription, resolve_mesh_path, resolve_relative
+    from pytest_ddenv.world.model import RobotDescription, resolve_mesh_path, resolve_relative
 
     files = {resolve_mesh_path(shape.mesh, world.source) for model in world.models for shape in model.shapes
              if shape.mesh is not None}

@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Any
 from pytest_ddenv.reduce import Reduction
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle import SameFailureRule
-    from pytest_ddenv.other_failures import OtherFailure, Reproduction
+    from pytest_ddenv.driver.other_failures import OtherFailure, Reproduction
+    from pytest_ddenv.oracle.verdict import SameFailureRule
     from pytest_ddenv.stages import StagesOutcome
 
 SUMMARY_FORMAT = 1
@@ -97,7 +97,7 @@ class ReductionReport:
     run_settings: Mapping[str, Any] = field(default_factory=dict)
     """The caller's own entries of `summary.json` (predicates, scenario_seed, timeout, command, imports ...)."""
     other_failures: tuple[OtherFailure, ...] = ()
-    """The other failures the reduction's probes met, grouped, largest first (`pytest_ddenv.other_failures`)."""
+    """The other failures the reduction's probes met, grouped, largest first (`pytest_ddenv.driver.other_failures`)."""
     same_failure: SameFailureRule | None = None
     """The rule that decided which failures are the reference failure (None: the default rule, `tolerance`)."""
     reproduction: Reproduction | None = None
@@ -106,7 +106,7 @@ class ReductionReport:
 
     @property
     def rule(self) -> SameFailureRule:
-        from pytest_ddenv.oracle import SameFailureRule
+        from pytest_ddenv.oracle.verdict import SameFailureRule
 
         return self.same_failure if self.same_failure is not None else SameFailureRule(tolerance=self.tolerance)
 

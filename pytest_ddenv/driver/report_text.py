@@ -5,8 +5,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+from pytest_ddenv.driver.report import ReductionReport
 from pytest_ddenv.reduce.types import Reduction
-from pytest_ddenv.reduction_report import ReductionReport
 
 
 def status_of(reduction: Reduction) -> str:
@@ -53,7 +53,7 @@ def reproduction_lines(report: ReductionReport) -> list[str]:
 
 def same_failure_lines(report: ReductionReport) -> list[str]:
     """The rule that said which failures are the reference failure, as it applies to the reference."""
-    from pytest_ddenv.oracle import FailureSignature
+    from pytest_ddenv.oracle.predicates import FailureSignature
 
     reference = report.reference_failure
     signature = reference.get("signature")
@@ -69,7 +69,7 @@ OTHER_FAILURES_SHOWN = 5
 
 
 def other_failure_lines(report: ReductionReport, limit: int = OTHER_FAILURES_SHOWN) -> list[str]:
-    """One line per other failure the probes met (`pytest_ddenv.other_failures`), the largest groups first."""
+    """One line per other failure the probes met (`pytest_ddenv.driver.other_failures`), the largest groups first."""
     lines = []
     for failure in report.other_failures[:limit]:
         seen = f"seen in {failure.probes} probe{'s' if failure.probes != 1 else ''}"

@@ -20,26 +20,16 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from pytest_ddenv import artifacts
-from pytest_ddenv.code_identity import CodeIdentity
+from pytest_ddenv.driver import artifacts
+from pytest_ddenv.driver.code_identity import CodeIdentity
+from pytest_ddenv.driver.markers import ReductionSpec
+from pytest_ddenv.driver.other_failures import original_reproduction, other_failures
+from pytest_ddenv.driver.problem import Problem, problem_of
+from pytest_ddenv.driver.report import Cost, ReductionReport
 from pytest_ddenv.execution import Pool, ProbeDeadline, WorkerError, WorkerStartError
-from pytest_ddenv.markers import ReductionSpec
-from pytest_ddenv.media import DEFAULT_MEDIA, PendingMedia, Shown
-from pytest_ddenv.oracle import SameFailureRule
-from pytest_ddenv.other_failures import original_reproduction, other_failures
-from pytest_ddenv.predicates import FailureSignature
-from pytest_ddenv.probe import (
-    ErrorInfo,
-    FailureReference,
-    ProbeResult,
-    check_rule,
-    classify_result,
-    keeps_start_support,
-    make_probe,
-    signature_record,
-    trace_of,
-)
-from pytest_ddenv.problem import Problem, problem_of
+from pytest_ddenv.media.writer import DEFAULT_MEDIA, PendingMedia, Shown
+from pytest_ddenv.oracle.predicates import FailureSignature
+from pytest_ddenv.oracle.verdict import SameFailureRule
 from pytest_ddenv.reduce import (
     Observation as ProbeObservation,
 )
@@ -55,7 +45,17 @@ from pytest_ddenv.reduce import (
 from pytest_ddenv.reduce.deflake import make_policy
 from pytest_ddenv.reduce.engine import INDEPENDENCE
 from pytest_ddenv.reduce.types import Probe
-from pytest_ddenv.reduction_report import Cost, ReductionReport
+from pytest_ddenv.scenario.probe import (
+    ErrorInfo,
+    FailureReference,
+    ProbeResult,
+    check_rule,
+    classify_result,
+    keeps_start_support,
+    make_probe,
+    signature_record,
+    trace_of,
+)
 from pytest_ddenv.stages import (
     DEFAULT_STAGES,
     Budget,
@@ -68,7 +68,7 @@ from pytest_ddenv.stages import (
 
 if TYPE_CHECKING:
     from pytest_ddenv.sim import Run
-    from pytest_ddenv.world import World
+    from pytest_ddenv.world.model import World
 
 TRAJECTORY_PARTITIONS = ("timeseg", "trajectoryseg")
 TRAJECTORY_PRIORITIES = ("failure-proximal", "avg-trajectory-proximal", "min-trajectory-proximal", "timestep")
@@ -702,12 +702,12 @@ def _pictures(world: World, reduction: Reduction, paths: artifacts.ArtifactPaths
     """reduction.png and progress.png (the original and the minimal world's failing trajectories), and the
     stages' simplified.png and passing.png."""
     try:
-        from pytest_ddenv import render
+        from pytest_ddenv.driver import pictures
 
-        written = list(render.write_reduction_pictures(world, reduction, paths, original_run=original_run,
-                                                       minimal_run=minimal_run))
+        written = list(pictures.write_reduction_pictures(world, reduction, paths, original_run=original_run,
+                                                         minimal_run=minimal_run))
         if staged is not None:
-            written += render.write_stage_pictures(staged, paths)
+            written += pictures.write_stage_pictures(staged, paths)
         return written
     except Exception as error:  # noqa: BLE001 - pictures are a convenience; never lose the reduction over one
         warnings.warn(f"ddenv: pictures not written: {type(error).__name__}: {error}", stacklevel=1)

@@ -12,7 +12,7 @@ from pytest_ddenv.validation import expected, is_finite_number
 
 if TYPE_CHECKING:
     from pytest_ddenv.execution.request import Job
-    from pytest_ddenv.world import World
+    from pytest_ddenv.world.model import World
 
 DEFAULT_WATCHDOG_FLOOR = 60.0
 """Seconds: the automatic watchdog never fires earlier than this."""

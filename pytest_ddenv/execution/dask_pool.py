@@ -45,7 +45,7 @@ from pytest_ddenv.execution.request import (
     fault_for,
     parse_faults,
 )
-from pytest_ddenv.world import World
+from pytest_ddenv.world.model import World
 
 ADDRESS_SCHEMES = ("tcp://", "tls://")
 CONNECT_TIMEOUT = 30.0

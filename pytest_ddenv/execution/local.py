@@ -58,7 +58,7 @@ from pytest_ddenv.execution.worker import worker_main
 from pytest_ddenv.validation import expected, is_integer
 
 if TYPE_CHECKING:
-    from pytest_ddenv.world import World
+    from pytest_ddenv.world.model import World
 
 STARTUP_TIMEOUT = 120.0
 """Seconds a new worker may take to start its job (import pybullet, the test module and what it imports)."""

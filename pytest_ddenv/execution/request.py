@@ -17,7 +17,7 @@ from pytest_ddenv.execution.errors import PoolConfigError
 from pytest_ddenv.validation import expected, is_integer
 
 if TYPE_CHECKING:
-    from pytest_ddenv.world import World
+    from pytest_ddenv.world.model import World
 
 FaultKind = Literal["crash", "kill", "exit", "hang", "error"]
 FAULT_KINDS: tuple[FaultKind, ...] = ("crash", "kill", "exit", "hang", "error")

@@ -19,13 +19,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pytest_ddenv.media import GROUND_RGBA, ROBOT_RGBA, model_rgba
-from pytest_ddenv.reported import REPORTED
+from pytest_ddenv.media.writer import GROUND_RGBA, ROBOT_RGBA, model_rgba
+from pytest_ddenv.scenario.reported import REPORTED
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.robot import make_robot
 from pytest_ddenv.sim.run import Run
-from pytest_ddenv.world import World
+from pytest_ddenv.world.model import World
 
 Frame = NDArray[np.uint8]
 

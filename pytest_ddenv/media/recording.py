@@ -36,9 +36,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pytest_ddenv import geometry
-from pytest_ddenv.media import GROUND_RGBA, ROBOT_RGBA, model_rgba
-from pytest_ddenv.world import (
+from pytest_ddenv.media.writer import GROUND_RGBA, ROBOT_RGBA, model_rgba
+from pytest_ddenv.world import geometry
+from pytest_ddenv.world.model import (
     Model,
     Pose,
     Shape,
@@ -406,7 +406,7 @@ def _log_events(writer: _Writer, root: str, world: World, run: Run) -> None:
 # -- numbers ----------------------------------------------------------------------------------------------
 def quaternions(rpy: FloatArray) -> FloatArray:
     """(N, 4) x y z w quaternions of (N, 3) fixed-axis roll, pitch, yaw (rotation Rz @ Ry @ Rx, as
-    `pytest_ddenv.geometry.rotation_matrix` and pybullet's getQuaternionFromEuler)."""
+    `pytest_ddenv.world.geometry.rotation_matrix` and pybullet's getQuaternionFromEuler)."""
     half = np.asarray(rpy, dtype=np.float64).reshape(-1, 3) / 2.0
     cr, cp, cy = np.cos(half).T
     sr, sp, sy = np.sin(half).T

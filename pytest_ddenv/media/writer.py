@@ -20,10 +20,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.sim.run import Run
-from pytest_ddenv.world import Model, World
+from pytest_ddenv.world.model import Model, World
 
 if TYPE_CHECKING:
-    from pytest_ddenv.animate import AnimationInfo
+    from pytest_ddenv.media.animate import AnimationInfo
 
 PALETTE = ((0.55, 0.42, 0.30), (0.36, 0.50, 0.63), (0.52, 0.60, 0.36), (0.66, 0.46, 0.52), (0.45, 0.45, 0.58),
             (0.70, 0.58, 0.34), (0.40, 0.58, 0.55))
@@ -140,7 +140,7 @@ def _render_elsewhere(directory: Path, item: Shown, failure_text: str
 
 def render_animation(directory: Path, item: Shown, failure_text: str) -> AnimationInfo:
     """`<label>.gif` of `item` (raises what the renderer raises). Runs in a helper process too."""
-    from pytest_ddenv.animate import write_animation
+    from pytest_ddenv.media.animate import write_animation
 
     assert item.run is not None
     return write_animation(directory / f"{item.label}.gif", item.world, item.run,
@@ -157,7 +157,7 @@ def _animation(directory: Path, item: Shown, failure_text: str) -> AnimationInfo
 
 
 def _write_recording(path: Path, runs: Sequence[tuple[str, World, Run]], written: MediaWritten) -> None:
-    from pytest_ddenv.recording import recording_available, write_recording
+    from pytest_ddenv.media.recording import recording_available, write_recording
 
     if not recording_available():  # the optional `viewer` extra is not installed
         return

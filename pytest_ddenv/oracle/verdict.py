@@ -1,7 +1,7 @@
 """The oracle: whether a run's failure is the failure being reduced (`classify`, `same_failure`).
 
 A run ends in the reference failure f (FAIL), another failure (OTHER), no failure (PASS) or an error
-(ERROR). The predicates that produce failure signatures live in `pytest_ddenv.predicates` (the simulation
+(ERROR). The predicates that produce failure signatures live in `pytest_ddenv.oracle.predicates` (the simulation
 uses them); their names are re-exported here, where they were first defined. The meaning of "same
 failure" is documented in docs/oracle.md.
 
@@ -26,8 +26,7 @@ import numpy as np
 
 from pytest_ddenv import defaults
 from pytest_ddenv.errors import DdenvError, shown
-from pytest_ddenv.outcome import Outcome
-from pytest_ddenv.predicates import (
+from pytest_ddenv.oracle.predicates import (
     BUILT_IN,
     GROUND,
     PREDICATES,
@@ -52,6 +51,7 @@ from pytest_ddenv.predicates import (
     register_predicate,
     signature,
 )
+from pytest_ddenv.outcome import Outcome
 from pytest_ddenv.validation import expected, is_finite_number
 
 if TYPE_CHECKING:  # pragma: no cover

@@ -25,8 +25,8 @@ from typing import Any
 import pytest
 
 from pytest_ddenv.errors import DdenvError
-from pytest_ddenv.robot_world import FIXTURE, RobotWorld
-from pytest_ddenv.world import World
+from pytest_ddenv.scenario.robot_world import FIXTURE, RobotWorld
+from pytest_ddenv.world.model import World
 
 _BLOB = re.compile(r"@reproduce_failure\([^)]*\)")
 

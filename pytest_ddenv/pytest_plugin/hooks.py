@@ -22,20 +22,18 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
+from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.errors import DdenvError, shown
-from pytest_ddenv.markers import (
-    ReductionSpec,
-)
-from pytest_ddenv.pytest_options import DdenvOptions, add_options, read_options
-from pytest_ddenv.pytest_progress import PytestProgress, close_log, open_log
-from pytest_ddenv.robot_world import FIXTURE
-from pytest_ddenv.world import is_file
+from pytest_ddenv.pytest_plugin.options import DdenvOptions, add_options, read_options
+from pytest_ddenv.pytest_plugin.progress import PytestProgress, close_log, open_log
+from pytest_ddenv.scenario.robot_world import FIXTURE
+from pytest_ddenv.world.model import is_file
 
 if TYPE_CHECKING:
-    from pytest_ddenv.given_example import GivenExample
-    from pytest_ddenv.predicates import PredicateSpec
-    from pytest_ddenv.robot_world import RobotWorld
-    from pytest_ddenv.world import World
+    from pytest_ddenv.oracle.predicates import PredicateSpec
+    from pytest_ddenv.pytest_plugin.given_example import GivenExample
+    from pytest_ddenv.scenario.robot_world import RobotWorld
+    from pytest_ddenv.world.model import World
 
 REPORT_KEY = "ddenv"
 SECTION = "ddenv reduction"
@@ -79,10 +77,10 @@ def pytest_configure(config: pytest.Config) -> None:
     options = config.stash[_options_key] = read_options(config)
     if options.reduce:
         open_log(config)
-    from pytest_ddenv.pytest_worker import WORKER
+    from pytest_ddenv.pytest_plugin.worker import WORKER
 
     if options.world and not config.stash.get(WORKER, False):  # a @given test runs once on that world (replay)
-        from pytest_ddenv.given_example import GivenReplay
+        from pytest_ddenv.pytest_plugin.given_example import GivenReplay
 
         config.pluginmanager.register(GivenReplay(options.world), "ddenv-given-replay")
 
@@ -107,7 +105,7 @@ def pytest_report_header(config: pytest.Config) -> str | None:
 def pytest_pycollect_makeitem(collector: pytest.Module | pytest.Class, name: str, obj: object) -> list[Any] | None:
     """A predicate class or function given alone to `robot_failure(...)` was marked instead of the test (and
     the test lost): remember the usage error, raised once collection is over."""
-    from pytest_ddenv.markers import marked_predicate
+    from pytest_ddenv.driver.markers import marked_predicate
 
     holder = marked_predicate(obj)
     if holder is None or (inspect.isfunction(obj) and collector.funcnamefilter(name) and obj.__name__ == name):
@@ -134,7 +132,7 @@ def pytest_make_collect_report(collector: pytest.Collector) -> Generator[None, p
 
 def _predicate_called_as_decorator(trace: TracebackType | None) -> tuple[object, int] | None:
     """The predicate marked by mistake that the failed import of a test module ran into, and the module's line."""
-    from pytest_ddenv.markers import marked_predicate
+    from pytest_ddenv.driver.markers import marked_predicate
 
     while trace is not None:
         frame = trace.tb_frame
@@ -151,7 +149,7 @@ def _predicate_called_as_decorator(trace: TracebackType | None) -> tuple[object,
 def _record_misplaced(collector: pytest.Collector, holder: object, test: str | None, line: int | None = None) -> str:
     """The usage error for `holder` given alone to robot_failure(...) in `collector`'s module, naming the test
     (`test`, else the function defined after `line`, else the one the module's source marks with it)."""
-    from pytest_ddenv.markers import defined_after, find_marked_test, misplaced_predicate_message
+    from pytest_ddenv.driver.markers import defined_after, find_marked_test, misplaced_predicate_message
 
     name = str(getattr(holder, "__name__", holder))
     lines = _source_lines(collector.path)
@@ -177,7 +175,7 @@ def _source_lines(path: Path) -> list[str]:
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Validate the markers of every collected robot test now, not in the middle of a run."""
-    from pytest_ddenv.markers import parse_ddenv_marker, parse_failure_markers
+    from pytest_ddenv.driver.markers import parse_ddenv_marker, parse_failure_markers
 
     misplaced = config.stash.get(_misplaced_key, {})
     if misplaced:
@@ -218,8 +216,8 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
     The world comes from `--ddenv-world`, else an indirect parameter (a path or a `World`), else
     `@pytest.mark.ddenv(world=...)`. In a reduction's probe worker it is the candidate world.
     """
-    from pytest_ddenv.pytest_worker import PROBE_BINDING
-    from pytest_ddenv.robot_world import DEFAULT_MAX_WALL_TIME, RobotWorld
+    from pytest_ddenv.pytest_plugin.worker import PROBE_BINDING
+    from pytest_ddenv.scenario.robot_world import DEFAULT_MAX_WALL_TIME, RobotWorld
 
     item = request.node
     spec, predicates = item.stash.get(_spec_key, (ReductionSpec(), ()))
@@ -243,10 +241,10 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
 
 def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates: tuple[PredicateSpec, ...]) -> World:
     """The world a test runs in, checked against its markers (DdenvError naming the file and field)."""
-    from pytest_ddenv.given_example import inner_test
-    from pytest_ddenv.predicates import check_predicate_models
-    from pytest_ddenv.robot_world import NO_WORLD_YET
-    from pytest_ddenv.world import World
+    from pytest_ddenv.oracle.predicates import check_predicate_models
+    from pytest_ddenv.pytest_plugin.given_example import inner_test
+    from pytest_ddenv.scenario.robot_world import NO_WORLD_YET
+    from pytest_ddenv.world.model import World
 
     item = request.node
     options: dict[str, Any] = {"model_paths": list(_options(request.config).model_paths),
@@ -287,12 +285,12 @@ def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates:
 
 class DroppedModelsWarning(UserWarning):
     """A test's world was loaded with `ddenv(skip_unsupported=True)` and models that cannot be simulated were
-    dropped from it (`-W ignore::pytest_ddenv.plugin.DroppedModelsWarning` to silence it)."""
+    dropped from it (`-W ignore::pytest_ddenv.pytest_plugin.hooks.DroppedModelsWarning` to silence it)."""
 
 
 def _warn_dropped(item: pytest.Item, world: World, where: str) -> None:
     """One warning naming each model that skip_unsupported dropped from the test's world (none if none)."""
-    from pytest_ddenv.cli_world import dropped_warning
+    from pytest_ddenv.cli.world_options import dropped_warning
 
     text = dropped_warning(world, where)
     if text is not None:
@@ -304,7 +302,7 @@ def _warn_dropped(item: pytest.Item, world: World, where: str) -> None:
 
 @pytest.hookimpl(wrapper=True)
 def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> Generator[None, object, object]:
-    from pytest_ddenv.pytest_worker import WORKER
+    from pytest_ddenv.pytest_plugin.worker import WORKER
 
     if pyfuncitem.config.stash.get(WORKER, False):
         _bind_probe(pyfuncitem)
@@ -321,7 +319,7 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> Generator[None, object, o
 
 def _recording_given_calls(item: pytest.Function) -> contextlib.AbstractContextManager[list[dict[str, Any]]]:
     """For a `@given` test that may be reduced: record its calls, to find the falsifying example."""
-    from pytest_ddenv.given_example import inner_test, recording_calls
+    from pytest_ddenv.pytest_plugin.given_example import inner_test, recording_calls
 
     if not _options(item.config).reduce or FIXTURE not in item.fixturenames or inner_test(item) is None:
         return contextlib.nullcontext([])
@@ -330,8 +328,8 @@ def _recording_given_calls(item: pytest.Function) -> contextlib.AbstractContextM
 
 def _bind_probe(item: pytest.Function) -> None:
     """In a probe worker: make sure the test gets the candidate world, even from an overridden fixture."""
-    from pytest_ddenv.pytest_worker import PROBE_BINDING
-    from pytest_ddenv.robot_world import RobotWorld
+    from pytest_ddenv.pytest_plugin.worker import PROBE_BINDING
+    from pytest_ddenv.scenario.robot_world import RobotWorld
 
     binding = item.config.stash.get(PROBE_BINDING, None)
     given = item.funcargs.get(FIXTURE)
@@ -351,7 +349,7 @@ def _should_reduce(item: pytest.Function, error: BaseException) -> bool:
         return False
     if isinstance(error, pytest.skip.Exception) or isinstance(error, DdenvError):
         return False  # a broken setup (bad world file, bad scenario) is not a failure to reduce
-    from pytest_ddenv.robot_world import RobotWorld
+    from pytest_ddenv.scenario.robot_world import RobotWorld
 
     return isinstance(item.funcargs.get(FIXTURE), RobotWorld)
 
@@ -359,7 +357,7 @@ def _should_reduce(item: pytest.Function, error: BaseException) -> bool:
 def _given_example(item: pytest.Function, call: dict[str, Any] | None) -> GivenExample | None:
     """The falsifying example of a `@given` test (None for a plain test); DdenvError if it cannot be
     re-run in a probe."""
-    from pytest_ddenv.given_example import GivenExample
+    from pytest_ddenv.pytest_plugin.given_example import GivenExample
 
     if call is None:
         return None
@@ -372,7 +370,7 @@ def _probe_pool(item: pytest.Function, example: GivenExample | None = None) -> A
     """A pool serving this test's probes: worker processes that run the test (or this process, with one
     worker), or the session's dask cluster."""
     from pytest_ddenv.execution import DaskCluster, check_executor, make_pool
-    from pytest_ddenv.pytest_worker import ItemHandler, PytestJob
+    from pytest_ddenv.pytest_plugin.worker import ItemHandler, PytestJob
 
     config = item.config
     default = "1" if hasattr(config, "workerinput") else "auto"  # xdist already uses every core
@@ -402,7 +400,7 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 
 
 def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call: dict[str, Any] | None) -> None:
-    from pytest_ddenv.reduction_session import ReductionSession
+    from pytest_ddenv.pytest_plugin.session import ReductionSession
 
     spec, _ = item.stash.get(_spec_key, (ReductionSpec(), ()))
     options = _options(item.config)

@@ -15,9 +15,9 @@ from typing import Any
 
 import pytest
 
-from pytest_ddenv.artifacts import folder_problem
+from pytest_ddenv.driver.artifacts import folder_problem
+from pytest_ddenv.driver.markers import MarkerError, parse_deflake
 from pytest_ddenv.execution.factory import executor_problem
-from pytest_ddenv.markers import MarkerError, parse_deflake
 from pytest_ddenv.validation import expected
 
 DEFAULT_ARTIFACTS = "ddenv-artifacts"
@@ -133,7 +133,7 @@ def _int_setting(config: pytest.Config, name: str, minimum: int) -> int | None:
 
 def _media_setting(config: pytest.Config) -> str:
     """--ddenv-media, else the ini value, else $DDENV_MEDIA, else all."""
-    from pytest_ddenv.media import MediaChoiceError, media_choice
+    from pytest_ddenv.media.writer import MediaChoiceError, media_choice
 
     value = _setting(config, "ddenv_media")
     try:
@@ -163,7 +163,7 @@ def _seconds_setting(config: pytest.Config, name: str) -> float | None:
 
 
 def _stage_list(config: pytest.Config, value: Any) -> tuple[str, ...] | None:
-    from pytest_ddenv.markers import parse_stage_list
+    from pytest_ddenv.driver.markers import parse_stage_list
 
     if value in (None, ""):
         return None

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import pytest
 
-from pytest_ddenv.progress import Heartbeat, heartbeat_label, label_of
+from pytest_ddenv.driver.progress import Heartbeat, heartbeat_label, label_of
 
 if TYPE_CHECKING:
     from pytest_ddenv.reduce import ProgressEvent

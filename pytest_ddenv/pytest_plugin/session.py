@@ -15,21 +15,21 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from pytest_ddenv import artifacts
-from pytest_ddenv.code_identity import CodeIdentity, collected_elsewhere, identify
-from pytest_ddenv.driver import ReductionOutcome, ReductionPlan, run_reduction
+from pytest_ddenv.driver import artifacts
+from pytest_ddenv.driver.code_identity import CodeIdentity, collected_elsewhere, identify
+from pytest_ddenv.driver.markers import ReductionSpec
+from pytest_ddenv.driver.report_text import result_lines, status_of
+from pytest_ddenv.driver.run import ReductionOutcome, ReductionPlan, run_reduction
 from pytest_ddenv.errors import DdenvError
-from pytest_ddenv.given_example import GivenExample, reproduction
-from pytest_ddenv.markers import ReductionSpec
-from pytest_ddenv.media import DEFAULT_MEDIA
-from pytest_ddenv.probe import FailureReference, describe_error
+from pytest_ddenv.media.writer import DEFAULT_MEDIA
+from pytest_ddenv.pytest_plugin.given_example import GivenExample, reproduction
 from pytest_ddenv.reduce.types import ProgressEvent, Reduction, ReductionInterrupted
-from pytest_ddenv.report_text import result_lines, status_of
-from pytest_ddenv.robot_world import FIXTURE, RobotWorld
+from pytest_ddenv.scenario.probe import FailureReference, describe_error
+from pytest_ddenv.scenario.robot_world import FIXTURE, RobotWorld
 
 if TYPE_CHECKING:
+    from pytest_ddenv.driver.report import ReductionReport
     from pytest_ddenv.execution import Pool
-    from pytest_ddenv.reduction_report import ReductionReport
 
 Progress = Callable[..., None]
 

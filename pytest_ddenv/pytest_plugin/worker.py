@@ -24,10 +24,10 @@ from typing import Any, TextIO
 import pytest
 
 from pytest_ddenv.execution import Channel, serve_requests
-from pytest_ddenv.given_example import GivenExample
-from pytest_ddenv.probe import ProbeResult, describe_error
-from pytest_ddenv.robot_world import FIXTURE, RobotWorld
-from pytest_ddenv.world import World
+from pytest_ddenv.pytest_plugin.given_example import GivenExample
+from pytest_ddenv.scenario.probe import ProbeResult, describe_error
+from pytest_ddenv.scenario.robot_world import FIXTURE, RobotWorld
+from pytest_ddenv.world.model import World
 
 OUTCOME_EXCEPTIONS: tuple[type[BaseException], ...] = (
     Exception, pytest.fail.Exception, pytest.skip.Exception, pytest.xfail.Exception,

@@ -9,20 +9,17 @@ Three pictures, all top-down and to scale in metres (see docs/pictures.md):
   labelled, the original failing trajectory and the minimal world's failing trajectory.
 - `plot_progress`: world size against the number of probes, accepted steps marked (the paper's Fig. 2).
 
-`write_reduction_pictures` writes the last two into an artifacts folder. matplotlib is imported lazily with
-the Agg backend, so importing this package is cheap and no display is ever needed.
+`pytest_ddenv.driver.pictures.write_reduction_pictures` writes the last two into an artifacts folder.
+matplotlib is imported lazily with the Agg backend, so importing this package is cheap and no display is ever
+needed.
 
 The modules, one job each: `canvas` (sizes, colours, figures saved as PNG), `footprints` (what each model
 looks like from above), `drawing` (the parts of a top-down picture), `labels` (model names placed without
-overlap), `world_picture` (`plot_world`, `plot_reduction`), `progress_chart` (`plot_progress`),
-`artifact_data` (what the pictures read from an artifacts folder) and `artifact_pictures` (the pictures
-written into it).
+overlap), `world_picture` (`plot_world`, `plot_reduction`), `progress_chart` (`plot_progress`).
 """
 
 from __future__ import annotations
 
-from pytest_ddenv.render.artifact_data import probe_sizes_from_log, steps_from_log
-from pytest_ddenv.render.artifact_pictures import write_reduction_pictures, write_stage_pictures
 from pytest_ddenv.render.canvas import DPI, PROGRESS_SIZE, WORLD_SIZE
 from pytest_ddenv.render.drawing import ROBOT_FOOTPRINT, robot_outline
 from pytest_ddenv.render.footprints import (
@@ -65,9 +62,5 @@ __all__ = [
     "plot_progress",
     "plot_reduction",
     "plot_world",
-    "probe_sizes_from_log",
     "robot_outline",
-    "steps_from_log",
-    "write_reduction_pictures",
-    "write_stage_pictures",
 ]

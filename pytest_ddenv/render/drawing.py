@@ -10,7 +10,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pytest_ddenv.geometry import FloatArray
 from pytest_ddenv.render.canvas import DYNAMIC_EDGE, EDGE, FILL, HIGHLIGHT, OUTCOME_COLORS, PRECONDITION, wrap
 from pytest_ddenv.render.footprints import (
     HIGH_FRICTION,
@@ -23,7 +22,8 @@ from pytest_ddenv.render.footprints import (
     frictions_shown,
     polygon_area,
 )
-from pytest_ddenv.world import Model, World
+from pytest_ddenv.world.geometry import FloatArray
+from pytest_ddenv.world.model import Model, World
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes

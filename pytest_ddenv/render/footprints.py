@@ -11,16 +11,9 @@ from typing import Literal
 
 import numpy as np
 
-from pytest_ddenv import geometry
-from pytest_ddenv.geometry import FloatArray
-from pytest_ddenv.world import (
-    Model,
-    Shape,
-    World,
-    load_heightmap,
-    load_mesh,
-    resolve_mesh_path,
-)
+from pytest_ddenv.world import geometry
+from pytest_ddenv.world.geometry import FloatArray
+from pytest_ddenv.world.model import Model, Shape, World, load_heightmap, load_mesh, resolve_mesh_path
 
 HIGH_FRICTION = 5.0
 LOW_FRICTION = 0.5

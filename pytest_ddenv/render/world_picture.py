@@ -9,7 +9,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pytest_ddenv.geometry import FloatArray
 from pytest_ddenv.render.canvas import OUTCOME_COLORS, RUN_COLORS, WORLD_SIZE, models_text, new_figure, save
 from pytest_ddenv.render.drawing import (
     ROBOT_FOOTPRINT,
@@ -24,7 +23,8 @@ from pytest_ddenv.render.drawing import (
 )
 from pytest_ddenv.render.footprints import footprints
 from pytest_ddenv.render.labels import label_models
-from pytest_ddenv.world import World
+from pytest_ddenv.world.geometry import FloatArray
+from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure

@@ -68,7 +68,7 @@ except ImportError as _missing:  # pragma: no cover - exercised without the extr
     raise ImportError("robot_world.make_env() needs gymnasium: pip install 'pytest-ddenv[gym]'") from _missing
 
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.predicates import Predicate
+from pytest_ddenv.oracle.predicates import Predicate
 from pytest_ddenv.sim import shared_simulator
 from pytest_ddenv.sim.control import AnyCommand, Command, ControllerError, ControllerTimeout, Observation, WheelCommand
 from pytest_ddenv.sim.engine import wall_limit
@@ -79,7 +79,7 @@ from pytest_ddenv.sim.settings import RunSettings
 from pytest_ddenv.validation import expected
 
 if TYPE_CHECKING:
-    from pytest_ddenv.robot_world import RobotWorld
+    from pytest_ddenv.scenario.robot_world import RobotWorld
 
 __all__ = ["FAILURE_PENALTY", "GOAL_BONUS", "RobotEnv"]
 
@@ -236,7 +236,7 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
         world = self.robot_world
         if seed is None:
             return world.run_seed
-        from pytest_ddenv.robot_world import ATTEMPT_SEED_STRIDE
+        from pytest_ddenv.scenario.robot_world import ATTEMPT_SEED_STRIDE
 
         return int(seed) + world.attempt * ATTEMPT_SEED_STRIDE
 

@@ -21,12 +21,12 @@ from pytest_ddenv import defaults
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.reduce import Observation as ProbeObservation
 from pytest_ddenv.reduce import Outcome, Trace
-from pytest_ddenv.robot_world import RobotFailure
-from pytest_ddenv.world import World
+from pytest_ddenv.scenario.robot_world import RobotFailure
+from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle import OtherReason, SameFailureRule
-    from pytest_ddenv.predicates import FailureSignature
+    from pytest_ddenv.oracle.predicates import FailureSignature
+    from pytest_ddenv.oracle.verdict import OtherReason, SameFailureRule
     from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
     from pytest_ddenv.sim import Run
 
@@ -133,7 +133,7 @@ class FailureReference:
 def classify_result(error: ErrorInfo | None, reference: FailureReference, rule: SameFailureRule | float) -> Outcome:
     """Compare what a probe raised with the original failure: a predicate failure by `rule` (a
     `SameFailureRule`, or the default rule with this tolerance), an exception by its type and line."""
-    from pytest_ddenv.oracle import as_rule
+    from pytest_ddenv.oracle.verdict import as_rule
 
     if error is None:
         return Outcome.PASS
@@ -151,7 +151,7 @@ def classify_result(error: ErrorInfo | None, reference: FailureReference, rule: 
 def check_rule(reference: FailureReference, rule: SameFailureRule) -> None:
     """`SameFailureError` unless `rule` says the reference failure is the same as itself (a user's function that
     cannot be called, raises, or says no), before any simulation."""
-    from pytest_ddenv.oracle import SameFailureError
+    from pytest_ddenv.oracle.verdict import SameFailureError
 
     if reference.signature is not None and not rule.same(reference.signature, reference.signature):
         raise SameFailureError(f"the same-failure rule ({rule.describe(reference.signature)}) says the failure "
@@ -163,7 +163,8 @@ def why_not_reproduced(found: Mapping[str, Any] | None, reference: FailureRefere
     """Why a probe whose failure the run log records as `found` (`signature_record`: a predicate's signature,
     {"exception", "location"}, or None when the test passed) is not the reference failure; None when it is,
     or when `found` cannot be read."""
-    from pytest_ddenv.oracle import FailureSignature, OtherReason, why_other
+    from pytest_ddenv.oracle.predicates import FailureSignature
+    from pytest_ddenv.oracle.verdict import OtherReason, why_other
 
     expected = reference.describe()
     if found is None:

@@ -8,11 +8,11 @@ from typing import Any
 import numpy as np
 
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.predicates import FailureSignature
+from pytest_ddenv.oracle.predicates import FailureSignature
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
 from pytest_ddenv.validation import expected
-from pytest_ddenv.world import World
+from pytest_ddenv.world.model import World
 
 REPORTED = "reported"
 """The predicate name of a failure a test reported with `robot_world.report(..., failure_pose=...)`."""

@@ -14,11 +14,11 @@ import numpy as np
 
 from pytest_ddenv.errors import DdenvError, ScenarioError, WorldError, shown
 from pytest_ddenv.validation import expected, is_flag, is_integral, is_real
-from pytest_ddenv.world import World
+from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:
-    from pytest_ddenv.gym_env import RobotEnv
-    from pytest_ddenv.predicates import FailureSignature, Predicate, PredicateSpec
+    from pytest_ddenv.oracle.predicates import FailureSignature, Predicate, PredicateSpec
+    from pytest_ddenv.scenario.gym_env import RobotEnv
     from pytest_ddenv.sim import ControllerLike, Run, RunSettings
 
 FIXTURE = "robot_world"
@@ -55,7 +55,7 @@ def failure_predicates(values: Sequence[PredicateSpec | str | Predicate] | str |
     """`PredicateSpec`s from what `RobotWorld(predicates=...)` is given: specs, registered names (with their
     default parameters, built as the `robot_failure` marker builds them), predicate objects or functions of
     the state. `ScenarioError` naming the entry otherwise."""
-    from pytest_ddenv.predicates import PredicateSpec, predicate_spec
+    from pytest_ddenv.oracle.predicates import PredicateSpec, predicate_spec
 
     if values is None:
         return ()
@@ -79,7 +79,7 @@ def failure_predicates(values: Sequence[PredicateSpec | str | Predicate] | str |
 def checked_world(world: World, where: str) -> World:
     """`world`, if it is a `World` whose values the simulator takes (`world_values.check_world_values`);
     a `WorldError` saying so at `where` otherwise (a path is no world: `World.load(path)` reads one)."""
-    from pytest_ddenv.world_values import check_world_values
+    from pytest_ddenv.world.values import check_world_values
 
     if not isinstance(world, World):
         hint = f"; read a world file with World.load({shown(str(world))})" if isinstance(world, (str, PathLike)) else ""
@@ -210,9 +210,9 @@ class RobotWorld:
             raise RobotFailure(run.failure, run)
 
     def make_env(self, **options: Any) -> RobotEnv:
-        """The scenario as a `gymnasium.Env` (needs the `gym` extra): see `pytest_ddenv.gym_env.RobotEnv`
+        """The scenario as a `gymnasium.Env` (needs the `gym` extra): see `pytest_ddenv.scenario.gym_env.RobotEnv`
         for the observation and action spaces and `options`. Each finished episode is added to `runs`."""
-        from pytest_ddenv.gym_env import RobotEnv
+        from pytest_ddenv.scenario.gym_env import RobotEnv
 
         return RobotEnv(self, **options)
 
@@ -238,7 +238,7 @@ class RobotWorld:
         `touched`: the models the robot touched (names, or name -> first time); `sensed`: name -> first time
         its sensors saw it (for the "timestep" priority).
         """
-        from pytest_ddenv.reported import reported_run
+        from pytest_ddenv.scenario.reported import reported_run
 
         run = reported_run(
             self.world, times, poses, seed=self.run_seed, failure_pose=failure_pose, failure_time=failure_time,

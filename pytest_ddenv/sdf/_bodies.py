@@ -20,7 +20,7 @@ from pytest_ddenv.sdf._notes import Notes
 from pytest_ddenv.sdf._shapes import GeometryReader, plane_box
 from pytest_ddenv.sdf._tree import LinkSpec, ModelNode
 from pytest_ddenv.sdf._values import Values
-from pytest_ddenv.world import Ground, Model, Pose, Shape, TagValue
+from pytest_ddenv.world.model import Ground, Model, Pose, Shape, TagValue
 
 GAZEBO_DEFAULT_MASS = 1.0  # Gazebo gives a link without <inertial> a mass of 1 kg
 MAX_COLLISIONS = 50_000

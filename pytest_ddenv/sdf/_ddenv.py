@@ -9,7 +9,7 @@ from pytest_ddenv.errors import ScenarioError, WorldError, shown
 from pytest_ddenv.sdf._values import Values
 from pytest_ddenv.sdf._xml import DDENV_NS as DDENV_NS  # re-exported: its home before _xml needed it
 from pytest_ddenv.sdf._xml import local_name
-from pytest_ddenv.world import (
+from pytest_ddenv.world.model import (
     DRIVE_KINDS,
     LaserMount,
     Physics,

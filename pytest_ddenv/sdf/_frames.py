@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pytest_ddenv.errors import shown
 from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._values import Values
-from pytest_ddenv.world import Pose
+from pytest_ddenv.world.model import Pose
 
 MAX_CHAIN = 100
 """Longest chain of frames, each relative to the next, that is resolved (longer: an error, not a RecursionError)."""

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from pytest_ddenv import geometry
-from pytest_ddenv.geometry import FloatArray
-from pytest_ddenv.world import Pose
+from pytest_ddenv.world import geometry
+from pytest_ddenv.world.geometry import FloatArray
+from pytest_ddenv.world.model import Pose
 
 IDENTITY = Pose()
 

@@ -21,7 +21,7 @@ from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._collada import collada_unit
 from pytest_ddenv.sdf._paths import UnresolvedURI, resolve_uri
 from pytest_ddenv.sdf._values import Values
-from pytest_ddenv.world import Pose, Shape, check_mesh_file, check_shape, is_file
+from pytest_ddenv.world.model import Pose, Shape, check_mesh_file, check_shape, is_file
 
 MESH_SUFFIXES = (".stl", ".obj", ".dae")
 HEIGHTMAP_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")

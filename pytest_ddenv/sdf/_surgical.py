@@ -35,7 +35,7 @@ from pytest_ddenv.sdf._surgical_text import (
 from pytest_ddenv.sdf._values import UnsupportedSdfError, Values
 from pytest_ddenv.sdf._writer import _scenario as write_scenario_element
 from pytest_ddenv.sdf._xml import Lines, parse_xml, read_limited
-from pytest_ddenv.world import Scenario
+from pytest_ddenv.world.model import Scenario
 
 __all__ = ["KEEP", "Cut", "SurgeryError", "cut_file", "cut_models"]
 

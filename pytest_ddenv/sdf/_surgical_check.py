@@ -9,7 +9,7 @@ from pytest_ddenv.errors import WorldError
 from pytest_ddenv.sdf._reader import parse_sdf
 from pytest_ddenv.sdf._surgical import cut_file
 from pytest_ddenv.sdf._surgical_text import SurgeryError
-from pytest_ddenv.world import World
+from pytest_ddenv.world.model import World
 
 COMPARED = ("scenario", "physics", "ground", "name")
 """What the reduction used besides the models, compared between the cut file and the minimal world."""

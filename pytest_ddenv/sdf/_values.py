@@ -9,7 +9,7 @@ from collections.abc import Sequence
 from pytest_ddenv.errors import WorldError, shown
 from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._xml import Lines
-from pytest_ddenv.world import Pose
+from pytest_ddenv.world.model import Pose
 
 SKIP_HINT = (
     "to load the world without the models that hold it, pass --skip-unsupported (ddenv) or "

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 from pytest_ddenv.sdf._reader import DDENV_NS, collada_unit
 from pytest_ddenv.validation import is_flag
-from pytest_ddenv.world import (
+from pytest_ddenv.world.model import (
     Ground,
     LaserMount,
     Model,

@@ -17,7 +17,7 @@ import defusedxml
 from defusedxml.ElementTree import DefusedXMLParser
 
 from pytest_ddenv.errors import WorldError, shown
-from pytest_ddenv.world import read_bounded
+from pytest_ddenv.world.model import read_bounded
 
 MAX_FILE_BYTES = 32 * 1024 * 1024
 """Largest SDF (or Collada) file read; larger files are refused before parsing."""

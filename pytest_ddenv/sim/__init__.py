@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from pytest_ddenv.predicates import Predicate
+from pytest_ddenv.oracle.predicates import Predicate
 from pytest_ddenv.sim.control import (
     Command,
     Controller,
@@ -26,7 +26,7 @@ from pytest_ddenv.sim.robot import ROBOTS, Husky, Robot, WheeledRobot, register_
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import NoiseSettings, RunSettings
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
-from pytest_ddenv.world import World
+from pytest_ddenv.world.model import World
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""

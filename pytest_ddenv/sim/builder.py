@@ -11,7 +11,8 @@ import numpy as np
 
 from pytest_ddenv.errors import WorldError
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
-from pytest_ddenv.world import (
+from pytest_ddenv.world.files import regular_file_problem
+from pytest_ddenv.world.model import (
     Model,
     Pose,
     Shape,
@@ -23,7 +24,6 @@ from pytest_ddenv.world import (
     polyline_polygon,
     resolve_mesh_path,
 )
-from pytest_ddenv.world_files import regular_file_problem
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""

@@ -24,7 +24,7 @@ __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
 
 if TYPE_CHECKING:
-    from pytest_ddenv.predicates import Contact
+    from pytest_ddenv.oracle.predicates import Contact
 
 FloatArray = NDArray[np.float64]
 

@@ -9,7 +9,7 @@ import numpy as np
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.laser import Laser
 from pytest_ddenv.sim.run import RunDetail
-from pytest_ddenv.world import World
+from pytest_ddenv.world.model import World
 
 ContactPoint = tuple[str, float, float, float, float]
 

@@ -9,7 +9,7 @@ from typing import Any, Self
 
 from pytest_ddenv.alarm import Alarm
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.predicates import GROUND, Predicate
+from pytest_ddenv.oracle.predicates import GROUND, Predicate
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.control import (
     AnyCommand,
@@ -27,7 +27,7 @@ from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.validation import expected, is_finite_number, is_integral, is_number
-from pytest_ddenv.world import RobotDescription, Scenario, World
+from pytest_ddenv.world.model import RobotDescription, Scenario, World
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
@@ -183,7 +183,7 @@ class Simulator:
         `max_wall_time` wall-clock seconds raises `ControllerTimeout`.
         """
         if controller is None:
-            from pytest_ddenv.controllers import default_controller
+            from pytest_ddenv.sim.controllers import default_controller
 
             controller = default_controller(settings)
         check_controller(controller)

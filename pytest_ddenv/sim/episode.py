@@ -18,7 +18,7 @@ import numpy as np
 
 from pytest_ddenv.detail import detail_requested
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.predicates import GROUND, Contact, FailureSignature, History, Predicate, RobotState
+from pytest_ddenv.oracle.predicates import GROUND, Contact, FailureSignature, History, Predicate, RobotState
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.control import AnyCommand, Command, LaserScan, Observation, wrap_angle
 from pytest_ddenv.sim.detail_recorder import DetailRecorder
@@ -27,7 +27,7 @@ from pytest_ddenv.sim.robot import Robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
-from pytest_ddenv.world import Scenario, World
+from pytest_ddenv.world.model import Scenario, World
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""

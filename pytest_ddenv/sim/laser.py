@@ -10,7 +10,7 @@ import numpy as np
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.control import FloatArray, LaserScan
 from pytest_ddenv.sim.settings import RunSettings
-from pytest_ddenv.world import LaserMount
+from pytest_ddenv.world.model import LaserMount
 
 
 class Laser:

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pytest_ddenv.predicates import FailureSignature
+from pytest_ddenv.oracle.predicates import FailureSignature
 from pytest_ddenv.sim.settings import RunSettings
 
 FloatArray = NDArray[np.float64]

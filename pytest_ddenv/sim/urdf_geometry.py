@@ -16,8 +16,8 @@ from typing import Any
 from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
-from pytest_ddenv.world import LaserMount
-from pytest_ddenv.world_files import regular_file_problem
+from pytest_ddenv.world.files import regular_file_problem
+from pytest_ddenv.world.model import LaserMount
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""

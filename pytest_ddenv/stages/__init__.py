@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from pytest_ddenv.probe import start_support
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedReruns
+from pytest_ddenv.scenario.probe import start_support
 from pytest_ddenv.stages import attributes, explain, minimality, passing, runs_kept, shapes, shorten, structure
 from pytest_ddenv.stages.context import FRESH_ATTEMPTS, Budget, StageContext
 from pytest_ddenv.stages.result import StageResult
@@ -25,7 +25,7 @@ from pytest_ddenv.stages.result import StageResult
 if TYPE_CHECKING:
     from pytest_ddenv.reduce import Reduction
     from pytest_ddenv.sim import Run
-    from pytest_ddenv.world import World
+    from pytest_ddenv.world.model import World
 
 STAGES: tuple[str, ...] = ("models", "shapes", "attributes", "time", "explain", "passing")
 DEFAULT_STAGES: tuple[str, ...] = ("models", "explain", "passing")

@@ -27,12 +27,12 @@ from typing import Any
 
 import numpy as np
 
-from pytest_ddenv.probe import start_support
 from pytest_ddenv.reduce.types import Candidate
+from pytest_ddenv.scenario.probe import start_support
 from pytest_ddenv.stages.context import RATE_RUNS, StageContext
 from pytest_ddenv.stages.result import StageResult
 from pytest_ddenv.stages.structure import keeps_structure, nearest_gaps
-from pytest_ddenv.world import Model, Pose, Shape, World, load_mesh, resolve_mesh_path
+from pytest_ddenv.world.model import Model, Pose, Shape, World, load_mesh, resolve_mesh_path
 
 STAGE = "attributes"
 PASSES = 3

@@ -16,7 +16,10 @@ from typing import TYPE_CHECKING
 
 from pytest_ddenv.execution import ProbeDeadline
 from pytest_ddenv.outcome import Outcome
-from pytest_ddenv.probe import (
+from pytest_ddenv.reduce import Observation, ProbeLog, Reduction, reduce
+from pytest_ddenv.reduce.deflake import ConfirmedRuns, DeflakePolicy
+from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
+from pytest_ddenv.scenario.probe import (
     FailureReference,
     ProbeCall,
     ProbeResult,
@@ -24,14 +27,11 @@ from pytest_ddenv.probe import (
     make_probe,
     signature_record,
 )
-from pytest_ddenv.reduce import Observation, ProbeLog, Reduction, reduce
-from pytest_ddenv.reduce.deflake import ConfirmedRuns, DeflakePolicy
-from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle import SameFailureRule
+    from pytest_ddenv.oracle.verdict import SameFailureRule
     from pytest_ddenv.sim import Run
-    from pytest_ddenv.world import World
+    from pytest_ddenv.world.model import World
 
 RATE_RUNS = 10
 """Fresh runs (at most) with which a stage reduced by the engine compares its world's failure rate with

@@ -11,7 +11,7 @@ from __future__ import annotations
 import hashlib
 from typing import Any
 
-from pytest_ddenv.probe import start_support
+from pytest_ddenv.scenario.probe import start_support
 from pytest_ddenv.stages.context import StageContext
 from pytest_ddenv.stages.result import StageResult
 

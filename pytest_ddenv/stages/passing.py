@@ -16,11 +16,11 @@ import dataclasses
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from pytest_ddenv.probe import start_support
 from pytest_ddenv.reduce.types import Candidate
+from pytest_ddenv.scenario.probe import start_support
 from pytest_ddenv.stages.context import Decided, StageContext
 from pytest_ddenv.stages.result import StageResult
-from pytest_ddenv.world import World
+from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:
     from pytest_ddenv.sim import Run

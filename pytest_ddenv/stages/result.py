@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from pytest_ddenv.reduce import Reduction
     from pytest_ddenv.sim import Run
-    from pytest_ddenv.world import World
+    from pytest_ddenv.world.model import World
 
 
 @dataclass

@@ -7,12 +7,12 @@ import dataclasses
 from typing import TYPE_CHECKING
 
 from pytest_ddenv.outcome import Outcome
-from pytest_ddenv.probe import ProbeResult
+from pytest_ddenv.scenario.probe import ProbeResult
 from pytest_ddenv.stages.context import FRESH_ATTEMPTS, StageContext
 
 if TYPE_CHECKING:
     from pytest_ddenv.sim import Run
-    from pytest_ddenv.world import World
+    from pytest_ddenv.world.model import World
 
 
 class _Recording:

@@ -6,11 +6,11 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from pytest_ddenv.probe import start_support
 from pytest_ddenv.reduce.types import Candidate
+from pytest_ddenv.scenario.probe import start_support
 from pytest_ddenv.stages.context import RATE_RUNS, StageContext
 from pytest_ddenv.stages.result import StageResult
-from pytest_ddenv.world import Model, World
+from pytest_ddenv.world.model import Model, World
 
 STAGE = "shapes"
 

@@ -19,7 +19,7 @@ from pytest_ddenv.stages import runs_kept
 from pytest_ddenv.stages.attributes import ANGLES, LENGTHS
 from pytest_ddenv.stages.context import StageContext
 from pytest_ddenv.stages.result import StageResult
-from pytest_ddenv.world import Pose, World
+from pytest_ddenv.world.model import Pose, World
 
 if TYPE_CHECKING:
     from pytest_ddenv.sim import Run

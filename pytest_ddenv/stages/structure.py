@@ -25,11 +25,11 @@ from typing import Any
 import numpy as np
 import shapely
 
-from pytest_ddenv.geometry import FloatArray, box_corners, cylinder_extent_points
 from pytest_ddenv.outcome import Outcome
 from pytest_ddenv.reduce import Observation
 from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
-from pytest_ddenv.world import Model, Shape, World, load_mesh, resolve_mesh_path
+from pytest_ddenv.world.geometry import FloatArray, box_corners, cylinder_extent_points
+from pytest_ddenv.world.model import Model, Shape, World, load_mesh, resolve_mesh_path
 
 AREA = 1e-4
 """Square metres two outlines must share (1 cm²) to overlap: models that only touch do not."""

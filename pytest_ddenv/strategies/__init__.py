@@ -61,7 +61,7 @@ from pytest_ddenv.strategies._plans import (
     _WorldPlan,
 )
 from pytest_ddenv.validation import is_real
-from pytest_ddenv.world import Ground, Model, Physics, Pose, RobotDescription, Scenario, World, name_problem
+from pytest_ddenv.world.model import Ground, Model, Physics, Pose, RobotDescription, Scenario, World, name_problem
 
 __all__ = [
     "DEFAULT_REGION",

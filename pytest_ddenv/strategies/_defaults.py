@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal, TypeAlias
 
-from pytest_ddenv.world import Pose, Scenario
+from pytest_ddenv.world.model import Pose, Scenario
 
 Point: TypeAlias = tuple[float, float]
 Region: TypeAlias = tuple[Point, Point]

@@ -23,7 +23,7 @@ from pytest_ddenv.strategies._bodies import (
 from pytest_ddenv.strategies._defaults import MILLI, STACK_STEPS, PrimitiveKind
 from pytest_ddenv.strategies._grid import _keep_out
 from pytest_ddenv.strategies._plans import _ModelPlan, _PosePlan, _ScenarioPlan, _WorldPlan
-from pytest_ddenv.world import Model, Pose, Scenario, World
+from pytest_ddenv.world.model import Model, Pose, Scenario, World
 
 
 def _draw_milli(draw: st.DrawFn, lo: int, hi: int, towards: int | None = None) -> int:

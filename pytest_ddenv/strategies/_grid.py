@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import TypeAlias
 
 from pytest_ddenv.strategies._defaults import MILLI, Region
-from pytest_ddenv.world import Scenario
+from pytest_ddenv.world.model import Scenario
 
 Rectangle: TypeAlias = tuple[float, float, float, float]
 """(xmin, ymin, xmax, ymax) in metres."""

@@ -16,7 +16,7 @@ from pytest_ddenv.errors import shown
 from pytest_ddenv.strategies._bodies import _Body, _Primitives
 from pytest_ddenv.strategies._defaults import HUSKY_FOOTPRINT, Point, Region
 from pytest_ddenv.strategies._grid import _Grid, _keep_out, _too_many
-from pytest_ddenv.world import Ground, Physics, Pose, RobotDescription, Scenario
+from pytest_ddenv.world.model import Ground, Physics, Pose, RobotDescription, Scenario
 
 
 def _call(function: Callable[..., object], values: Mapping[str, object]) -> str:

@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from pytest_ddenv.validation import is_flag
-from pytest_ddenv.world import DRIVE_KINDS, LaserMount, RobotDescription, resolve_relative
-from pytest_ddenv.world_files import regular_file_problem
+from pytest_ddenv.world.files import regular_file_problem
+from pytest_ddenv.world.model import DRIVE_KINDS, LaserMount, RobotDescription, resolve_relative
 
 ROBOT_KEYS = (
     "urdf", "drive", "left_wheels", "right_wheels", "wheel_radius", "track", "track_factor", "max_wheel_torque",

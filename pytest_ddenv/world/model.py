@@ -20,11 +20,11 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from pytest_ddenv import geometry
 from pytest_ddenv.errors import WorldError, shown, shown_path
-from pytest_ddenv.geometry import FloatArray
 from pytest_ddenv.validation import expected, is_finite_number, is_integer
-from pytest_ddenv.world_files import MISSING, file_kind, read_regular, regular_file_problem
+from pytest_ddenv.world import geometry
+from pytest_ddenv.world.files import MISSING, file_kind, read_regular, regular_file_problem
+from pytest_ddenv.world.geometry import FloatArray
 
 if TYPE_CHECKING:
     import PIL.Image
@@ -254,7 +254,7 @@ class World:
         `model_paths` are extra folders searched for SDF `<include>`s of `model://NAME`; `skip_unsupported`
         drops SDF models that cannot be simulated (each named in `World.notes`) instead of refusing the file.
         """
-        from pytest_ddenv import world_yaml
+        from pytest_ddenv.world import yaml_format as world_yaml
 
         if not isinstance(path, (str, os.PathLike)):
             raise WorldError(expected("a world file's path (a str or os.PathLike)", path, "World.load(path=...)"))
@@ -269,7 +269,7 @@ class World:
         """Import a Gazebo SDF world or model file as Gazebo simulates it (see docs/sdf.md); its values must be
         within what the simulator takes (`world_values`)."""
         from pytest_ddenv import sdf
-        from pytest_ddenv.world_values import check_world_values
+        from pytest_ddenv.world.values import check_world_values
 
         world = sdf.load_sdf(Path(path), model_paths=[Path(folder) for folder in model_paths],
                              skip_unsupported=skip_unsupported)
@@ -285,14 +285,14 @@ class World:
     @classmethod
     def from_yaml(cls, text: str, *, source: str | os.PathLike[str] | None = None) -> World:
         """Parse YAML text; `source` names it in errors and anchors relative mesh paths."""
-        from pytest_ddenv import world_yaml
+        from pytest_ddenv.world import yaml_format as world_yaml
 
         return world_yaml.parse_yaml(text, source=source)
 
     def to_yaml(self, *, relative_to: str | os.PathLike[str] | None = None) -> str:
         """The world as YAML text. Give `relative_to` (the folder the text goes to) to keep relative mesh
         and URDF paths working from there; `save` does this."""
-        from pytest_ddenv import world_yaml
+        from pytest_ddenv.world import yaml_format as world_yaml
 
         return world_yaml.dump_yaml(self, None if relative_to is None else Path(relative_to))
 
@@ -300,7 +300,7 @@ class World:
         """Write the world, as YAML (`.yaml`, `.yml`) or SDF (`.sdf`, `.world`) by extension, atomically (write
         then rename). A value the simulator cannot take (`world_values`), another extension or a place that
         cannot be written is a WorldError naming the file; nothing is left behind."""
-        from pytest_ddenv.world_values import check_world_values
+        from pytest_ddenv.world.values import check_world_values
 
         if not isinstance(path, (str, os.PathLike)):
             raise WorldError(expected("a file path (a str or os.PathLike)", path, "World.save(path=...)"))
@@ -673,7 +673,7 @@ def polyline_problem(points: Sequence[Sequence[float]]) -> str | None:
     numbers beyond `world_values.MAX_MAGNITUDE`, collinear points (no area), or an outline that crosses itself."""
     import shapely
 
-    from pytest_ddenv.world_values import MAX_MAGNITUDE
+    from pytest_ddenv.world.values import MAX_MAGNITUDE
 
     if len(points) < 3:
         return f"an outline needs at least 3 points, got {len(points)}"
@@ -795,7 +795,7 @@ def check_shape(shape: Shape, *, source: str | None = None, model: str | None = 
     must be: it is terrain). Sizes are positive numbers within `world_values.MAX_MAGNITUDE`. `files`: whether
     the mesh or heightmap file is checked too (a regular file; a heightmap's image opens).
     """
-    from pytest_ddenv.world_values import number_problem
+    from pytest_ddenv.world.values import number_problem
 
     def fail(key: str | None, message: str) -> WorldError:
         name = None if key is None else (keys or {}).get(key, key)

@@ -21,7 +21,7 @@ from typing import Any
 
 from pytest_ddenv.errors import ScenarioError, WorldError
 from pytest_ddenv.validation import expected, is_flag, is_real
-from pytest_ddenv.world import (
+from pytest_ddenv.world.model import (
     Ground,
     LaserMount,
     Model,

@@ -15,7 +15,6 @@ from typing import Any, Literal
 
 import yaml
 
-from pytest_ddenv.bounded_yaml import Dumper, load_document
 from pytest_ddenv.errors import (
     SHOWN_CHARACTERS,
     ScenarioError,
@@ -23,7 +22,10 @@ from pytest_ddenv.errors import (
     shown,
 )
 from pytest_ddenv.validation import expected, is_flag, is_number
-from pytest_ddenv.world import (
+from pytest_ddenv.world._bounded_yaml import Dumper, load_document
+from pytest_ddenv.world._robot_yaml import parse_robot, rebased, robot_dict
+from pytest_ddenv.world.files import regular_file_problem
+from pytest_ddenv.world.model import (
     SHAPE_KINDS,
     Ground,
     Model,
@@ -42,9 +44,7 @@ from pytest_ddenv.world import (
     text_problem,
     timestep_problem,
 )
-from pytest_ddenv.world_files import regular_file_problem
-from pytest_ddenv.world_robot import parse_robot, rebased, robot_dict
-from pytest_ddenv.world_values import MAX_GRAVITY, MAX_MAGNITUDE, magnitude_problem
+from pytest_ddenv.world.values import MAX_GRAVITY, MAX_MAGNITUDE, magnitude_problem
 
 FORMAT_VERSION = 1
 TOP_LEVEL_KEYS = ("format", "name", "physics", "ground", "scenario", "models")

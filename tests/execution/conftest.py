@@ -12,9 +12,9 @@ from plugin.conftest import WALL_WORLD  # the same small world as the plugin tes
 
 from pytest_ddenv.execution import Pool
 from pytest_ddenv.oracle import PredicateSpec
-from pytest_ddenv.probe import FailureReference, ProbeResult, make_probe, trace_of
+from pytest_ddenv.scenario.probe import FailureReference, ProbeResult, make_probe, trace_of
 from pytest_ddenv.reduce import Reduction, reduce
-from pytest_ddenv.scenario_job import ScenarioJob
+from pytest_ddenv.driver.scenario_job import ScenarioJob
 from pytest_ddenv.world import World
 
 STUCK = (PredicateSpec("stuck", {"window": 2.0, "min_progress": 0.2}),)

@@ -15,7 +15,7 @@ import pytest
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.execution import LocalPool, WorkerError, WorkerStartError
 from pytest_ddenv.oracle import PREDICATES, make_predicate
-from pytest_ddenv.robot_world import ATTEMPT_SEED_STRIDE
+from pytest_ddenv.scenario.robot_world import ATTEMPT_SEED_STRIDE
 from pytest_ddenv.sim import Run, Simulator
 from pytest_ddenv.world import World
 

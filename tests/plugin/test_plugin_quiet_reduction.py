@@ -12,7 +12,7 @@ import pytest
 
 pytestmark = pytest.mark.slow  # real reductions in subprocesses
 
-QUICK_HEARTBEAT = "import pytest_ddenv.progress\npytest_ddenv.progress.HEARTBEAT_SECONDS = 0.2\n"
+QUICK_HEARTBEAT = "import pytest_ddenv.driver.progress\npytest_ddenv.driver.progress.HEARTBEAT_SECONDS = 0.2\n"
 """A conftest that makes the CI log's heartbeat beat every 0.2 s of silence (30 s otherwise)."""
 
 

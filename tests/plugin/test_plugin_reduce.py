@@ -154,7 +154,7 @@ def test_interrupted_reduction_keeps_its_best_world_and_resumes_without_reprobin
 
 def test_a_crash_inside_the_reduction_never_replaces_the_tests_own_failure(wall_project: pytest.Pytester) -> None:
     wall_project.makeconftest(
-        "import pytest_ddenv.driver as driver\n"
+        "import pytest_ddenv.driver.run as driver\n"
         "def broken(*args, **kwargs):\n"
         "    raise RuntimeError('engine exploded')\n"
         "driver.reduce = broken\n"
@@ -205,7 +205,7 @@ SCENARIO_TEST_SDF = (
 
 
 def test_ddenv_replay_reproduces_a_plugin_made_reduction(wall_project: pytest.Pytester) -> None:
-    from pytest_ddenv.cli import main
+    from pytest_ddenv.cli.main import main
 
     wall_project.runpytest_subprocess("--ddenv-reduce").assert_outcomes(failed=1)
     summary = summary_of(wall_project)

@@ -45,7 +45,7 @@ DITHER_TEST = textwrap.dedent(
 
     from pytest_ddenv import Command, register_predicate
     from pytest_ddenv.oracle import signature
-    from pytest_ddenv.predicates import GROUND
+    from pytest_ddenv.oracle.predicates import GROUND
 
 
     class NoGoalProgress:

@@ -181,7 +181,7 @@ def test_preconditions_skip_candidates_without_probing() -> None:
 
 def test_a_precondition_bypass_check_whose_runs_all_errored_says_it_could_not_run() -> None:
     """Issue 28: "the failure reproduced in 0/0 runs" when the bypass runs could not start; now "could not run"."""
-    from pytest_ddenv.report_text import needed_lines
+    from pytest_ddenv.driver.report_text import needed_lines
 
     ground = "m0000"
     oracle = SetOracle(CULPRITS)

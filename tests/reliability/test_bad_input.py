@@ -23,7 +23,8 @@ from pathlib import Path
 
 import pytest
 
-from pytest_ddenv import World, WorldError, cli
+from pytest_ddenv import World, WorldError
+from pytest_ddenv.cli import main as cli
 
 ROOT = Path(__file__).resolve().parents[2]
 PAGE = ROOT / "docs" / "reliability.md"

@@ -12,8 +12,8 @@ import pytest
 from pytest_ddenv import World
 from pytest_ddenv.driver import ReductionPlan, run_reduction
 from pytest_ddenv.errors import ReductionError
-from pytest_ddenv.markers import ReductionSpec
-from pytest_ddenv.probe import FailureReference
+from pytest_ddenv.driver.markers import ReductionSpec
+from pytest_ddenv.scenario.probe import FailureReference
 
 from .conftest import HANG_ONCE, PAUSE, YARD_WORLD, Project, records, scenario_test
 

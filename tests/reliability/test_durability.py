@@ -72,7 +72,7 @@ def test_kill_9_of_ddenv_reduce_mid_reduction_then_resume(project: Project) -> N
     (project.path / "slow.py").write_text(textwrap.dedent(
         """\
         import time
-        from pytest_ddenv.controllers import GoToGoal
+        from pytest_ddenv.sim.controllers import GoToGoal
 
         class Slow(GoToGoal):  # the built-in law, paused once per run: slow enough to be caught
             def reset(self, observation):

@@ -24,7 +24,7 @@ from PIL import Image
 
 from pytest_ddenv import Model, Pose, RobotWorld, Scenario, Shape, World, WorldError
 from pytest_ddenv.sim.builder import build_world
-from pytest_ddenv.world import HEIGHTMAP_SIDE, MAX_HEIGHTMAP_PIXELS
+from pytest_ddenv.world.model import HEIGHTMAP_SIDE, MAX_HEIGHTMAP_PIXELS
 
 HANG_GUARD = 60.0
 """Seconds after which a child that should have ended at once is killed and the test fails."""
@@ -49,7 +49,7 @@ def _ended(process: subprocess.Popen[str], what: str) -> str:
 
 
 def test_a_pipe_given_as_the_world_is_refused_without_waiting_for_a_writer(tmp_path: Path) -> None:
-    process = _child("from pytest_ddenv import cli; raise SystemExit(cli.main(['check', '/dev/stdin']))", tmp_path,
+    process = _child("from pytest_ddenv.cli import main as cli; raise SystemExit(cli.main(['check', '/dev/stdin']))", tmp_path,
                      stdin=subprocess.PIPE)  # held open and never written
     try:
         printed = _ended(process, "ddenv check /dev/stdin on a pipe")

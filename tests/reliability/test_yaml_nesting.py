@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from pytest_ddenv import World, WorldError
-from pytest_ddenv.bounded_yaml import MAX_DEPTH, load_document
+from pytest_ddenv.world._bounded_yaml import MAX_DEPTH, load_document
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -37,14 +37,14 @@ def test_nesting_over_lines_gets_the_packages_message() -> None:
                          ids=lambda path: path.name)
 def test_both_readers_read_a_world_file_alike(path: Path) -> None:
     """The pure-Python reader (used again when libyaml refuses the nesting) resolves as the C one does."""
-    from pytest_ddenv.bounded_yaml import _Loader, _PythonLoader
+    from pytest_ddenv.world._bounded_yaml import _Loader, _PythonLoader
 
     text = path.read_text(encoding="utf-8")
     assert yaml.load(text, Loader=_PythonLoader) == yaml.load(text, Loader=_Loader)
 
 
 def test_both_readers_read_numbers_with_an_exponent_as_numbers() -> None:
-    from pytest_ddenv.bounded_yaml import _Loader, _PythonLoader
+    from pytest_ddenv.world._bounded_yaml import _Loader, _PythonLoader
 
     text = "a: 1e3\nb: 2.5E-3\nc: '1e3'\nd: 12\n"
     expected = {"a": 1000.0, "b": 0.0025, "c": "1e3", "d": 12}

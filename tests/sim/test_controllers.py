@@ -12,7 +12,7 @@ import pytest
 from helpers import box, flat_world
 
 from pytest_ddenv import Command, ControllerError, ControllerTimeout, Observation, WheelCommand
-from pytest_ddenv.controllers import AvoidObstacles, GoToGoal, default_controller
+from pytest_ddenv.sim.controllers import AvoidObstacles, GoToGoal, default_controller
 from pytest_ddenv.oracle import make_predicate
 from pytest_ddenv.sim import RunSettings, Simulator
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from helpers import flat_world
 
-from pytest_ddenv.controllers import GoToGoal
+from pytest_ddenv.sim.controllers import GoToGoal
 from pytest_ddenv.oracle import make_predicate
 from pytest_ddenv.sim import Observation, Simulator
 from pytest_ddenv.world import RobotDescription

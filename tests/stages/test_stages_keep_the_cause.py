@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pytest_ddenv.cli import main
+from pytest_ddenv.cli.main import main
 from pytest_ddenv.render import progress_chart, world_picture
 from pytest_ddenv.stages.structure import clearance
 from pytest_ddenv.world import World

@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pytest_ddenv.oracle import SameFailureRule
-from pytest_ddenv.probe import ErrorInfo, FailureReference, ProbeResult, make_probe
+from pytest_ddenv.scenario.probe import ErrorInfo, FailureReference, ProbeResult, make_probe
 from pytest_ddenv.reduce import ProbeLog, Reduction, reduce
 from pytest_ddenv.reduce.deflake import FixedReruns
 from pytest_ddenv.stages import (

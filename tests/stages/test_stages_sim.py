@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from pytest_ddenv.cli import main
+from pytest_ddenv.cli.main import main
 from pytest_ddenv.oracle import PredicateSpec
-from pytest_ddenv.robot_world import RobotFailure, RobotWorld
+from pytest_ddenv.scenario.robot_world import RobotFailure, RobotWorld
 from pytest_ddenv.world import World
 
 pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
