@@ -75,6 +75,17 @@ class ReductionError(DdenvError):
     """The reduction engine was called with invalid arguments or cannot proceed."""
 
 
+class ControllerError(Exception):
+    """The controller under test broke its contract: it returned something that is not a command (or a
+    NaN), or its run went past the wall-clock limit. Like any exception of the test, it fails the run; it
+    is the failure being reduced only if the original failure was this same error."""
+
+
+class ControllerTimeout(ControllerError):
+    """A run took longer than its wall-clock limit (`max_wall_time`): the controller (or the world) is too
+    slow. The simulated time limit did not end it first."""
+
+
 class _ShortRepr(reprlib.Repr):
     """reprlib with small limits, safe for any value: huge integers, bytes, nested or recursive containers."""
 

@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import ast
+import importlib
+import re
 import subprocess
 import sys
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -47,81 +51,188 @@ def test_console_script_version_and_help() -> None:
     assert helped.returncode == 0 and "usage: ddenv" in helped.stdout
 
 
+PLUGIN = "pytest_ddenv.pytest_plugin"
+
+
 @pytest.mark.parametrize(
     ("module", "forbidden"),
     [
-        ("pytest_ddenv.reduce", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.oracle", "pytest_ddenv.plugin"]),
-        ("pytest_ddenv.world", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.reduce"]),
-        ("pytest_ddenv.oracle", ["pybullet", "pytest", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
-        ("pytest_ddenv.sim", ["pytest", "pytest_ddenv.oracle", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
-        ("pytest_ddenv.predicates", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.oracle",
-                                     "pytest_ddenv.reduce"]),
-        ("pytest_ddenv.execution", ["pybullet", "pytest", "pytest_ddenv.reduce", "pytest_ddenv.sim", "pytest_ddenv.plugin"]),
-        ("pytest_ddenv.driver", ["pytest", "pytest_ddenv.plugin"]),
-        ("pytest_ddenv.scenario_job", ["pytest", "pytest_ddenv.plugin"]),
-        ("pytest_ddenv.controllers", ["pybullet", "pytest", "pytest_ddenv.reduce"]),
-        ("pytest_ddenv.report_text", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.plugin"]),
-        ("pytest_ddenv.plugin", ["pybullet", "pytest_ddenv.sim", "sklearn", "matplotlib", "scipy", "trimesh"]),
+        ("pytest_ddenv.reduce", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.oracle", PLUGIN]),
+        ("pytest_ddenv.world", ["pybullet", "pytest", "trimesh", "yaml", "pytest_ddenv.sdf", "pytest_ddenv.sim",
+                                "pytest_ddenv.reduce"]),
+        ("pytest_ddenv.oracle", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.reduce", PLUGIN]),
+        ("pytest_ddenv.sim", ["pytest", "pytest_ddenv.reduce", "pytest_ddenv.scenario", PLUGIN]),
+        ("pytest_ddenv.execution", ["pybullet", "pytest", "pytest_ddenv.reduce", "pytest_ddenv.sim", PLUGIN]),
+        ("pytest_ddenv.driver.run", ["pytest", PLUGIN, "pytest_ddenv.cli"]),
+        ("pytest_ddenv.driver.scenario_job", ["pytest", PLUGIN]),
+        ("pytest_ddenv.sim.controllers", ["pybullet", "pytest", "pytest_ddenv.reduce"]),
+        ("pytest_ddenv.driver.report_text", ["pybullet", "pytest", "pytest_ddenv.sim", PLUGIN]),
+        ("pytest_ddenv.pytest_plugin.hooks", ["pybullet", "pytest_ddenv.sim", "pytest_ddenv.driver.run",
+                                              "pytest_ddenv.stages", "pytest_ddenv.media", "sklearn", "matplotlib",
+                                              "scipy", "trimesh"]),
         ("pytest_ddenv.detail", ["pybullet", "pytest", "pytest_ddenv.sim", "pytest_ddenv.reduce"]),
-        ("pytest_ddenv.media", ["pybullet", "pytest", "rerun", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
-        ("pytest_ddenv.animate", ["pytest", "rerun", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
-        ("pytest_ddenv.recording", ["pybullet", "pytest", "rerun", "pytest_ddenv.reduce", "pytest_ddenv.plugin"]),
+        ("pytest_ddenv.media.writer", ["pybullet", "pytest", "rerun", "pytest_ddenv.reduce", PLUGIN]),
+        ("pytest_ddenv.media.animate", ["pytest", "rerun", "pytest_ddenv.reduce", PLUGIN]),
+        ("pytest_ddenv.media.recording", ["pybullet", "pytest", "rerun", "pytest_ddenv.reduce", PLUGIN]),
     ],
 )
 def test_layers_load_only_what_comes_before_them(module: str, forbidden: list[str]) -> None:
-    """DESIGN.md section 3: data flows one way; each layer knows only the ones before it."""
+    """What importing a layer loads at run time (its package `__init__`s included): no library and no layer it
+    does not need, so that loading the pytest plugin stays cheap."""
     code = f"import sys, {module}; print(sorted(m for m in {forbidden!r} if m in sys.modules))"
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert loaded.stdout.strip() == "[]", f"{module} imports {loaded.stdout.strip()}"
 
 
-LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    # DESIGN.md section 3, in order: each module may import its own layer and the ones above it only
-    ("foundations", ("errors", "validation", "defaults", "outcome", "bounded_yaml", "geometry", "detail",
-                     "alarm", "code_identity")),
-    ("world model", ("world", "world_files", "world_values", "world_yaml", "world_robot", "sdf", "strategies")),
-    ("simulation", ("predicates", "sim", "controllers")),
-    ("oracle verdict and the test's view", ("oracle", "robot_world", "gym_env", "reported")),
-    ("reduction", ("reduce",)),
-    ("execution", ("execution",)),
-    ("probes, stages, driver, presentation", ("probe", "stages", "markers", "driver", "artifacts", "render",
-                                             "media", "animate", "recording", "reduction_report", "report_text",
-                                             "progress", "replay", "scenario_job", "user_code", "other_failures",
-                                             "problem")),
-    ("front ends and pytest glue", ("plugin", "pytest_options", "pytest_progress", "reduction_session",
-                                    "pytest_worker", "given_example", "cli", "cli_world")),
-]
 PACKAGE = Path(pytest_ddenv.__file__).parent
+ARCHITECTURE = PACKAGE.parent / "docs" / "architecture.md"
+MAX_ROOT_FILES = 10
 
 
-def layer_of(module: str) -> int:
-    """The index in LAYERS of a module `pytest_ddenv.NAME[.sub]` (its top-level name decides)."""
-    name = module.split(".")[1]
-    return next(index for index, (_, names) in enumerate(LAYERS) if name in names)
+@dataclass(frozen=True)
+class Layer:
+    number: int
+    name: str
+    rooms: frozenset[str]
+    """Its folders and root modules, by top-level name ("world", "errors", "__init__")."""
+    imports_from: frozenset[int]
 
 
-def imports_of(path: Path) -> list[tuple[str, int]]:
-    """Every pytest_ddenv module `path` imports, at module level or inside a function (lazy imports)."""
+def layers() -> list[Layer]:
+    """The table of docs/architecture.md's "The layers": `| # | layer | folders and root modules | imports from |`, one
+    row per layer, its folders and modules written `name/` and `name.py`, the layers it imports from written
+    as numbers and ranges ("1, 2, 4-6"; "-" for none). Its own layer is always allowed."""
     found = []
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("pytest_ddenv."):
-            found.append((node.module or "", node.lineno))
-        elif isinstance(node, ast.ImportFrom) and node.module == "pytest_ddenv":
-            found += [(f"pytest_ddenv.{alias.name}", node.lineno) for alias in node.names
-                      if (PACKAGE / alias.name).exists() or (PACKAGE / f"{alias.name}.py").exists()]
-        elif isinstance(node, ast.Import):
-            found += [(alias.name, node.lineno) for alias in node.names if alias.name.startswith("pytest_ddenv.")]
+    text = ARCHITECTURE.read_text().partition("\n## The layers\n")[2].partition("\n## ")[0]
+    for line in text.splitlines():
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        if len(cells) != 4 or not cells[0].isdigit():
+            continue
+        rooms = re.findall(r"`([A-Za-z_]\w*)(?:/|\.py)`", cells[2])
+        allowed: set[int] = set()
+        for low, high in re.findall(r"(\d+)(?:\s*[-\u2013]\s*(\d+))?", cells[3]):
+            allowed.update(range(int(low), int(high or low) + 1))
+        found.append(Layer(int(cells[0]), cells[1], frozenset(rooms), frozenset(allowed)))
     return found
 
 
-def test_every_module_imports_only_its_layer_and_the_ones_above_it_lazy_imports_included() -> None:
-    modules = [path for path in sorted(PACKAGE.rglob("*.py")) if path != PACKAGE / "__init__.py"]
-    assert len(modules) > 80
-    backwards = []
-    for path in modules:
-        importer = "pytest_ddenv." + ".".join(path.relative_to(PACKAGE).with_suffix("").parts)
-        for imported, line in imports_of(path):
-            if layer_of(imported) > layer_of(importer):
-                backwards.append(f"{path.relative_to(PACKAGE.parent)}:{line} ({LAYERS[layer_of(importer)][0]}) "
-                                 f"imports {imported} ({LAYERS[layer_of(imported)][0]})")
-    assert backwards == []
+def modules() -> dict[str, Path]:
+    """Every module of the package by dotted name (a package by its own name)."""
+    named = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        named[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return named
+
+
+def imports_of(name: str, path: Path, known: Mapping[str, Path]) -> set[tuple[str, int]]:
+    """Every package module `name` imports, and the line: `import` and `from ... import` statements at module
+    level, in functions and under TYPE_CHECKING, absolute and relative, and strings that name a package module
+    (`importlib.import_module`, a lazy facade's table, a forkserver's preload list)."""
+
+    def resolve(dotted: str) -> str | None:
+        while dotted and dotted not in known:
+            dotted = dotted.rpartition(".")[0]
+        return dotted or None
+
+    here = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[tuple[str | None, int]] = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            found |= {(resolve(alias.name), node.lineno) for alias in node.names
+                      if alias.name.partition(".")[0] == "pytest_ddenv"}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join([*here.split(".")[: len(here.split(".")) - node.level + 1], *filter(None, [base])])
+            if base.partition(".")[0] == "pytest_ddenv":
+                found |= {(f"{base}.{alias.name}" if f"{base}.{alias.name}" in known else resolve(base), node.lineno)
+                          for alias in node.names}
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in known:
+            found.add((node.value, node.lineno))
+    return {(module, line) for module, line in found if module is not None and module != name}
+
+
+def room_of(module: str) -> str:
+    parts = module.split(".")
+    return "__init__" if len(parts) == 1 else parts[1]
+
+
+def import_graph() -> dict[str, set[tuple[str, int]]]:
+    known = modules()
+    return {name: imports_of(name, path, known) for name, path in known.items()}
+
+
+def cycles(graph: Mapping[str, set[tuple[str, int]]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found = []
+
+    def visit(module: str) -> None:
+        index[module] = low[module] = len(index)
+        stack.append(module)
+        for imported, _ in graph[module]:
+            if imported not in index:
+                visit(imported)
+                low[module] = min(low[module], low[imported])
+            elif imported in stack:
+                low[module] = min(low[module], index[imported])
+        if low[module] == index[module]:
+            component = []
+            while True:
+                member = stack.pop()
+                component.append(member)
+                if member == module:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for module in sorted(graph):
+        if module not in index:
+            visit(module)
+    return found
+
+
+def test_no_import_cycle_among_the_package_modules_of_any_import_kind() -> None:
+    graph = import_graph()
+    assert len(graph) > 100
+    assert cycles(graph) == []
+
+
+def test_every_folder_and_root_module_is_in_one_layer_of_the_architecture_page() -> None:
+    table = layers()
+    assert [layer.number for layer in table] == list(range(1, len(table) + 1))
+    listed = [room for layer in table for room in layer.rooms]
+    present = {room_of(module) for module in modules()}
+    assert sorted(listed) == sorted(set(listed)), "a folder or module is in two layers"
+    assert set(listed) == present
+
+
+def test_every_import_points_to_its_own_layer_or_one_it_may_import_from_lazy_imports_included() -> None:
+    layer_of = {room: layer for layer in layers() for room in layer.rooms}
+    wrong = []
+    for importer, imported_lines in sorted(import_graph().items()):
+        mine = layer_of[room_of(importer)]
+        for imported, line in sorted(imported_lines):
+            theirs = layer_of[room_of(imported)]
+            if theirs.number != mine.number and theirs.number not in mine.imports_from:
+                wrong.append(f"{modules()[importer].relative_to(PACKAGE.parent)}:{line} ({mine.name}) imports "
+                             f"{imported} ({theirs.name})")
+    assert wrong == []
+
+
+def test_the_package_root_holds_the_facade_and_the_foundations_only() -> None:
+    root = sorted(path.name for path in PACKAGE.glob("*.py"))
+    assert len(root) <= MAX_ROOT_FILES, root
+
+
+def test_the_code_under_test_never_counts_the_packages_own_modules() -> None:
+    """In pytest-ddenv's own checkout (a project folder that holds the package's source), the code under test
+    is identified without the package's modules, whichever sub-package they are in."""
+    from pytest_ddenv.driver.code_identity import project_modules
+
+    importlib.import_module("pytest_ddenv.sim")
+    importlib.import_module("pytest_ddenv.world.yaml_format")
+    assert [path for path in project_modules(PACKAGE.parent) if path.is_relative_to(PACKAGE)] == []

@@ -17,7 +17,8 @@ from PIL import Image
 
 from pytest_ddenv import World, WorldError, render
 from pytest_ddenv.world import Model, Pose, Shape
-from pytest_ddenv.world.model import check_shape, heightmap_mesh, load_heightmap, load_mesh, polyline_mesh
+from pytest_ddenv.world.values import check_shape
+from pytest_ddenv.world.meshes import heightmap_mesh, load_heightmap, load_mesh, polyline_mesh
 
 ROOT = Path(__file__).resolve().parent.parent
 TEXTURED_DAE = ROOT / "tests" / "data" / "meshes" / "textured_box.dae"

@@ -13,8 +13,8 @@ import sys
 from pathlib import Path
 
 from pytest_ddenv.errors import DdenvError, shown, shown_path
-from pytest_ddenv.world.files import MISSING, dangling_link, file_kind
-from pytest_ddenv.world.model import Pose, RobotDescription, Scenario, World, resolve_relative
+from pytest_ddenv.world.files import MISSING, dangling_link, file_kind, resolve_relative
+from pytest_ddenv.world.model import Pose, RobotDescription, Scenario, World
 
 NO_SCENARIO_HELP = (
     "give one with --start X,Y[,YAW] --goal X,Y [--robot NAME] [--timeout S], or --scenario FILE.yaml (a "

@@ -86,7 +86,8 @@ def world_files(world: World) -> list[Path]:
     """The files a world's simulation reads besides the world file itself: its meshes and heightmap images
     and its robot's URDF (given in the world file, or registered with `register_robot` as a description)."""
     from pytest_ddenv.sim.robot import ROBOTS
-    from pytest_ddenv.world.model import RobotDescription, resolve_mesh_path, resolve_relative
+    from pytest_ddenv.world.files import resolve_mesh_path, resolve_relative
+    from pytest_ddenv.world.model import RobotDescription
 
     files = {resolve_mesh_path(shape.mesh, world.source) for model in world.models for shape in model.shapes
              if shape.mesh is not None}

@@ -1,5 +1,5 @@
 """What a reduction shows besides its files (layer 9, beside `pytest_ddenv.render`, the pictures).
 
 `writer` (`--ddenv-media`: which media to make, and `write_media`), `animate` (GIFs of runs, drawn by
-pybullet's TinyRenderer), `recording` (a Rerun `.rrd` of runs).
+pybullet's TinyRenderer), `recording` (a Rerun `.rrd` of runs), `palette` (the colours both share).
 """

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pytest_ddenv.media.writer import GROUND_RGBA, ROBOT_RGBA, model_rgba
+from pytest_ddenv.media.palette import GROUND_RGBA, ROBOT_RGBA, model_rgba
 from pytest_ddenv.scenario.reported import REPORTED
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.quiet import silenced

@@ -36,19 +36,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pytest_ddenv.media.writer import GROUND_RGBA, ROBOT_RGBA, model_rgba
+from pytest_ddenv.media.palette import GROUND_RGBA, ROBOT_RGBA, model_rgba
 from pytest_ddenv.world import geometry
-from pytest_ddenv.world.model import (
-    Model,
-    Pose,
-    Shape,
-    World,
-    cone_mesh,
-    load_heightmap,
-    load_mesh,
-    polyline_mesh,
-    resolve_mesh_path,
-)
+from pytest_ddenv.world.files import resolve_mesh_path
+from pytest_ddenv.world.meshes import cone_mesh, load_heightmap, load_mesh, polyline_mesh
+from pytest_ddenv.world.model import Model, Pose, Shape, World
 
 if TYPE_CHECKING:
     from pytest_ddenv.sim.run import Run, RunDetail

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import concurrent.futures
 import concurrent.futures.process
-import hashlib
 import os
 import time
 import warnings
@@ -20,19 +19,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.sim.run import Run
-from pytest_ddenv.world.model import Model, World
+from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:
     from pytest_ddenv.media.animate import AnimationInfo
 
-PALETTE = ((0.55, 0.42, 0.30), (0.36, 0.50, 0.63), (0.52, 0.60, 0.36), (0.66, 0.46, 0.52), (0.45, 0.45, 0.58),
-            (0.70, 0.58, 0.34), (0.40, 0.58, 0.55))
-"""Colours of the models left at the default grey, in the animations and the recording."""
-DEFAULT_COLOR = (0.6, 0.6, 0.6, 1.0)
-
-GROUND_RGBA = (0.78, 0.78, 0.74, 1.0)
-ROBOT_RGBA = (0.95, 0.75, 0.1, 1.0)
-"""The ground, and a robot drawn as its footprint box, in the animations and the recording."""
 MEDIA_CHOICES = ("all", "pictures", "none")
 MEDIA_ENV = "DDENV_MEDIA"
 DEFAULT_MEDIA = "all"
@@ -168,16 +159,6 @@ def _write_recording(path: Path, runs: Sequence[tuple[str, World, Run]], written
         return
     written.paths.append(info.path)
     written.info[info.path.name] = info.to_dict()
-
-
-def model_rgba(model: Model) -> tuple[float, float, float, float]:
-    """The model's colour in the animations and the recording: its own, or when it is left at the default
-    grey one of `PALETTE` by its name (the same model has the same colour in every world)."""
-    if tuple(model.color) != DEFAULT_COLOR:
-        red, green, blue, alpha = (float(v) for v in model.color)
-        return red, green, blue, alpha
-    index = int(hashlib.sha1(model.name.encode()).hexdigest(), 16) % len(PALETTE)
-    return (*PALETTE[index], 1.0)
 
 
 def _models(world: World) -> str:

@@ -4,9 +4,9 @@ Predicates are evaluated online by the simulator once per control tick on a `Rob
 first predicate that returns a `FailureSignature` decides the run (it stops early unless asked not to).
 The built-in predicates, the registry of a user's (`register_predicate`, `@predicate`) and `PredicateSpec`
 (a predicate as plain data, for markers, the command line and worker processes) are here too. Whether a
-signature is *the* failure being reduced is `pytest_ddenv.oracle`'s verdict, a layer above the simulation.
+signature is *the* failure being reduced is the verdict's (`verdict.py`, beside this module).
 
-Nothing of pybullet or pytest. Parameters are documented in docs/oracle.md.
+Nothing of the simulation (which imports this module), pybullet or pytest. Parameters are documented in docs/oracle.md.
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """The oracle: whether a run's failure is the failure being reduced (`classify`, `same_failure`).
 
 A run ends in the reference failure f (FAIL), another failure (OTHER), no failure (PASS) or an error
-(ERROR). The predicates that produce failure signatures live in `pytest_ddenv.oracle.predicates` (the simulation
-uses them); their names are re-exported here, where they were first defined. The meaning of "same
-failure" is documented in docs/oracle.md.
+(ERROR). The predicates that produce failure signatures are `oracle.predicates` (the simulation checks them
+every tick); the verdict knows a run only by its `failure`. The meaning of "same failure" is documented in
+docs/oracle.md.
 
 What "same" means is the user's to choose (`SameFailureRule`): the default rule (same predicate, same place,
 touching one of the models the reference touched), the place only, the touched models only, or a module-level
@@ -20,77 +20,22 @@ import sys
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from pytest_ddenv import defaults
 from pytest_ddenv.errors import DdenvError, shown
-from pytest_ddenv.oracle.predicates import (
-    BUILT_IN,
-    GROUND,
-    PREDICATES,
-    Collided,
-    Contact,
-    FailureSignature,
-    Fell,
-    Flipped,
-    FunctionPredicate,
-    HighCentered,
-    History,
-    Predicate,
-    PredicateSpec,
-    RobotState,
-    Stuck,
-    Timeout,
-    check_predicate,
-    check_predicate_models,
-    make_predicate,
-    predicate,
-    predicate_spec,
-    register_predicate,
-    signature,
-)
+from pytest_ddenv.oracle.predicates import FailureSignature
 from pytest_ddenv.outcome import Outcome
 from pytest_ddenv.validation import expected, is_finite_number
 
-if TYPE_CHECKING:  # pragma: no cover
-    from pytest_ddenv.sim.run import Run
 
-__all__ = [
-    "BUILT_IN",
-    "GROUND",
-    "MATCHES",
-    "PREDICATES",
-    "Collided",
-    "Contact",
-    "FailureSignature",
-    "Fell",
-    "Flipped",
-    "FunctionPredicate",
-    "HighCentered",
-    "History",
-    "OtherReason",
-    "Predicate",
-    "PredicateSpec",
-    "RobotState",
-    "SameFailureError",
-    "SameFailureRule",
-    "Stuck",
-    "Timeout",
-    "check_predicate",
-    "check_predicate_models",
-    "classify",
-    "make_predicate",
-    "most_common_reason",
-    "predicate",
-    "predicate_spec",
-    "register_predicate",
-    "same_failure",
-    "same_failure_match",
-    "signature",
-    "why_other",
-]
+class HasFailure(Protocol):
+    """A run as the verdict sees it (a `sim.Run` is one): its failure signature, None if it did not fail."""
+
+    @property
+    def failure(self) -> FailureSignature | None: ...
 
 
 # -- the oracle --------------------------------------------------------------------------------------
@@ -372,7 +317,7 @@ def as_rule(rule: SameFailureRule | float) -> SameFailureRule:
 
 
 def classify(
-    run: Run | None,
+    run: HasFailure | None,
     reference: FailureSignature,
     rule: SameFailureRule | float = defaults.TOLERANCE,
     *,

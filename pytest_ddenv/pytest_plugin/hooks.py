@@ -2,7 +2,7 @@
 
 Hooks stay thin; the work is done in plain modules (markers, robot_world, probe, reduce, artifacts).
 A probe runs the whole test again on a candidate world, in a worker process that is a pytest session of its
-own (see pytest_worker.py), or, with one worker, by calling the test function again in this process.
+own (see worker.py), or, with one worker, by calling the test function again in this process.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.pytest_plugin.options import DdenvOptions, add_options, read_options
 from pytest_ddenv.pytest_plugin.progress import PytestProgress, close_log, open_log
 from pytest_ddenv.scenario.robot_world import FIXTURE
-from pytest_ddenv.world.model import is_file
+from pytest_ddenv.world.files import is_file
 
 if TYPE_CHECKING:
     from pytest_ddenv.oracle.predicates import PredicateSpec

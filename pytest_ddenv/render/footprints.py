@@ -12,8 +12,10 @@ from typing import Literal
 import numpy as np
 
 from pytest_ddenv.world import geometry
+from pytest_ddenv.world.files import resolve_mesh_path
 from pytest_ddenv.world.geometry import FloatArray
-from pytest_ddenv.world.model import Model, Shape, World, load_heightmap, load_mesh, resolve_mesh_path
+from pytest_ddenv.world.meshes import load_heightmap, load_mesh
+from pytest_ddenv.world.model import Model, Shape, World
 
 HIGH_FRICTION = 5.0
 LOW_FRICTION = 0.5

@@ -56,7 +56,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, SupportsFloat
+from typing import Any, Protocol, SupportsFloat
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -67,19 +67,17 @@ try:
 except ImportError as _missing:  # pragma: no cover - exercised without the extra installed
     raise ImportError("robot_world.make_env() needs gymnasium: pip install 'pytest-ddenv[gym]'") from _missing
 
-from pytest_ddenv.errors import ScenarioError
+from pytest_ddenv.errors import ControllerError, ControllerTimeout, ScenarioError
 from pytest_ddenv.oracle.predicates import Predicate
 from pytest_ddenv.sim import shared_simulator
-from pytest_ddenv.sim.control import AnyCommand, Command, ControllerError, ControllerTimeout, Observation, WheelCommand
+from pytest_ddenv.sim.control import AnyCommand, Command, Observation, WheelCommand
 from pytest_ddenv.sim.engine import wall_limit
 from pytest_ddenv.sim.episode import Episode
 from pytest_ddenv.sim.robot import Robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
 from pytest_ddenv.validation import expected
-
-if TYPE_CHECKING:
-    from pytest_ddenv.scenario.robot_world import RobotWorld
+from pytest_ddenv.world.model import World
 
 __all__ = ["FAILURE_PENALTY", "GOAL_BONUS", "RobotEnv"]
 
@@ -94,6 +92,22 @@ FALLBACK_WHEEL_RADIUS = 0.1
 _holder = 0
 """Which `RobotEnv` start last used this process's shared simulator (see `_claim_simulator`)."""
 _starts = 0
+
+
+class RobotWorldLike(Protocol):
+    """What a `RobotEnv` uses of the `RobotWorld` it is made from (`robot_world.make_env()`)."""
+
+    world: World
+    seed: int
+    max_wall_time: float | None
+    runs: list[Run]
+    """Each finished episode is appended."""
+
+    @property
+    def run_seed(self) -> int:
+        """The seed of an episode reset without one: the test's, shifted per reduction re-run."""
+
+    def build_predicates(self) -> list[Predicate]: ...
 
 
 def _claim_simulator() -> int:
@@ -117,7 +131,7 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
 
     def __init__(
         self,
-        robot_world: RobotWorld,
+        robot_world: RobotWorldLike,
         *,
         settings: RunSettings | None = None,
         timeout: float | None = None,
@@ -236,9 +250,7 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
         world = self.robot_world
         if seed is None:
             return world.run_seed
-        from pytest_ddenv.scenario.robot_world import ATTEMPT_SEED_STRIDE
-
-        return int(seed) + world.attempt * ATTEMPT_SEED_STRIDE
+        return int(seed) + world.run_seed - world.seed  # shifted per re-run as `run_seed` is
 
     def _observe(self, episode: Episode) -> ObsDict:
         """Observe the tick (draws its noise unless the episode is finished) and encode it."""

@@ -77,7 +77,7 @@ def failure_predicates(values: Sequence[PredicateSpec | str | Predicate] | str |
 
 
 def checked_world(world: World, where: str) -> World:
-    """`world`, if it is a `World` whose values the simulator takes (`world_values.check_world_values`);
+    """`world`, if it is a `World` whose values the simulator takes (`world.values.check_world_values`);
     a `WorldError` saying so at `where` otherwise (a path is no world: `World.load(path)` reads one)."""
     from pytest_ddenv.world.values import check_world_values
 

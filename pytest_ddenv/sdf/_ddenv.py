@@ -9,19 +9,9 @@ from pytest_ddenv.errors import ScenarioError, WorldError, shown
 from pytest_ddenv.sdf._values import Values
 from pytest_ddenv.sdf._xml import DDENV_NS as DDENV_NS  # re-exported: its home before _xml needed it
 from pytest_ddenv.sdf._xml import local_name
-from pytest_ddenv.world.model import (
-    DRIVE_KINDS,
-    LaserMount,
-    Physics,
-    Pose,
-    RobotDescription,
-    Scenario,
-    TagValue,
-    is_file,
-    resolve_relative,
-    solver_iterations_problem,
-    timestep_problem,
-)
+from pytest_ddenv.world.files import is_file, resolve_relative
+from pytest_ddenv.world.limits import solver_iterations_problem, timestep_problem
+from pytest_ddenv.world.model import DRIVE_KINDS, LaserMount, Physics, Pose, RobotDescription, Scenario, TagValue
 
 WORLD_ELEMENTS = ("scenario", "physics")
 MODEL_ELEMENTS = ("keep", "tag")

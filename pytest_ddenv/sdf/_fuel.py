@@ -17,7 +17,7 @@ from pathlib import Path
 from urllib.parse import unquote, urlparse
 
 from pytest_ddenv.errors import PATH_CHARACTERS, shown
-from pytest_ddenv.world.model import exists
+from pytest_ddenv.world.files import exists
 
 FUEL_CACHE_VARIABLES = ("GZ_FUEL_CACHE_PATH", "IGN_FUEL_CACHE_PATH")
 """Environment variables that name the Fuel cache folder (instead of the default ones)."""

@@ -12,7 +12,8 @@ from pytest_ddenv.sdf._fuel import parse_fuel_uri
 from pytest_ddenv.sdf._paths import UnresolvedURI, resolve_uri
 from pytest_ddenv.sdf._values import Values
 from pytest_ddenv.sdf._xml import Lines, parse_xml, read_limited
-from pytest_ddenv.world.model import Pose, is_file
+from pytest_ddenv.world.files import is_file
+from pytest_ddenv.world.model import Pose
 
 MIN_VERSION = (1, 2)
 """Oldest SDF read: libsdformat converts 1.2 and 1.3 to 1.4 without changing models (physics elements only)."""

@@ -9,7 +9,7 @@ from urllib.parse import unquote, urlparse
 
 from pytest_ddenv.errors import PATH_CHARACTERS, shown, shown_path
 from pytest_ddenv.sdf._fuel import FuelModelMissing, FuelUri, parse_fuel_uri, resolve_fuel
-from pytest_ddenv.world.model import exists
+from pytest_ddenv.world.files import exists
 
 MODEL_PATH_VARIABLES = ("GAZEBO_MODEL_PATH", "GZ_SIM_RESOURCE_PATH", "IGN_GAZEBO_RESOURCE_PATH", "SDF_PATH")
 """Environment variables searched for `model://` URIs, in this order, after the explicit paths."""

@@ -28,7 +28,8 @@ from pytest_ddenv.sdf._shapes import GeometryReader
 from pytest_ddenv.sdf._tree import ModelNode, TreeReader, plugin_name
 from pytest_ddenv.sdf._values import UnsupportedSdfError, Values
 from pytest_ddenv.sdf._xml import DDENV_NS, Lines, read_limited
-from pytest_ddenv.world.model import Ground, Model, World, name_problem
+from pytest_ddenv.world.limits import name_problem
+from pytest_ddenv.world.model import Ground, Model, World
 
 __all__ = ["DDENV_NS", "collada_unit", "load_sdf", "parse_sdf"]
 

@@ -21,7 +21,10 @@ from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._collada import collada_unit
 from pytest_ddenv.sdf._paths import UnresolvedURI, resolve_uri
 from pytest_ddenv.sdf._values import Values
-from pytest_ddenv.world.model import Pose, Shape, check_mesh_file, check_shape, is_file
+from pytest_ddenv.world.files import is_file
+from pytest_ddenv.world.meshes import check_mesh_file
+from pytest_ddenv.world.model import Pose, Shape
+from pytest_ddenv.world.values import check_shape
 
 MESH_SUFFIXES = (".stl", ".obj", ".dae")
 HEIGHTMAP_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")

@@ -21,7 +21,8 @@ from pytest_ddenv.sdf import _poses
 from pytest_ddenv.sdf._frames import Frame, Frames, compose
 from pytest_ddenv.sdf._includes import Documents, IncludedLight
 from pytest_ddenv.sdf._values import Values
-from pytest_ddenv.world.model import Pose, name_problem
+from pytest_ddenv.world.limits import name_problem
+from pytest_ddenv.world.model import Pose
 
 MAX_NESTING = 64
 """Deepest nesting of models in models (includes included); deeper trees are refused, not a RecursionError."""

@@ -14,18 +14,8 @@ from collections.abc import Sequence
 
 from pytest_ddenv.sdf._reader import DDENV_NS, collada_unit
 from pytest_ddenv.validation import is_flag
-from pytest_ddenv.world.model import (
-    Ground,
-    LaserMount,
-    Model,
-    Pose,
-    RobotDescription,
-    Scenario,
-    Shape,
-    World,
-    resolve_mesh_path,
-    resolve_relative,
-)
+from pytest_ddenv.world.files import resolve_mesh_path, resolve_relative
+from pytest_ddenv.world.model import Ground, LaserMount, Model, Pose, RobotDescription, Scenario, Shape, World
 
 SDF_VERSION = "1.6"
 CAPSULE_SDF_VERSION = "1.8"

@@ -17,7 +17,7 @@ import defusedxml
 from defusedxml.ElementTree import DefusedXMLParser
 
 from pytest_ddenv.errors import WorldError, shown
-from pytest_ddenv.world.model import read_bounded
+from pytest_ddenv.world.files import read_regular
 
 MAX_FILE_BYTES = 32 * 1024 * 1024
 """Largest SDF (or Collada) file read; larger files are refused before parsing."""
@@ -76,7 +76,7 @@ class _LineTarget:
 
 def read_limited(path: Path, *, what: str = "world file") -> bytes:
     """The bytes of `path`, refusing files over MAX_FILE_BYTES (without reading them whole) and devices."""
-    return read_bounded(path, MAX_FILE_BYTES, what)
+    return read_regular(path, MAX_FILE_BYTES, what)
 
 
 def parse_xml(data: bytes | str, source: str | None, lines: Lines) -> ET.Element:

@@ -9,13 +9,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from pytest_ddenv.errors import ControllerError, ControllerTimeout
 from pytest_ddenv.oracle.predicates import Predicate
 from pytest_ddenv.sim.control import (
     Command,
     Controller,
-    ControllerError,
     ControllerLike,
-    ControllerTimeout,
     LaserScan,
     Observation,
     WheelCommand,

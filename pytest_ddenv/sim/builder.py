@@ -11,19 +11,9 @@ import numpy as np
 
 from pytest_ddenv.errors import WorldError
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
-from pytest_ddenv.world.files import regular_file_problem
-from pytest_ddenv.world.model import (
-    Model,
-    Pose,
-    Shape,
-    World,
-    cone_mesh,
-    load_heightmap,
-    load_mesh,
-    polyline_mesh,
-    polyline_polygon,
-    resolve_mesh_path,
-)
+from pytest_ddenv.world.files import regular_file_problem, resolve_mesh_path
+from pytest_ddenv.world.meshes import cone_mesh, load_heightmap, load_mesh, polyline_mesh, polyline_polygon
+from pytest_ddenv.world.model import Model, Pose, Shape, World
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""

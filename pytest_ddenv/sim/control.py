@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from pytest_ddenv.errors import ControllerError
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.validation import expected, is_real
 
@@ -122,17 +123,6 @@ class Controller(Protocol):
 
 
 ControllerLike = Controller | Callable[[Observation], AnyCommand]
-
-
-class ControllerError(Exception):
-    """The controller under test broke its contract: it returned something that is not a command (or a
-    NaN), or its run went past the wall-clock limit. Like any exception of the test, it fails the run; it
-    is the failure being reduced only if the original failure was this same error."""
-
-
-class ControllerTimeout(ControllerError):
-    """A run took longer than its wall-clock limit (`max_wall_time`): the controller (or the world) is too
-    slow. The simulated time limit did not end it first."""
 
 
 def wrap_angle(angle: float) -> float:

@@ -8,14 +8,13 @@ from collections.abc import Sequence
 from typing import Any, Self
 
 from pytest_ddenv.alarm import Alarm
-from pytest_ddenv.errors import ScenarioError
+from pytest_ddenv.errors import ControllerTimeout, ScenarioError
 from pytest_ddenv.oracle.predicates import GROUND, Predicate
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.control import (
     AnyCommand,
     Command,
     ControllerLike,
-    ControllerTimeout,
     Observation,
     check_command,
     check_controller,

@@ -19,14 +19,13 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.sim.control import ControllerError
+from pytest_ddenv.errors import ControllerError, ScenarioError
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.sim.urdf_geometry import UrdfGeometry, check_wheel_joints, measure_urdf, urdf_joint_names
 from pytest_ddenv.validation import expected
-from pytest_ddenv.world.files import regular_file_problem
-from pytest_ddenv.world.model import DRIVE_KINDS, LaserMount, RobotDescription, resolve_relative
+from pytest_ddenv.world.files import regular_file_problem, resolve_relative
+from pytest_ddenv.world.model import DRIVE_KINDS, LaserMount, RobotDescription
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""

@@ -16,7 +16,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.errors import ControllerError, DdenvError
 
 PACKAGE = str(Path(__file__).resolve().parents[1]) + os.sep
 """The folder of pytest_ddenv."""
@@ -29,8 +29,6 @@ _LIBRARIES = tuple(dict.fromkeys(
 def hidden_in_tracebacks(excinfo: Any) -> bool:
     """For pytest's `__tracebackhide__`: True (hide the frame) unless `excinfo`'s exception is one that
     pytest-ddenv raised without meaning to."""
-    from pytest_ddenv.sim.control import ControllerError
-
     error = getattr(excinfo, "value", None)
     if not isinstance(error, BaseException):
         return False

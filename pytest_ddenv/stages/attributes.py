@@ -32,7 +32,9 @@ from pytest_ddenv.scenario.probe import start_support
 from pytest_ddenv.stages.context import RATE_RUNS, StageContext
 from pytest_ddenv.stages.result import StageResult
 from pytest_ddenv.stages.structure import keeps_structure, nearest_gaps
-from pytest_ddenv.world.model import Model, Pose, Shape, World, load_mesh, resolve_mesh_path
+from pytest_ddenv.world.files import resolve_mesh_path
+from pytest_ddenv.world.meshes import load_mesh
+from pytest_ddenv.world.model import Model, Pose, Shape, World
 
 STAGE = "attributes"
 PASSES = 3

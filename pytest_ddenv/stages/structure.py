@@ -28,8 +28,10 @@ import shapely
 from pytest_ddenv.outcome import Outcome
 from pytest_ddenv.reduce import Observation
 from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
+from pytest_ddenv.world.files import resolve_mesh_path
 from pytest_ddenv.world.geometry import FloatArray, box_corners, cylinder_extent_points
-from pytest_ddenv.world.model import Model, Shape, World, load_mesh, resolve_mesh_path
+from pytest_ddenv.world.meshes import load_mesh
+from pytest_ddenv.world.model import Model, Shape, World
 
 AREA = 1e-4
 """Square metres two outlines must share (1 cm²) to overlap: models that only touch do not."""

@@ -61,7 +61,8 @@ from pytest_ddenv.strategies._plans import (
     _WorldPlan,
 )
 from pytest_ddenv.validation import is_real
-from pytest_ddenv.world.model import Ground, Model, Physics, Pose, RobotDescription, Scenario, World, name_problem
+from pytest_ddenv.world.limits import name_problem
+from pytest_ddenv.world.model import Ground, Model, Physics, Pose, RobotDescription, Scenario, World
 
 __all__ = [
     "DEFAULT_REGION",

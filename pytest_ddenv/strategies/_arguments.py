@@ -10,7 +10,8 @@ from hypothesis.errors import InvalidArgument
 from pytest_ddenv.errors import shown
 from pytest_ddenv.strategies._defaults import MILLI, PRIMITIVE_KINDS, Point, PrimitiveKind, Range, Region
 from pytest_ddenv.validation import is_flag, is_integer, is_real
-from pytest_ddenv.world.model import Ground, Physics, Scenario, name_problem
+from pytest_ddenv.world.limits import name_problem
+from pytest_ddenv.world.model import Ground, Physics, Scenario
 
 
 def _fail(function: str, argument: str, message: str) -> InvalidArgument:

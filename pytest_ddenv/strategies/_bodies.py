@@ -19,7 +19,9 @@ from pytest_ddenv.strategies._arguments import (
     _milli,
 )
 from pytest_ddenv.strategies._defaults import MILLI, PrimitiveKind
-from pytest_ddenv.world.model import MAX_NAME_LENGTH, Model, Pose, Shape, World, name_problem, resolve_relative
+from pytest_ddenv.world.files import resolve_relative
+from pytest_ddenv.world.limits import MAX_NAME_LENGTH, name_problem
+from pytest_ddenv.world.model import Model, Pose, Shape, World
 
 
 @dataclass(frozen=True)

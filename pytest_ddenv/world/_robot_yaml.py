@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from pytest_ddenv.validation import is_flag
-from pytest_ddenv.world.files import regular_file_problem
-from pytest_ddenv.world.model import DRIVE_KINDS, LaserMount, RobotDescription, resolve_relative
+from pytest_ddenv.world.files import regular_file_problem, resolve_relative
+from pytest_ddenv.world.model import DRIVE_KINDS, LaserMount, RobotDescription
 
 ROBOT_KEYS = (
     "urdf", "drive", "left_wheels", "right_wheels", "wheel_radius", "track", "track_factor", "max_wheel_torque",
@@ -25,7 +25,7 @@ FIELD = "scenario.robot"
 
 
 class FieldReader(Protocol):
-    """What the parser needs from the YAML reader (world_yaml._Reader)."""
+    """What the parser needs from the YAML reader (yaml_format._Reader)."""
 
     source: str | None
 

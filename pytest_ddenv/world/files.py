@@ -4,7 +4,8 @@ they are regular files.
 A FIFO blocks `open()` until a writer comes, a device such as /dev/zero never ends, a folder cannot be read
 and a loop of symbolic links resolves to nothing: `file_kind` says which of these a path is, so that a reader
 can refuse it by what it is, and `read_regular` opens without blocking and checks what it opened before it
-reads (no race between the check and the read).
+reads (no race between the check and the read). A file a world names is found relative to the world file
+(`resolve_relative`).
 """
 
 from __future__ import annotations
@@ -101,3 +102,34 @@ def read_regular(path: Path, limit: int, what: str = "world file") -> bytes:
     if total > limit:
         raise WorldError(f"{what} is larger than the {limit} byte limit; refusing to read it", source=path)
     return b"".join(chunks)
+
+
+def resolve_mesh_path(mesh: str | None, source: str | None) -> Path:
+    """A mesh path as given, or relative to the directory of the world file that names it."""
+    if mesh is None:
+        raise WorldError("a mesh shape needs a 'mesh' file", source=source)
+    return resolve_relative(mesh, source)
+
+
+def is_file(path: Path) -> bool:
+    """Whether `path` is a file; False, not OSError, for names the system refuses (too long, ...)."""
+    try:
+        return path.is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def exists(path: Path) -> bool:
+    """Whether `path` exists; False, not OSError, for names the system refuses (too long, ...)."""
+    try:
+        return path.exists()
+    except (OSError, ValueError):
+        return False
+
+
+def resolve_relative(file: str, source: str | None) -> Path:
+    """A file named in a world file: as given if absolute, else relative to the world file's folder."""
+    path = Path(file).expanduser()
+    if not path.is_absolute() and source is not None:
+        path = Path(source).parent / path
+    return path

@@ -1,27 +1,32 @@
-"""The numbers a world may hold: what the simulator takes, checked for every world however it was made.
+"""The values a world may hold, checked for every world however it was made: each number within what the
+simulator takes (`limits.MAX_MAGNITUDE`, `limits.MAX_GRAVITY`), each shape valid for its kind: a world beyond
+is refused with one error naming the file, the model and the field, never simulated with parts silently
+missing.
 
-pybullet computes in double precision, yet its contacts change from about 1e15 m on (a robot in a box of
-1e12 m touches it as in a box of 10 m; in a box of 1e15 m it is found "0.49 m deep", and in a cylinder of
-radius 1e38 m it touches nothing) and its bounding boxes overflow past about 1e30. A gravity beyond about
-1000 m/s^2 breaks its contacts too (the Husky sinks into the ground, or drives backwards at 10 000 m/s^2).
-So every length, coordinate, mass and other value of a world is at most MAX_MAGNITUDE in absolute value, and
-each axis of gravity at most MAX_GRAVITY: a world beyond is refused with one error naming the file, the
-model and the field, never simulated with parts silently missing.
-
-The YAML reader checks each value as it reads it (`magnitude_problem`); `check_world_values` checks a whole
-`World` the same way, for the worlds other readers and the Python API make (`World.load`, `World.save`,
-`RobotWorld`).
+The YAML reader checks each value as it reads it (`limits.magnitude_problem`, `check_shape`);
+`check_world_values` checks a whole `World` the same way, for the worlds other readers and the Python API
+make (`World.load`, `World.save`, `RobotWorld`).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
-from pytest_ddenv.errors import ScenarioError, WorldError
+from pytest_ddenv.errors import ScenarioError, WorldError, shown
 from pytest_ddenv.validation import expected, is_flag, is_real
+from pytest_ddenv.world.files import regular_file_problem, resolve_relative
+from pytest_ddenv.world.limits import (
+    MAX_GRAVITY,
+    MAX_MAGNITUDE,
+    name_problem,
+    number_problem,
+    solver_iterations_problem,
+    timestep_problem,
+)
+from pytest_ddenv.world.meshes import check_heightmap_image, polyline_problem
 from pytest_ddenv.world.model import (
+    SHAPE_KINDS,
     Ground,
     LaserMount,
     Model,
@@ -31,49 +36,10 @@ from pytest_ddenv.world.model import (
     Scenario,
     Shape,
     World,
-    check_shape,
-    name_problem,
-    solver_iterations_problem,
-    timestep_problem,
 )
 
-MAX_MAGNITUDE = 1e9
-"""The largest absolute value of a length (m), coordinate (m), mass (kg) or other number of a world."""
-MAX_GRAVITY = 100.0
-"""The largest absolute value of each axis of gravity (m/s^2; about 10 g)."""
 Fail = Callable[[str, str], WorldError]
 """Makes the error for a field and a reason."""
-
-
-def magnitude_problem(value: float, limit: float = MAX_MAGNITUDE) -> str | None:
-    """Why the finite number `value` is beyond what the simulator takes, or None."""
-    if abs(value) <= limit:
-        return None
-    return (f"expected a number from -{_written(limit)} to {_written(limit)}, got {value:g} (the simulator does "
-            "not handle larger numbers)")
-
-
-def _written(limit: float) -> str:
-    return "1e9" if limit == MAX_MAGNITUDE else f"{limit:g}"
-
-
-def number_problem(value: Any, *, positive: bool = False, non_negative: bool = False,
-                   limit: float = MAX_MAGNITUDE) -> str | None:
-    """Why `value` is not a number of a world (a real, finite, within `limit`, and positive or non-negative
-    when asked), or None."""
-    if not is_real(value):
-        return expected("a number", value)
-    try:
-        number = float(value)
-    except OverflowError:  # an integer of hundreds of digits
-        number = math.inf
-    if not math.isfinite(number):
-        return expected("a finite number", value)
-    if positive and number <= 0:
-        return expected("a positive number", number)
-    if non_negative and number < 0:
-        return expected("a number >= 0", number)
-    return magnitude_problem(number, limit)
 
 
 def check_world_values(world: World) -> None:
@@ -207,3 +173,66 @@ def _check_ground(ground: Ground, source: str | None) -> None:
     _check_numbers(((field, getattr(ground, field)) for field in ("mu", "mu2", "restitution")), fail,
                    non_negative=True)
 
+
+def check_shape(shape: Shape, *, source: str | None = None, model: str | None = None, field: str | None = None,
+                static: bool = True, keys: Mapping[str, str] | None = None, files: bool = True) -> None:
+    """Raise a `WorldError` naming the file, model and field if `shape` is not a valid shape of its kind.
+
+    For readers of world files: `field` is where the shape is (e.g. "shapes[0].polyline"); the bad value is
+    named `field.KEY` with KEY one of radius, length, size, points, height, file, scale, renamed by `keys`
+    (e.g. {"points": "point", "file": "uri"} for SDF). `static`: whether the model is static (a heightmap
+    must be: it is terrain). Sizes are positive numbers within `limits.MAX_MAGNITUDE`. `files`: whether
+    the mesh or heightmap file is checked too (a regular file; a heightmap's image opens).
+    """
+    from pytest_ddenv.world.limits import number_problem
+
+    def fail(key: str | None, message: str) -> WorldError:
+        name = None if key is None else (keys or {}).get(key, key)
+        where = field if name is None else (name if field is None else f"{field}.{name}")
+        return WorldError(message, source=source, model=model, field=where)
+
+    def positive(key: str, value: float | None) -> None:
+        if value is None:
+            raise fail(key, f"missing; a {shape.kind} needs a {key}")
+        problem = number_problem(value, positive=True)
+        if problem is not None:
+            raise fail(key, problem)
+
+    def sizes(key: str, values: object) -> None:
+        if not isinstance(values, (tuple, list)) or len(values) != 3:
+            raise fail(key, f"expected 3 {key}s (x, y, z), got {shown(values)}")
+        for value in values:
+            problem = number_problem(value, positive=True)
+            if problem is not None:
+                raise fail(key, f"{problem} (in {shown(list(values))})")
+
+    if shape.kind not in SHAPE_KINDS:
+        raise fail(None, f"unknown shape kind {shape.kind!r}; expected one of {', '.join(SHAPE_KINDS)}")
+    if shape.kind in ("box", "heightmap"):
+        sizes("size", shape.size)
+    if shape.kind in ("cylinder", "capsule", "sphere"):
+        positive("radius", shape.radius)
+    if shape.kind in ("cylinder", "capsule"):
+        positive("length", shape.length)
+    if shape.kind == "cone":
+        positive("radius", shape.radius)
+        positive("length", shape.length)
+    if shape.kind == "polyline":
+        problem = polyline_problem(shape.points or ())
+        if problem is not None:
+            raise fail("points", problem)
+        positive("height", shape.height)
+    if shape.kind == "mesh":
+        sizes("scale", shape.scale)
+    if shape.kind in ("mesh", "heightmap") and (not shape.mesh or not isinstance(shape.mesh, str)):
+        raise fail("file", f"missing; a {shape.kind} needs a file")
+    if shape.kind == "heightmap" and not static:
+        raise fail(None, "a heightmap is terrain and must be static; remove the model's mass or 'static: false'")
+    if files and shape.kind in ("mesh", "heightmap"):
+        assert shape.mesh is not None
+        path = resolve_relative(shape.mesh, source)
+        problem = regular_file_problem(path, "mesh file" if shape.kind == "mesh" else "heightmap image file")
+        if problem is not None:
+            raise fail("file", problem)
+        if shape.kind == "heightmap":
+            check_heightmap_image(path, fail)

@@ -1,7 +1,7 @@
 """The YAML world format (`format: 1`): strict parsing with errors that name file, model and field.
 
 The format is documented field by field in docs/world-format.md. Reading is bounded for hostile files (see
-docs/reliability.md): at most MAX_FILE_BYTES, then the limits of `bounded_yaml`; every value shown in a
+docs/reliability.md): at most MAX_FILE_BYTES, then the limits of `_bounded_yaml`; every value shown in a
 message is clipped (`errors.shown`).
 """
 
@@ -24,7 +24,17 @@ from pytest_ddenv.errors import (
 from pytest_ddenv.validation import expected, is_flag, is_number
 from pytest_ddenv.world._bounded_yaml import Dumper, load_document
 from pytest_ddenv.world._robot_yaml import parse_robot, rebased, robot_dict
-from pytest_ddenv.world.files import regular_file_problem
+from pytest_ddenv.world.files import read_regular, regular_file_problem, resolve_mesh_path
+from pytest_ddenv.world.limits import (
+    MAX_GRAVITY,
+    MAX_MAGNITUDE,
+    magnitude_problem,
+    name_problem,
+    solver_iterations_problem,
+    text_problem,
+    timestep_problem,
+)
+from pytest_ddenv.world.meshes import check_mesh_file
 from pytest_ddenv.world.model import (
     SHAPE_KINDS,
     Ground,
@@ -35,16 +45,8 @@ from pytest_ddenv.world.model import (
     Shape,
     TagValue,
     World,
-    check_mesh_file,
-    check_shape,
-    name_problem,
-    read_bounded,
-    resolve_mesh_path,
-    solver_iterations_problem,
-    text_problem,
-    timestep_problem,
 )
-from pytest_ddenv.world.values import MAX_GRAVITY, MAX_MAGNITUDE, magnitude_problem
+from pytest_ddenv.world.values import check_shape
 
 FORMAT_VERSION = 1
 TOP_LEVEL_KEYS = ("format", "name", "physics", "ground", "scenario", "models")
@@ -86,7 +88,7 @@ class _Reader:
 
     def number(self, value: Any, field: str, *, positive: bool = False, non_negative: bool = False,
                limit: float = MAX_MAGNITUDE) -> float:
-        """A finite number, at most `limit` in absolute value (what the simulator takes, `world_values`)."""
+        """A finite number, at most `limit` in absolute value (what the simulator takes, `limits`)."""
         if not is_number(value):
             raise self.wrong(field, "a number", value, _number_hint(value))
         try:
@@ -166,7 +168,7 @@ def _is_float(text: str) -> bool:
 
 def load_yaml(path: str | os.PathLike[str]) -> World:
     path = Path(path)
-    data = read_bounded(path, MAX_FILE_BYTES)
+    data = read_regular(path, MAX_FILE_BYTES)
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as error:

@@ -24,7 +24,7 @@ from PIL import Image
 
 from pytest_ddenv import Model, Pose, RobotWorld, Scenario, Shape, World, WorldError
 from pytest_ddenv.sim.builder import build_world
-from pytest_ddenv.world.model import HEIGHTMAP_SIDE, MAX_HEIGHTMAP_PIXELS
+from pytest_ddenv.world.meshes import HEIGHTMAP_SIDE, MAX_HEIGHTMAP_PIXELS
 
 HANG_GUARD = 60.0
 """Seconds after which a child that should have ended at once is killed and the test fails."""

@@ -16,7 +16,7 @@ from pytest_ddenv.oracle import make_predicate
 from pytest_ddenv.sim import Simulator
 from pytest_ddenv.sim.builder import build_world
 from pytest_ddenv.world import Ground, Model, Pose, Shape, World
-from pytest_ddenv.world.model import load_heightmap
+from pytest_ddenv.world.meshes import load_heightmap
 
 U_OUTLINE = ((0.0, 0.0), (2.6, 0.0), (2.6, 2.4), (2.2, 2.4), (2.2, 0.4), (0.4, 0.4), (0.4, 2.4), (0.0, 2.4))
 """A U opening towards +y: arms 0.4 m thick, the notch 1.8 m wide and 2 m deep (the Husky is 0.67 m wide)."""
