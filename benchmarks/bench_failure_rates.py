@@ -113,7 +113,7 @@ def fresh_rate(problem: Problem, candidate: Sequence[str], runs: int, first_atte
 
 def reduce_as_the_driver(problem: Problem, *, partition: str, priority: str, deflake: int | str, seed: int,
                          workers: int) -> tuple[Reduction, int, float]:
-    """`reduce` called as pytest_ddenv/driver.py calls it (same probe, keep, precondition, reference trace,
+    """`reduce` called as pytest_ddenv/driver/run.py calls it (same probe, keep, precondition, reference trace,
     failure-rate runs, `workers` probe threads), with reduction seed `seed` (engine seed and re-run noise).
     Returns the reduction, the simulations it started and its wall time."""
     saved, problem.attempt_offset = problem.attempt_offset, ATTEMPTS_PER_SEED * seed

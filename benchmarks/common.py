@@ -1,7 +1,7 @@
 """Shared building blocks of the reduction benchmarks (paper_tables.py, scale.py).
 
 Everything here drives the reduction through the same execution layer and probe as the plugin and `ddenv
-reduce` (pytest_ddenv/driver.py): the test is a `ScenarioJob` (the world's scenario with the test's
+reduce` (pytest_ddenv/driver/run.py): the test is a `ScenarioJob` (the world's scenario with the test's
 predicates and noise seed: `RobotWorld(candidate, predicates, seed, attempt).run()`), served by a
 `pytest_ddenv.execution` pool (`make_pool(job, workers, in_process=job.handler())`: 1 worker = the job's
 handler in this process, as `ddenv reduce --workers 1`; N > 1 = N persistent local worker processes); the

@@ -51,6 +51,24 @@ def test_console_script_version_and_help() -> None:
     assert helped.returncode == 0 and "usage: ddenv" in helped.stdout
 
 
+@pytest.mark.parametrize("module", ["pytest_ddenv", "pytest_ddenv.cli"])
+def test_python_dash_m_runs_the_ddenv_command(module: str) -> None:
+    version = subprocess.run([sys.executable, "-m", module, "--version"], capture_output=True, text=True)
+    assert version.returncode == 0 and version.stdout.strip() == f"ddenv {pytest_ddenv.__version__}"
+    helped = subprocess.run([sys.executable, "-m", module, "check", "--help"], capture_output=True, text=True)
+    assert helped.returncode == 0 and helped.stdout.startswith("usage: ddenv check")
+
+
+@pytest.mark.parametrize("package", ["pytest_ddenv", "pytest_ddenv.world", "pytest_ddenv.oracle", "pytest_ddenv.sim",
+                                     "pytest_ddenv.driver", "pytest_ddenv.reduce", "pytest_ddenv.execution",
+                                     "pytest_ddenv.sdf", "pytest_ddenv.render", "pytest_ddenv.strategies"])
+def test_every_name_a_package_exports_is_there(package: str) -> None:
+    """The facade and the sub-packages the docs import from: every name of `__all__` resolves (the lazy ones
+    too: the facade's and the driver's are imported on first use)."""
+    module = importlib.import_module(package)
+    assert [name for name in module.__all__ if not hasattr(module, name)] == []
+
+
 PLUGIN = "pytest_ddenv.pytest_plugin"
 
 
@@ -143,8 +161,9 @@ def imports_of(name: str, path: Path, known: Mapping[str, Path]) -> set[tuple[st
                       if alias.name.partition(".")[0] == "pytest_ddenv"}
         elif isinstance(node, ast.ImportFrom):
             base = node.module or ""
-            if node.level:
-                base = ".".join([*here.split(".")[: len(here.split(".")) - node.level + 1], *filter(None, [base])])
+            if node.level:  # relative: from the package `here`, up `level - 1` packages
+                parts = here.split(".")[: len(here.split(".")) - node.level + 1]
+                base = ".".join([*parts, base] if base else parts)
             if base.partition(".")[0] == "pytest_ddenv":
                 found |= {(f"{base}.{alias.name}" if f"{base}.{alias.name}" in known else resolve(base), node.lineno)
                           for alias in node.names}
@@ -195,6 +214,32 @@ def cycles(graph: Mapping[str, set[tuple[str, int]]]) -> list[list[str]]:
     return found
 
 
+def test_the_import_reader_sees_every_kind_of_import(tmp_path: Path) -> None:
+    source = tmp_path / "reader.py"
+    source.write_text(
+        "from __future__ import annotations\n"
+        "from typing import TYPE_CHECKING\n"
+        "import pytest_ddenv.sim.run as run\n"                         # 3
+        "from pytest_ddenv.world import geometry\n"                    # 4: a module of a package
+        "from pytest_ddenv.oracle import classify\n"                   # 5: a name of a package
+        "from . import limits\n"                                       # 6: relative
+        "from .model import World\n"                                   # 7
+        "if TYPE_CHECKING:\n"
+        "    from pytest_ddenv.driver.run import ReductionPlan\n"      # 9
+        "def later() -> None:\n"
+        "    from pytest_ddenv.media import animate\n"                 # 11
+        "    importlib.import_module('pytest_ddenv.render')\n"         # 12
+        "    print('pytest_ddenv.cli: not a module name alone')\n"
+    )
+    found = imports_of("pytest_ddenv.world.reader", source, modules())
+    assert sorted(found) == [
+        ("pytest_ddenv.driver.run", 9), ("pytest_ddenv.media.animate", 11), ("pytest_ddenv.oracle", 5),
+        ("pytest_ddenv.render", 12), ("pytest_ddenv.sim.run", 3), ("pytest_ddenv.world.geometry", 4),
+        ("pytest_ddenv.world.limits", 6), ("pytest_ddenv.world.model", 7),
+    ]
+    assert cycles({"a": {("b", 1)}, "b": {("c", 2)}, "c": {("a", 3)}, "d": {("a", 4)}}) == [["a", "b", "c"]]
+
+
 def test_no_import_cycle_among_the_package_modules_of_any_import_kind() -> None:
     graph = import_graph()
     assert len(graph) > 100
@@ -212,11 +257,12 @@ def test_every_folder_and_root_module_is_in_one_layer_of_the_architecture_page()
 
 def test_every_import_points_to_its_own_layer_or_one_it_may_import_from_lazy_imports_included() -> None:
     layer_of = {room: layer for layer in layers() for room in layer.rooms}
+    nowhere = Layer(0, "in no layer", frozenset(), frozenset())
     wrong = []
     for importer, imported_lines in sorted(import_graph().items()):
-        mine = layer_of[room_of(importer)]
+        mine = layer_of.get(room_of(importer), nowhere)
         for imported, line in sorted(imported_lines):
-            theirs = layer_of[room_of(imported)]
+            theirs = layer_of.get(room_of(imported), nowhere)
             if theirs.number != mine.number and theirs.number not in mine.imports_from:
                 wrong.append(f"{modules()[importer].relative_to(PACKAGE.parent)}:{line} ({mine.name}) imports "
                              f"{imported} ({theirs.name})")
