@@ -51,11 +51,10 @@ def test_console_script_version_and_help() -> None:
     assert helped.returncode == 0 and "usage: ddenv" in helped.stdout
 
 
-@pytest.mark.parametrize("module", ["pytest_ddenv", "pytest_ddenv.cli"])
-def test_python_dash_m_runs_the_ddenv_command(module: str) -> None:
-    version = subprocess.run([sys.executable, "-m", module, "--version"], capture_output=True, text=True)
+def test_python_dash_m_pytest_ddenv_runs_the_ddenv_command() -> None:
+    version = subprocess.run([sys.executable, "-m", "pytest_ddenv", "--version"], capture_output=True, text=True)
     assert version.returncode == 0 and version.stdout.strip() == f"ddenv {pytest_ddenv.__version__}"
-    helped = subprocess.run([sys.executable, "-m", module, "check", "--help"], capture_output=True, text=True)
+    helped = subprocess.run([sys.executable, "-m", "pytest_ddenv", "check", "--help"], capture_output=True, text=True)
     assert helped.returncode == 0 and helped.stdout.startswith("usage: ddenv check")
 
 
@@ -117,9 +116,9 @@ class Layer:
 
 
 def layers() -> list[Layer]:
-    """The table of docs/architecture.md's "The layers": `| # | layer | folders and root modules | imports from |`, one
-    row per layer, its folders and modules written `name/` and `name.py`, the layers it imports from written
-    as numbers and ranges ("1, 2, 4-6"; "-" for none). Its own layer is always allowed."""
+    """The table under docs/architecture.md's "The layers": `| # | layer | folders and root modules | imports
+    from |`, one row per layer, its folders and modules written `name/` and `name.py`, the layers it imports
+    from written as numbers and ranges ("1, 2, 4-6"; "-" for none). Its own layer is always allowed."""
     found = []
     text = ARCHITECTURE.read_text().partition("\n## The layers\n")[2].partition("\n## ")[0]
     for line in text.splitlines():
