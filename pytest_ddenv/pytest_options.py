@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 
 from pytest_ddenv.artifacts import folder_problem
+from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.execution.factory import executor_problem
 from pytest_ddenv.markers import MarkerError, parse_deflake
 from pytest_ddenv.validation import expected
@@ -180,6 +181,13 @@ def _watchdog_setting(config: pytest.Config) -> Any:
 
     value = _setting(config, "ddenv_probe_timeout")
     if value in (None, ""):
+        from pytest_ddenv.execution import PoolConfigError
+        from pytest_ddenv.execution.base import check_watchdog
+
+        try:  # $DDENV_PROBE_TIMEOUT is read by the pools: checked now, not when a test fails
+            check_watchdog(DEFAULT)
+        except PoolConfigError as error:
+            raise pytest.UsageError(str(error)) from None
         return DEFAULT
     text = str(value).strip().lower()
     if text in ("auto", "none"):
@@ -217,7 +225,7 @@ def read_options(config: pytest.Config) -> DdenvOptions:
         raise pytest.UsageError(f"{_where(config, 'ddenv_world')}: no such file: {world}")
     model_paths = tuple(p for p in str(_setting(config, "ddenv_model_path") or "").split(os.pathsep) if p)
     for folder in model_paths:
-        if not Path(folder).expanduser().is_dir():
+        if not _expanded_setting(folder, config, "ddenv_model_path").is_dir():
             raise pytest.UsageError(f"{_where(config, 'ddenv_model_path')}: no such folder: {folder}")
     root, given = _artifacts_root(config)
     problem = folder_problem(root) if given or reduce else None
@@ -243,9 +251,29 @@ def _artifacts_root(config: pytest.Config) -> tuple[Path, bool]:
     option = config.getoption("ddenv_artifacts")
     invocation = Path(config.invocation_params.dir)
     if option not in (None, ""):
-        return invocation / Path(str(option)).expanduser(), True
+        return invocation / _expanded_setting(str(option), config, "ddenv_artifacts"), True
     ini = str(config.getini("ddenv_artifacts") or "")
     if ini:
         base = config.inipath.parent if config.inipath is not None else invocation
-        return base / Path(ini).expanduser(), True
+        return base / _expanded_setting(ini, config, "ddenv_artifacts"), True
     return invocation / DEFAULT_ARTIFACTS, False
+
+
+def expand_home(text: str, where: str) -> Path:
+    """`text` as a path with a leading `~` or `~NAME` made the home folder (`Path.expanduser`); DdenvError
+    naming `where` when there is no such user (or no home folder)."""
+    try:
+        return Path(text).expanduser()
+    except RuntimeError:  # pathlib: "Could not determine home directory."
+        user = text[1:].split("/", 1)[0]
+        who = f"no user named {shown(user)}" if user else "no home folder is known"
+        raise DdenvError(f"{where}: {shown(text)}: {who} (a path starting with ~ or ~NAME is in that user's home "
+                         "folder)") from None
+
+
+def _expanded_setting(text: str, config: pytest.Config, name: str) -> Path:
+    """`expand_home` for a setting: a usage error naming the option or ini key."""
+    try:
+        return expand_home(text, _where(config, name))
+    except DdenvError as error:
+        raise pytest.UsageError(str(error)) from None

@@ -8,6 +8,20 @@ from pathlib import Path
 from pytest_ddenv.reduce.types import Reduction
 from pytest_ddenv.reduction_report import ReductionReport
 
+LINE_LIMIT = 2000
+"""Characters of one line of an error message shown (a list of 5000 searched folders is not read by anyone)."""
+
+
+def clip_lines(text: str, limit: int = LINE_LIMIT) -> str:
+    """`text` with every line longer than `limit` characters cut in its middle, saying how much was left out."""
+    lines = []
+    for line in text.split("\n"):
+        if len(line) > limit:
+            head, tail = line[:limit * 2 // 3], line[-(limit // 3):]
+            line = f"{head} ... ({len(line) - len(head) - len(tail)} characters left out) ... {tail}"
+        lines.append(line)
+    return "\n".join(lines)
+
 
 def status_of(reduction: Reduction) -> str:
     return "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
