@@ -168,6 +168,9 @@ def parse_predicate(text: str) -> PredicateSpec:
         if not equals or not key.strip():
             raise UsageError(f"--predicate {shown(text)}: expected key=value, got {shown(item)} "
                              "(form: NAME[:key=value,...], e.g. stuck:window=5,min_progress=0.2)")
+        if key.strip() in params:
+            raise UsageError(f"--predicate {shown(text)}: {shown(key.strip())} is given twice; give each "
+                             "parameter once")
         params[key.strip()] = _predicate_value(value.strip())
     try:
         make_predicate(name.strip(), **params)

@@ -15,7 +15,7 @@ import os
 import shlex
 import traceback
 import warnings
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
@@ -375,7 +375,8 @@ def _given_example(item: pytest.Function, call: dict[str, Any] | None) -> GivenE
     return GivenExample.of(call, robot_world.latest.world, fixtures)  # type: ignore[attr-defined]
 
 
-def _probe_pool(item: pytest.Function, example: GivenExample | None = None) -> Any:
+def _probe_pool(item: pytest.Function, example: GivenExample | None = None,
+                warn: Callable[[str], None] | None = None) -> Any:
     """A pool serving this test's probes: worker processes that run the test (or this process, with one
     worker), or the session's dask cluster."""
     from pytest_ddenv.execution import DaskCluster, check_executor, make_pool
@@ -390,7 +391,7 @@ def _probe_pool(item: pytest.Function, example: GivenExample | None = None) -> A
     watchdog = options.watchdog
     if executor is None:
         return make_pool(PytestJob.of(item, example=example), count, in_process=ItemHandler(item, example),
-                         watchdog=watchdog)
+                         watchdog=watchdog, warn=warn)
     cluster = config.stash.get(_cluster_key, None)
     if cluster is None:
         cluster = DaskCluster(None if executor == "dask" else executor,
@@ -437,7 +438,7 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call:
     )
     try:
         session.example = _given_example(item, given_call)
-        with _probe_pool(item, session.example) as pool:
+        with _probe_pool(item, session.example, lambda text: progress(text, final=True)) as pool:
             if getattr(pool, "in_process", False):
                 _warn_about_shared_fixtures(item)
             result = session.run(pool)

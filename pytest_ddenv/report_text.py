@@ -44,8 +44,7 @@ def result_lines(report: ReductionReport) -> list[str]:
         f"minimal world: {', '.join(reduction.minimal) or '(no models)'}",
         *needed_lines(reduction),
         f"removed ({len(removed)}): {listing(removed)}",
-        (f"probes: {reduction.probes} decided{earlier}, {reduction.cache_hits} from cache, "
-         f"{reduction.skipped} skipped, {reduction.errors} errors; {reduction.wall_time:.1f} s"),
+        probes_line(reduction, earlier),
         (f"simulations run: {report.cost.simulations} (confirmation, fresh-run, "
          f"speculative and picture runs included; {report.cost.cpu_seconds:.1f} s of worker CPU)"),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
@@ -56,6 +55,14 @@ def result_lines(report: ReductionReport) -> list[str]:
         *(f"note: {text}" for text in report.notes),
         *(f"not simulated: {text}" for text in report.world_notes),
     ]
+
+
+def probes_line(reduction: Reduction, earlier: str) -> str:
+    """The probes: "decided" only when none errored (an error is no verdict: with errors they were "run")."""
+    how = "decided" if not reduction.errors else "run"
+    errors = f"{reduction.errors} errors" + (" (no verdict from them)" if reduction.errors else "")
+    return (f"probes: {reduction.probes} {how}{earlier}, {reduction.cache_hits} from cache, {reduction.skipped} "
+            f"skipped, {errors}; {reduction.wall_time:.1f} s")
 
 
 def reproduction_lines(report: ReductionReport) -> list[str]:

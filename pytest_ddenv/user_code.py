@@ -54,7 +54,7 @@ def import_user_code(spec: str, *, option: str = "--import") -> ModuleType:
             return importlib.import_module(spec)
     except ModuleNotFoundError as error:
         if error.name and spec.startswith(error.name):
-            raise UserCodeError(f"{option} {shown_spec}: no module named {shown_path(error.name)} (looked in the "
+            raise UserCodeError(f"{option} {shown_spec}: no module named {shown(error.name)} (looked in the "
                                 "current folder and the Python path)") from None
         raise UserCodeError(f"{option} {shown_spec}: importing it failed: {_raised(error)}") from error
     except SystemExit as error:

@@ -138,7 +138,10 @@ class ProbeLog:
                     self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
                     if created and self.durable:
                         sync_directory(self.path.parent)
-                size = os.fstat(self._fd).st_size
+                status = os.fstat(self._fd)
+                if status.st_nlink == 0:  # deleted (its folder too?) while the reduction ran: writing is in vain
+                    raise ReductionError(gone_failure(self.path))
+                size = status.st_size
                 view = memoryview(data)
                 while view:
                     view = view[os.write(self._fd, view):]
@@ -334,8 +337,24 @@ def sync_directory(directory: Path) -> None:
 
 
 def write_failure(path: Path, error: OSError) -> str:
-    """The message for a file of a reduction that could not be written."""
+    """The message for a file of a reduction that could not be written: why, and what became of the records
+    written before (intact only when the folder still is)."""
+    if not path.parent.is_dir():
+        return gone_failure(path)
     code = errno.errorcode.get(error.errno or 0, "")
     why = f"{error.strerror or error}" + (f" ({code})" if code else "")
-    return (f"cannot write {path}: {why}. Every record written before is intact; free some space (or fix the "
-            "folder's permissions) and run the reduction again: it resumes from the log")
+    if error.errno in (errno.ENOSPC, errno.EDQUOT):
+        fix = "free some space"
+    elif error.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        fix = "fix the folder's permissions"
+    else:
+        fix = "fix the cause"
+    return (f"cannot write {path}: {why}. Every record written before is intact; {fix} and run the reduction "
+            "again: it resumes from the log")
+
+
+def gone_failure(path: Path) -> str:
+    """The message for a reduction whose file (or folder) was deleted while it ran."""
+    where = path.parent if not path.parent.is_dir() else path
+    return (f"cannot write {path}: {where} was deleted while the reduction ran, and the records written before "
+            "with it; run the reduction again: it starts over")

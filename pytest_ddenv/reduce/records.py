@@ -94,9 +94,9 @@ EVENTS: Mapping[str, Mapping[str, str]] = {
     "accept": _VERDICT, "reject": _VERDICT, "errored": _VERDICT, "cache-hit": _VERDICT, "rate-below": _VERDICT,
     "calibration": {"fails": "count!", "runs": "count!"},
     "failure-rate": _RATE, "precondition-check": _RATE,
-    "step": {"candidate": "names!"}, "back-off": {"candidate": "names!"}, "skip": {"candidate": "names!"},
-    "start": {"elements": "names!", "keep": "names"},
-    "usage": {"simulations": "count!", "cpu_seconds": "number", "final": "flag"},
+    "step": {"candidate": "names"}, "back-off": {"candidate": "names"}, "skip": {"candidate": "names"},
+    "start": {"elements": "names", "keep": "names"},
+    "usage": {"simulations": "count", "cpu_seconds": "number", "final": "flag"},
     "path": {"points": "points!", "failure_time": "number!"},
 }
 """The fields of each event that its readers use, of the kind in `_KINDS` ("!": the record must have it)."""

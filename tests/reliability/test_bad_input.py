@@ -291,7 +291,11 @@ CASES.update({
                                        code=pytest.ExitCode.TESTS_FAILED),
     "param-int": run_pytest(files={"test_robot.py": TEST_MODULE.format(world="yard.yaml", ddenv="", failure=(
         "\n@pytest.mark.parametrize('robot_world', [5], indirect=True)"))}, code=pytest.ExitCode.TESTS_FAILED),
+    "marker-collided-empty": run_pytest(files={"test_robot.py": _robot_test(
+        failure="\n@pytest.mark.robot_failure('collided', models=[])")}),
     # ddenv options and the user's code
+    "cli-predicate-twice": ddenv("run", "yard.yaml", "-p", "stuck:window=2,window=3", files={"yard.yaml": YARD}),
+    "cli-collided-empty": ddenv("run", "yard.yaml", "-p", "collided:models=[]", files={"yard.yaml": YARD}),
     "cli-controller-not-callable": ddenv("run", "yard.yaml", "--controller", "controllers:not_callable",
                                          files={"yard.yaml": YARD, "controllers.py": CONTROLLERS}),
     "cli-controller-exit": ddenv("run", "yard.yaml", "--controller", "controllers:exits", "--no-picture",
