@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 
 from pytest_ddenv.artifacts import folder_problem
-from pytest_ddenv.errors import DdenvError, shown
+from pytest_ddenv.errors import DdenvError, shown, shown_path
 from pytest_ddenv.execution.factory import executor_problem
 from pytest_ddenv.markers import MarkerError, parse_deflake
 from pytest_ddenv.validation import expected
@@ -201,7 +201,16 @@ def _watchdog_setting(config: pytest.Config) -> Any:
 
 def read_options(config: pytest.Config) -> DdenvOptions:
     """Every ddenv setting, checked now: a bad value is a usage error before any test runs, never an error
-    in place of a test's own failure at the end."""
+    in place of a test's own failure at the end (its lines clipped: a value may be a whole file)."""
+    from pytest_ddenv.report_text import clip_lines
+
+    try:
+        return _read_options(config)
+    except pytest.UsageError as error:
+        raise pytest.UsageError(clip_lines(str(error))) from None
+
+
+def _read_options(config: pytest.Config) -> DdenvOptions:
     try:
         reduce = bool(_setting(config, "ddenv_reduce"))
     except pytest.UsageError as error:
@@ -221,12 +230,12 @@ def read_options(config: pytest.Config) -> DdenvOptions:
     if problem is not None:
         raise pytest.UsageError(f"{_where(config, 'ddenv_executor')}: {problem}")
     world = _setting(config, "ddenv_world")
-    if world not in (None, "") and not Path(world).is_file():
-        raise pytest.UsageError(f"{_where(config, 'ddenv_world')}: no such file: {world}")
+    if world not in (None, "") and not _kind_is(Path(world), "file", config, "ddenv_world"):
+        raise pytest.UsageError(f"{_where(config, 'ddenv_world')}: no such file: {shown_path(world)}")
     model_paths = tuple(p for p in str(_setting(config, "ddenv_model_path") or "").split(os.pathsep) if p)
     for folder in model_paths:
-        if not _expanded_setting(folder, config, "ddenv_model_path").is_dir():
-            raise pytest.UsageError(f"{_where(config, 'ddenv_model_path')}: no such folder: {folder}")
+        if not _kind_is(_expanded_setting(folder, config, "ddenv_model_path"), "folder", config, "ddenv_model_path"):
+            raise pytest.UsageError(f"{_where(config, 'ddenv_model_path')}: no such folder: {shown_path(folder)}")
     root, given = _artifacts_root(config)
     problem = folder_problem(root) if given or reduce else None
     if problem is not None:
@@ -269,6 +278,15 @@ def expand_home(text: str, where: str) -> Path:
         who = f"no user named {shown(user)}" if user else "no home folder is known"
         raise DdenvError(f"{where}: {shown(text)}: {who} (a path starting with ~ or ~NAME is in that user's home "
                          "folder)") from None
+
+
+def _kind_is(path: Path, kind: str, config: pytest.Config, name: str) -> bool:
+    """Whether `path` is a "file" or a "folder"; a usage error naming the setting when the system cannot tell
+    (a name too long, a loop of symbolic links)."""
+    try:
+        return path.is_file() if kind == "file" else path.is_dir()
+    except OSError as error:
+        raise pytest.UsageError(f"{_where(config, name)}: {shown_path(path)}: {error.strerror or error}") from None
 
 
 def _expanded_setting(text: str, config: pytest.Config, name: str) -> Path:

@@ -34,48 +34,71 @@ class Process(NamedTuple):
     the same pid."""
 
 
-def _table() -> dict[int, tuple[int, int]]:
-    """pid -> (parent pid, start time) of every live process (zombies left out)."""
-    found: dict[int, tuple[int, int]] = {}
+def _stat(pid: int) -> tuple[str, int, int] | None:
+    """(state, parent pid, start time) of a process, None when it is gone."""
     try:
-        entries = list(os.scandir(PROC))
+        with open(f"/proc/{pid}/stat", "rb") as handle:
+            fields = handle.read().rsplit(b")", 1)[1].split()
+        return fields[0].decode(), int(fields[1]), int(fields[19])
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def _children(pid: int) -> list[int] | None:
+    """The children of `pid` from `/proc/PID/task/*/children` (cheap: no scan of every process); None when the
+    system does not list them."""
+    try:
+        tasks = os.listdir(f"/proc/{pid}/task")
     except OSError:
-        return found
-    for entry in entries:
-        if not entry.name.isdigit():
-            continue
+        return []
+    found: list[int] = []
+    for task in tasks:
         try:
-            with open(f"/proc/{entry.name}/stat", "rb") as handle:
-                fields = handle.read().rsplit(b")", 1)[1].split()
-        except (OSError, IndexError):
-            continue  # gone meanwhile
-        if fields[0] != b"Z":
-            found[int(entry.name)] = (int(fields[1]), int(fields[19]))
+            with open(f"/proc/{pid}/task/{task}/children", "rb") as handle:
+                found.extend(int(word) for word in handle.read().split())
+        except FileNotFoundError:
+            if not os.path.exists(f"/proc/{pid}/task/{task}"):
+                continue  # the thread ended meanwhile
+            return None
+        except OSError:
+            continue
     return found
+
+
+def _children_by_scan() -> dict[int, list[int]]:
+    """parent pid -> children, from every process of the system (where `_children` is not offered)."""
+    children: dict[int, list[int]] = {}
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(PROC):
+            if entry.name.isdigit():
+                status = _stat(int(entry.name))
+                if status is not None:
+                    children.setdefault(status[1], []).append(int(entry.name))
+    return children
 
 
 def descendants(pid: int) -> list[Process]:
     """Every live process under `pid` (children, grandchildren, ...), parents before their children."""
-    children: dict[int, list[int]] = {}
-    table = _table()
-    for child, (parent, _) in table.items():
-        children.setdefault(parent, []).append(child)
+    scanned: dict[int, list[int]] | None = None
     found: list[Process] = []
-    queue = list(children.get(pid, ()))
+    queue = [pid]
     while queue:
-        child = queue.pop(0)
-        found.append(Process(child, table[child][1]))
-        queue.extend(children.get(child, ()))
+        parent = queue.pop(0)
+        children = _children(parent)
+        if children is None:
+            scanned = scanned if scanned is not None else _children_by_scan()
+            children = scanned.get(parent, [])
+        for child in children:
+            status = _stat(child)
+            if status is not None and status[0] != "Z":
+                found.append(Process(child, status[2]))
+                queue.append(child)
     return found
 
 
 def _alive(process: Process) -> bool:
-    try:
-        with open(f"/proc/{process.pid}/stat", "rb") as handle:
-            fields = handle.read().rsplit(b")", 1)[1].split()
-    except (OSError, IndexError):
-        return False
-    return fields[0] != b"Z" and int(fields[19]) == process.started
+    status = _stat(process.pid)
+    return status is not None and status[0] != "Z" and status[2] == process.started
 
 
 def _signal(processes: Iterable[Process], number: int) -> None:

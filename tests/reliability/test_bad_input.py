@@ -227,14 +227,14 @@ CASES: dict[str, Case] = {
 
 
 # -- issue 28: the process, command-line, plugin and journal interfaces -------------------------------------
-def _link(target: str) -> Callable[[Path], None]:
+def _symlink(target: str) -> Callable[[Path], None]:
     def make(path: Path) -> None:
         path.symlink_to(target)
 
     return make
 
 
-def _fifo(path: Path) -> None:
+def _pipe(path: Path) -> None:
     os.mkfifo(path)
 
 
@@ -270,17 +270,19 @@ def _with_env(case: Case, **env: str) -> Case:
 
 
 REDUCE = ("reduce", "yard.yaml", "-p", "stuck:window=2.0,min_progress=0.2", "--workers", "1", "--media", "none")
-CASES.update({
+PROCESS_CASES: dict[str, Case] = {
     # pytest options, ini settings and environment variables, checked when pytest starts
     "artifacts-proc": run_pytest("--ddenv-artifacts", "/proc/ddenv-out"),
-    "artifacts-dangling": run_pytest("--ddenv-artifacts", "out", files={"out": _link("nowhere/out")}),
+    "artifacts-dangling": run_pytest("--ddenv-artifacts", "out", files={"out": _symlink("nowhere/out")}),
     "artifacts-no-user": run_pytest("--ddenv-artifacts", "~nosuchuser/out"),
     "artifacts-lock-link": run_pytest("--ddenv-reduce", "--ddenv-artifacts", "out",
-                                      files={"out/.ddenv.lock": _link("../precious.txt"), "precious.txt": "mine"}),
+                                      files={"out/.ddenv.lock": _symlink("../precious.txt"), "precious.txt": "mine"}),
     "ini-artifacts-proc": run_pytest(files={"pytest.ini": "[pytest]\nddenv_artifacts = /proc/ddenv-out\n"}),
     "ini-artifacts-dangling": run_pytest(files={"pytest.ini": "[pytest]\nddenv_artifacts = out\n",
-                                                "out": _link("nowhere/out")}),
+                                                "out": _symlink("nowhere/out")}),
     "model-path-no-user": run_pytest("--ddenv-model-path", "~nosuchuser/models"),
+    "world-long-name": run_pytest("--ddenv-world", "w" * 3000),
+    "model-path-long-name": run_pytest("--ddenv-model-path", "m" * 3000),
     "probe-timeout-env": _with_env(run_pytest(), DDENV_PROBE_TIMEOUT="soon"),
     "probe-timeout-env-negative": _with_env(run_pytest(), DDENV_PROBE_TIMEOUT="-5"),
     # markers and parameters
@@ -310,7 +312,7 @@ CASES.update({
                                         subprocess=True),
     "cli-record-full": ddenv("run", "yard.yaml", "--no-picture", "--record", "/dev/full", files={"yard.yaml": YARD}),
     "cli-record-fifo": ddenv("run", "yard.yaml", "--no-picture", "--record", "runs.pipe",
-                             files={"yard.yaml": YARD, "runs.pipe": _fifo}),
+                             files={"yard.yaml": YARD, "runs.pipe": _pipe}),
     "cli-output-folder": ddenv("run", "yard.yaml", "-o", ".", files={"yard.yaml": YARD}),
     "cli-output-suffix": ddenv("run", "yard.yaml", "-o", "out.txt", files={"yard.yaml": YARD}),
     "cli-animate-suffix": ddenv("show", "yard.yaml", "--animate", "run.mp4", files={"yard.yaml": YARD}),
@@ -321,14 +323,14 @@ CASES.update({
                                        DDENV_PROBE_TIMEOUT="soon"),
     "cli-out-proc": ddenv("reduce", "yard.yaml", "-p", "stuck", "--out", "/proc/ddenv-out", files={"yard.yaml": YARD}),
     "cli-out-dangling": ddenv("reduce", "yard.yaml", "-p", "stuck", "--out", "out",
-                              files={"yard.yaml": YARD, "out": _link("nowhere/out")}),
+                              files={"yard.yaml": YARD, "out": _symlink("nowhere/out")}),
     "cli-out-lock-link": ddenv("reduce", "yard.yaml", "-p", "stuck", "--out", "out", files={
-        "yard.yaml": YARD, "out/.ddenv.lock": _link("../precious.txt"), "precious.txt": "mine"}),
+        "yard.yaml": YARD, "out/.ddenv.lock": _symlink("../precious.txt"), "precious.txt": "mine"}),
     # journals and summaries read back
     "log-folder": ddenv(*REDUCE, "--out", "out", files={"yard.yaml": YARD, "out/runs.jsonl/x": "a folder"}),
-    "log-fifo": ddenv(*REDUCE, "--out", "out", files={"yard.yaml": YARD, "out/runs.jsonl": _fifo}),
+    "log-fifo": ddenv(*REDUCE, "--out", "out", files={"yard.yaml": YARD, "out/runs.jsonl": _pipe}),
     "replay-deep-summary": ddenv("replay", "art", files={"art/minimal.yaml": YARD, "art/summary.json": _deep_json}),
-    "replay-summary-fifo": ddenv("replay", "art", files={"art/minimal.yaml": YARD, "art/summary.json": _fifo}),
+    "replay-summary-fifo": ddenv("replay", "art", files={"art/minimal.yaml": YARD, "art/summary.json": _pipe}),
     "replay-summary-seed": ddenv("replay", "art", "--runs", "1", files=_artifacts(scenario_seed="x")),
     "replay-summary-imports": ddenv("replay", "art", "--runs", "1", files=_artifacts(imports=5)),
     "replay-summary-controller": ddenv("replay", "art", "--runs", "1", files=_artifacts(controller=5)),
@@ -336,8 +338,9 @@ CASES.update({
     "replay-summary-rate": ddenv("replay", "art", "--runs", "1", files=_artifacts(original_failure_rate={"a": 1})),
     "show-deep-runs": ddenv("show", "yard.yaml", "--runs", "runs.jsonl",
                             files={"yard.yaml": YARD, "runs.jsonl": _deep_json}),
-    "show-runs-fifo": ddenv("show", "yard.yaml", "--runs", "runs.pipe", files={"yard.yaml": YARD, "runs.pipe": _fifo}),
-})
+    "show-runs-fifo": ddenv("show", "yard.yaml", "--runs", "runs.pipe", files={"yard.yaml": YARD, "runs.pipe": _pipe}),
+}
+CASES.update(PROCESS_CASES)
 
 
 # -- the table ----------------------------------------------------------------------------------------------
