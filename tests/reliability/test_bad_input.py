@@ -248,15 +248,12 @@ SUMMARY = {"reference_failure": {"exception_type": "RobotFailure", "location": "
            "predicates": [{"name": "stuck", "params": {"window": 2.0, "min_progress": 0.2}}], "scenario_seed": 0}
 CONTROLLERS = """\
 import os
-from pytest_ddenv import Command
 
 def exits(observation):
     raise SystemExit(0)
 
 def ends(observation):
     os._exit(0)
-
-not_callable = 42
 """
 
 
@@ -298,8 +295,8 @@ PROCESS_CASES: dict[str, Case] = {
     # ddenv options and the user's code
     "cli-predicate-twice": ddenv("run", "yard.yaml", "-p", "stuck:window=2,window=3", files={"yard.yaml": YARD}),
     "cli-collided-empty": ddenv("run", "yard.yaml", "-p", "collided:models=[]", files={"yard.yaml": YARD}),
-    "cli-controller-not-callable": ddenv("run", "yard.yaml", "--controller", "controllers:not_callable",
-                                         files={"yard.yaml": YARD, "controllers.py": CONTROLLERS}),
+    "cli-controller-not-callable": ddenv("run", "yard.yaml", "--controller", "uncallable:not_callable",
+                                         files={"yard.yaml": YARD, "uncallable.py": "not_callable = 42\n"}),
     "cli-controller-exit": ddenv("run", "yard.yaml", "--controller", "controllers:exits", "--no-picture",
                                  files={"yard.yaml": YARD, "controllers.py": CONTROLLERS}, code=3, subprocess=True),
     "cli-controller-os-exit": ddenv("run", "yard.yaml", "--controller", "controllers:ends", "--no-picture",

@@ -144,9 +144,10 @@ def test_the_run_timeout_hint_of_ddenv_run_names_its_own_option(tmp_path: Path,
                                                                capsys: pytest.CaptureFixture[str],
                                                                monkeypatch: pytest.MonkeyPatch) -> None:
     (tmp_path / "yard.yaml").write_text(YARD)
-    (tmp_path / "controllers.py").write_text(SLOW_CONTROLLER)
+    (tmp_path / "slow_controller.py").write_text(SLOW_CONTROLLER)  # a name no other test imports in this process
     monkeypatch.chdir(tmp_path)
-    code = cli.main(["run", "yard.yaml", "--controller", "controllers:slow", "--run-timeout", "0.5", "--no-picture"])
+    code = cli.main(["run", "yard.yaml", "--controller", "slow_controller:slow", "--run-timeout", "0.5",
+                     "--no-picture"])
     out = capsys.readouterr().out
     assert code == 1 and "ControllerTimeout" in out, out
     assert "ddenv run --run-timeout SECONDS" in out and "--ddenv-run-timeout" not in out
