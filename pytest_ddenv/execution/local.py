@@ -5,9 +5,9 @@ reply, the worker's death, or the watchdog. A worker that dies mid-probe is repl
 once on the fresh worker; a second death, a watchdog kill, or closing the pool raise `WorkerError`. A worker
 that cannot start its job (the test does not import there) raises `WorkerStartError`, and so does every
 later call. With ``in_process=handler`` probes run in the calling process instead (no worker process, no
-fault isolation), one at a time; there the watchdog is a SIGALRM timer that interrupts the probe with
-`ProbeTimeout` (in the main thread, when no one else uses SIGALRM; elsewhere only the simulation's own
-cooperative `max_wall_time` bounds a probe).
+fault isolation), one at a time; there the watchdog interrupts the probe with `ProbeTimeout` (`stuck.py`), and a
+probe that defeats it sends the later probes to a worker process. The processes a probe starts end with it
+(`children.py`): with its worker, or, in-process, when it returns.
 """
 
 from __future__ import annotations

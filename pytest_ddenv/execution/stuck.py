@@ -10,7 +10,8 @@ interrupt is raised again at every line of the probe's code that catches it, unt
 code of the standard library and of pytest-ddenv is left alone, so their cleanups run). A probe that survives
 that too for `ESCALATION` seconds (it blocks every signal, or hangs in C code) cannot be stopped in this
 process: the watcher says so and ends the process (exit status `LAST_RESORT_STATUS`) rather than hang forever;
-the run log holds every record before it.
+the run log holds every record before it. (A probe called off the main thread, through the Python API, can
+be neither interrupted nor stopped: the watcher only warns.)
 
 The pool then reports the probe as an error (never a verdict) and runs the later probes in a worker process.
 """
@@ -150,6 +151,10 @@ class ProbeWatchdog:
         if self._finished.wait(self.limit + self.escalate_after):
             return
         self.defeat = self._why()
+        if self._backup is None:  # not in the main thread (or no signal free): it cannot be interrupted
+            self.warn(f"ddenv: warning: the probe of {self.what} runs past its {self.limit:g} s watchdog and cannot "
+                      "be interrupted here (it does not run in the main thread); use worker processes")
+            return
         self.warn(f"ddenv: the probe of {self.what} runs past its {self.limit:g} s watchdog in this process and "
                   f"did not stop ({self.defeat}); interrupting it harder")
         last_resort = time.monotonic() + self.escalation
@@ -157,8 +162,7 @@ class ProbeWatchdog:
             with self._lock:
                 if self._done:
                     return
-                if self._backup is not None:
-                    signal.pthread_kill(self._thread_id, self._backup)
+                signal.pthread_kill(self._thread_id, self._backup)
                 if time.monotonic() > last_resort:
                     self.warn(f"ddenv: error: the probe of {self.what} cannot be stopped in this process "
                               f"({self.defeat}; it went on for {self.escalation:g} s of interrupts); ending this "
