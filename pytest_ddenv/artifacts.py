@@ -29,6 +29,7 @@ from pytest_ddenv.errors import DdenvError, ReductionError
 from pytest_ddenv.problem import Problem
 from pytest_ddenv.reduce import Reduction
 from pytest_ddenv.reduce.log import parse_record, sync_directory, write_failure
+from pytest_ddenv.reduce.records import json_value, read_regular
 from pytest_ddenv.reduction_report import SUMMARY_FORMAT, ReductionReport, ReportFiles, identity_json
 from pytest_ddenv.world import World
 
@@ -295,8 +296,9 @@ def usage_of(records: Iterable[Mapping[str, Any]]) -> Usage:
 
 
 def read_summary(path: Path) -> dict[str, Any] | None:
+    """The summary at `path`, None when it is missing, not a regular file, not JSON or nested too deep."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json_value(read_regular(path).decode("utf-8", errors="replace"))
     except (OSError, ValueError):
         return None
     return data if isinstance(data, dict) else None
