@@ -89,7 +89,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
                                              "progress", "replay", "scenario_job", "user_code", "other_failures",
                                              "problem")),
     ("front ends and pytest glue", ("plugin", "pytest_options", "pytest_progress", "reduction_session",
-                                    "pytest_worker", "given_example", "cli", "cli_world")),
+                                    "pytest_worker", "given_example", "cli", "cli_world", "cli_output")),
 ]
 PACKAGE = Path(pytest_ddenv.__file__).parent
 
