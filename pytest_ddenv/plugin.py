@@ -31,6 +31,7 @@ from pytest_ddenv.pytest_progress import PytestProgress, close_log, open_log
 from pytest_ddenv.robot_world import FIXTURE
 from pytest_ddenv.validation import expected
 from pytest_ddenv.world import is_file
+from pytest_ddenv.world_files import regular_file_problem
 
 if TYPE_CHECKING:
     from pytest_ddenv.given_example import GivenExample
@@ -210,6 +211,10 @@ def _world_path(item: pytest.Item, raw: str | os.PathLike[str]) -> Path:
     for candidate in candidates:
         if is_file(candidate):
             return candidate
+    for candidate in candidates:  # there, but not a file to read: say what it is (a folder, a FIFO, a loop)
+        problem = regular_file_problem(candidate, "world file")
+        if problem is not None and not problem.startswith("world file not found"):
+            raise DdenvError(problem)
     folders = dict.fromkeys(str(candidate.parent) for candidate in candidates)
     raise DdenvError(f"world file not found: {raw} (looked in {', '.join(folders)})")
 
