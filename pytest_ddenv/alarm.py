@@ -20,6 +20,8 @@ class Alarm:
         self.active = False
         self.armed = False
         self.previous: Any = None
+        self.fired = 0
+        """How many times the alarm raised its error (more than once: the code caught it and went on)."""
 
     def usable(self) -> bool:
         if self.seconds is None or not hasattr(signal, "setitimer"):
@@ -29,8 +31,14 @@ class Alarm:
         handler = signal.getsignal(signal.SIGALRM)
         return handler in (signal.SIG_DFL, signal.SIG_IGN, None) and signal.getitimer(signal.ITIMER_REAL)[0] == 0
 
+    @property
+    def handler(self) -> Callable[[int, Any], None]:
+        """The SIGALRM handler while the alarm is active (code that replaced it defeats the alarm)."""
+        return self._fire
+
     def _fire(self, signum: int, frame: object) -> None:
         if self.armed:
+            self.fired += 1
             raise self.make_error()
 
     def __enter__(self) -> Self:

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 from pytest_ddenv import defaults
 from pytest_ddenv._version import __version__
+from pytest_ddenv.cli.output import appended, check_matplotlib_backend, check_output, check_record
 from pytest_ddenv.cli.world_options import (
     UsageError,
     add_scenario_options,
@@ -35,6 +36,7 @@ from pytest_ddenv.cli.world_options import (
 from pytest_ddenv.driver.progress import ProgressLine
 from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.oracle.predicates import PredicateSpec, check_predicate_models
+from pytest_ddenv.driver.user_code import UserCodeExit, is_exit
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.driver.report import ReductionReport
@@ -45,8 +47,12 @@ EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_USAGE = 2
 EXIT_INTERNAL = 3
+EXIT_USER_EXIT = 3
+"""The user's code (a controller, an --import) exited during the run: as an internal error, never a success."""
 EXIT_INTERRUPTED = 130
 
+DEFAULT_RUN_TIMEOUT = 300.0
+"""`ddenv run --run-timeout`: as `robot_world.run()`'s limit in a test (`robot_world.DEFAULT_MAX_WALL_TIME`)."""
 YAML_SUFFIXES = (".yaml", ".yml")
 SDF_SUFFIXES = (".sdf", ".world")
 
@@ -121,12 +127,12 @@ def _positive_float(text: str) -> float:
 
 
 def _stages(text: str) -> tuple[str, ...]:
-    from pytest_ddenv.stages import StagesError, parse_stages
+    from pytest_ddenv.driver.markers import MarkerError, parse_stage_list
 
     try:
-        return parse_stages(text)
-    except StagesError as error:
-        raise argparse.ArgumentTypeError(str(error)) from None
+        return parse_stage_list(text, "--stages")
+    except MarkerError as error:
+        raise argparse.ArgumentTypeError(str(error).removeprefix("--stages: ")) from None
 
 
 def _probe_timeout(text: str) -> float | str:
@@ -165,6 +171,9 @@ def parse_predicate(text: str) -> PredicateSpec:
         if not equals or not key.strip():
             raise UsageError(f"--predicate {shown(text)}: expected key=value, got {shown(item)} "
                              "(form: NAME[:key=value,...], e.g. stuck:window=5,min_progress=0.2)")
+        if key.strip() in params:
+            raise UsageError(f"--predicate {shown(text)}: {shown(key.strip())} is given twice; give each "
+                             "parameter once")
         params[key.strip()] = _predicate_value(value.strip())
     try:
         make_predicate(name.strip(), **params)
@@ -263,6 +272,9 @@ def _add_run(commands: Any, common: argparse.ArgumentParser) -> None:
     _add_predicate_option(run, required=False)
     _add_user_code_options(run)
     run.add_argument("--timeout", type=_positive_float, help="simulated seconds (default: the world's scenario)")
+    run.add_argument("--run-timeout", type=_positive_float, default=DEFAULT_RUN_TIMEOUT, metavar="SECONDS",
+                     help="wall-clock seconds the run may take before it fails with ControllerTimeout (default "
+                          f"{DEFAULT_RUN_TIMEOUT:g}): bounds a controller that is too slow")
     add_scenario_options(run)
     add_world_options(run)
     run.add_argument("-o", "--output", help="picture to write (default: WORLD-run.png in the current folder)")
@@ -398,6 +410,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return EXIT_FAILED
+    except UserCodeExit as error:  # the user's code exited while ddenv ran it: an error, never a success
+        _traceback_if(arguments.debug)
+        return _fail(str(error), as_json=arguments.json, code=EXIT_USER_EXIT)
     except (DdenvError, OSError) as error:
         _traceback_if(arguments.debug)
         return _fail(_describe_error(error), as_json=arguments.json)
@@ -438,6 +453,9 @@ def _describe_error(error: BaseException) -> str:
 
 
 def _fail(message: str, *, as_json: bool, code: int = EXIT_USAGE) -> int:
+    from pytest_ddenv.driver.report_text import clip_lines
+
+    message = clip_lines(message)
     print(f"ddenv: error: {message}", file=sys.stderr)
     if as_json:
         _print_json({"ok": False, "error": message, "exit_code": code})
@@ -517,12 +535,17 @@ def _user_code(arguments: argparse.Namespace) -> Any:
 def _cmd_run(arguments: argparse.Namespace) -> int:
     from pytest_ddenv.driver.scenario_job import run_scenario
 
+    if not arguments.no_picture:
+        check_output("--output", arguments.output, ".png")
+        check_matplotlib_backend()
+    check_record(arguments.record)
     controller = _user_code(arguments)
     world = with_scenario(arguments, load_world(arguments, arguments.world), arguments.world)
     predicates = _predicates(arguments.predicates)
     _check_predicate_models(predicates, world)
     try:
-        run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout, controller=controller)
+        run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout, controller=controller,
+                           max_wall_time=arguments.run_timeout)
     except DdenvError:
         raise
     except Exception as error:  # noqa: BLE001 - the controller under test raised or misbehaved: the scenario failed
@@ -535,7 +558,7 @@ def _cmd_run(arguments: argparse.Namespace) -> int:
         picture = render.plot_world(world, [run], path=target, title=f"{_world_stem(arguments.world)}: "
                                     f"{len(world)} models, seed {arguments.seed}")
     if arguments.record:
-        with open(arguments.record, "a", encoding="utf-8") as record:
+        with appended("--record", arguments.record) as record:
             record.write(json.dumps(run.to_dict()) + "\n")
     passed = run.failure is None and run.reached_goal
     _emit(arguments, _run_text(arguments.world, world, run, picture), {
@@ -557,10 +580,19 @@ def _cmd_run(arguments: argparse.Namespace) -> int:
     return EXIT_OK if passed else EXIT_FAILED
 
 
+RUN_TIMEOUT_HINT = "robot_world.run(max_wall_time=...), --ddenv-run-timeout"
+"""How `ControllerTimeout` says to raise the limit in a test; `ddenv run` says `--run-timeout` instead."""
+
+
 def _run_raised(arguments: argparse.Namespace, world: World, error: Exception) -> int:
+    from dataclasses import replace
+
     from pytest_ddenv.scenario.probe import describe_error
+    from pytest_ddenv.sim import ControllerTimeout
 
     info = describe_error(error, None)
+    if isinstance(error, ControllerTimeout):  # its hint names the pytest options: say ddenv's own
+        info = replace(info, message=info.message.replace(RUN_TIMEOUT_HINT, "ddenv run --run-timeout SECONDS"))
     notes = "".join(f" {note}" for note in getattr(error, "__notes__", ()))
     text = (f"{arguments.world}: {len(world)} models, seed {arguments.seed}: FAILED (the run raised "
             f"{info.type_name} at {info.location}: {info.message}){notes}")
@@ -593,6 +625,10 @@ def _run_text(path: str, world: World, run: Run, picture: Path | None) -> str:
 def _cmd_show(arguments: argparse.Namespace) -> int:
     from pytest_ddenv import render
 
+    check_output("--output", arguments.output, ".png")
+    if arguments.animate:
+        check_output("--animate", arguments.animate, ".gif")
+    check_matplotlib_backend()
     world = load_world(arguments, arguments.world)
     runs, poses, outcomes = _read_runs(Path(arguments.runs)) if arguments.runs else ([], [], [])
     target = arguments.output or f"{_world_stem(arguments.world)}.png"
@@ -646,8 +682,11 @@ def _read_runs(path: Path) -> tuple[list[Run], list[list[float]], list[str]]:
     """Runs (`ddenv run --record` lines), failure poses (probe-log lines) and each pose's outcome ("fail":
     the same failure as the reduced one, "other": another failure) of a JSON-lines file."""
     from pytest_ddenv.reduce.log import numbered_records
+    from pytest_ddenv.reduce.records import MAX_JSON_NESTING
     from pytest_ddenv.sim import Run
 
+    if path.exists() and not path.is_file():
+        raise UsageError(f"{path}: not a runs file: {'a folder' if path.is_dir() else 'a pipe or a device'}")
     if not path.is_file():
         raise UsageError(f"{path}: no such runs file")
     runs: list[Run] = []
@@ -655,7 +694,8 @@ def _read_runs(path: Path) -> tuple[list[Run], list[list[float]], list[str]]:
     outcomes: list[str] = []
     for number, record in numbered_records(path):
         if record is None:
-            raise UsageError(f"{path}:{number}: not a JSON line")
+            raise UsageError(f"{path}:{number}: not a JSON line (damaged, or nested more than {MAX_JSON_NESTING} "
+                             "deep)")
         if "poses" in record:
             try:
                 runs.append(Run.from_dict(record))
@@ -678,8 +718,10 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     from pytest_ddenv.execution import check_executor, make_pool
     from pytest_ddenv.reduce import DEFLAKE_POLICIES, PRIORITY_ALIASES
 
-    _user_code(arguments)
     arguments.media = _resolved_media(arguments.media)
+    if arguments.media != "none":
+        check_matplotlib_backend()
+    _user_code(arguments)
     world = with_scenario(arguments, load_world(arguments, arguments.world), arguments.world)
     predicates = _predicates(arguments.predicates)
     _check_predicate_models(predicates, world)
@@ -756,6 +798,8 @@ def _keep(world: World, names: Sequence[str]) -> tuple[str, ...]:
 
 
 def _does_not_fail(arguments: argparse.Namespace, result: Any) -> int:
+    if result.error is not None and is_exit(result.error):  # the code under test exited: an error, never a pass
+        raise UserCodeExit(f"{arguments.world}: {result.error.message}")
     if result.error is not None:  # the scenario cannot be run at all: an input error
         raise UsageError(f"{arguments.world}: the scenario could not be run: {result.error.describe()}")
     run = result.run
@@ -900,11 +944,20 @@ def _reduction_text(path: str, report: ReductionReport, pictures: Sequence[str],
 def _cmd_replay(arguments: argparse.Namespace) -> int:
     from pytest_ddenv.cli.replay import read_artifacts, replay
     from pytest_ddenv.outcome import Outcome
+    from pytest_ddenv.cli.replay import read_artifacts, replay, summary_field
+    from pytest_ddenv.outcome import Outcome
 
     if not arguments.imports and not arguments.controller:  # what the reduction itself used, if recorded
-        summary, _ = read_artifacts(Path(arguments.artifacts))
-        arguments.imports = [str(spec) for spec in summary.get("imports") or []]
-        arguments.controller = summary.get("controller")
+        folder = Path(arguments.artifacts)
+        summary, _ = read_artifacts(folder)
+        where = folder / "summary.json"
+        arguments.imports = summary_field(summary, "imports", where, "a list of module names or files",
+                                          lambda value: isinstance(value, list)
+                                          and all(isinstance(item, str) for item in value), [])
+        arguments.controller = summary_field(summary, "controller", where, "MODULE:ATTRIBUTE or null",
+                                             lambda value: value is None or isinstance(value, str), None)
+    if arguments.animate:
+        check_output("--animate", arguments.animate, ".gif")
     controller = _user_code(arguments)
     predicates = _predicates(arguments.predicates) or None
     from pytest_ddenv.detail import recording_detail

@@ -7,18 +7,18 @@ the reduction recorded (`oracle.SameFailureRule`); each run that failed otherwis
 
 from __future__ import annotations
 
-import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv import defaults
 from pytest_ddenv.driver.scenario_job import run_scenario
-from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.oracle.predicates import PredicateSpec
 from pytest_ddenv.reduce import Outcome
 from pytest_ddenv.reduce.log import read_records
+from pytest_ddenv.reduce.records import json_value, read_regular
 from pytest_ddenv.scenario.robot_world import RobotFailure
 from pytest_ddenv.validation import expected
 from pytest_ddenv.world.model import World
@@ -29,6 +29,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.scenario.probe import FailureReference
     from pytest_ddenv.sim import ControllerLike, Run
 
+SUMMARY_LIMIT = 64 * 1024 * 1024
+"""Bytes of a `summary.json` read back (one written by a reduction is a few kilobytes)."""
 REFERENCE_LOCATION = "ddenv"
 """The `FailureReference.location` of a failure found by running a world's scenario (no test file)."""
 
@@ -51,12 +53,13 @@ def predicates_from_json(data: Any) -> tuple[PredicateSpec, ...]:
         raise ArtifactError(expected("a list of {name, params}", data, "'predicates'"))
     specs = []
     for item in data:
-        if not isinstance(item, Mapping) or not isinstance(item.get("name"), str):
-            raise ArtifactError(f"each predicate must be {{name, params}}, got {item!r}")
+        if not isinstance(item, Mapping) or not isinstance(item.get("name"), str) \
+                or not isinstance(item.get("params") or {}, Mapping):
+            raise ArtifactError(expected("{name, params} for each predicate", item, "'predicates'"))
         if item["name"] not in PREDICATES:
-            given = f" (the test gave it as {item['object']})" if "object" in item else ""
+            given = f" (the test gave it as {shown(item['object'])})" if "object" in item else ""
             raise ArtifactError(
-                f"predicate {item['name']!r}{given} is not registered here: pass --import MODULE (a module that "
+                f"predicate {shown(item['name'])}{given} is not registered here: pass --import MODULE (a module that "
                 "calls pytest_ddenv.register_predicate), or --predicate, or replay with pytest (summary.json's "
                 "'replay' command)"
             )
@@ -193,9 +196,11 @@ def read_artifacts(directory: Path) -> tuple[dict[str, Any], World]:
     if not directory.is_dir():
         raise ArtifactError(f"{directory}: no such artifacts folder")
     try:
-        summary = json.loads(summary_path.read_text(encoding="utf-8"))
-    except OSError:
+        summary = json_value(read_regular(summary_path, SUMMARY_LIMIT).decode("utf-8", errors="replace"))
+    except FileNotFoundError:
         raise ArtifactError(f"{summary_path}: missing; is {directory} a ddenv artifacts folder?") from None
+    except OSError as error:
+        raise ArtifactError(f"{summary_path}: cannot be read: {error.strerror or error}") from None
     except ValueError as error:
         raise ArtifactError(f"{summary_path}: not valid JSON ({error})") from None
     if not isinstance(summary, dict):
@@ -205,10 +210,37 @@ def read_artifacts(directory: Path) -> tuple[dict[str, Any], World]:
     return summary, World.load(minimal_path)
 
 
+def summary_field(summary: Mapping[str, Any], name: str, where: Path, what: str, valid: Callable[[Any], bool],
+                  default: Any) -> Any:
+    """`summary[name]` when it is `what` (`valid`), `default` when absent; ArtifactError naming the file and the
+    field when it is something else (a summary damaged or edited since the reduction wrote it)."""
+    if name not in summary:
+        return default
+    value = summary[name]
+    if not valid(value):
+        raise ArtifactError(expected(what, value, f"{where}, field '{name}'"))
+    return value
+
+
+def _seed(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value < 2**63
+
+
+def _positive_or_none(value: Any) -> bool:
+    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool)
+                             and 0 < value < float("inf"))
+
+
+def _rate_or_none(value: Any) -> bool:
+    return value is None or (isinstance(value, Mapping) and all(_seed(value.get(key)) for key in ("fails", "runs")))
+
+
 def recorded_signature(summary: Mapping[str, Any], where: Path) -> FailureSignature:
     from pytest_ddenv.oracle.predicates import FailureSignature
 
-    signature = (summary.get("reference_failure") or {}).get("signature")
+    reference = summary_field(summary, "reference_failure", where, "an object {exception_type, location, signature}",
+                              lambda value: isinstance(value, Mapping), {})
+    signature = reference.get("signature")
     if not isinstance(signature, Mapping):
         raise ArtifactError(f"{where}: the reference failure has no predicate signature (the test failed "
                             "with an exception, not a failure predicate); replay it with the 'replay' command "
@@ -273,8 +305,11 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
         rule = replace(rule, match=same_failure_match(same_failure, "same_failure"), predicates=())
     if tolerance is not None:
         rule = replace(rule, tolerance=tolerance)
-    run_timeout = timeout if timeout is not None else summary.get("timeout")
-    seed = int(summary.get("scenario_seed", summary.get("seed", 0)))
+    where = folder / "summary.json"
+    run_timeout = timeout if timeout is not None else summary_field(summary, "timeout", where, "a number > 0 or null",
+                                                                     _positive_or_none, None)
+    seed = summary_field(summary, "scenario_seed", where, "an integer >= 0", _seed,
+                         summary_field(summary, "seed", where, "an integer >= 0", _seed, 0))
     if recorded:
         seeds = recorded_seeds(folder / "runs.jsonl", world.names, seed)[:max_runs]
     else:
@@ -291,7 +326,8 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
         outcome = classify(run, reference, rule)
         reason = why_other(run.failure, reference, rule) if outcome is Outcome.OTHER and run.failure else None
         results.append(ReplayRun(run_seed, outcome, run.failure, run=run, why="" if reason is None else reason.text))
-    original = summary.get("original_failure_rate") or None
-    original_rate = (int(original["fails"]), int(original["runs"])) if isinstance(original, Mapping) else None
+    original = summary_field(summary, "original_failure_rate", where, "{fails, runs} (integers >= 0) or null",
+                             _rate_or_none, None)
+    original_rate = None if original is None else (original["fails"], original["runs"])
     return ReplayResult(folder, world, reference, chosen, rule, tuple(results), fresh=not recorded,
                         original_rate=original_rate)

@@ -12,10 +12,13 @@ record names the problem it belongs to (`problem.Problem.header`), and a log of 
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import os
 import re
+import stat
+import tempfile
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -27,6 +30,7 @@ from pytest_ddenv.driver.report import SUMMARY_FORMAT, ReductionReport, ReportFi
 from pytest_ddenv.errors import DdenvError, ReductionError
 from pytest_ddenv.reduce import Reduction
 from pytest_ddenv.reduce.log import parse_record, sync_directory, write_failure
+from pytest_ddenv.reduce.records import json_value, read_regular
 from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:
@@ -66,7 +70,7 @@ def write_bytes_atomic(path: Path, data: bytes) -> None:
     """`write_text_atomic` for bytes (a cut SDF file keeps its original encoding)."""
     temporary = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
-        handle = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        handle = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o644)
         try:
             view = memoryview(data)
             while view:
@@ -135,12 +139,25 @@ class FolderLock:
         self.release()
 
     def acquire(self) -> None:
+        path = self.directory / LOCK_NAME
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
-            fd = os.open(self.directory / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+            # never through a symbolic link (its target would get our pid), never blocking on a FIFO
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o644)
         except OSError as error:
+            if error.errno == errno.ELOOP:
+                raise ArtifactsError(f"cannot use the artifacts folder {self.directory}: its lock file {path} is a "
+                                     "symbolic link, which a reduction never follows (it would overwrite the link's "
+                                     "target); remove the link") from None
+            if error.errno == errno.EISDIR:
+                raise ArtifactsError(f"cannot use the artifacts folder {self.directory}: its lock file {path} is a "
+                                     "folder; remove it") from None
             raise ArtifactsError(f"cannot use the artifacts folder {self.directory}: "
                                  f"{error.strerror or error}; pass a writable folder") from error
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            raise ArtifactsError(f"cannot use the artifacts folder {self.directory}: its lock file {path} is not a "
+                                 "regular file; remove it")
         if fcntl is not None:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -190,6 +207,9 @@ def prepare(directory: Path, problem: Problem, *,
     except OSError as error:
         raise ArtifactsError(f"cannot create the artifacts folder {paths.directory}: "
                              f"{error.strerror or error}") from error
+    if paths.log.exists() and not paths.log.is_file():
+        raise ArtifactsError(f"cannot use the artifacts folder {paths.directory}: its run log {paths.log} is "
+                             f"{'a folder' if paths.log.is_dir() else 'not a regular file'}; move it away")
     if paths.log.exists():
         first, size = _first_record(paths.log)
         why = "its test, world, code or reduction settings differ"
@@ -222,7 +242,7 @@ def prepare(directory: Path, problem: Problem, *,
 def _first_record(path: Path) -> tuple[dict[str, Any] | None, int]:
     """The first line of a log parsed (None if it is not a record) and the file's size."""
     try:
-        with path.open("rb") as handle:
+        with path.open("rb") as handle:  # a regular file (`prepare` checked)
             line = handle.readline(1 << 20)
         size = path.stat().st_size
     except OSError:
@@ -276,8 +296,9 @@ def usage_of(records: Iterable[Mapping[str, Any]]) -> Usage:
 
 
 def read_summary(path: Path) -> dict[str, Any] | None:
+    """The summary at `path`, None when it is missing, not a regular file, not JSON or nested too deep."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json_value(read_regular(path).decode("utf-8", errors="replace"))
     except (OSError, ValueError):
         return None
     return data if isinstance(data, dict) else None
@@ -425,19 +446,46 @@ def write_minimal_sdf(target: Path, world: World, minimal: World, removed: Seque
 
 
 def folder_problem(folder: Path) -> str | None:
-    """Why reductions cannot write into `folder` (made when missing), or None: a file in its place, or the
-    folder (or its nearest existing parent) not writable. Checked before any probe runs."""
+    """Why reductions cannot write into `folder` (made when missing), or None: a file in its place, a symbolic
+    link to nothing, the folder (or its nearest existing parent) not writable, or a place where no folder can be
+    made (`/proc`, a read-only file system). Checked before any probe runs, by trying: a file is made and
+    removed in an existing folder, and the first missing folder is made and removed."""
     try:
+        if folder.is_symlink() and not folder.exists():
+            return f"{folder} is a symbolic link to {os.readlink(folder)}, which does not exist"
         if folder.exists() and not folder.is_dir():
             return f"{folder} is a file, not a folder"
         existing = folder
         while not existing.exists() and existing.parent != existing:
+            if existing.is_symlink():
+                return f"{existing} is a symbolic link to {os.readlink(existing)}, which does not exist"
             existing = existing.parent
         if not existing.is_dir():
             return f"{existing} is a file, so the folder {folder} cannot be made"
         if not os.access(existing, os.W_OK | os.X_OK):
             made = "" if existing == folder else f" (to make {folder} in it)"
             return f"the folder {existing} is not writable{made}"
-    except OSError as error:  # a loop of symbolic links, a name too long, ...
+        if existing == folder:
+            lock, log = folder / LOCK_NAME, ArtifactPaths(folder).log
+            if lock.is_symlink():
+                return f"its lock file {lock} is a symbolic link, which a reduction never follows; remove the link"
+            if log.exists() and not log.is_file():
+                return f"its run log {log} is {'a folder' if log.is_dir() else 'not a regular file'}; move it away"
+            try:
+                handle, name = tempfile.mkstemp(prefix=".ddenv-check-", dir=folder)
+            except OSError as error:
+                return f"no file can be written in the folder {folder}: {error.strerror or error}"
+            os.close(handle)
+            os.unlink(name)
+        else:
+            first = folder
+            while first.parent != existing:
+                first = first.parent
+            try:
+                first.mkdir()
+            except OSError as error:
+                return f"no folder can be made in {existing} (to make {folder}): {error.strerror or error}"
+            first.rmdir()
+    except OSError as error:  # a loop of symbolic links, a name too long, a place that takes no folder ...
         return f"{folder} cannot be used: {error.strerror or error}"
     return None

@@ -25,6 +25,9 @@ DDENV_KEYWORDS = (
     "world", "partition", "priority", "n_partitions", "granularity", "deflake", "tolerance", "same_failure", "keep",
     "seed", "budget", "skip_unsupported", "stages",
 )
+MAX_STAGE_ITEMS = 20
+MAX_STAGE_NAME = 40
+"""Bounds of a list of stages as given (the names are short words): what is beyond is refused unread."""
 SAME_FAILURE_KEYWORD = "same_failure"
 """The `robot_failure` keyword that sets the predicate's own same-failure rule (not a predicate parameter)."""
 
@@ -96,8 +99,9 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
         partition = PARTITION_ALIASES.get(given, given) if isinstance(given, str) else given
         updates["partition"] = _choice(partition, "partition", PARTITIONS, given=given)
     if "priority" in values:
-        priority = PRIORITY_ALIASES.get(values["priority"], values["priority"])
-        updates["priority"] = _choice(priority, "priority", PRIORITIES, given=values["priority"])
+        given = values["priority"]
+        priority = PRIORITY_ALIASES.get(given, given) if isinstance(given, str) else given
+        updates["priority"] = _choice(priority, "priority", PRIORITIES, given=given)
     if "granularity" in values:
         updates["granularity"] = _choice(values["granularity"], "granularity", ("ddmin", "paper"))
     if "n_partitions" in values:
@@ -145,6 +149,11 @@ def parse_stage_list(value: Any, where: str) -> tuple[str, ...]:
 
     if not isinstance(value, (str, list, tuple)):
         raise MarkerError(expected("a comma-separated string or a list of stage names", value, where))
+    items = value.split(",") if isinstance(value, str) else list(value)
+    if len(items) > MAX_STAGE_ITEMS or any(not isinstance(item, str) or len(item) > MAX_STAGE_NAME
+                                           for item in items):  # no stage name is long: keep the message short
+        raise MarkerError(expected(f"at most {MAX_STAGE_ITEMS} stage names of at most {MAX_STAGE_NAME} characters "
+                                   "each, comma-separated or in a list", value, where))
     try:
         return parse_stages(value)
     except StagesError as error:
@@ -263,7 +272,7 @@ def _string(value: Any, name: str) -> str:
 
 
 def _choice(value: Any, name: str, choices: Sequence[str], *, given: Any = None) -> str:
-    if value not in choices:
+    if not isinstance(value, str) or value not in choices:
         raise MarkerError(
             f"ddenv({name}=...): unknown {name} {shown(given if given is not None else value)}; "
             f"valid choices: {', '.join(choices)}"

@@ -8,6 +8,20 @@ from pathlib import Path
 from pytest_ddenv.driver.report import ReductionReport
 from pytest_ddenv.reduce.types import Reduction
 
+LINE_LIMIT = 2000
+"""Characters of one line of an error message shown (a list of 5000 searched folders is not read by anyone)."""
+
+
+def clip_lines(text: str, limit: int = LINE_LIMIT) -> str:
+    """`text` with every line longer than `limit` characters cut in its middle, saying how much was left out."""
+    lines = []
+    for line in text.split("\n"):
+        if len(line) > limit:
+            head, tail = line[:limit * 2 // 3], line[-(limit // 3):]
+            line = f"{head} ... ({len(line) - len(head) - len(tail)} characters left out) ... {tail}"
+        lines.append(line)
+    return "\n".join(lines)
+
 
 def status_of(reduction: Reduction) -> str:
     return "1-minimal" if reduction.one_minimal else f"incomplete ({reduction.incomplete_reason})"
@@ -30,8 +44,7 @@ def result_lines(report: ReductionReport) -> list[str]:
         f"minimal world: {', '.join(reduction.minimal) or '(no models)'}",
         *needed_lines(reduction),
         f"removed ({len(removed)}): {listing(removed)}",
-        (f"probes: {reduction.probes} decided{earlier}, {reduction.cache_hits} from cache, "
-         f"{reduction.skipped} skipped, {reduction.errors} errors; {reduction.wall_time:.1f} s"),
+        probes_line(reduction, earlier),
         (f"simulations run: {report.cost.simulations} (confirmation, fresh-run, "
          f"speculative and picture runs included; {report.cost.cpu_seconds:.1f} s of worker CPU)"),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
@@ -42,6 +55,14 @@ def result_lines(report: ReductionReport) -> list[str]:
         *(f"note: {text}" for text in report.notes),
         *(f"not simulated: {text}" for text in report.world_notes),
     ]
+
+
+def probes_line(reduction: Reduction, earlier: str) -> str:
+    """The probes: "decided" only when none errored (an error is no verdict: with errors they were "run")."""
+    how = "decided" if not reduction.errors else "run"
+    errors = f"{reduction.errors} errors" + (" (no verdict from them)" if reduction.errors else "")
+    return (f"probes: {reduction.probes} {how}{earlier}, {reduction.cache_hits} from cache, {reduction.skipped} "
+            f"skipped, {errors}; {reduction.wall_time:.1f} s")
 
 
 def reproduction_lines(report: ReductionReport) -> list[str]:

@@ -214,7 +214,15 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
     if reduction.independent:
         return locked.world_independent(reduction)
     locked.notes = list(dict.fromkeys([*locked.notes, *reduction.notes]))
-    minimal_run, shown = (None, []) if interrupted is not None else locked.runs_to_show(reduction, confirmations)
+    minimal_run: Run | None = None
+    shown: list[Shown] = []
+    if interrupted is None:
+        try:
+            minimal_run, shown = locked.runs_to_show(reduction, confirmations)
+        except KeyboardInterrupt as stop:  # the models are reduced: the summary says so, no pictures
+            pool.close()
+            interrupted = ReductionInterrupted(reduction)
+            interrupted.__cause__ = stop
     staged: StagesOutcome | None = None
     if interrupted is None and len(plan.spec.stages or DEFAULT_STAGES) > 1 and reduction.minimal:
         try:
@@ -224,9 +232,9 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
             interrupted = ReductionInterrupted(reduction)
             interrupted.__cause__ = stop
     outcome = locked.write(reduction, staged, interrupted, minimal_run, shown)
-    if interrupted is not None:
-        interrupted.outcome = outcome  # type: ignore[attr-defined]
-        raise interrupted
+    if outcome.interrupted is not None:
+        outcome.interrupted.outcome = outcome  # type: ignore[attr-defined]
+        raise outcome.interrupted
     return outcome
 
 
@@ -355,39 +363,51 @@ class _Locked:
 
     def write(self, reduction: Reduction, staged: StagesOutcome | None, interrupted: ReductionInterrupted | None,
               minimal_run: Run | None, shown: list[Shown]) -> ReductionOutcome:
-        """The minimal world, the summary, the stage worlds, the pictures and the media."""
+        """The minimal world, the summary, the stage worlds, the pictures and the media. Ctrl-C (or SIGTERM)
+        while the files are written waits until the summary is (the reduction's result is never left "in
+        progress"), and stops the pictures and media; the outcome's `interrupted` is then set."""
         plan, paths = self.plan, self.paths
-        self.record_usage(final=True)
-        files, how = artifacts.write_minimal_world(paths, plan.world, reduction, model_paths=plan.model_paths)
-        others, other_worlds = artifacts.write_other_worlds(
-            paths, plan.world, other_failures(self.log.records, rule=plan.rule, reference=plan.reference),
-            plan.keep_other, plan.other_replay)
-        files = replace(files, other_worlds=other_worlds)
-        report = ReductionReport(
-            test=plan.test_id, world=plan.world.source or plan.world.name, reduction=reduction,
-            reference_failure=plan.reference.to_dict(), replay=plan.replay_command,
-            fingerprint=self.problem.fingerprint,
-            files=files, cost=self.cost(reduction.probes), tolerance=plan.spec.tolerance, minimal_sdf=how,
-            same_failure=plan.rule,
-            reproduction=original_reproduction(self.log.records, plan.world.names, plan.reference, plan.rule),
-            notes=tuple(self.notes), world_notes=tuple(plan.world.notes), stages=staged,
-            stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
-            run_settings=plan.run_settings, other_failures=others)
-        artifacts.write_summary(paths, report)
+        with interrupts_deferred() as deferred:
+            self.record_usage(final=True)
+            files, how = artifacts.write_minimal_world(paths, plan.world, reduction, model_paths=plan.model_paths)
+            others, other_worlds = artifacts.write_other_worlds(
+                paths, plan.world, other_failures(self.log.records, rule=plan.rule, reference=plan.reference),
+                plan.keep_other, plan.other_replay)
+            files = replace(files, other_worlds=other_worlds)
+            report = ReductionReport(
+                test=plan.test_id, world=plan.world.source or plan.world.name, reduction=reduction,
+                reference_failure=plan.reference.to_dict(), replay=plan.replay_command,
+                fingerprint=self.problem.fingerprint,
+                files=files, cost=self.cost(reduction.probes), tolerance=plan.spec.tolerance, minimal_sdf=how,
+                same_failure=plan.rule,
+                reproduction=original_reproduction(self.log.records, plan.world.names, plan.reference, plan.rule),
+                notes=tuple(dict.fromkeys([*self.notes, *getattr(self.pool, "notes", ())])),
+                world_notes=tuple(plan.world.notes), stages=staged,
+                stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
+                run_settings=plan.run_settings, other_failures=others)
+            artifacts.write_summary(paths, report)
+        if deferred and interrupted is None:
+            interrupted = ReductionInterrupted(reduction)
         attachments = [paths.minimal_yaml, paths.log, paths.summary, *map(Path, report.stage_files.values()),
                        *other_worlds]
-        pending = None
-        if interrupted is None and shown:  # with worker processes, an animation renders beside the pictures
-            pending = PendingMedia(paths.directory, shown, failure_text=plan.reference.describe(),
-                                   helper=self.pool.size > 1 and not getattr(self.pool, "in_process", False))
-        if interrupted is None and plan.media != "none":
-            attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
-        if pending is not None:
-            media = pending.finish()
-            attachments += media.paths
-            if media.info:  # what was made and what it took, in the summary
-                report = report.with_media(media.info, media.seconds)
-                artifacts.write_summary(paths, report)
+        pending: PendingMedia | None = None
+        try:
+            if interrupted is None and shown:  # with worker processes, an animation renders beside the pictures
+                pending = PendingMedia(paths.directory, shown, failure_text=plan.reference.describe(),
+                                       helper=self.pool.size > 1 and not getattr(self.pool, "in_process", False))
+            if interrupted is None and plan.media != "none":
+                attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
+            if pending is not None:
+                media = pending.finish()
+                attachments += media.paths
+                if media.info:  # what was made and what it took, in the summary
+                    report = report.with_media(media.info, media.seconds)
+                    artifacts.write_summary(paths, report)
+        except KeyboardInterrupt as stop:  # the summary is written: only pictures and media are missing
+            interrupted = interrupted or ReductionInterrupted(reduction)
+            interrupted.__cause__ = interrupted.__cause__ or stop
+            if pending is not None and pending.elsewhere is not None:  # its helper finishes on its own
+                pending.elsewhere[1].shutdown(wait=False, cancel_futures=True)
         return ReductionOutcome("reduced", report=report, attachments=[path for path in attachments if path.exists()],
                                 interrupted=interrupted, minimal_run=minimal_run)
 
@@ -712,6 +732,23 @@ def _pictures(world: World, reduction: Reduction, paths: artifacts.ArtifactPaths
     except Exception as error:  # noqa: BLE001 - pictures are a convenience; never lose the reduction over one
         warnings.warn(f"ddenv: pictures not written: {type(error).__name__}: {error}", stacklevel=1)
         return []
+
+
+@contextlib.contextmanager
+def interrupts_deferred() -> Iterator[list[int]]:
+    """Ctrl-C and SIGTERM wait until the block is over (in the main thread): the list it yields holds the
+    signals that came meanwhile (empty: none), for the caller to act on afterwards."""
+    if threading.current_thread() is not threading.main_thread():
+        yield []
+        return
+    came: list[int] = []
+    previous = {number: signal.signal(number, lambda signum, frame: came.append(signum))
+                for number in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield came
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 @contextlib.contextmanager

@@ -16,12 +16,19 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pytest_ddenv.driver.user_code import import_user_code, load_attribute
 from pytest_ddenv.execution import Channel, Handler, serve_requests
 from pytest_ddenv.oracle.predicates import PredicateSpec
 from pytest_ddenv.scenario.probe import ProbeResult, describe_error
 from pytest_ddenv.scenario.robot_world import DEFAULT_MAX_WALL_TIME, RobotWorld
 from pytest_ddenv.sim import ControllerLike, Run, RunSettings
+from pytest_ddenv.driver.user_code import (
+    UserCodeExit,
+    exit_error,
+    exit_message,
+    exits_raised,
+    import_user_code,
+    load_attribute,
+)
 from pytest_ddenv.world.model import World
 
 
@@ -59,7 +66,10 @@ class ScenarioJob:
             robot_world = RobotWorld(world, predicates=self.predicates, seed=self.seed, attempt=attempt,
                                      max_wall_time=self.max_wall_time)
             try:
-                robot_world.run(timeout=self.timeout, settings=self.settings, controller=controller)
+                with exits_raised():
+                    robot_world.run(timeout=self.timeout, settings=self.settings, controller=controller)
+            except SystemExit as error:  # the user's code exited: an error of the probe, never a pass
+                return ProbeResult(exit_error(error, "the run"), robot_world.runs[-1] if robot_world.runs else None)
             except Exception as error:  # noqa: BLE001 - every exception is an outcome to classify
                 return ProbeResult(describe_error(error, None), robot_world.runs[-1] if robot_world.runs else None)
             return ProbeResult(None, robot_world.runs[-1])
@@ -74,7 +84,13 @@ class ScenarioJob:
 
 
 def run_scenario(world: World, predicates: Sequence[PredicateSpec], *, seed: int = 0, attempt: int = 0,
-                 timeout: float | None = None, controller: ControllerLike | None = None) -> Run:
-    """Simulate the world's scenario once in this process (never raises for a predicate failure)."""
-    robot_world = RobotWorld(world, predicates=predicates, seed=seed, attempt=attempt)
-    return robot_world.run(timeout=timeout, controller=controller, raise_on_failure=False)
+                 timeout: float | None = None, controller: ControllerLike | None = None,
+                 max_wall_time: float | None = DEFAULT_MAX_WALL_TIME) -> Run:
+    """Simulate the world's scenario once in this process (never raises for a predicate failure; raises
+    `UserCodeExit` when the controller or other code under test exits)."""
+    robot_world = RobotWorld(world, predicates=predicates, seed=seed, attempt=attempt, max_wall_time=max_wall_time)
+    try:
+        with exits_raised():
+            return robot_world.run(timeout=timeout, controller=controller, raise_on_failure=False)
+    except SystemExit as error:
+        raise UserCodeExit(f"{world.source or world.name or 'the world'}: {exit_message(error, 'the run')}") from None

@@ -17,7 +17,6 @@ from pytest_ddenv.execution.errors import (
 from pytest_ddenv.execution.factory import check_executor, make_pool
 from pytest_ddenv.execution.local import (
     LocalPool,
-    ProbeTimeout,
     cpu_count,
     resolve_workers,
 )
@@ -31,6 +30,7 @@ from pytest_ddenv.execution.request import (
     Reply,
     serve_requests,
 )
+from pytest_ddenv.execution.stuck import ProbeTimeout
 
 __all__ = [
     "FAULT_ENV",

@@ -159,7 +159,9 @@ def check_watchdog(watchdog: float | str | None) -> float | str | None:
         try:
             watchdog = float(text)
         except ValueError:
-            raise PoolConfigError(expected("a number of seconds > 0, 'auto' or 'none'", text, where)) from None
+            watchdog = math.nan
+        if not math.isfinite(watchdog) or not watchdog > 0:
+            raise PoolConfigError(expected("a number of seconds > 0, 'auto' or 'none'", text, where))
     if watchdog is None or watchdog == "auto":
         return watchdog
     if not is_finite_number(watchdog) or not watchdog > 0:

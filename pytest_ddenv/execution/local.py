@@ -5,9 +5,9 @@ reply, the worker's death, or the watchdog. A worker that dies mid-probe is repl
 once on the fresh worker; a second death, a watchdog kill, or closing the pool raise `WorkerError`. A worker
 that cannot start its job (the test does not import there) raises `WorkerStartError`, and so does every
 later call. With ``in_process=handler`` probes run in the calling process instead (no worker process, no
-fault isolation), one at a time; there the watchdog is a SIGALRM timer that interrupts the probe with
-`ProbeTimeout` (in the main thread, when no one else uses SIGALRM; elsewhere only the simulation's own
-cooperative `max_wall_time` bounds a probe).
+fault isolation), one at a time; there the watchdog interrupts the probe with `ProbeTimeout` (`stuck.py`), and a
+probe that defeats it sends the later probes to a worker process. The processes a probe starts end with it
+(`children.py`): with its worker, or, in-process, when it returns.
 """
 
 from __future__ import annotations
@@ -27,7 +27,6 @@ from dataclasses import replace
 from multiprocessing.connection import Connection, wait
 from typing import TYPE_CHECKING, Any, Self
 
-from pytest_ddenv.alarm import Alarm
 from pytest_ddenv.execution.base import (
     DEFAULT,
     DEFAULT_WATCHDOG_FACTOR,
@@ -37,6 +36,7 @@ from pytest_ddenv.execution.base import (
     check_watchdog,
     limit_of,
 )
+from pytest_ddenv.execution.children import descendants, end_processes, processes_ended
 from pytest_ddenv.execution.errors import (
     PoolConfigError,
     ProbeDeadline,
@@ -54,6 +54,7 @@ from pytest_ddenv.execution.request import (
     fault_for,
     parse_faults,
 )
+from pytest_ddenv.execution.stuck import ProbeTimeout, ProbeWatchdog, Warn
 from pytest_ddenv.execution.worker import worker_main
 from pytest_ddenv.validation import expected, is_integer
 
@@ -144,9 +145,8 @@ class WorkerHung(Exception):
     """A worker process ran past the watchdog during a probe (it is killed)."""
 
 
-class ProbeTimeout(BaseException):
-    """Raised in the main thread by the in-process watchdog (SIGALRM) to stop a probe that runs too long. A
-    BaseException, so that a test's ``except Exception`` does not take it for the test's own error."""
+def _to_stderr(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
 
 
 class WorkerProcess:
@@ -220,16 +220,19 @@ class WorkerProcess:
             pass
 
     def dispose(self, grace: float = 0.0) -> None:
-        """Make sure the process is gone and reaped: wait `grace`, then terminate, then kill."""
+        """Make sure the process is gone and reaped: wait `grace`, then terminate, then kill; and the processes
+        its probes started with it (a worker ending on its own ends them itself)."""
         process = self.process
         if grace > 0:
             process.join(grace)
+        started = descendants(process.pid) if process.is_alive() and process.pid is not None else []
         if process.is_alive():
             process.terminate()
             process.join(1.0)
         if process.is_alive():
             process.kill()
             process.join(5.0)
+        end_processes(started)
         try:
             self.conn.close()
         except OSError:  # closed already: close() and a waiting thread may both dispose of a dead worker
@@ -272,6 +275,7 @@ class LocalPool:
         context: str | None = None,
         fault_injection: str | Sequence[Fault] | None = None,
         startup_timeout: float = STARTUP_TIMEOUT,
+        warn: Warn | None = None,
     ) -> None:
         if not isinstance(job, Job):
             raise PoolConfigError(f"a pool needs a Job (key, label, serve), got {type(job).__name__}")
@@ -292,6 +296,17 @@ class LocalPool:
         self._live: set[WorkerProcess] = set()
         self._names = itertools.count(1)
         self._local_lock = threading.Lock()
+        self._warn: Warn = warn or _to_stderr
+        self.notes: list[str] = []
+        """What the report should say about how this pool ran the probes (a probe moved to a worker process)."""
+        self._method = context or default_context()
+        if self._method == "fork":
+            raise PoolConfigError("the 'fork' start method is not supported (pybullet is not fork-safe); "
+                                  "use 'forkserver' or 'spawn'")
+        if self._method not in multiprocessing.get_all_start_methods():
+            raise PoolConfigError(f"unknown multiprocessing start method {self._method!r}; valid: "
+                                  f"{', '.join(multiprocessing.get_all_start_methods())}")
+        self._context: Any = None
         if in_process is not None:
             if self._size != 1:
                 raise PoolConfigError(f"an in-process pool has exactly 1 worker, got workers={workers!r}")
@@ -299,22 +314,17 @@ class LocalPool:
             if unsafe:
                 raise PoolConfigError(f"fault(s) {', '.join(unsafe)} would take down the calling process; "
                                       "use worker processes to inject them")
-            self._context: Any = None
         else:
-            method = context or default_context()
-            if method == "fork":
-                raise PoolConfigError("the 'fork' start method is not supported (pybullet is not fork-safe); "
-                                      "use 'forkserver' or 'spawn'")
-            try:
-                self._context = multiprocessing.get_context(method)
-            except ValueError:
-                raise PoolConfigError(f"unknown multiprocessing start method {method!r}; valid: "
-                                      f"{', '.join(multiprocessing.get_all_start_methods())}") from None
-            if method == "forkserver":
-                self._context.set_forkserver_preload(forkserver_preload())
+            self._context = self._new_context()
             for _ in range(self._size):
                 self._idle.put(self._start_worker(count=False))
         self._finalizer = weakref.finalize(self, shutdown_workers, self._live, 0.0)
+
+    def _new_context(self) -> Any:
+        context = multiprocessing.get_context(self._method)
+        if self._method == "forkserver":
+            context.set_forkserver_preload(forkserver_preload())
+        return context
 
     # -- public API ----------------------------------------------------------------------------------
     @property
@@ -363,7 +373,7 @@ class LocalPool:
         deadline = None if timeout is None else time.monotonic() + max(0.0, float(timeout))
         if self._handler is not None:
             return self._call_here(replace(request, fault=fault_for(self._faults, sequence, 0)), deadline)
-        return self._call_on_worker(request, sequence, deadline)
+        return self._call_on_worker(request, sequence, deadline)  # (an in-process pool's too, once moved)
 
     def close(self, grace: float = CLOSE_GRACE) -> None:
         """Stop every worker (let them exit for `grace` seconds, then terminate/kill) and reap them."""
@@ -389,18 +399,42 @@ class LocalPool:
             limit, by_deadline = limit_of(self.watchdog_seconds(), deadline, time.monotonic())
             self._stats.add("simulations")
             started = time.perf_counter()
-            alarm = Alarm(limit, lambda: ProbeTimeout(f"the probe ran past {limit:g} s"))
+            watchdog = ProbeWatchdog(limit, what, self._warn)
+            stopped = False
             try:
-                with alarm:
+                with processes_ended(exclude=self.pids), watchdog:
                     reply = answer(request, self._handler)
             except ProbeTimeout:
+                stopped = True
+            over = stopped or watchdog.ran_past_limit()
+            if watchdog.defeat is not None or (over and not stopped):
+                self._move_to_workers(what, limit if over else None, watchdog.defeat or "it did not stop when "
+                                      "interrupted")
+            if over:
                 self._stats.add("cancelled" if by_deadline else "timeouts")
                 if by_deadline:
                     raise ProbeDeadline(f"probe of {what} was stopped at the reduction's deadline") from None
                 self._stats.add("errors")
-                raise WorkerError(f"probe of {what} ran past the {limit:g} s watchdog in this process; it was "
-                                  "interrupted") from None
+                how = "it was interrupted" if watchdog.defeat is None and stopped else (
+                    f"it did not stop when interrupted ({watchdog.defeat or 'it went on'}) and "
+                    + ("was stopped by harder interrupts" if stopped else "its result is not used"))
+                raise WorkerError(f"probe of {what} ran past the {limit:g} s watchdog in this process; {how}") \
+                    from None
         return self._finish(reply, started)
+
+    def _move_to_workers(self, what: str, limit: float | None, why: str) -> None:
+        """A probe defeated the in-process watchdog (past its `limit`, or None: it finished in time but
+        replaced the SIGALRM handler): the later probes run in a worker process (where a hung probe's worker
+        is killed); the report says so."""
+        if self._handler is None:
+            return
+        self._handler = None
+        self._context = self._new_context()
+        self._idle.put(None)
+        how = (f"{why}, which defeats the watchdog of probes in this process" if limit is None
+               else f"ran in this process past its {limit:g} s watchdog and {why}")
+        self.notes.append(f"the probe of {what} {how}; the later probes ran in a worker process, where a probe "
+                          "that hangs has its worker killed")
 
     # -- worker processes ----------------------------------------------------------------------------
     def _call_on_worker(self, request: ProbeRequest, sequence: int, deadline: float | None) -> Any:

@@ -13,6 +13,7 @@ import traceback
 from multiprocessing.connection import Connection
 
 from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.execution.children import become_subreaper, descendants, end_processes
 from pytest_ddenv.execution.errors import WorkerError
 from pytest_ddenv.execution.request import Job, ProbeRequest, Reply
 
@@ -82,6 +83,7 @@ def worker_main(conn: Connection, job: Job) -> None:
     """Entry point of a worker process (must stay importable: spawn and forkserver import it by name)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the parent decides
     quiet_stdout()
+    become_subreaper()  # what the probes start stays under this process, to be ended with it
     channel = PipeChannel(conn)
     try:
         job.serve(channel)
@@ -100,3 +102,4 @@ def worker_main(conn: Connection, job: Job) -> None:
                 channel.failed(f"{job.label}: the worker stopped before it could take probes")
             except (BrokenPipeError, OSError):
                 pass
+        end_processes(descendants(os.getpid()))  # the processes its probes started end with it

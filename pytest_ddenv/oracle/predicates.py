@@ -435,6 +435,9 @@ def _check_built_in_parameter(key: str, value: Any, where: str) -> None:
     if key == "models":
         if value is not None and (isinstance(value, str) or not all(isinstance(v, str) for v in value)):
             raise ScenarioError(expected("a list of model names or None", value), field=where)
+        if value is not None and not list(value):  # it would never fire
+            raise ScenarioError(expected("at least one model name (leave models out for a collision with any "
+                                         "model)", value), field=where)
         return
     if key == "min_z" and value is None:
         return

@@ -15,7 +15,7 @@ import os
 import shlex
 import traceback
 import warnings
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
@@ -27,7 +27,8 @@ from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.pytest_plugin.options import DdenvOptions, add_options, read_options
 from pytest_ddenv.pytest_plugin.progress import PytestProgress, close_log, open_log
 from pytest_ddenv.scenario.robot_world import FIXTURE
-from pytest_ddenv.world.files import is_file
+from pytest_ddenv.validation import expected
+from pytest_ddenv.world.files import is_file, regular_file_problem
 
 if TYPE_CHECKING:
     from pytest_ddenv.oracle.predicates import PredicateSpec
@@ -196,15 +197,21 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 # -- the fixture -------------------------------------------------------------------------------------------
 
 
-def _world_path(item: pytest.Item, raw: str | Path) -> Path:
+def _world_path(item: pytest.Item, raw: str | os.PathLike[str]) -> Path:
     """A world path as given: absolute, else relative to the test file, else to the rootdir."""
-    path = Path(raw).expanduser()
+    from pytest_ddenv.pytest_plugin.options import expand_home
+
+    path = expand_home(str(raw), "world")
     if path.is_absolute():
         return path
     candidates = [Path(str(item.path)).parent / path, Path(str(item.config.rootpath)) / path]
     for candidate in candidates:
         if is_file(candidate):
             return candidate
+    for candidate in candidates:  # there, but not a file to read: say what it is (a folder, a FIFO, a loop)
+        problem = regular_file_problem(candidate, "world file")
+        if problem is not None and not problem.startswith("world file not found"):
+            raise DdenvError(problem)
     folders = dict.fromkeys(str(candidate.parent) for candidate in candidates)
     raise DdenvError(f"world file not found: {raw} (looked in {', '.join(folders)})")
 
@@ -235,7 +242,9 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
     except DdenvError as error:  # a broken world file or marker: one clear line at setup, no plugin traceback
         problem = error.shown_from(Path(request.config.invocation_params.dir))
     if problem is not None:
-        pytest.fail(f"{item.nodeid}: {problem}", pytrace=False)
+        from pytest_ddenv.driver.report_text import clip_lines
+
+        pytest.fail(clip_lines(f"{item.nodeid}: {problem}"), pytrace=False)
     return RobotWorld(world, predicates=predicates, seed=spec.seed if seed is None else seed, max_wall_time=timeout)
 
 
@@ -256,6 +265,8 @@ def _test_world(request: pytest.FixtureRequest, spec: ReductionSpec, predicates:
     elif isinstance(param, World):
         world = param
     elif param is not None:
+        if not isinstance(param, (str, os.PathLike)):
+            raise DdenvError(expected("a world file path or a World", param, "robot_world's indirect parameter"))
         world = World.load(_world_path(item, param), **options)
     elif spec.world is not None:
         world = World.load(_world_path(item, spec.world), **options)
@@ -366,7 +377,8 @@ def _given_example(item: pytest.Function, call: dict[str, Any] | None) -> GivenE
     return GivenExample.of(call, robot_world.latest.world, fixtures)  # type: ignore[attr-defined]
 
 
-def _probe_pool(item: pytest.Function, example: GivenExample | None = None) -> Any:
+def _probe_pool(item: pytest.Function, example: GivenExample | None = None,
+                warn: Callable[[str], None] | None = None) -> Any:
     """A pool serving this test's probes: worker processes that run the test (or this process, with one
     worker), or the session's dask cluster."""
     from pytest_ddenv.execution import DaskCluster, check_executor, make_pool
@@ -381,7 +393,7 @@ def _probe_pool(item: pytest.Function, example: GivenExample | None = None) -> A
     watchdog = options.watchdog
     if executor is None:
         return make_pool(PytestJob.of(item, example=example), count, in_process=ItemHandler(item, example),
-                         watchdog=watchdog)
+                         watchdog=watchdog, warn=warn)
     cluster = config.stash.get(_cluster_key, None)
     if cluster is None:
         cluster = DaskCluster(None if executor == "dask" else executor,
@@ -428,13 +440,16 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call:
     )
     try:
         session.example = _given_example(item, given_call)
-        with _probe_pool(item, session.example) as pool:
+        with _probe_pool(item, session.example, lambda text: progress(text, final=True)) as pool:
             if getattr(pool, "in_process", False):
                 _warn_about_shared_fixtures(item)
             result = session.run(pool)
     except KeyboardInterrupt:
         raise
-    except DdenvError as problem:  # the pool could not start (a dask scheduler that does not answer, ...)
+    except DdenvError as error:  # the pool could not start (a dask scheduler that does not answer, ...)
+        from pytest_ddenv.driver.report_text import clip_lines
+
+        problem = clip_lines(str(error))
         result = {
             "text": f"no reduction: {problem}\nThe test's failure above is unchanged.\n",
             "line": f"{item.nodeid}: no reduction: {problem}",

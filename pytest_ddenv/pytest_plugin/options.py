@@ -17,6 +17,7 @@ import pytest
 
 from pytest_ddenv.driver.artifacts import folder_problem
 from pytest_ddenv.driver.markers import MarkerError, parse_deflake
+from pytest_ddenv.errors import DdenvError, shown, shown_path
 from pytest_ddenv.execution.factory import executor_problem
 from pytest_ddenv.validation import expected
 
@@ -180,6 +181,13 @@ def _watchdog_setting(config: pytest.Config) -> Any:
 
     value = _setting(config, "ddenv_probe_timeout")
     if value in (None, ""):
+        from pytest_ddenv.execution import PoolConfigError
+        from pytest_ddenv.execution.base import check_watchdog
+
+        try:  # $DDENV_PROBE_TIMEOUT is read by the pools: checked now, not when a test fails
+            check_watchdog(DEFAULT)
+        except PoolConfigError as error:
+            raise pytest.UsageError(str(error)) from None
         return DEFAULT
     text = str(value).strip().lower()
     if text in ("auto", "none"):
@@ -193,7 +201,16 @@ def _watchdog_setting(config: pytest.Config) -> Any:
 
 def read_options(config: pytest.Config) -> DdenvOptions:
     """Every ddenv setting, checked now: a bad value is a usage error before any test runs, never an error
-    in place of a test's own failure at the end."""
+    in place of a test's own failure at the end (its lines clipped: a value may be a whole file)."""
+    from pytest_ddenv.driver.report_text import clip_lines
+
+    try:
+        return _read_options(config)
+    except pytest.UsageError as error:
+        raise pytest.UsageError(clip_lines(str(error))) from None
+
+
+def _read_options(config: pytest.Config) -> DdenvOptions:
     try:
         reduce = bool(_setting(config, "ddenv_reduce"))
     except (pytest.UsageError, ValueError) as error:  # pytest before 9.2 raises ValueError for a bad ini bool
@@ -213,12 +230,12 @@ def read_options(config: pytest.Config) -> DdenvOptions:
     if problem is not None:
         raise pytest.UsageError(f"{_where(config, 'ddenv_executor')}: {problem}")
     world = _setting(config, "ddenv_world")
-    if world not in (None, "") and not Path(world).is_file():
-        raise pytest.UsageError(f"{_where(config, 'ddenv_world')}: no such file: {world}")
+    if world not in (None, "") and not _kind_is(Path(world), "file", config, "ddenv_world"):
+        raise pytest.UsageError(f"{_where(config, 'ddenv_world')}: no such file: {shown_path(world)}")
     model_paths = tuple(p for p in str(_setting(config, "ddenv_model_path") or "").split(os.pathsep) if p)
     for folder in model_paths:
-        if not Path(folder).expanduser().is_dir():
-            raise pytest.UsageError(f"{_where(config, 'ddenv_model_path')}: no such folder: {folder}")
+        if not _kind_is(_expanded_setting(folder, config, "ddenv_model_path"), "folder", config, "ddenv_model_path"):
+            raise pytest.UsageError(f"{_where(config, 'ddenv_model_path')}: no such folder: {shown_path(folder)}")
     root, given = _artifacts_root(config)
     problem = folder_problem(root) if given or reduce else None
     if problem is not None:
@@ -243,9 +260,38 @@ def _artifacts_root(config: pytest.Config) -> tuple[Path, bool]:
     option = config.getoption("ddenv_artifacts")
     invocation = Path(config.invocation_params.dir)
     if option not in (None, ""):
-        return invocation / Path(str(option)).expanduser(), True
+        return invocation / _expanded_setting(str(option), config, "ddenv_artifacts"), True
     ini = str(config.getini("ddenv_artifacts") or "")
     if ini:
         base = config.inipath.parent if config.inipath is not None else invocation
-        return base / Path(ini).expanduser(), True
+        return base / _expanded_setting(ini, config, "ddenv_artifacts"), True
     return invocation / DEFAULT_ARTIFACTS, False
+
+
+def expand_home(text: str, where: str) -> Path:
+    """`text` as a path with a leading `~` or `~NAME` made the home folder (`Path.expanduser`); DdenvError
+    naming `where` when there is no such user (or no home folder)."""
+    try:
+        return Path(text).expanduser()
+    except RuntimeError:  # pathlib: "Could not determine home directory."
+        user = text[1:].split("/", 1)[0]
+        who = f"no user named {shown(user)}" if user else "no home folder is known"
+        raise DdenvError(f"{where}: {shown(text)}: {who} (a path starting with ~ or ~NAME is in that user's home "
+                         "folder)") from None
+
+
+def _kind_is(path: Path, kind: str, config: pytest.Config, name: str) -> bool:
+    """Whether `path` is a "file" or a "folder"; a usage error naming the setting when the system cannot tell
+    (a name too long, a loop of symbolic links)."""
+    try:
+        return path.is_file() if kind == "file" else path.is_dir()
+    except OSError as error:
+        raise pytest.UsageError(f"{_where(config, name)}: {shown_path(path)}: {error.strerror or error}") from None
+
+
+def _expanded_setting(text: str, config: pytest.Config, name: str) -> Path:
+    """`expand_home` for a setting: a usage error naming the option or ini key."""
+    try:
+        return expand_home(text, _where(config, name))
+    except DdenvError as error:
+        raise pytest.UsageError(str(error)) from None

@@ -24,6 +24,7 @@ from typing import Any, TextIO
 import pytest
 
 from pytest_ddenv.execution import Channel, serve_requests
+from pytest_ddenv.driver.user_code import exit_error, exits_raised
 from pytest_ddenv.pytest_plugin.given_example import GivenExample
 from pytest_ddenv.scenario.probe import ProbeResult, describe_error
 from pytest_ddenv.scenario.robot_world import FIXTURE, RobotWorld
@@ -197,13 +198,16 @@ class ProbeServer:
         try:
             # Tear down only the function's fixtures afterwards: module, class and session fixtures stay up
             # for the next probe, as for the next test of a normal session.
-            runtestprotocol(item, log=False, nextitem=item.parent)  # type: ignore[arg-type]
+            with exits_raised():  # os._exit(0) in the test: reported as the exit it is, not a dead worker
+                runtestprotocol(item, log=False, nextitem=item.parent)  # type: ignore[arg-type]
         finally:
             del item.config.stash[PROBE_BINDING]
         error = None
         for phase in ("setup", "call", "teardown"):
             if phase in self.raised:
-                error = describe_error(self.raised[phase], self.job.test_file, phase=phase)
+                raised = self.raised[phase]
+                error = (exit_error(raised, f"the probe's {phase}") if isinstance(raised, SystemExit)
+                         else describe_error(raised, self.job.test_file, phase=phase))
                 break
         robot_world = None if binding.robot_world is None else binding.robot_world.latest
         run = robot_world.runs[-1] if robot_world is not None and robot_world.runs else None
@@ -233,10 +237,13 @@ class ItemHandler:
         arguments = {**self.arguments, FIXTURE: rebound}
         error = None
         try:
-            if self.example is not None:
-                self.example.call(self.item, arguments, world)
-            else:
-                self.item.obj(**arguments)
+            with exits_raised():  # os._exit(0) in the test would end pytest without a word
+                if self.example is not None:
+                    self.example.call(self.item, arguments, world)
+                else:
+                    self.item.obj(**arguments)
+        except SystemExit as exited:  # the test exited: an error of the probe, never a pass
+            error = exit_error(exited, "the probe")
         except OUTCOME_EXCEPTIONS as raised:  # every exception is an outcome to classify
             error = describe_error(raised, self.item.path)
         ran = rebound.latest

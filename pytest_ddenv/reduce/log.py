@@ -38,6 +38,7 @@ from typing import Any, Self
 import numpy as np
 
 from pytest_ddenv.errors import ReductionError
+from pytest_ddenv.reduce.records import json_value, read_regular, record_problem
 from pytest_ddenv.reduce.types import Decision, Outcome
 
 LOG_FORMAT = 1
@@ -137,7 +138,10 @@ class ProbeLog:
                     self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
                     if created and self.durable:
                         sync_directory(self.path.parent)
-                size = os.fstat(self._fd).st_size
+                status = os.fstat(self._fd)
+                if status.st_nlink == 0:  # deleted (its folder too?) while the reduction ran: writing is in vain
+                    raise ReductionError(gone_failure(self.path))
+                size = status.st_size
                 view = memoryview(data)
                 while view:
                     view = view[os.write(self._fd, view):]
@@ -228,7 +232,11 @@ class ProbeLog:
         )
 
     def _read(self, path: Path) -> list[dict[str, Any]]:
-        data = path.read_bytes()
+        try:
+            data = read_regular(path)
+        except OSError as error:
+            raise ReductionError(f"cannot read the run log {path}: {error.strerror or error}; move it away to "
+                                 "start over") from None
         complete = data.rfind(b"\n") + 1
         if complete < len(data):  # a last line without its newline: cut short by a crash or a full disk
             os.truncate(path, complete)
@@ -238,20 +246,24 @@ class ProbeLog:
             )
         records: list[dict[str, Any]] = []
         ignored: list[int] = []
+        first_problem = ""
         for number, record in _numbered(data[:complete].decode("utf-8", errors="replace")):
-            if record is None or "event" not in record:
+            problem = "not a JSON object (or nested too deep)" if record is None else record_problem(record)
+            if problem is not None:
                 if not records:
                     raise ReductionError(
                         f"{path}:{number}: not a probe-log record, so this file is not a pytest-ddenv run log; "
                         "pass another log path, or move the file away to start over"
                     )
                 ignored.append(number)
+                first_problem = first_problem or f"line {number}: {problem}"
                 continue
+            assert record is not None
             records.append(record)
         if ignored:
             shown = ", ".join(map(str, ignored[:5])) + (f" and {len(ignored) - 5} more" if len(ignored) > 5 else "")
-            self.notes.append(f"{path.name}: line(s) {shown} are not records (damaged) and were ignored; the "
-                              "candidates they decided are decided again")
+            self.notes.append(f"{path.name}: line(s) {shown} are not records (damaged; {first_problem}) and were "
+                              "ignored; the candidates they decided are decided again")
         return records
 
 
@@ -259,8 +271,8 @@ def parse_record(line: str) -> dict[str, Any] | None:
     """The record one line of a JSON-lines file holds: its JSON object, or None when the line is blank, damaged
     (cut short, invalid JSON) or holds another JSON value."""
     try:
-        record = json.loads(line)
-    except ValueError:
+        record = json_value(line)
+    except ValueError:  # invalid JSON, or nested too deep
         return None
     return record if isinstance(record, dict) else None
 
@@ -270,8 +282,9 @@ def numbered_records(path: Path) -> Iterator[tuple[int, dict[str, Any] | None]]:
     (`ProbeLog`) or a file of ``ddenv run --record`` lines. The record is None for a line that holds no JSON
     object (`parse_record`), so a caller can name the line. Read-only: a torn last line (a writer still
     writing, or a crash) is reported as None, never cut off (repairing is `ProbeLog`'s job). Bytes that are
-    not UTF-8 damage their line only. Raises OSError when the file cannot be read."""
-    return _numbered(path.read_bytes().decode("utf-8", errors="replace"))
+    not UTF-8 damage their line only. Raises OSError when the file cannot be read or is not a regular file
+    (a folder, a pipe, a device)."""
+    return _numbered(read_regular(path).decode("utf-8", errors="replace"))
 
 
 def read_records(path: Path) -> list[dict[str, Any]]:
@@ -324,8 +337,24 @@ def sync_directory(directory: Path) -> None:
 
 
 def write_failure(path: Path, error: OSError) -> str:
-    """The message for a file of a reduction that could not be written."""
+    """The message for a file of a reduction that could not be written: why, and what became of the records
+    written before (intact only when the folder still is)."""
+    if not path.parent.is_dir():
+        return gone_failure(path)
     code = errno.errorcode.get(error.errno or 0, "")
     why = f"{error.strerror or error}" + (f" ({code})" if code else "")
-    return (f"cannot write {path}: {why}. Every record written before is intact; free some space (or fix the "
-            "folder's permissions) and run the reduction again: it resumes from the log")
+    if error.errno in (errno.ENOSPC, errno.EDQUOT):
+        fix = "free some space"
+    elif error.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        fix = "fix the folder's permissions"
+    else:
+        fix = "fix the cause"
+    return (f"cannot write {path}: {why}. Every record written before is intact; {fix} and run the reduction "
+            "again: it resumes from the log")
+
+
+def gone_failure(path: Path) -> str:
+    """The message for a reduction whose file (or folder) was deleted while it ran."""
+    where = path.parent if not path.parent.is_dir() else path
+    return (f"cannot write {path}: {where} was deleted while the reduction ran, and the records written before "
+            "with it; run the reduction again: it starts over")

@@ -107,6 +107,9 @@ def validate(
     checks = _preconditions(preconditions)
     seconds = _max_seconds(max_seconds)
     _check_services(cache, executor, log, on_progress)
+    if max_probes == 0 and cache is None and log is None:  # nothing to decide from: it would do nothing
+        raise ReductionError(expected("an integer >= 1 (0, no simulation at all, only goes with a log or a cache "
+                                      "to reuse verdicts from)", max_probes, "max_probes"))
     return Settings(
         elements=names,
         keep=kept,

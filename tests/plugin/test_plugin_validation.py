@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from typing import Any
+
 import pytest
 
 
@@ -80,6 +83,21 @@ def test_missing_world_is_a_clear_error(pytester: pytest.Pytester) -> None:
     result = pytester.runpytest_subprocess()
     result.assert_outcomes(errors=1)
     result.stdout.fnmatch_lines(["*robot_world needs a world: @pytest.mark.ddenv(world=*"])
+
+
+@pytest.mark.parametrize(("make", "message"), [
+    pytest.param(lambda path: os.mkfifo(path), "*not a world file: *world.yaml is a FIFO (named pipe)*", id="fifo"),
+    pytest.param(lambda path: path.symlink_to(path.name), "*not a world file: *world.yaml is a loop of symbolic links*",
+                 id="loop"),
+])
+def test_a_world_marker_naming_what_is_not_a_file_says_what_it_is(pytester: pytest.Pytester, make: Any,
+                                                                   message: str) -> None:
+    make(pytester.path / "world.yaml")
+    pytester.makepyfile("import pytest\n\n@pytest.mark.ddenv(world='world.yaml')\n"
+                        "def test_robot(robot_world):\n    pass\n")
+    result = pytester.runpytest_subprocess()
+    result.assert_outcomes(errors=1)
+    result.stdout.fnmatch_lines([message])
 
 
 @pytest.mark.parametrize(

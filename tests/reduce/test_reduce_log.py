@@ -144,8 +144,8 @@ def test_a_damaged_line_inside_the_log_is_ignored_and_said(tmp_path: Path) -> No
     path.write_text('{"event": "start"}\nnot json\n[1, 2]\n{"event": "end"}\n')
     log = ProbeLog.load(path)
     assert [record["event"] for record in log.records] == ["start", "end"]
-    expected = ("runs.jsonl: line(s) 2, 3 are not records (damaged) and were ignored; the candidates they "
-                "decided are decided again")
+    expected = ("runs.jsonl: line(s) 2, 3 are not records (damaged; line 2: not a JSON object (or nested too deep)) "
+                "and were ignored; the candidates they decided are decided again")
     assert log.notes == [expected]
 
 

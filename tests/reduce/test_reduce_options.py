@@ -36,7 +36,10 @@ def reproduces(candidate: tuple[str, ...]) -> bool:
 
 
 def test_a_zero_probe_budget_returns_the_original() -> None:
-    result = reduce(names(20), SetOracle(CULPRITS), max_probes=0, failure_rate_runs=0)
+    """With verdicts to reuse (a cache, a log): without any, a budget of 0 would do nothing and is refused."""
+    with pytest.raises(ReductionError, match="max_probes: expected an integer >= 1"):
+        reduce(names(20), SetOracle(CULPRITS), max_probes=0, failure_rate_runs=0)
+    result = reduce(names(20), SetOracle(CULPRITS), max_probes=0, failure_rate_runs=0, cache={})
     assert result.minimal == names(20)
     assert result.incomplete_reason == "budget: max_probes" and not result.one_minimal
     assert result.probes == 0

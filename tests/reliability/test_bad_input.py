@@ -98,6 +98,8 @@ class Case:
     """Run `ddenv` as its own process (inputs that once crashed the interpreter)."""
     also: tuple[str, ...] = ()
     """More text the output must hold (e.g. the test's own failure, kept)."""
+    env: dict[str, str] = field(default_factory=dict)
+    """Environment variables set for the command."""
 
 
 def ddenv(*words: str, files: dict[str, str | bytes | Callable[[Path], None]] | None = None, code: int = 2,
@@ -427,6 +429,120 @@ WORLD_MODEL_CASES: dict[str, Case] = {
 CASES.update(WORLD_MODEL_CASES)
 
 
+# -- issue 28: the process, command-line, plugin and journal interfaces -------------------------------------
+def _symlink(target: str) -> Callable[[Path], None]:
+    def make(path: Path) -> None:
+        path.symlink_to(target)
+
+    return make
+
+
+def _pipe(path: Path) -> None:
+    os.mkfifo(path)
+
+
+def _deep_json(path: Path) -> None:
+    path.write_text("[" * 100_000 + "]" * 100_000 + "\n", encoding="utf-8")
+
+
+SIGNATURE = {"predicate": "stuck", "time": 6.2, "pose": [1.35, 0.0, 0.15, 0.0, 0.0, 0.0], "touched": ["wall"],
+             "detail": ""}
+SUMMARY = {"reference_failure": {"exception_type": "RobotFailure", "location": "ddenv", "signature": SIGNATURE},
+           "predicates": [{"name": "stuck", "params": {"window": 2.0, "min_progress": 0.2}}], "scenario_seed": 0}
+CONTROLLERS = """\
+import os
+
+def exits(observation):
+    raise SystemExit(0)
+
+def ends(observation):
+    os._exit(0)
+"""
+
+
+def _artifacts(**fields: object) -> dict[str, str | bytes | Callable[[Path], None]]:
+    """A reduction's artifacts folder `art` (as `ddenv reduce` leaves it) whose summary has these fields."""
+    return {"art/minimal.yaml": YARD, "art/summary.json": json.dumps({**SUMMARY, **fields})}
+
+
+def _with_env(case: Case, **env: str) -> Case:
+    return Case(case.command, case.files, case.code, case.subprocess, case.also, env)
+
+
+REDUCE = ("reduce", "yard.yaml", "-p", "stuck:window=2.0,min_progress=0.2", "--workers", "1", "--media", "none")
+PROCESS_CASES: dict[str, Case] = {
+    # pytest options, ini settings and environment variables, checked when pytest starts
+    "artifacts-proc": run_pytest("--ddenv-artifacts", "/proc/ddenv-out"),
+    "artifacts-dangling": run_pytest("--ddenv-artifacts", "out", files={"out": _symlink("nowhere/out")}),
+    "artifacts-no-user": run_pytest("--ddenv-artifacts", "~nosuchuser/out"),
+    "artifacts-lock-link": run_pytest("--ddenv-reduce", "--ddenv-artifacts", "out",
+                                      files={"out/.ddenv.lock": _symlink("../precious.txt"), "precious.txt": "mine"}),
+    "ini-artifacts-proc": run_pytest(files={"pytest.ini": "[pytest]\nddenv_artifacts = /proc/ddenv-out\n"}),
+    "ini-artifacts-dangling": run_pytest(files={"pytest.ini": "[pytest]\nddenv_artifacts = out\n",
+                                                "out": _symlink("nowhere/out")}),
+    "model-path-no-user": run_pytest("--ddenv-model-path", "~nosuchuser/models"),
+    "world-long-name": run_pytest("--ddenv-world", "w" * 3000),
+    "model-path-long-name": run_pytest("--ddenv-model-path", "m" * 3000),
+    "probe-timeout-env": _with_env(run_pytest(), DDENV_PROBE_TIMEOUT="soon"),
+    "probe-timeout-env-negative": _with_env(run_pytest(), DDENV_PROBE_TIMEOUT="-5"),
+    # markers and parameters
+    "marker-priority-list": run_pytest(files={"test_robot.py": _robot_test(ddenv=", priority=['x']")}),
+    "marker-priority-dict": run_pytest(files={"test_robot.py": _robot_test(ddenv=", priority={'a': 1}")}),
+    "marker-stages-long": run_pytest(files={"test_robot.py": _robot_test(ddenv=", stages='s' * 1000")}),
+    "marker-world-no-user": run_pytest(files={"test_robot.py": _robot_test(world="~nosuchuser/yard.yaml")},
+                                       code=pytest.ExitCode.TESTS_FAILED),
+    "param-int": run_pytest(files={"test_robot.py": TEST_MODULE.format(world="yard.yaml", ddenv="", failure=(
+        "\n@pytest.mark.parametrize('robot_world', [5], indirect=True)"))}, code=pytest.ExitCode.TESTS_FAILED),
+    "marker-collided-empty": run_pytest(files={"test_robot.py": _robot_test(
+        failure="\n@pytest.mark.robot_failure('collided', models=[])")}),
+    # ddenv options and the user's code
+    "cli-predicate-twice": ddenv("run", "yard.yaml", "-p", "stuck:window=2,window=3", files={"yard.yaml": YARD}),
+    "cli-collided-empty": ddenv("run", "yard.yaml", "-p", "collided:models=[]", files={"yard.yaml": YARD}),
+    "cli-controller-not-callable": ddenv("run", "yard.yaml", "--controller", "uncallable:not_callable",
+                                         files={"yard.yaml": YARD, "uncallable.py": "not_callable = 42\n"}),
+    "cli-controller-exit": ddenv("run", "yard.yaml", "--controller", "controllers:exits", "--no-picture",
+                                 files={"yard.yaml": YARD, "controllers.py": CONTROLLERS}, code=3, subprocess=True),
+    "cli-controller-os-exit": ddenv("run", "yard.yaml", "--controller", "controllers:ends", "--no-picture",
+                                    files={"yard.yaml": YARD, "controllers.py": CONTROLLERS}, code=3,
+                                    subprocess=True),
+    "cli-import-exit": ddenv("run", "yard.yaml", "--import", "quits.py", files={
+        "yard.yaml": YARD, "quits.py": "import sys\nsys.exit(0)\n"}, code=3, subprocess=True),
+    "cli-reduce-controller-exit": ddenv(*REDUCE, "--controller", "controllers:exits",
+                                        files={"yard.yaml": YARD, "controllers.py": CONTROLLERS}, code=3,
+                                        subprocess=True),
+    "cli-record-full": ddenv("run", "yard.yaml", "--no-picture", "--record", "/dev/full", files={"yard.yaml": YARD}),
+    "cli-record-fifo": ddenv("run", "yard.yaml", "--no-picture", "--record", "runs.pipe",
+                             files={"yard.yaml": YARD, "runs.pipe": _pipe}),
+    "cli-output-folder": ddenv("run", "yard.yaml", "-o", ".", files={"yard.yaml": YARD}),
+    "cli-output-suffix": ddenv("run", "yard.yaml", "-o", "out.txt", files={"yard.yaml": YARD}),
+    "cli-animate-suffix": ddenv("show", "yard.yaml", "--animate", "run.mp4", files={"yard.yaml": YARD}),
+    "cli-mplbackend": _with_env(ddenv("run", "yard.yaml", files={"yard.yaml": YARD}, subprocess=True),
+                                MPLBACKEND="nonsense"),
+    "cli-stages-long": ddenv("reduce", "yard.yaml", "-p", "stuck", "--stages", "s" * 1000, files={"yard.yaml": YARD}),
+    "cli-probe-timeout-env": _with_env(ddenv("reduce", "yard.yaml", "-p", "stuck", files={"yard.yaml": YARD}),
+                                       DDENV_PROBE_TIMEOUT="soon"),
+    "cli-out-proc": ddenv("reduce", "yard.yaml", "-p", "stuck", "--out", "/proc/ddenv-out", files={"yard.yaml": YARD}),
+    "cli-out-dangling": ddenv("reduce", "yard.yaml", "-p", "stuck", "--out", "out",
+                              files={"yard.yaml": YARD, "out": _symlink("nowhere/out")}),
+    "cli-out-lock-link": ddenv("reduce", "yard.yaml", "-p", "stuck", "--out", "out", files={
+        "yard.yaml": YARD, "out/.ddenv.lock": _symlink("../precious.txt"), "precious.txt": "mine"}),
+    # journals and summaries read back
+    "log-folder": ddenv(*REDUCE, "--out", "out", files={"yard.yaml": YARD, "out/runs.jsonl/x": "a folder"}),
+    "log-fifo": ddenv(*REDUCE, "--out", "out", files={"yard.yaml": YARD, "out/runs.jsonl": _pipe}),
+    "replay-deep-summary": ddenv("replay", "art", files={"art/minimal.yaml": YARD, "art/summary.json": _deep_json}),
+    "replay-summary-fifo": ddenv("replay", "art", files={"art/minimal.yaml": YARD, "art/summary.json": _pipe}),
+    "replay-summary-seed": ddenv("replay", "art", "--runs", "1", files=_artifacts(scenario_seed="x")),
+    "replay-summary-imports": ddenv("replay", "art", "--runs", "1", files=_artifacts(imports=5)),
+    "replay-summary-controller": ddenv("replay", "art", "--runs", "1", files=_artifacts(controller=5)),
+    "replay-summary-reference": ddenv("replay", "art", "--runs", "1", files=_artifacts(reference_failure="x")),
+    "replay-summary-rate": ddenv("replay", "art", "--runs", "1", files=_artifacts(original_failure_rate={"a": 1})),
+    "show-deep-runs": ddenv("show", "yard.yaml", "--runs", "runs.jsonl",
+                            files={"yard.yaml": YARD, "runs.jsonl": _deep_json}),
+    "show-runs-fifo": ddenv("show", "yard.yaml", "--runs", "runs.pipe", files={"yard.yaml": YARD, "runs.pipe": _pipe}),
+}
+CASES.update(PROCESS_CASES)
+
+
 # -- the table ----------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Row:
@@ -507,6 +623,8 @@ def test_bad_input_gets_the_message_of_the_table(identifier: str, tmp_path: Path
                                                  capsys: pytest.CaptureFixture[str], request: pytest.FixtureRequest
                                                  ) -> None:
     case, row = CASES[identifier], ROWS[identifier]
+    for name, value in case.env.items():
+        monkeypatch.setenv(name, value)
     if identifier == "artifacts-read-only" and os.geteuid() == 0:  # root writes into read-only folders
         if os.access("/proc/sys", os.W_OK):
             pytest.skip("no folder is read-only for root here")
