@@ -34,9 +34,9 @@ from pytest_ddenv.cli.world_options import (
     with_scenario,
 )
 from pytest_ddenv.driver.progress import ProgressLine
+from pytest_ddenv.driver.user_code import UserCodeExit, is_exit
 from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.oracle.predicates import PredicateSpec, check_predicate_models
-from pytest_ddenv.driver.user_code import UserCodeExit, is_exit
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.driver.report import ReductionReport
@@ -942,8 +942,6 @@ def _reduction_text(path: str, report: ReductionReport, pictures: Sequence[str],
 
 # -- replay ------------------------------------------------------------------------------------------------
 def _cmd_replay(arguments: argparse.Namespace) -> int:
-    from pytest_ddenv.cli.replay import read_artifacts, replay
-    from pytest_ddenv.outcome import Outcome
     from pytest_ddenv.cli.replay import read_artifacts, replay, summary_field
     from pytest_ddenv.outcome import Outcome
 

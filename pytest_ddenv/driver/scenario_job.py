@@ -16,11 +16,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pytest_ddenv.execution import Channel, Handler, serve_requests
-from pytest_ddenv.oracle.predicates import PredicateSpec
-from pytest_ddenv.scenario.probe import ProbeResult, describe_error
-from pytest_ddenv.scenario.robot_world import DEFAULT_MAX_WALL_TIME, RobotWorld
-from pytest_ddenv.sim import ControllerLike, Run, RunSettings
 from pytest_ddenv.driver.user_code import (
     UserCodeExit,
     exit_error,
@@ -29,6 +24,11 @@ from pytest_ddenv.driver.user_code import (
     import_user_code,
     load_attribute,
 )
+from pytest_ddenv.execution import Channel, Handler, serve_requests
+from pytest_ddenv.oracle.predicates import PredicateSpec
+from pytest_ddenv.scenario.probe import ProbeResult, describe_error
+from pytest_ddenv.scenario.robot_world import DEFAULT_MAX_WALL_TIME, RobotWorld
+from pytest_ddenv.sim import ControllerLike, Run, RunSettings
 from pytest_ddenv.world.model import World
 
 

@@ -23,8 +23,8 @@ from typing import Any, TextIO
 
 import pytest
 
-from pytest_ddenv.execution import Channel, serve_requests
 from pytest_ddenv.driver.user_code import exit_error, exits_raised
+from pytest_ddenv.execution import Channel, serve_requests
 from pytest_ddenv.pytest_plugin.given_example import GivenExample
 from pytest_ddenv.scenario.probe import ProbeResult, describe_error
 from pytest_ddenv.scenario.robot_world import FIXTURE, RobotWorld
