@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from pytest_ddenv import cli
+from pytest_ddenv.cli import main as cli
 from pytest_ddenv.driver.artifacts import ArtifactsError, FolderLock
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import Observation, Outcome, ProbeLog, reduce
