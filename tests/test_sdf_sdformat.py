@@ -34,30 +34,12 @@ ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data" / "sdf"
 CORPUS = DATA / "corpus"
 MODELS = DATA / "models"
-CHECKER = DATA / "sdformat_check.cc"
-DUMPER = DATA / "sdformat_dump.cc"
 COMPARED_GEOMETRY = ("box", "cylinder", "sphere", "capsule", "mesh")
 STATE_MOVES = ("surgical_insertions",)
 """Corpus worlds whose <state> moves models: Gazebo applies it on load, libsdformat alone does not (poses not
 compared)."""
 STOCK_SUN = """<?xml version="1.0"?><sdf version="1.6"><light type="directional" name="sun">
 <pose>0 0 10 0 0 0</pose><direction>-0.5 0.1 -0.9</direction></light></sdf>"""
-
-
-def _build(tmp_path_factory: pytest.TempPathFactory, source: Path) -> Path:
-    from sdformat_build import build_sdformat_tool
-
-    return build_sdformat_tool(source, tmp_path_factory.mktemp("sdformat"))
-
-
-@pytest.fixture(scope="module")
-def sdformat_check(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return _build(tmp_path_factory, CHECKER)
-
-
-@pytest.fixture(scope="module")
-def sdformat_dump(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return _build(tmp_path_factory, DUMPER)
 
 
 @pytest.fixture(scope="module")
