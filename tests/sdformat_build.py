@@ -1,7 +1,7 @@
 """Build a small libsdformat 12 program of tests/data/sdf (the checker, the dumper) for the tests that compare
 with Gazebo's own SDF parser; the test is skipped where libsdformat or a compiler is missing.
 
-A build is kept in a cache folder (the pytest cache, see tests/conftest.py's `sdformat_tools`) under a name
+A build is kept in a cache folder (the pytest cache: tests/conftest.py's `sdformat_cache`) under a name
 made of the source's content, the compiler's version and libsdformat's version and flags: a session builds
 each program at most once, a later run on the same machine reuses it, and a changed source, compiler or
 library makes a new one. A lock file makes concurrent sessions (pytest-xdist workers) build it once."""
