@@ -2,8 +2,16 @@
 # afterwards, and a C extension cannot be loaded twice in one process ("cannot load module more than once per
 # process"). pytest-ddenv imports scipy.stats (the failure-rate test; numpy.fft under it) lazily, so it is
 # imported here, once, before any such run.
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import joblib
+import pytest
 import scipy.stats  # noqa: F401
 import yaml  # noqa: F401  # likewise: its C parser (yaml._yaml) outlives a re-import of the yaml package
+from sdformat_build import build_sdformat_tool
+from unit_tier import in_unit_tier, no_process_started
 
 # For the same reason a test must not import a heavy package (dask.distributed, ...) only to check that it is
 # installed while a pytester snapshot is active: use importlib.util.find_spec.
@@ -13,6 +21,48 @@ pytest_plugins = ["pytester"]
 # The suite runs about a hundred reductions: each makes the PNG pictures only, not the animations and the 3D
 # recording of the default `--ddenv-media all` (seconds each). tests/test_media.py asks for them explicitly.
 # Set here, before any test starts, so that pytester subprocesses and `ddenv` subprocesses inherit it.
-import os  # noqa: E402
-
 os.environ.setdefault("DDENV_MEDIA", "pictures")
+
+# scikit-learn's k-means asks joblib for the number of physical cores, which runs `lscpu` the first time in a
+# process. Asked here once, before any test: no unit-tier test starts that process (tests/unit_tier.py).
+joblib.cpu_count(only_physical_cores=True)
+
+SDF_DATA = Path(__file__).resolve().parent / "data" / "sdf"
+
+
+# -- the tiers: `-m unit` (tests/unit_tier.py), `-m "not slow"` (the fast tier), all ---------------------------
+@pytest.hookimpl(tryfirst=True)  # before `-m` selects by marker
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if in_unit_tier(item):
+            item.add_marker(pytest.mark.unit)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item: pytest.Item) -> Iterator[None]:
+    if item.get_closest_marker("unit") is None:
+        yield
+        return
+    with no_process_started(item.nodeid):
+        yield
+
+
+# -- the libsdformat programs, built once and kept by content (tests/sdformat_build.py) ----------------------
+@pytest.fixture(scope="session")
+def sdformat_cache(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The pytest cache's folder for the builds (kept from run to run), or this run's temporary folder under
+    `-p no:cacheprovider`."""
+    cache = getattr(request.config, "cache", None)
+    return cache.mkdir("ddenv-sdformat") if cache is not None else tmp_path_factory.mktemp("sdformat")
+
+
+@pytest.fixture(scope="session")
+def sdformat_check(sdformat_cache: Path) -> Path:
+    """tests/data/sdf/sdformat_check.cc built: loads SDF files with libsdformat, says `ok, N models` or errors."""
+    return build_sdformat_tool(SDF_DATA / "sdformat_check.cc", sdformat_cache)
+
+
+@pytest.fixture(scope="session")
+def sdformat_dump(sdformat_cache: Path) -> Path:
+    """tests/data/sdf/sdformat_dump.cc built: what libsdformat reads of an SDF file, one fact a line."""
+    return build_sdformat_tool(SDF_DATA / "sdformat_dump.cc", sdformat_cache)

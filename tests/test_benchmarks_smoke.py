@@ -157,6 +157,7 @@ def test_plain_text_table(bench):
     assert len(text.splitlines()) == 4
 
 
+@pytest.mark.slow  # a real reduction in a worker process: the full tier only
 def test_bench_parallel_reduces_through_the_driver(scripts, tmp_path):
     bench_parallel, _ = scripts
     world = bench_parallel.yard(6)

@@ -221,6 +221,7 @@ def test_show_default_picture_and_bad_runs_files(capsys: pytest.CaptureFixture[s
 
 
 # -- reduce ----------------------------------------------------------------------------------------------
+@pytest.mark.slow  # a reduction in worker processes (ddenv reduce's default workers): the full tier only
 def test_reduce_finds_exactly_the_wall(reduced: dict[str, Any]) -> None:
     data, out = reduced["json"], reduced["out"]
     assert reduced["code"] == 0, reduced["stderr"]
@@ -264,6 +265,7 @@ def test_the_reduce_job_can_be_sent_to_worker_processes(worlds: dict[str, Path])
 
 
 # -- replay ----------------------------------------------------------------------------------------------
+@pytest.mark.slow  # a reduction in worker processes (ddenv reduce's default workers): the full tier only
 def test_replay_reproduces(capsys: pytest.CaptureFixture[str], reduced: dict[str, Any]) -> None:
     code, out, _ = run(capsys, "replay", str(reduced["out"]), "--runs", "2")
     assert code == 0 and "reproduced: 2/2 fresh seeds failed the same way (100 %, 95% interval 34-100 %)" in out
@@ -274,6 +276,7 @@ def test_replay_reproduces(capsys: pytest.CaptureFixture[str], reduced: dict[str
     assert code == 0 and data["ok"] and data["models"] == ["wall"] and data["runs"][0]["outcome"] == "fail"
 
 
+@pytest.mark.slow  # a reduction in worker processes (ddenv reduce's default workers): the full tier only
 def test_replay_that_does_not_reproduce(capsys: pytest.CaptureFixture[str], reduced: dict[str, Any],
                                         worlds: dict[str, Path], tmp_path: Path) -> None:
     copy = tmp_path / "artifacts"

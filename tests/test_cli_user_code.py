@@ -83,6 +83,7 @@ def test_run_with_imported_robot_predicate_and_controller(capsys: pytest.Capture
     assert data["failure"]["time"] > 3.0, "crawling at 0.3 m/s takes more than 3 s for a metre"
 
 
+@pytest.mark.slow  # a real reduction in worker processes: the full tier only
 def test_reduce_in_workers_and_replay_use_the_same_user_code(capsys: pytest.CaptureFixture[str], project: Path) -> None:
     code, out, err = run(capsys, "reduce", "world.yaml", "--import", "lab_robots.py", "--controller",
                          "lab_robots:crawl", "-p", "stuck:window=2,min_progress=0.2", "--workers", "2",
@@ -130,14 +131,19 @@ def test_a_controller_that_raises_fails_the_run_not_ddenv(capsys: pytest.Capture
     sys.modules.pop("lab_broken", None)
 
 
+@pytest.mark.slow  # a real reduction in worker processes: the full tier only
 def test_quiet_parallel_reduce_prints_nothing_on_stderr(project: Path) -> None:
     import subprocess
 
-    done = subprocess.run(["ddenv", "reduce", "world.yaml", "--import", "lab_robots", "-p", "stuck:window=2",
-                           "--workers", "2", "-q", "--out", "art"], capture_output=True, text=True, cwd=project)
+    # `-m pytest_ddenv.cli` until the package has a `__main__` (then `-m pytest_ddenv`): this interpreter's
+    # ddenv, whatever PATH holds
+    done = subprocess.run([sys.executable, "-m", "pytest_ddenv.cli", "reduce", "world.yaml", "--import", "lab_robots",
+                           "-p", "stuck:window=2", "--workers", "2", "-q", "--out", "art"],
+                          capture_output=True, text=True, cwd=project)
     assert done.returncode == 0 and done.stderr == "", done.stderr
 
 
+@pytest.mark.slow  # a real reduction in worker processes: the full tier only
 def test_a_module_that_imports_here_but_not_in_a_worker_is_named(capsys: pytest.CaptureFixture[str],
                                                                   project: Path) -> None:
     (project / "worker_only_lab.py").write_text(

@@ -113,6 +113,7 @@ def test_a_run_without_detail_is_animated_with_the_models_where_they_started(tmp
     assert len(read_gif(info.path)) == info.frames
 
 
+@pytest.mark.slow  # a media helper process: the full tier only
 def test_an_animation_rendered_in_a_helper_process_is_the_same_file(tmp_path: Path) -> None:
     world, run = failing_run("ditch")
     shown = [Shown("original", world, run, True), Shown("minimal", world.select(world.names[:5]), run, True)]
@@ -128,6 +129,7 @@ def test_an_animation_rendered_in_a_helper_process_is_the_same_file(tmp_path: Pa
     assert beside.info["original.gif"]["frames"] == here.info["original.gif"]["frames"]
 
 
+@pytest.mark.slow  # a media helper process: the full tier only
 def test_an_animation_whose_helper_dies_is_rendered_here(tmp_path: Path) -> None:
     world, run = failing_run("ditch")
     shown = [Shown("original", world, run, True), Shown("minimal", world, run, True)]

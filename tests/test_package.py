@@ -45,9 +45,13 @@ def test_markers_are_registered(pytester: pytest.Pytester) -> None:
 
 
 def test_console_script_version_and_help() -> None:
+    """`python -m pytest_ddenv.cli` (`-m pytest_ddenv` once the package has a `__main__`), and the `ddenv` script
+    installed beside this interpreter: found there, not on PATH, which need not hold the environment's bin."""
     version = subprocess.run([sys.executable, "-m", "pytest_ddenv.cli", "--version"], capture_output=True, text=True)
     assert version.returncode == 0 and version.stdout.strip() == f"ddenv {pytest_ddenv.__version__}"
-    helped = subprocess.run(["ddenv", "--help"], capture_output=True, text=True)
+    script = Path(sys.executable).parent / "ddenv"
+    assert script.is_file(), f"no ddenv console script beside {sys.executable}"
+    helped = subprocess.run([str(script), "--help"], capture_output=True, text=True)
     assert helped.returncode == 0 and "usage: ddenv" in helped.stdout
 
 

@@ -15,13 +15,7 @@ from pytest_ddenv.cli import main as cli
 from pytest_ddenv.cli.replay import FRESH_FIRST_ATTEMPT, replay
 from pytest_ddenv.scenario.robot_world import ATTEMPT_SEED_STRIDE
 
-WORLD = """format: 1
-name: wall
-scenario: {start: {x: 0, y: 0, yaw: 0}, goal: {x: 4, y: 0}, timeout: 20}
-models:
-  - {name: wall, pose: [2.0, 0, 0.5], box: [0.3, 4.0, 1.0]}
-  - {name: crate, pose: [-3, 3, 0.25], box: [0.5, 0.5, 0.5]}
-"""
+WORLD = (Path(__file__).resolve().parent / "data" / "wall_and_crate.yaml").read_text(encoding="utf-8")
 
 
 @pytest.fixture(scope="module")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -12,13 +13,7 @@ from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.scenario.probe import trace_of
 from pytest_ddenv.scenario.robot_world import RobotFailure
 
-WORLD = World.from_yaml("""
-format: 1
-scenario: {start: {x: 0, y: 0, yaw: 0}, goal: {x: 4, y: 0}, timeout: 8}
-models:
-  - {name: wall, pose: [2.0, 0, 0.5], box: [0.3, 4.0, 1.0]}
-  - {name: crate, pose: [-3, 3, 0.25], box: [0.5, 0.5, 0.5]}
-""", source="reported.yaml")
+WORLD = World.load(Path(__file__).resolve().parent / "data" / "wall_and_crate.yaml")
 
 
 def test_a_reported_trajectory_becomes_a_run() -> None:

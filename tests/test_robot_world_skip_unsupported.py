@@ -38,8 +38,11 @@ TEST = textwrap.dedent(
 )
 
 
-@pytest.mark.parametrize("options", [[], ["--ddenv-reduce", "--ddenv-media", "none", "--ddenv-workers", "1"]],
-                         ids=["plain", "reduce"])
+@pytest.mark.parametrize("options", [
+    pytest.param([], id="plain"),
+    pytest.param(["--ddenv-reduce", "--ddenv-media", "none", "--ddenv-workers", "1"], id="reduce",
+                 marks=pytest.mark.slow),  # a real reduction in a subprocess: the full tier only
+])
 def test_one_warning_names_each_dropped_model(pytester: pytest.Pytester, options: list[str]) -> None:
     pytester.makefile(".world", yard=YARD)
     pytester.makepyfile(test_yard=TEST.format(skip=True))

@@ -596,13 +596,6 @@ def test_a_name_that_is_no_frame_is_refused_as_libsdformat_refuses_it(path: Path
     assert message.endswith(f"(there are: {there_are})")
 
 
-@pytest.fixture(scope="module")
-def sdformat_check(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from sdformat_build import build_sdformat_tool
-
-    return build_sdformat_tool(DATA / "sdformat_check.cc", tmp_path_factory.mktemp("sdformat"))
-
-
 @pytest.mark.parametrize("name", [*BAD, "namespaced.world"])
 def test_libsdformat_agrees_on_names_and_prefixes(sdformat_check: Path, name: str) -> None:
     result = subprocess.run([str(sdformat_check), str(CORPUS / name)], capture_output=True, text=True, check=False,

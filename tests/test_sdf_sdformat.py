@@ -35,30 +35,12 @@ ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data" / "sdf"
 CORPUS = DATA / "corpus"
 MODELS = DATA / "models"
-CHECKER = DATA / "sdformat_check.cc"
-DUMPER = DATA / "sdformat_dump.cc"
 COMPARED_GEOMETRY = ("box", "cylinder", "sphere", "capsule", "mesh")
 STATE_MOVES = ("surgical_insertions",)
 """Corpus worlds whose <state> moves models: Gazebo applies it on load, libsdformat alone does not (poses not
 compared)."""
 STOCK_SUN = """<?xml version="1.0"?><sdf version="1.6"><light type="directional" name="sun">
 <pose>0 0 10 0 0 0</pose><direction>-0.5 0.1 -0.9</direction></light></sdf>"""
-
-
-def _build(tmp_path_factory: pytest.TempPathFactory, source: Path) -> Path:
-    from sdformat_build import build_sdformat_tool
-
-    return build_sdformat_tool(source, tmp_path_factory.mktemp("sdformat"))
-
-
-@pytest.fixture(scope="module")
-def sdformat_check(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return _build(tmp_path_factory, CHECKER)
-
-
-@pytest.fixture(scope="module")
-def sdformat_dump(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return _build(tmp_path_factory, DUMPER)
 
 
 @pytest.fixture(scope="module")
@@ -142,6 +124,16 @@ def run_dump(binary: Path, path: Path, stock: Path) -> SdformatWorld:
     return SdformatWorld(errors, models, result.stderr)
 
 
+CORPUS_DUMPS: dict[Path, SdformatWorld] = {}
+"""What libsdformat reads of each corpus file, read once per session (two tests read every file)."""
+
+
+def corpus_dump(binary: Path, path: Path, stock: Path) -> SdformatWorld:
+    if path not in CORPUS_DUMPS:
+        CORPUS_DUMPS[path] = run_dump(binary, path, stock)
+    return CORPUS_DUMPS[path]
+
+
 def corpus_files() -> list[Path]:
     return sorted(CORPUS.glob("*.world")) + sorted(CORPUS.glob("*.sdf"))
 
@@ -178,7 +170,7 @@ def compare(world: World, theirs: SdformatWorld, path: Path) -> None:
 def test_corpus_files_libsdformat_loads_are_loaded_alike(
     sdformat_dump: Path, stock_models: Path, path: Path
 ) -> None:
-    theirs = run_dump(sdformat_dump, path, stock_models)
+    theirs = corpus_dump(sdformat_dump, path, stock_models)
     if theirs.errors and path.name.startswith("bad_"):  # refused by both, on purpose
         with pytest.raises(WorldError):
             load_sdf(path, model_paths=[MODELS])
@@ -202,7 +194,7 @@ def test_corpus_files_libsdformat_loads_are_loaded_alike(
 
 
 def test_corpus_holds_what_libsdformat_refuses_only_on_purpose(sdformat_dump: Path, stock_models: Path) -> None:
-    refused = {path.name for path in corpus_files() if run_dump(sdformat_dump, path, stock_models).errors}
+    refused = {path.name for path in corpus_files() if corpus_dump(sdformat_dump, path, stock_models).errors}
     bad = {path.name for path in corpus_files() if path.name.startswith("bad_")}  # refused by both, on purpose
     assert refused - bad == {"fuel_include.world", "merge_in_world.world", "surgical_fuel.world"}  # no network
     assert bad <= refused

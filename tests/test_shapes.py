@@ -292,10 +292,7 @@ def test_sdf_export_writes_the_new_elements(tmp_path: Path) -> None:
     assert capsule is not None and capsule.findtext("radius") == "0.1" and capsule.findtext("length") == "1.0"
 
 
-def test_sdf_exports_with_the_new_shapes_load_in_libsdformat(tmp_path: Path) -> None:
-    from sdformat_build import build_sdformat_tool
-
-    checker = build_sdformat_tool(ROOT / "tests" / "data" / "sdf" / "sdformat_check.cc", tmp_path)
+def test_sdf_exports_with_the_new_shapes_load_in_libsdformat(sdformat_check: Path, tmp_path: Path) -> None:
     ramp_image(tmp_path / "ramp.png")
     world = World(models=(
         Model("pole", (Shape("capsule", radius=0.1, length=1.0),), pose=Pose(0, 0, 1), mass=2.0, static=False),
@@ -305,7 +302,7 @@ def test_sdf_exports_with_the_new_shapes_load_in_libsdformat(tmp_path: Path) -> 
     ), source=str(tmp_path / "w.yaml"))
     world.save(tmp_path / "all.world")
     world.without(["pole"]).save(tmp_path / "no_capsule.world")
-    result = subprocess.run([str(checker), str(tmp_path / "all.world"), str(tmp_path / "no_capsule.world")],
+    result = subprocess.run([str(sdformat_check), str(tmp_path / "all.world"), str(tmp_path / "no_capsule.world")],
                             capture_output=True, text=True, check=False)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "ok, 5 models" in result.stdout and "ok, 4 models" in result.stdout

@@ -53,6 +53,7 @@ def test_parallel_runs_are_bit_identical_to_serial_runs(pool: LocalPool, wall_wo
     assert pool.stats.probes >= len(probes) and pool.stats.errors == 0
 
 
+@pytest.mark.slow  # a real reduction in worker processes: the full tier only
 def test_the_reduction_on_two_workers_finds_the_wall(pool: LocalPool, wall_world: World) -> None:
     job = stuck_job()
     with LocalPool(job, 1, in_process=job.handler()) as serial_pool:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -10,23 +11,7 @@ import pytest
 # sys.modules afterwards, and C extensions that a reduction imports lazily (numpy.fft, ...) cannot be
 # imported twice in one process.
 
-WALL_WORLD = textwrap.dedent(
-    """\
-    format: 1
-    name: wall
-    scenario:
-      start: {x: 0.0, y: 0.0, yaw: 0.0}
-      goal: {x: 4.0, y: 0.0}
-      timeout: 20
-    models:
-      - {name: far_box_a, pose: [-4, 4, 0.25], box: [0.5, 0.5, 0.5]}
-      - {name: far_box_b, pose: [-4, -4, 0.25], box: [0.5, 0.5, 0.5]}
-      - {name: wall, pose: [2.0, 0, 0.5], box: [0.3, 4.0, 1.0]}
-      - {name: side_post, pose: [2, 5, 0.5], cylinder: {radius: 0.2, length: 1.0}}
-      - {name: far_box_c, pose: [8, 6, 0.25], box: [0.5, 0.5, 0.5]}
-      - {name: ball, pose: [-3, 0, 0.2], sphere: {radius: 0.2}}
-    """
-)
+WALL_WORLD = (Path(__file__).resolve().parents[1] / "data" / "wall.yaml").read_text(encoding="utf-8")
 
 SCENARIO_TEST = textwrap.dedent(
     """\

@@ -59,6 +59,7 @@ def test_an_unsupported_model_is_an_error_naming_it_unless_skipped(pytester: pyt
     result.stdout.fnmatch_lines(["*yard.world:*unsupported <actor>*skip_unsupported=True*"])
 
 
+@pytest.mark.slow  # a real reduction in a subprocess: the full tier only
 def test_a_gazebo_world_is_reduced_with_its_notes_and_a_cut_minimal_sdf(pytester: pytest.Pytester) -> None:
     pytester.makefile(".world", yard=GAZEBO_WORLD)
     pytester.makepyfile(test_yard=gazebo_test("world='yard.world', skip_unsupported=True, deflake=1"))

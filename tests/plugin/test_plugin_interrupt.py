@@ -26,14 +26,7 @@ SLOW_SCENARIO_TEST = SCENARIO_TEST.replace(
     "    run = robot_world.run()\n",
 )
 
-YARD_BOXES = "\n".join(
-    f"  - {{name: box_{i:02d}, pose: [{-6 + (i % 10) * 1.5}, {5 + (i // 10) * 1.5}, 0.25], box: [0.5, 0.5, 0.5]}}"
-    for i in range(30)
-)
-YARD_WORLD = (
-    "format: 1\nname: yard\nscenario:\n  start: {x: 0.0, y: 0.0, yaw: 0.0}\n  goal: {x: 4.0, y: 0.0}\n"
-    "  timeout: 20\nmodels:\n" + YARD_BOXES + "\n  - {name: wall, pose: [2.0, 0, 0.5], box: [0.3, 4.0, 1.0]}\n"
-)
+YARD_WORLD = (Path(__file__).resolve().parents[1] / "data" / "yard.yaml").read_text(encoding="utf-8")
 
 
 def default_signal_handlers() -> None:

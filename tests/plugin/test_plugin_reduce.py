@@ -14,6 +14,8 @@ from pytest_ddenv import World
 
 pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
 
+OPEN_WORLD = (Path(__file__).resolve().parents[1] / "data" / "open.yaml").read_text(encoding="utf-8")
+
 
 def summary_of(pytester: pytest.Pytester) -> dict:
     (summary,) = Path(pytester.path, "ddenv-artifacts").glob("*/summary.json")
@@ -82,8 +84,7 @@ def test_replaying_the_minimal_world_fails_the_same_way(wall_project: pytest.Pyt
 
 
 def test_passing_robot_test_is_not_reduced(wall_project: pytest.Pytester) -> None:
-    wall_project.makefile(".yaml", open="format: 1\nscenario: {start: {x: 0, y: 0}, goal: {x: 3, y: 0}, timeout: 20}\n"
-                                        "models:\n  - {name: far, pose: [-5, 5, 0.25], box: [0.5, 0.5, 0.5]}\n")
+    wall_project.makefile(".yaml", open=OPEN_WORLD)
     wall_project.makepyfile(test_scenario=(
         "import pytest\n"
         "@pytest.mark.ddenv(world='open.yaml')\n"
@@ -283,10 +284,7 @@ def test_pytest_html_report_gets_the_pictures_and_files(wall_project: pytest.Pyt
 def test_indirect_parametrization_gives_each_case_its_world_and_keep_is_honoured(
     wall_project: pytest.Pytester,
 ) -> None:
-    wall_project.makefile(".yaml", open=(
-        "format: 1\nscenario: {start: {x: 0, y: 0}, goal: {x: 3, y: 0}, timeout: 20}\n"
-        "models:\n  - {name: far, pose: [-5, 5, 0.25], box: [0.5, 0.5, 0.5]}\n"
-    ))
+    wall_project.makefile(".yaml", open=OPEN_WORLD)
     wall_project.makepyfile(test_scenario=(
         "import pytest\n"
         "@pytest.mark.ddenv(keep=['ball'])\n"

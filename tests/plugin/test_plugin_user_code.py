@@ -114,6 +114,7 @@ def test_user_code_reduces_to_the_same_minimal_world_however_probes_run(user_pro
     assert summary["predicates"] == [{"name": "blocked", "params": {}, "object": summary["predicates"][0]["object"]}]
 
 
+@pytest.mark.slow  # a reduction in a subprocess: the full tier only
 def test_user_code_that_does_not_import_in_a_worker_is_named(user_project: pytest.Pytester) -> None:
     user_project.makeconftest(MY_ROBOT_CONFTEST + textwrap.dedent(
         """\
@@ -137,6 +138,7 @@ def test_user_code_that_does_not_import_in_a_worker_is_named(user_project: pytes
     assert not Path(user_project.path, "ddenv-artifacts").exists()
 
 
+@pytest.mark.slow  # a reduction in a subprocess: the full tier only
 def test_an_exception_the_test_raises_only_in_probes_is_shown_as_it_is(user_project: pytest.Pytester) -> None:
     user_project.makepyfile(test_scenario=USER_CODE_TEST.replace(
         "def heading_to_goal(observation):\n",
@@ -155,6 +157,7 @@ def test_an_exception_the_test_raises_only_in_probes_is_shown_as_it_is(user_proj
     assert "not reproducible" not in result.stdout.str() and "--ddenv-deflake" not in result.stdout.str()
 
 
+@pytest.mark.slow  # a reduction in a subprocess: the full tier only
 def test_a_robot_registered_only_in_the_pytest_process_is_reported_as_unknown(user_project: pytest.Pytester) -> None:
     user_project.makeconftest(
         "import multiprocessing\n"
@@ -212,6 +215,7 @@ OWN_SIMULATOR_TEST = textwrap.dedent(
 )
 
 
+@pytest.mark.slow  # a reduction in a subprocess: the full tier only
 def test_a_test_with_its_own_simulator_and_no_report_is_reduced_by_model_position(pytester: pytest.Pytester) -> None:
     pytester.makefile(".yaml", wall=WALL_WORLD)
     pytester.makepyfile(test_rover=OWN_SIMULATOR_TEST)
@@ -228,6 +232,7 @@ def test_a_test_with_its_own_simulator_and_no_report_is_reduced_by_model_positio
     assert len(summary["notes"]) == 2
 
 
+@pytest.mark.slow  # a reduction in a subprocess: the full tier only
 def test_a_run_that_raised_is_named_in_the_fallback_note(user_project: pytest.Pytester) -> None:
     docstring = '    """The controller under test: steady 0.6 m/s, gentle turns toward the goal."""\n'
     user_project.makepyfile(test_scenario=USER_CODE_TEST.replace(  # it raises in front of the wall only

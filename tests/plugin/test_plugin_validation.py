@@ -182,6 +182,7 @@ def test_a_plain_function_predicate_is_given_with_with_args(wall_project: pytest
     result.stdout.fnmatch_lines(["*RobotFailure: The 'pressed' predicate fired*touching wall*"])
 
 
+@pytest.mark.slow  # a real reduction in a subprocess: the full tier only
 def test_ci_logs_get_progress_lines_and_relative_artifacts_follow_the_invocation_folder(
         wall_project: pytest.Pytester) -> None:
     """Not a terminal (a CI log): a line per accepted step. The tests live in suite/ with their own ini file,

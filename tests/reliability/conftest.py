@@ -26,14 +26,7 @@ HANG_GUARD = 180.0
 """Seconds after which a child that should have ended long before is killed and the test fails."""
 STUCK = "stuck:window=2.0,min_progress=0.2"
 
-YARD = "\n".join(
-    f"  - {{name: box_{i:02d}, pose: [{-6 + (i % 10) * 1.5}, {5 + (i // 10) * 1.5}, 0.25], box: [0.5, 0.5, 0.5]}}"
-    for i in range(30)
-)
-YARD_WORLD = (
-    "format: 1\nname: yard\nscenario:\n  start: {x: 0.0, y: 0.0, yaw: 0.0}\n  goal: {x: 4.0, y: 0.0}\n"
-    "  timeout: 20\nmodels:\n" + YARD + "\n  - {name: wall, pose: [2.0, 0, 0.5], box: [0.3, 4.0, 1.0]}\n"
-)
+YARD_WORLD = (Path(__file__).resolve().parents[1] / "data" / "yard.yaml").read_text(encoding="utf-8")
 """31 models: thirty boxes far from the path, and the wall that stops the robot (the only culprit)."""
 
 

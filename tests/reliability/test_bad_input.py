@@ -618,7 +618,12 @@ def _python(code: str) -> str:
     return f"(no error: returned {result!r})"
 
 
-@pytest.mark.parametrize("identifier", sorted(CASES))
+SLOW_CASES = {"sdf-include-breadth", "sdf-many-links"}
+"""Inputs refused within their bounds only after seconds of CPU, by design: the full tier only."""
+
+
+@pytest.mark.parametrize("identifier", [pytest.param(identifier, marks=pytest.mark.slow) if identifier in SLOW_CASES
+                                        else identifier for identifier in sorted(CASES)])
 def test_bad_input_gets_the_message_of_the_table(identifier: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                  capsys: pytest.CaptureFixture[str], request: pytest.FixtureRequest
                                                  ) -> None:

@@ -24,16 +24,7 @@ from .conftest import (
 
 pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
 
-WALL_WORLD = (
-    "format: 1\nname: wall\nscenario:\n  start: {x: 0.0, y: 0.0, yaw: 0.0}\n  goal: {x: 4.0, y: 0.0}\n"
-    "  timeout: 20\nmodels:\n"
-    "  - {name: far_box_a, pose: [-4, 4, 0.25], box: [0.5, 0.5, 0.5]}\n"
-    "  - {name: far_box_b, pose: [-4, -4, 0.25], box: [0.5, 0.5, 0.5]}\n"
-    "  - {name: wall, pose: [2.0, 0, 0.5], box: [0.3, 4.0, 1.0]}\n"
-    "  - {name: side_post, pose: [2, 5, 0.5], cylinder: {radius: 0.2, length: 1.0}}\n"
-    "  - {name: far_box_c, pose: [8, 6, 0.25], box: [0.5, 0.5, 0.5]}\n"
-    "  - {name: ball, pose: [-3, 0, 0.2], sphere: {radius: 0.2}}\n"
-)
+WALL_WORLD = (Path(__file__).resolve().parents[1] / "data" / "wall.yaml").read_text(encoding="utf-8")
 
 
 @pytest.mark.parametrize("workers", ["1", "2"])

@@ -182,20 +182,8 @@ def test_progress_steps_sit_on_their_accepting_probe_and_the_axis_reaches_the_la
         assert any(fx == x and fs == size for fx, fs in accepted_fails), f"no same-failure probe of size {size} at {x}"
 
 
-WALL_WITH_TIMEOUT = textwrap.dedent(
-    """\
-    format: 1
-    name: long_wall
-    scenario:
-      start: {x: 0.0, y: 0.0, yaw: 0.0}
-      goal: {x: 10.0, y: 0.0}
-      timeout: 40
-    models:
-      - {name: far_box_a, pose: [-4, 4, 0.25], box: [0.5, 0.5, 0.5]}
-      - {name: wall, pose: [5.0, 0, 0.5], box: [0.3, 4.0, 1.0]}
-      - {name: side_post, pose: [2, 5, 0.5], cylinder: {radius: 0.2, length: 1.0}}
-    """
-)
+WALL_WITH_TIMEOUT = World.load(Path(__file__).resolve().parents[1] / "data" / "long_wall.yaml").without(
+    ["ball"]).to_yaml()
 
 
 def test_the_passing_world_is_searched_with_the_original_start_and_time_limit(tmp_path: Path) -> None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import textwrap
 from pathlib import Path
 
 import pytest
@@ -15,21 +14,7 @@ from pytest_ddenv.world import World
 
 pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
 
-LONG_WALL = textwrap.dedent(
-    """\
-    format: 1
-    name: long_wall
-    scenario:
-      start: {x: 0.0, y: 0.0, yaw: 0.0}
-      goal: {x: 10.0, y: 0.0}
-      timeout: 40
-    models:
-      - {name: far_box_a, pose: [-4, 4, 0.25], box: [0.5, 0.5, 0.5]}
-      - {name: wall, pose: [5.0, 0, 0.5], box: [0.3, 4.0, 1.0]}
-      - {name: side_post, pose: [2, 5, 0.5], cylinder: {radius: 0.2, length: 1.0}}
-      - {name: ball, pose: [-3, 0, 0.2], sphere: {radius: 0.2}}
-    """
-)
+LONG_WALL = (Path(__file__).resolve().parents[1] / "data" / "long_wall.yaml").read_text(encoding="utf-8")
 STUCK = "stuck:window=3,min_progress=0.2"
 
 
