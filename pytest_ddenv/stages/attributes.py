@@ -212,7 +212,7 @@ def proposals(world: World, rungs: dict[str, int] | None, folder: Path) -> list[
                 if model.mass is not None and model.mass != 1.0:
                     candidates.append(Proposal(f"{model.name}:mass", model.name, "mass",
                                                f"{_number(model.mass)} kg", "1 kg (the default)",
-                                               lambda m: dataclasses.replace(m, mass=None)))
+                                               lambda m: dataclasses.replace(m, mass=1.0)))
         moves_start = model.name == support  # never move what the robot starts on
         for key in ("x", "y") if not moves_start else ():
             rung = _rung(rungs, model.name, key)

@@ -552,9 +552,10 @@ def _model_dict(model: Model, source: str | None, relative_to: Path | None) -> d
         result.update(_shape_dict(model.shapes[0], source, relative_to))
     else:
         result["shapes"] = [_shape_dict(shape, source, relative_to) for shape in model.shapes]
-    if model.mass is not None:
-        result["mass"] = model.mass
-    if model.static != (model.mass is None):
+    mass = 1.0 if model.mass is None and not model.static else model.mass  # what a dynamic model simulates with
+    if mass is not None:
+        result["mass"] = mass
+    if model.static != (mass is None):
         result["static"] = model.static
     if model.mu != 1.0 or model.mu2 != model.mu:
         result["mu"] = model.mu
