@@ -14,6 +14,7 @@ chassis on the cinder block rather than high-centred by the predicate's measure 
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 
 import mujoco
@@ -38,6 +39,7 @@ class MujocoPhysics:
     name = "mujoco"
 
     def __init__(self) -> None:
+        mujoco.set_mju_user_warning(_warn)  # not MuJoCo's default, which writes MUJOCO_LOG.TXT into the cwd
         self.version = str(mujoco.__version__)
         self.model: mujoco.MjModel | None = None
         self.data: mujoco.MjData | None = None
@@ -146,3 +148,11 @@ class MujocoPhysics:
 
     def joint_positions(self) -> list[float]:
         return self._loaded()[2].joint_positions()
+
+
+class MujocoWarning(RuntimeWarning):
+    """A warning of MuJoCo's (an unstable simulation, a full contact buffer, ...)."""
+
+
+def _warn(message: str) -> None:
+    warnings.warn(f"MuJoCo: {message.strip()}", MujocoWarning, stacklevel=1)
