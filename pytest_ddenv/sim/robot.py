@@ -22,7 +22,13 @@ from typing import Any
 from pytest_ddenv.errors import ControllerError, ScenarioError
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
-from pytest_ddenv.sim.urdf_geometry import UrdfGeometry, check_wheel_joints, measure_urdf, urdf_joint_names
+from pytest_ddenv.sim.urdf_geometry import (
+    UrdfGeometry,
+    check_wheel_joints,
+    measure_urdf,
+    pybullet_installed,
+    urdf_joint_names,
+)
 from pytest_ddenv.validation import expected
 from pytest_ddenv.world.files import regular_file_problem, resolve_relative
 from pytest_ddenv.world.model import DRIVE_KINDS, LaserMount, RobotDescription
@@ -186,6 +192,8 @@ class WheeledRobot(Robot):
         )
 
     def _flags(self) -> int:
+        if not pybullet_installed():  # MuJoCo reads the URDF itself
+            return 0
         with silenced():  # importing pybullet prints its build time on the C-level stdout
             import pybullet as p
 

@@ -16,10 +16,10 @@ import pytest
 
 pytest.importorskip("mujoco", reason="needs mujoco: pip install \"pytest-ddenv[mujoco]\"")
 
-from mujoco_worlds import box, digest, far_boxes, flat_world, shipped  # noqa: E402
+from mujoco_worlds import box, digest, far_boxes, flat_world, shipped
 
-from pytest_ddenv.oracle import make_predicate  # noqa: E402
-from pytest_ddenv.sim import Simulator  # noqa: E402
+from pytest_ddenv.oracle import make_predicate
+from pytest_ddenv.sim import Simulator
 
 STUCK = make_predicate("stuck", window=5.0, min_progress=0.2)
 

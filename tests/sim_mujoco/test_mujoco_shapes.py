@@ -12,14 +12,14 @@ import pytest
 
 pytest.importorskip("mujoco", reason="needs mujoco: pip install \"pytest-ddenv[mujoco]\"")
 
-from mujoco_worlds import MUJOCO, flat_world  # noqa: E402
-from PIL import Image  # noqa: E402
+from mujoco_worlds import MUJOCO, flat_world
+from PIL import Image
 
-from pytest_ddenv.oracle import make_predicate  # noqa: E402
-from pytest_ddenv.sim import Husky, Simulator  # noqa: E402
-from pytest_ddenv.sim.mujoco.physics import MujocoPhysics  # noqa: E402
-from pytest_ddenv.world import Ground, Model, Pose, Shape, World, geometry  # noqa: E402
-from pytest_ddenv.world.meshes import load_heightmap, polyline_mesh  # noqa: E402
+from pytest_ddenv.oracle import make_predicate
+from pytest_ddenv.sim import Husky, Simulator
+from pytest_ddenv.sim.mujoco.physics import MujocoPhysics
+from pytest_ddenv.world import Ground, Model, Pose, Shape, World, geometry
+from pytest_ddenv.world.meshes import load_heightmap, polyline_mesh
 
 U_OUTLINE = ((0.0, 0.0), (2.6, 0.0), (2.6, 2.4), (2.2, 2.4), (2.2, 0.4), (0.4, 0.4), (0.4, 2.4), (0.0, 2.4))
 """A U opening towards +y: arms 0.4 m thick, the notch 1.8 m wide and 2 m deep (the Husky is 0.67 m wide)."""

@@ -13,9 +13,9 @@ import pytest
 
 pytest.importorskip("mujoco", reason="needs mujoco: pip install \"pytest-ddenv[mujoco]\"")
 
-from pytest_ddenv.errors import WorldError  # noqa: E402
-from pytest_ddenv.sim import Simulator  # noqa: E402
-from pytest_ddenv.world import Physics, World  # noqa: E402
+from pytest_ddenv.errors import WorldError
+from pytest_ddenv.sim import Simulator
+from pytest_ddenv.world import Physics, World
 
 WALL_PATH = Path(__file__).resolve().parents[1] / "data" / "wall.yaml"
 WALL = WALL_PATH.read_text(encoding="utf-8")
@@ -87,7 +87,8 @@ def test_a_pybullet_robot_class_is_refused_by_the_mujoco_engine(tmp_path: Path) 
     register_robot("wheelbarrow", Wheelbarrow)
     try:
         path = tmp_path / "wall.yaml"
-        path.write_text(wall_in("physics: {engine: mujoco}").replace("scenario:\n", "scenario:\n  robot: wheelbarrow\n"))
+        text = wall_in("physics: {engine: mujoco}").replace("scenario:\n", "scenario:\n  robot: wheelbarrow\n")
+        path.write_text(text)
         with Simulator() as sim, pytest.raises(ScenarioError, match="pybullet robot") as caught:
             sim.run(World.load(path))
         assert str(path) in str(caught.value)

@@ -24,7 +24,7 @@ from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.mujoco.contacts import RAY_GROUPS
 from pytest_ddenv.sim.mujoco.driven_robot import MujocoRobot
-from pytest_ddenv.sim.mujoco.robot_spec import PREFIX, ROOT_JOINT, robot_spec
+from pytest_ddenv.sim.mujoco.robot_spec import PREFIX, ROOT_JOINT, robot_spec, tune_wheel_servos
 from pytest_ddenv.sim.mujoco.world_spec import world_spec
 from pytest_ddenv.sim.physics import BaseState, ContactPoint, ContactPosition, RayHit, Vector
 from pytest_ddenv.sim.robot import Robot, WheeledRobot
@@ -67,6 +67,7 @@ class MujocoPhysics:
             model = spec.compile()
         except ValueError as error:
             raise ScenarioError(f"MuJoCo cannot compile the world: {error}", source=world.source) from None
+        tune_wheel_servos(model, robot)
         self.model, self.data = model, mujoco.MjData(model)
         self._robot = MujocoRobot(robot, model, self.data)
         names = set(world.names)

@@ -22,13 +22,15 @@ from pytest_ddenv.sim.robot import Husky, WheeledRobot
 PREFIX = "robot/"
 """Every name of the robot in the compiled model starts with this."""
 ROOT_JOINT = "root"
-WHEEL_MU = 1.0
-"""The wheels' friction (the Husky URDF's lateral_friction; pybullet's engine uses the same)."""
-CHASSIS_MU = 0.5
-"""pybullet's default lateralFriction for a link without `<contact>`: the chassis's friction."""
+DEFAULT_MU = 0.5
+"""pybullet's lateralFriction for a link whose URDF gives none (the Husky's chassis)."""
 VELOCITY_GAIN = 200.0
-"""The wheel actuators' gain, N m s/rad: a velocity servo clamped at the torque limit (pybullet's velocity
-motor is a hard constraint limited by the same torque; straight driving is the same in both)."""
+"""The Husky's wheel actuators' gain, N m s/rad: a velocity servo clamped at the torque limit (pybullet's
+velocity motor is a hard constraint limited by the same torque; straight driving is the same in both)."""
+SERVO_STEPS = 5.0
+"""Another robot's wheel servo has the time constant (wheel inertia / gain) of a fifth of a time step: a gain
+of 200 on a light wheel (the example diffbot's 0.0016 kg m^2) saturates at the torque limit, spins the wheel
+up past its target in one step and makes the robot hop."""
 
 # pybullet's merged Husky chassis (base_link with the fixed links, each link without <inertial> weighing 1 kg):
 # mass, centre of mass from base_link's frame, principal inertia. The same robot in both engines.
@@ -64,9 +66,10 @@ def robot_spec(robot: WheeledRobot) -> mujoco.MjSpec:
         wheel_bodies[joint.parent.name] = name
     if isinstance(robot, Husky):  # pybullet's mass model: the same robot in both engines
         _husky_chassis(spec)
+    friction = link_friction(robot.urdf)
     for geom in spec.geoms:
         wheel = geom.parent.name in wheel_bodies
-        mu = WHEEL_MU if wheel else CHASSIS_MU
+        mu = friction.get(geom.parent.name, DEFAULT_MU)
         geom.group = ROBOT_GROUP
         geom.friction = [mu, TORSION, ROLLING]
         geom.priority = friction_priority(mu)
@@ -84,6 +87,30 @@ def robot_spec(robot: WheeledRobot) -> mujoco.MjSpec:
         actuator.forcerange = [-robot.max_force, robot.max_force]
         actuator.ctrllimited = False
     return spec
+
+
+def tune_wheel_servos(model: mujoco.MjModel, robot: WheeledRobot) -> None:
+    """Each wheel actuator's gain in the compiled `model`: the Husky's `VELOCITY_GAIN`, else `SERVO_STEPS`
+    times the wheel's inertia about its axis per time step."""
+    for name in robot.wheel_names:
+        actuator = model.actuator(PREFIX + name).id
+        inertia = float(model.dof_M0[model.jnt_dofadr[model.joint(PREFIX + name).id]])
+        gain = VELOCITY_GAIN if isinstance(robot, Husky) else SERVO_STEPS * inertia / float(model.opt.timestep)
+        model.actuator_gainprm[actuator, 0] = gain
+        model.actuator_biasprm[actuator, 2] = -gain
+
+
+def link_friction(urdf: str) -> dict[str, float]:
+    """Link name -> its `<contact><lateral_friction value=...>`, which pybullet applies and MuJoCo ignores."""
+    import defusedxml.ElementTree
+
+    root = defusedxml.ElementTree.fromstring(Path(urdf).read_text(encoding="utf-8"))
+    found = {}
+    for link in root.iter("link"):
+        element = link.find("contact/lateral_friction")
+        if element is not None and element.get("value") is not None:
+            found[str(link.get("name"))] = float(str(element.get("value")))
+    return found
 
 
 def _husky_chassis(spec: mujoco.MjSpec) -> None:
