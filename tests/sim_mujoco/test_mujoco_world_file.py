@@ -96,6 +96,30 @@ def test_a_pybullet_robot_class_is_refused_by_the_mujoco_engine(tmp_path: Path) 
         del ROBOTS["wheelbarrow"]
 
 
+def test_ddenv_run_simulates_a_mujoco_world(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    from pytest_ddenv.cli import main as cli
+
+    (tmp_path / "wall.yaml").write_text(wall_in("physics: {engine: mujoco}"))
+    monkeypatch.chdir(tmp_path)
+    code = cli.main(["run", "wall.yaml", "--predicate", "stuck"])
+    out = capsys.readouterr().out
+    assert code == 1 and "wall.yaml: 6 models, seed 0: FAILED (stuck at t = " in out and "touching wall" in out
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_an_unknown_engine_is_one_ddenv_error(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    from pytest_ddenv.cli import main as cli
+
+    (tmp_path / "wall.yaml").write_text(wall_in("physics: {engine: bullet}"))
+    monkeypatch.chdir(tmp_path)
+    code = cli.main(["run", "wall.yaml"])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "wall.yaml" in err and "physics.engine" in err and "'bullet'" in err
+
+
 SCENARIO_TEST = textwrap.dedent(
     """\
     import pytest
