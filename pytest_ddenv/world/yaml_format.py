@@ -462,7 +462,7 @@ def _parse_physics(reader: _Reader, value: Any) -> Physics:
     if problem is not None:
         raise reader.fail("physics.timestep", problem)
     engine = data.get("engine", default.engine)
-    problem = engine_problem(engine)
+    problem = engine_problem(engine) if "engine" in data else None
     if problem is not None:
         raise reader.fail("physics.engine", problem)
     return Physics(gravity=(gravity[0], gravity[1], gravity[2]), timestep=timestep, solver_iterations=int(iterations),
