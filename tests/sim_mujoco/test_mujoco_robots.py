@@ -3,6 +3,7 @@ world file's robot mapping, with velocity actuators at the robot's torque limit 
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -12,10 +13,19 @@ mujoco = pytest.importorskip("mujoco", reason="needs mujoco: pip install \"pytes
 
 from mujoco_worlds import flat_world  # noqa: E402
 
-from pytest_ddenv.sim import Command, Husky, Run, Simulator, WheelCommand, WheeledRobot  # noqa: E402
+from pytest_ddenv.sim import (  # noqa: E402
+    Command,
+    Husky,
+    NoiseSettings,
+    Run,
+    RunSettings,
+    Simulator,
+    WheelCommand,
+    WheeledRobot,
+)
 from pytest_ddenv.sim.mujoco.physics import MujocoPhysics  # noqa: E402
 from pytest_ddenv.sim.robot import husky_urdf  # noqa: E402
-from pytest_ddenv.world import RobotDescription, World  # noqa: E402
+from pytest_ddenv.world import Physics, RobotDescription, World  # noqa: E402
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "robots"
 DIFFBOT = RobotDescription(urdf=str(EXAMPLE / "diffbot.urdf"), left_wheels=("left_wheel_joint",),
@@ -23,8 +33,6 @@ DIFFBOT = RobotDescription(urdf=str(EXAMPLE / "diffbot.urdf"), left_wheels=("lef
 
 
 def with_robot(world: World, robot: RobotDescription) -> World:
-    import dataclasses
-
     assert world.scenario is not None
     return dataclasses.replace(world, scenario=dataclasses.replace(world.scenario, robot=robot))
 
@@ -55,6 +63,12 @@ def test_the_husky_drives_straight_as_commanded(sim: Simulator) -> None:
     assert run.engine == "mujoco" and run.engine_version == mujoco.__version__ and run.pybullet_version == ""
     back = Run.from_dict(run.to_dict())
     assert (back.engine, back.engine_version) == ("mujoco", mujoco.__version__)
+
+    world, quiet = flat_world(goal=(20.0, 0.0), timeout=5.0), RunSettings(noise=NoiseSettings.none())
+    both = [sim.run(dataclasses.replace(world, physics=physics), settings=quiet, controller=lambda _: Command(1.0, 0.0))
+            for physics in (Physics(), Physics(engine="mujoco"))]
+    assert [r.engine for r in both] == ["pybullet", "mujoco"] and both[0].engine_version == both[0].pybullet_version
+    assert both[0].positions[-1, 0] == pytest.approx(both[1].positions[-1, 0], abs=0.02)  # the same in both engines
 
 
 def test_a_world_files_urdf_robot_drives_to_its_goal(sim: Simulator) -> None:
