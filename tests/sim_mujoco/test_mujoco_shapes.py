@@ -165,7 +165,8 @@ def test_the_hfield_is_the_world_models_heightmap_surface(tmp_path: Path) -> Non
     xs, ys = np.meshgrid(np.linspace(-2.5, 2.5, 6)[1:-1], np.linspace(-2.0, 2.0, 5)[1:-1])
     local = np.column_stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)])
     placed = pose.position + local @ pose.rotation.T
-    heights = physics.support_heights((placed + [0, 0, 5]).tolist(), (placed - [0, 0, 5]).tolist())
+    up = np.array([0.0, 0.0, 5.0])
+    heights = physics.support_heights((placed + up).tolist(), (placed - up).tolist())
     expected = geometry.heightmap_height(load_heightmap(tmp_path / "random.png"), size, local[:, :2])
     assert np.asarray(heights) - pose.z == pytest.approx(expected, abs=1e-3)
 

@@ -75,7 +75,7 @@ def test_a_pybullet_robot_class_is_refused_by_the_mujoco_engine(tmp_path: Path) 
             raise AssertionError("not reached")
 
         wheel_links = ()
-        link_names: dict[int, str] = {}
+        link_names = property(lambda self: {})
         mass = 1.0
 
         def drive(self, linear: float, angular: float, scale_left: float = 1.0, scale_right: float = 1.0) -> None:
