@@ -1,8 +1,9 @@
-"""Simulation layer: the Husky (or your robot) in PyBullet, driven by a controller (the built-in go-to-goal
-law or yours), with seeded noise, sensors and predicates.
+"""Simulation layer: the Husky (or your robot) in PyBullet or MuJoCo, driven by a controller (the built-in
+go-to-goal law or yours), with seeded noise, sensors and predicates.
 
-`Simulator` owns one pybullet DIRECT client and runs worlds one after another; `simulate` is a one-shot
-convenience that reuses a per-process simulator. See docs/simulation.md.
+`Simulator` runs worlds one after another, each in the physics engine its `physics.engine` names (the seam:
+sim/physics.py); `simulate` is a one-shot convenience that reuses a per-process simulator. See
+docs/simulation.md.
 """
 
 from __future__ import annotations
@@ -73,6 +74,6 @@ def simulate(
 def shared_simulator() -> Simulator:
     """This process's simulator (created on first use, kept alive)."""
     global _shared
-    if _shared is None or _shared.client < 0:
+    if _shared is None or _shared.closed:
         _shared = Simulator()
     return _shared

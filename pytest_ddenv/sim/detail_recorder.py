@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.laser import Laser
+from pytest_ddenv.sim.physics import PhysicsEngine
 from pytest_ddenv.sim.run import RunDetail
 from pytest_ddenv.world.model import World
 
@@ -18,41 +17,38 @@ class DetailRecorder:
     """Samples the moving models' poses, the robot's joints, the latest laser scan and the contact points
     each time the episode records the robot's pose."""
 
-    def __init__(self, p: Any, client: int, world: World, robot_body: int, bodies: dict[int, str],
-                 wheel_links: frozenset[int], laser: Laser | None, laser_height: float) -> None:
-        self._p, self._client, self._robot = p, client, robot_body
+    def __init__(self, physics: PhysicsEngine, world: World, wheel_links: frozenset[int], laser: Laser | None,
+                 laser_height: float) -> None:
+        self._physics = physics
+        bodies = physics.bodies
         moving = {model.name for model in world.models if model.dynamic}
         self._moving = [(body, name) for body, name in bodies.items() if name in moving]
         self._bodies = bodies
         self._wheels = wheel_links
         self._laser = laser
         self._laser_height = laser_height
-        self._joint_count = p.getNumJoints(robot_body, physicsClientId=client)
+        self._joint_count = len(physics.joint_positions())
         self._poses: dict[str, list[list[float]]] = {name: [] for _, name in self._moving}
         self._joints: list[list[float]] = []
         self._scans: list[np.ndarray] = []
         self._contacts: list[tuple[ContactPoint, ...]] = []
 
     def sample(self) -> None:
-        p, client = self._p, self._client
         for body, name in self._moving:
-            position, orientation = p.getBasePositionAndOrientation(body, physicsClientId=client)
+            position, orientation = self._physics.body_pose(body)
             self._poses[name].append([*position, *orientation])
-        states = p.getJointStates(self._robot, range(self._joint_count), physicsClientId=client) \
-            if self._joint_count else []
-        self._joints.append([float(state[0]) for state in states])
+        self._joints.append(self._physics.joint_positions())
         if self._laser is not None:
             self._scans.append(np.array(self._laser.latest.ranges, dtype=np.float64))
         self._contacts.append(self._contact_points())
 
     def _contact_points(self) -> tuple[ContactPoint, ...]:
         points = []
-        for point in self._p.getContactPoints(bodyA=self._robot, physicsClientId=self._client):
-            name = self._bodies.get(point[2])
-            if name is None or (name == GROUND_BODY_NAME and point[3] in self._wheels):
+        for link, other, (x, y, z), force in self._physics.contact_positions():
+            name = self._bodies.get(other)
+            if name is None or (name == GROUND_BODY_NAME and link in self._wheels):
                 continue
-            x, y, z = point[6]  # the point on the other body
-            points.append((name, float(x), float(y), float(z), float(point[9])))
+            points.append((name, float(x), float(y), float(z), float(force)))
         return tuple(points)
 
     def result(self) -> RunDetail:

@@ -1,7 +1,8 @@
-"""The `Simulator`: one pybullet DIRECT client that runs worlds one after another, deterministically."""
+"""The `Simulator`: runs worlds one after another, deterministically, in the physics engine each names."""
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import time
 from collections.abc import Sequence
@@ -10,7 +11,7 @@ from typing import Any, Self
 from pytest_ddenv.alarm import Alarm
 from pytest_ddenv.errors import ControllerTimeout, ScenarioError
 from pytest_ddenv.oracle.predicates import GROUND, Predicate
-from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
+from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.control import (
     AnyCommand,
     Command,
@@ -20,7 +21,9 @@ from pytest_ddenv.sim.control import (
     check_controller,
     controller_name,
 )
+from pytest_ddenv.sim.engine_choice import make_physics
 from pytest_ddenv.sim.episode import Episode, noise_streams
+from pytest_ddenv.sim.physics import PhysicsEngine
 from pytest_ddenv.sim.robot import ROBOTS, Robot, make_robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
@@ -38,37 +41,30 @@ MAX_START_PENETRATION = 0.02
 
 
 class Simulator:
-    """Owns one pybullet DIRECT client; `run` rebuilds the world (resetSimulation) for every run.
+    """Runs worlds one after another, deterministically, each in the physics engine its `physics.engine` names
+    (one engine instance per engine, created on first use and rebuilt for every run: see sim/physics.py).
 
     Use it as a context manager, or call `close()`. Not thread-safe; use one per process or thread.
     """
 
     def __init__(self) -> None:
-        from pytest_ddenv.sim.quiet import silenced
+        self._engines: dict[str, PhysicsEngine] = {}
+        self._closed = False
+        if importlib.util.find_spec("pybullet") is not None:  # the default engine, started now as it always was
+            self._engine("pybullet", None)
 
-        with silenced():  # importing pybullet prints its build time on the C-level stdout
-            import pybullet as p
-
-            self._client: int = p.connect(p.DIRECT)
-        self._p = p
-        if self._client < 0:  # pragma: no cover
-            raise RuntimeError("could not start a pybullet DIRECT client")
-        self.pybullet_version = str(p.getAPIVersion())
-        try:
-            from importlib.metadata import version
-
-            self.pybullet_version = version("pybullet")
-        except Exception:  # noqa: BLE001, S110 - any failure keeps getAPIVersion()  # pragma: no cover
-            pass
+    def _engine(self, name: str, source: str | None) -> PhysicsEngine:
+        engine = self._engines.get(name)
+        if engine is None:
+            engine = self._engines[name] = make_physics(name, source)
+        return engine
 
     # -- lifecycle -------------------------------------------------------------------------------------
     def close(self) -> None:
-        if self._client >= 0:
-            try:
-                self._p.disconnect(physicsClientId=self._client)
-            except Exception:  # noqa: BLE001, S110 - the client is already gone  # pragma: no cover
-                pass
-            self._client = -1
+        for engine in self._engines.values():
+            engine.close()
+        self._engines.clear()
+        self._closed = True
 
     def __enter__(self) -> Self:
         return self
@@ -83,8 +79,19 @@ class Simulator:
             pass
 
     @property
+    def closed(self) -> bool:
+        return self._closed
+
+    @property
     def client(self) -> int:
-        return self._client
+        """The pybullet client id (-1 when closed or pybullet is not installed)."""
+        engine = self._engines.get("pybullet")
+        return -1 if self._closed or engine is None else int(getattr(engine, "client", -1))
+
+    @property
+    def pybullet_version(self) -> str:
+        engine = self._engines.get("pybullet")
+        return "" if engine is None else engine.version
 
     # -- validation ------------------------------------------------------------------------------------
     @staticmethod
@@ -126,7 +133,7 @@ class Simulator:
 
         `Simulator.run` drives it with a controller; `robot_world.make_env()` with a policy's actions.
         """
-        if self._client < 0:
+        if self._closed:
             raise RuntimeError("this Simulator is closed")
         scenario = self.check_scenario(world, timeout)
         limit = float(scenario.timeout if timeout is None else timeout)
@@ -136,31 +143,23 @@ class Simulator:
             if not isinstance(predicate, Predicate):
                 raise ScenarioError(f"{predicate!r} is not a failure predicate (needs name, reset, check)",
                                     field="predicates")
-        p, client = self._p, self._client
+        physics = self._engine(world.physics.engine, world.source)
         streams = noise_streams(int(seed))
         noise = settings.noise
         robot = make_robot(scenario.robot, world.source)
-        p.resetSimulation(physicsClientId=client)
-        physics = world.physics
-        p.setGravity(*physics.gravity, physicsClientId=client)
-        p.setPhysicsEngineParameter(
-            fixedTimeStep=float(physics.timestep), numSolverIterations=int(physics.solver_iterations),
-            deterministicOverlappingPairs=1, physicsClientId=client,
-        )
-        bodies = build_world(p, client, world, settings.friction)
+        physics.load(world, robot, settings.friction)
         jitter = streams[0].standard_normal(3)
         start_x = scenario.start.x + noise.start_xy * jitter[0]
         start_y = scenario.start.y + noise.start_xy * jitter[1]
         start_yaw = scenario.start.yaw + noise.start_yaw * jitter[2]
-        start_z = self._start_height(world, scenario, robot, start_x, start_y, start_yaw)
-        body = robot.spawn(client, (start_x, start_y, start_z), start_yaw)
-        self._check_start_clear(world, body, bodies)
+        start_z = self._start_height(physics, world, scenario, robot, start_x, start_y, start_yaw)
+        driven, body = physics.spawn(robot, (start_x, start_y, start_z), start_yaw)
+        self._check_start_clear(physics, world)
         for predicate in predicates:
             predicate.reset()
         return Episode(
-            p, client, world=world, scenario=scenario, robot=robot, body=body, bodies=bodies, seed=int(seed),
+            physics, world=world, scenario=scenario, robot=driven, body=body, seed=int(seed),
             streams=streams, predicates=predicates, settings=settings, limit=limit,
-            pybullet_version=self.pybullet_version,
         )
 
     def run(
@@ -192,17 +191,17 @@ class Simulator:
         return episode.result()
 
     # -- start pose ------------------------------------------------------------------------------------
-    def _start_height(self, world: World, scenario: Scenario, robot: Robot, x: float, y: float, yaw: float) -> float:
+    @staticmethod
+    def _start_height(physics: PhysicsEngine, world: World, scenario: Scenario, robot: Robot, x: float, y: float,
+                      yaw: float) -> float:
         """z of the robot base: given, or on top of the highest support under the footprint."""
-        p, client = self._p, self._client
         length, width = robot.footprint
         c, s = math.cos(yaw), math.sin(yaw)
         points = [(0.0, 0.0)] + [(sx * length / 2.0, sy * width / 2.0) for sx in (-1, 1) for sy in (-1, 1)]
         top = 1000.0 if not scenario.start_z_given else scenario.start.z + 0.05
         rays_from = [[x + c * a - s * b, y + s * a + c * b, top] for a, b in points]
         rays_to = [[fx, fy, -1000.0] for fx, fy, _ in rays_from]
-        hits = p.rayTestBatch(rays_from, rays_to, numThreads=1, physicsClientId=client)
-        heights: list[float] = [hit[3][2] for hit in hits if hit[0] >= 0]
+        heights = physics.support_heights(rays_from, rays_to)
         if not heights:
             where = f"({scenario.start.x:g}, {scenario.start.y:g})"
             raise ScenarioError(
@@ -213,15 +212,15 @@ class Simulator:
             return scenario.start.z
         return max(heights) + robot.base_height + START_CLEARANCE
 
-    def _check_start_clear(self, world: World, body: int, bodies: dict[int, str]) -> None:
-        p, client = self._p, self._client
-        p.performCollisionDetection(physicsClientId=client)
+    @staticmethod
+    def _check_start_clear(physics: PhysicsEngine, world: World) -> None:
         inside: dict[str, float] = {}
-        for point in p.getContactPoints(bodyA=body, physicsClientId=client):
-            name = bodies.get(point[2])
-            if name is None or point[8] > -MAX_START_PENETRATION:
+        bodies = physics.bodies
+        for other, distance in physics.start_contacts():
+            name = bodies.get(other)
+            if name is None or distance > -MAX_START_PENETRATION:
                 continue
-            inside[name] = min(inside.get(name, 0.0), point[8])
+            inside[name] = min(inside.get(name, 0.0), distance)
         if inside:
             names = ", ".join(f"{GROUND if n == GROUND_BODY_NAME else n} ({-d:.2f} m deep)"
                               for n, d in sorted(inside.items()))

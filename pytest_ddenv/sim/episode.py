@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
@@ -23,6 +22,7 @@ from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.control import AnyCommand, Command, LaserScan, Observation, wrap_angle
 from pytest_ddenv.sim.detail_recorder import DetailRecorder
 from pytest_ddenv.sim.laser import Laser
+from pytest_ddenv.sim.physics import PhysicsEngine
 from pytest_ddenv.sim.robot import Robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
@@ -44,15 +44,14 @@ class Episode:
     """The state of one run between control ticks (see the module docstring). Built by `Simulator.start`."""
 
     def __init__(
-        self, p: Any, client: int, *, world: World, scenario: Scenario, robot: Robot, body: int,
-        bodies: dict[int, str], seed: int, streams: list[np.random.Generator], predicates: Sequence[Predicate],
-        settings: RunSettings, limit: float, pybullet_version: str,
+        self, physics: PhysicsEngine, *, world: World, scenario: Scenario, robot: Robot, body: int, seed: int,
+        streams: list[np.random.Generator], predicates: Sequence[Predicate], settings: RunSettings, limit: float,
     ) -> None:
-        self._p, self._client = p, client
-        self.world, self.scenario, self.robot, self.body, self.bodies = world, scenario, robot, body, bodies
+        self.physics = physics
+        self.world, self.scenario, self.robot, self.body = world, scenario, robot, body
+        self.bodies = physics.bodies
         self.seed, self.settings, self.limit = int(seed), settings, limit
         self.predicates = tuple(predicates)
-        self.pybullet_version = pybullet_version
         self.started = time.perf_counter()
         _, self._rng_act, self._rng_odo, self._rng_imu, self._rng_laser = streams
         dt = float(world.physics.timestep)
@@ -65,7 +64,7 @@ class Episode:
         self._wheel_index = {link: i for i, link in enumerate(robot.wheel_links)}
         self._weight = robot.mass * float(np.linalg.norm(world.physics.gravity))
         mount = robot.laser
-        self.laser = Laser(p, client, settings, mount, bodies) if settings.laser_rays > 0 and mount else None
+        self.laser = Laser(physics, settings, mount) if settings.laser_rays > 0 and mount else None
         self.history = History()
         self._times: list[float] = []
         self._poses: list[list[float]] = []
@@ -85,7 +84,7 @@ class Episode:
         self._observed = False
         self._pose: tuple[float, float, float, float, float, float] = (0.0,) * 6
         self._contacts: tuple[Contact, ...] = ()
-        self._detail = DetailRecorder(p, client, world, body, bodies, frozenset(robot.wheel_links), self.laser,
+        self._detail = DetailRecorder(physics, world, frozenset(robot.wheel_links), self.laser,
                                       mount.height if mount else 0.0) if detail_requested() else None
         self.sense()
 
@@ -102,11 +101,8 @@ class Episode:
     # -- one tick ------------------------------------------------------------------------------------
     def sense(self) -> None:
         """Read the true state at this tick, record it, and decide goal and failure."""
-        p, client, body = self._p, self._client, self.body
         now = self.time
-        position, orientation = p.getBasePositionAndOrientation(body, physicsClientId=client)
-        roll, pitch, yaw = p.getEulerFromQuaternion(orientation)
-        linear, angular = p.getBaseVelocity(body, physicsClientId=client)
+        position, (roll, pitch, yaw), linear, angular = self.physics.base_state()
         pose = (position[0], position[1], position[2], roll, pitch, yaw)
         velocity = (*linear, *angular)
         self._pose = pose
@@ -146,11 +142,10 @@ class Episode:
         self._observed = False
 
     def _contacts_now(self, now: float) -> tuple[tuple[Contact, ...], list[float]]:
-        p, client = self._p, self._client
         per_pair: dict[tuple[int, int], float] = {}
-        for point in p.getContactPoints(bodyA=self.body, physicsClientId=client):
-            key = (point[3], point[2])
-            per_pair[key] = per_pair.get(key, 0.0) + point[9]
+        for link, other, force in self.physics.robot_contacts():
+            key = (link, other)
+            per_pair[key] = per_pair.get(key, 0.0) + force
         contacts = []
         loads = [0.0] * len(self._wheel_index)
         link_names = self.robot.link_names
@@ -214,8 +209,7 @@ class Episode:
             self.robot.drive(command.linear, command.angular, scale_left, scale_right)
         else:
             self.robot.drive_wheels(command.left, command.right, scale_left, scale_right)
-        for _ in range(self._steps_per_tick):
-            self._p.stepSimulation(physicsClientId=self._client)
+        self.physics.step(self._steps_per_tick)
         self._steps += self._steps_per_tick
         self.tick += 1
         self.sense()
@@ -244,8 +238,10 @@ class Episode:
             sim_time=self.time,
             wall_time=time.perf_counter() - self.started,
             steps=self._steps,
-            pybullet_version=self.pybullet_version,
+            pybullet_version=self.physics.version if self.physics.name == "pybullet" else "",
             detail=None if self._detail is None else self._detail.result(),
+            engine=self.physics.name,
+            engine_version=self.physics.version,
         )
 
 

@@ -1,14 +1,14 @@
-"""The robot's planar laser: rays cast with pybullet's batched ray test, a fixed number of noise draws."""
+"""The robot's planar laser: rays cast by the physics engine, a fixed number of noise draws."""
 
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.control import FloatArray, LaserScan
+from pytest_ddenv.sim.physics import PhysicsEngine
 from pytest_ddenv.sim.settings import RunSettings
 from pytest_ddenv.world.model import LaserMount
 
@@ -18,12 +18,12 @@ class Laser:
 
     TILT = 0.08  # rad below horizontal: from 0.35 m up, the rays reach the ground about 4 m out
 
-    def __init__(self, p: Any, client: int, settings: RunSettings, mount: LaserMount, bodies: dict[int, str]) -> None:
-        self.p, self.client = p, client
+    def __init__(self, physics: PhysicsEngine, settings: RunSettings, mount: LaserMount) -> None:
+        self.physics = physics
         self.rays = settings.laser_rays
         self.range = settings.laser_range
         self.mount = mount
-        self.bodies = bodies
+        self.bodies = physics.bodies
         fov = settings.laser_fov
         if fov >= 2 * math.pi - 1e-9:
             angles = np.arange(self.rays) * (2 * math.pi / self.rays) - math.pi
@@ -51,7 +51,7 @@ class Laser:
         origin = np.array([x, y, position[2] + self.mount.height])
         starts = origin + direction * self.mount.min_range
         ends = origin + direction * self.range
-        hits = self.p.rayTestBatch(starts.tolist(), ends.tolist(), numThreads=1, physicsClientId=self.client)
+        hits = self.physics.cast_rays(starts.tolist(), ends.tolist())
         span = self.range - self.mount.min_range
         for i, hit in enumerate(hits):
             name = self.bodies.get(hit[0]) if hit[0] >= 0 else None
@@ -59,7 +59,7 @@ class Laser:
                 self.ranges[i] = np.inf
                 continue
             first_sensed.setdefault(name, now)
-            self.ranges[i] = self.mount.min_range + hit[2] * span + noise[i]
+            self.ranges[i] = self.mount.min_range + hit[1] * span + noise[i]
         self.latest = LaserScan(self._frozen_ranges(), self.angles, float(self.range), now, self.origin)
         return self.latest
 

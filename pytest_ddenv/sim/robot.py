@@ -22,7 +22,13 @@ from typing import Any
 from pytest_ddenv.errors import ControllerError, ScenarioError
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
-from pytest_ddenv.sim.urdf_geometry import UrdfGeometry, check_wheel_joints, measure_urdf, urdf_joint_names
+from pytest_ddenv.sim.urdf_geometry import (
+    UrdfGeometry,
+    check_wheel_joints,
+    measure_urdf,
+    pybullet_installed,
+    urdf_joint_names,
+)
 from pytest_ddenv.validation import expected
 from pytest_ddenv.world.files import regular_file_problem, resolve_relative
 from pytest_ddenv.world.model import DRIVE_KINDS, LaserMount, RobotDescription
@@ -186,6 +192,8 @@ class WheeledRobot(Robot):
         )
 
     def _flags(self) -> int:
+        if not pybullet_installed():  # MuJoCo reads the URDF itself
+            return 0
         with silenced():  # importing pybullet prints its build time on the C-level stdout
             import pybullet as p
 
@@ -231,10 +239,15 @@ class WheeledRobot(Robot):
         return self._mass
 
     def drive(self, linear: float, angular: float, scale_left: float = 1.0, scale_right: float = 1.0) -> None:
+        self._set_wheel_speeds(*self.side_speeds(linear, angular, scale_left, scale_right))
+
+    def side_speeds(self, linear: float, angular: float, scale_left: float = 1.0,
+                    scale_right: float = 1.0) -> tuple[float, float]:
+        """The (left, right) wheel speeds in rad/s for a body velocity (the skid-steer kinematics)."""
         half = angular * self.track * self.track_factor / 2.0
         left = (linear - half) / self.wheel_radius * scale_left
         right = (linear + half) / self.wheel_radius * scale_right
-        self._set_wheel_speeds(left, right)
+        return left, right
 
     def drive_wheels(self, left: float, right: float, scale_left: float = 1.0, scale_right: float = 1.0) -> None:
         self._set_wheel_speeds(float(left) * scale_left, float(right) * scale_right)
@@ -250,7 +263,10 @@ class WheeledRobot(Robot):
         import pybullet as p
 
         states = p.getJointStates(self._body, list(self._wheels), physicsClientId=self._client)
-        speeds = tuple(float(state[1]) for state in states)
+        return self.odometry_of(tuple(float(state[1]) for state in states))
+
+    def odometry_of(self, speeds: tuple[float, ...]) -> tuple[tuple[float, ...], float, float]:
+        """(speeds, linear, angular) that the wheel speeds `speeds` (rad/s, the robot's wheel order) imply."""
         left_speeds = [s for s, is_left in zip(speeds, self._sides, strict=True) if is_left]
         right_speeds = [s for s, is_left in zip(speeds, self._sides, strict=True) if not is_left]
         left = sum(left_speeds, 0.0) / len(left_speeds) * self.wheel_radius
@@ -276,9 +292,7 @@ class Husky(WheeledRobot):
     def __init__(self, urdf: str | None = None, *, implicit_cylinder: bool = True,
                  merge_fixed_links: bool = True) -> None:
         if urdf is None:
-            import pybullet_data
-
-            urdf = os.path.join(pybullet_data.getDataPath(), "husky", "husky.urdf")
+            urdf = husky_urdf()
         super().__init__(
             urdf, left_wheels=("front_left_wheel", "rear_left_wheel"),
             right_wheels=("front_right_wheel", "rear_right_wheel"), drive="skid-steer", wheel_radius=0.17775,
@@ -286,6 +300,16 @@ class Husky(WheeledRobot):
             implicit_cylinder=implicit_cylinder, merge_fixed_links=merge_fixed_links, footprint=(0.99, 0.67),
             base_height=0.0, wheel_order=self.WHEELS,
         )
+
+
+def husky_urdf() -> str:
+    """pybullet_data's husky/husky.urdf, or without pybullet the copy shipped in this package (the same file,
+    BSD licence of Clearpath Robotics in its header; its STL meshes are visual only and not shipped)."""
+    try:
+        import pybullet_data
+    except ImportError:
+        return str(Path(__file__).parent / "husky" / "husky.urdf")
+    return os.path.join(pybullet_data.getDataPath(), "husky", "husky.urdf")
 
 
 RobotFactory = Callable[[], Robot]

@@ -74,6 +74,9 @@ class Run:
     robot: str = "husky"
     footprint: tuple[float, float] = (0.99, 0.67)
     detail: RunDetail | None = None
+    engine: str = "pybullet"
+    """The physics engine that ran it; `engine_version` its version (`pybullet_version` is empty for others)."""
+    engine_version: str = ""
 
     @property
     def positions(self) -> FloatArray:
@@ -125,6 +128,8 @@ class Run:
             "wall_time": self.wall_time,
             "steps": self.steps,
             "pybullet_version": self.pybullet_version,
+            "engine": self.engine,
+            "engine_version": self.engine_version,
         }
 
     @classmethod
@@ -153,6 +158,8 @@ class Run:
             wall_time=float(data["wall_time"]),
             steps=int(data["steps"]),
             pybullet_version=str(data["pybullet_version"]),
+            engine=str(data.get("engine", "pybullet")),
+            engine_version=str(data.get("engine_version", data["pybullet_version"])),
         )
 
 

@@ -47,6 +47,8 @@ def urdf_joint_names(urdf: str, flags: int, *, source: str | None = None) -> tup
     """The joints of `urdf` loaded with `flags` in a scratch client (cached per file); ScenarioError naming the
     world file `source` when pybullet cannot load it."""
     key = (os.path.abspath(urdf), os.path.getmtime(urdf), flags)
+    if key not in _joints and not pybullet_installed():
+        _joints[key] = _moving_joints(urdf, source)
     if key not in _joints:
         with silenced():
             import pybullet as p
@@ -59,6 +61,28 @@ def urdf_joint_names(urdf: str, flags: int, *, source: str | None = None) -> tup
         finally:
             p.disconnect(physicsClientId=client)
     return _joints[key]
+
+
+def pybullet_installed() -> bool:
+    """Whether pybullet can be imported (a MuJoCo-only install has no pybullet)."""
+    import importlib.util
+
+    return importlib.util.find_spec("pybullet") is not None
+
+
+def _moving_joints(urdf: str, source: str | None) -> tuple[str, ...]:
+    """The URDF's joints that are not fixed, read from its XML (pybullet, merging fixed links, has those)."""
+    import defusedxml.ElementTree
+
+    problem = regular_file_problem(Path(urdf), "URDF file")
+    if problem is not None:
+        raise ScenarioError(problem, source=source, field="scenario.robot.urdf")
+    try:
+        root = defusedxml.ElementTree.fromstring(Path(urdf).read_bytes())
+    except Exception as error:  # noqa: BLE001 - any parse error is the file's
+        raise ScenarioError(f"cannot read the URDF {urdf}: {error}", source=source,
+                            field="scenario.robot.urdf") from None
+    return tuple(str(joint.get("name")) for joint in root.iter("joint") if joint.get("type") != "fixed")
 
 
 def check_wheel_joints(urdf: str, joints: Collection[str], left: Sequence[str], right: Sequence[str], *,
@@ -97,6 +121,10 @@ def measure_urdf(urdf: str, flags: int, left: Sequence[str], right: Sequence[str
 
 
 def _measure(urdf: str, flags: int, left: tuple[str, ...], right: tuple[str, ...], source: str | None) -> UrdfGeometry:
+    if not pybullet_installed():
+        raise ScenarioError(f"the wheel radius, track, footprint, base height and laser mount of {urdf} are measured "
+                            "with pybullet, which is not installed: give them in the robot's description, or pip "
+                            "install pybullet", source=source, field="scenario.robot")
     with silenced():
         import pybullet as p
 

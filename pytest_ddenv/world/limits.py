@@ -25,6 +25,23 @@ MAX_GRAVITY = 100.0
 """The largest absolute value of each axis of gravity (m/s^2; about 10 g)."""
 
 
+ENGINE_PACKAGES = {"pybullet": ("pybullet", "pip install pybullet"),
+                   "mujoco": ("mujoco", 'pip install "pytest-ddenv[mujoco]"')}
+"""Each physics engine's Python module and how to install it."""
+
+
+def engine_problem(engine: Any) -> str | None:
+    """Why `engine` cannot simulate a world here (not a known engine, or its package is not installed), or None."""
+    import importlib.util
+
+    if not isinstance(engine, str) or engine not in ENGINE_PACKAGES:
+        return expected(f"one of {', '.join(ENGINE_PACKAGES)}", engine)
+    module, install = ENGINE_PACKAGES[engine]
+    if importlib.util.find_spec(module) is None:
+        return f"the {engine} physics engine is not installed: {install}"
+    return None
+
+
 def magnitude_problem(value: float, limit: float = MAX_MAGNITUDE) -> str | None:
     """Why the finite number `value` is beyond what the simulator takes, or None."""
     if abs(value) <= limit:

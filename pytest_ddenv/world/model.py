@@ -21,9 +21,12 @@ from pytest_ddenv.validation import expected
 from pytest_ddenv.world import geometry
 from pytest_ddenv.world.files import resolve_mesh_path
 from pytest_ddenv.world.geometry import FloatArray
+from pytest_ddenv.world.limits import ENGINE_PACKAGES
 from pytest_ddenv.world.meshes import heightmap_mesh, load_heightmap, load_mesh, polyline_mesh, polyline_polygon
 
 ShapeKind = Literal["box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap", "cone"]
+ENGINES = tuple(ENGINE_PACKAGES)
+"""The physics engines a world can name in `physics.engine`."""
 SHAPE_KINDS: tuple[ShapeKind, ...] = ("box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap", "cone")
 TagValue = str | int | float | bool
 
@@ -173,6 +176,8 @@ class Physics:
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     timestep: float = 1.0 / 240.0
     solver_iterations: int = 50
+    engine: str = "pybullet"
+    """The physics engine that simulates the world: one of `ENGINES` (docs/simulation.md, "The engine seam")."""
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ from pytest_ddenv.world.limits import (
 )
 from pytest_ddenv.world.meshes import check_heightmap_image, polyline_problem
 from pytest_ddenv.world.model import (
+    ENGINES,
     SHAPE_KINDS,
     Ground,
     LaserMount,
@@ -161,6 +162,8 @@ def _check_physics(physics: Physics, source: str | None) -> None:
     problem = timestep_problem(physics.timestep) or solver_iterations_problem(physics.solver_iterations)
     if problem is not None:
         raise fail("timestep" if "timestep" in problem else "solver_iterations", problem)
+    if physics.engine not in ENGINES:
+        raise fail("engine", expected(f"one of {', '.join(ENGINES)}", physics.engine))
 
 
 def _check_ground(ground: Ground, source: str | None) -> None:

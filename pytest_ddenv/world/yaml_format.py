@@ -28,6 +28,7 @@ from pytest_ddenv.world.files import read_regular, regular_file_problem, resolve
 from pytest_ddenv.world.limits import (
     MAX_GRAVITY,
     MAX_MAGNITUDE,
+    engine_problem,
     magnitude_problem,
     name_problem,
     solver_iterations_problem,
@@ -55,7 +56,7 @@ MODEL_KEYS = (
 )
 SHAPE_KEYS = (*SHAPE_KINDS, "pose")
 SCENARIO_KEYS = ("robot", "start", "goal", "goal_tolerance", "timeout")
-PHYSICS_KEYS = ("gravity", "timestep", "solver_iterations")
+PHYSICS_KEYS = ("gravity", "timestep", "solver_iterations", "engine")
 GROUND_KEYS = ("z", "mu", "mu2", "restitution")
 MAX_FILE_BYTES = 50 * 1024 * 1024
 class _Reader:
@@ -460,7 +461,12 @@ def _parse_physics(reader: _Reader, value: Any) -> Physics:
     problem = timestep_problem(timestep)
     if problem is not None:
         raise reader.fail("physics.timestep", problem)
-    return Physics(gravity=(gravity[0], gravity[1], gravity[2]), timestep=timestep, solver_iterations=int(iterations))
+    engine = data.get("engine", default.engine)
+    problem = engine_problem(engine) if "engine" in data else None
+    if problem is not None:
+        raise reader.fail("physics.engine", problem)
+    return Physics(gravity=(gravity[0], gravity[1], gravity[2]), timestep=timestep, solver_iterations=int(iterations),
+                   engine=engine)
 
 
 def _parse_ground(reader: _Reader, value: Any) -> Ground | None:
@@ -491,6 +497,8 @@ def dump_yaml(world: World, relative_to: Path | None = None) -> str:
             "timestep": world.physics.timestep,
             "solver_iterations": world.physics.solver_iterations,
         }
+        if world.physics.engine != Physics().engine:
+            document["physics"]["engine"] = world.physics.engine
     document["ground"] = None if world.ground is None else _ground_dict(world.ground)
     if world.scenario is not None:
         document["scenario"] = _scenario_dict(world.scenario, world.source, relative_to)

@@ -80,7 +80,7 @@ def test_a_bug_inside_pytest_ddenv_keeps_its_frames(wall_project: pytest.Pyteste
     no world, and breaks inside builder.py.)"""
     wall_project.makeconftest("""
         import pytest_ddenv.sim.builder as builder
-        import pytest_ddenv.sim.engine as engine
+        import pytest_ddenv.sim.pybullet_physics as engine
 
         engine.build_world = lambda p, client, world, friction: builder.build_world(p, client, None, friction)
         """)

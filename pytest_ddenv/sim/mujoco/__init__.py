@@ -1,0 +1,7 @@
+"""The MuJoCo engine (`physics: {engine: mujoco}` in a world file; `pip install "pytest-ddenv[mujoco]"`).
+
+`physics.py` (`MujocoPhysics`, the seam's MuJoCo side), `world_spec.py` (a `World` and its robot as one
+`MjSpec`), `pieces.py` (convex pieces of meshes and polylines), `contacts.py` (friction and restitution as
+MuJoCo contact parameters), `robot_spec.py` (a URDF wheeled robot: free joint, ellipsoid wheels, velocity
+actuators), `driven_robot.py` (`MujocoRobot`: its motors, encoders and base state). See docs/simulation.md.
+"""
