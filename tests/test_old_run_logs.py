@@ -39,10 +39,10 @@ def readings(path: Path) -> dict[str, Any]:
     log = ProbeLog(path)
     started = log.started_with()
     elements = [] if started is None else list(started[0])
-    minimal = _last_step(log.own_records()) or ()
+    minimal = _last_step(log.own_events()) or ()
     _, poses, outcomes = _read_runs(path)
     return {
-        "records": len(log.records), "notes": log.notes,
+        "records": len(log.events), "notes": log.notes,
         "started_with": None if started is None else [list(part) for part in started],
         "calibration": log.calibration(), "decisions": _decisions(log),
         "partial_runs": sorted([sorted(key), [outcome.value for outcome in outcomes]]
@@ -51,18 +51,18 @@ def readings(path: Path) -> dict[str, Any]:
                                sorted(log.measured(purpose, elements).items())}
                      for purpose in ("calibration", "failure-rate", "independence")},
         "decided_probes": log.decided_probes(), "last_step": list(minimal),
-        "usage": vars(usage_of(log.records)),
-        "stages": {stage: {"decisions": _decisions(log.view(stage)), "records": len(log.view(stage).own_records()),
+        "usage": vars(usage_of(log.events)),
+        "stages": {stage: {"decisions": _decisions(log.view(stage)), "records": len(log.view(stage).own_events()),
                            "failure-rate": {label: {str(attempt): outcome.value for attempt, outcome in sorted(
                                log.view(stage).measured("failure-rate", [label]).items())}
                                for label in ("minimal world", "time world")}}
                    for stage in ("time", "one-minimal", "rates")},
         "explain": logged_without(log, minimal, minimal[0]) if minimal else None,
-        "touched": sorted(touched_at_failure(log.records, minimal)),
+        "touched": sorted(touched_at_failure(log.probes(), minimal)),
         "probe_sizes": [list(entry) for entry in picture_data.probe_sizes_from_log(path)],
         "steps": [list(entry) for entry in picture_data.steps_from_log(path)],
         "accepted_probes": sorted(picture_data.accepted_probes_from_log(path)),
-        "other_failures": [group.to_json() for group in other_failures(log.records)],
+        "other_failures": [group.to_json() for group in other_failures(log.events)],
         "recorded_seeds": recorded_seeds(path, minimal, -1),
         "show_runs": [poses, outcomes],
     }

@@ -1,0 +1,437 @@
+"""The events of a run log (`runs.jsonl`): one frozen dataclass per kind, one writer (`encode`) and one reader
+(`decode`). This is the only module that knows how an event is spelt on disk.
+
+A line is one JSON object whose ``"event"`` key names its kind (`KINDS`); the other keys are the fields of
+its class, with ``stage`` (the stage after the model-level reduction that wrote it, absent for the
+model-level reduction) and ``elapsed`` (seconds since the reduction started) on every kind. A field whose
+value is None is left out of the line, except the fields marked `written_when_none`. The schema version,
+`SCHEMA_VERSION`, is written in the ``format`` field of the log's first event (`Problem`, `Start`); a log of
+a later version is refused rather than misread.
+
+`decode` is defensive: a line that is not a JSON object, is nested deeper than `MAX_JSON_NESTING`, names no
+kind or an unknown one, lacks a field its class requires or holds a field of the wrong type gives an
+`Unreadable` (what is wrong, for the caller's note), never a half-read event. Fields of a known kind that
+this version does not know are ignored (a later version may add some).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar, Final, TypeAlias
+
+from pytest_ddenv.reduce.records import json_value
+from pytest_ddenv.reduce.types import Outcome
+
+SCHEMA_VERSION: Final = 1
+"""The version of the events' shape; written as ``format`` in `Problem` and `Start`."""
+
+Names: TypeAlias = tuple[str, ...]
+Count: TypeAlias = int
+"""An integer >= 0."""
+OutcomeName: TypeAlias = str
+"""An `Outcome`'s value."""
+JsonObject: TypeAlias = Mapping[str, Any]
+_Check = tuple[str, Callable[[Any], bool], Callable[[Any], Any]]
+
+
+def _count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+def _integer(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _names(value: Any) -> bool:
+    return isinstance(value, list) and all(isinstance(item, str) for item in value)
+
+
+def _point(value: Any) -> bool:
+    return isinstance(value, list) and len(value) == 5 and all(_number(item) for item in value)
+
+
+def _same(value: Any) -> Any:
+    return value
+
+
+_CHECKS: Mapping[str, _Check] = {
+    "Names": ("a list of model names", _names, tuple),
+    "tuple[Names, ...]": ("a list of lists of names", lambda value: isinstance(value, list) and all(map(_names, value)),
+                   lambda value: tuple(tuple(item) for item in value)),
+    "Count": ("an integer >= 0", _count, _same),
+    "int": ("an integer", _integer, _same),
+    "tuple[Count, ...]": ("a list of integers >= 0", lambda value: isinstance(value, list) and all(map(_count, value)),
+                          tuple),
+    "OutcomeName": (f"one of {', '.join(outcome.value for outcome in Outcome)}",
+                    lambda value: value in {outcome.value for outcome in Outcome}, _same),
+    "str": ("a string", lambda value: isinstance(value, str), _same),
+    "str | int": ("a string or an integer", lambda value: isinstance(value, str) or _integer(value), _same),
+    "bool": ("true or false", lambda value: isinstance(value, bool), _same),
+    "float": ("a finite number", _number, float),
+    "tuple[Count, Count]": ("[fails, runs]", lambda value: isinstance(value, list) and len(value) == 2
+                            and all(map(_count, value)), tuple),
+    "tuple[tuple[float, ...], ...]": ("a list of [distance, time, x, y, yaw]", lambda value: isinstance(value, list)
+                                      and all(_point(item) for item in value),
+                                      lambda value: tuple(tuple(map(float, point)) for point in value)),
+    "JsonObject": ("an object", lambda value: isinstance(value, dict), _same),
+    "Any": ("a JSON value", lambda value: True, _same),
+}
+"""How a field is read, by its annotation (without `` | None``, which allows null)."""
+
+
+def _check(annotation: str) -> _Check:
+    """How a field with this annotation is read."""
+    if annotation.endswith(" | None"):
+        what, valid, convert = _CHECKS[annotation.removesuffix(" | None")]
+        return (f"{what} or null", lambda value: value is None or valid(value),
+                lambda value: None if value is None else convert(value))
+    return _CHECKS[annotation]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Event:
+    """What every event has: the stage that wrote it (None: the model-level reduction) and the seconds since
+    its reduction started (None for the driver's events)."""
+
+    KIND: ClassVar[str] = ""
+    NULLS_WRITTEN: ClassVar[frozenset[str]] = frozenset()
+    """The fields written as null when None (the others are left out)."""
+    stage: str | None = None
+    elapsed: float | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Problem(Event):
+    """The first event of an artifacts folder's log: which problem it belongs to (`driver.problem`)."""
+
+    KIND = "problem"
+    NULLS_WRITTEN = frozenset({"reference"})
+    format: Count = SCHEMA_VERSION
+    fingerprint: str
+    test: str = ""
+    parts: JsonObject
+    code: Any = None
+    reference: JsonObject | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Session(Event):
+    """A run of the driver on this log began (a resumed reduction adds one per run)."""
+
+    KIND = "session"
+    pid: int
+    time: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class Usage(Event):
+    """The simulations and worker CPU seconds of this run of the driver so far (`final`: at its end)."""
+
+    KIND = "usage"
+    simulations: Count = 0
+    cpu_seconds: float = 0.0
+    final: bool = False
+
+
+@dataclass(frozen=True, kw_only=True)
+class Start(Event):
+    """A reduction began (`resumed`: from this log's verdicts) with these elements and settings."""
+
+    KIND = "start"
+    NULLS_WRITTEN = frozenset({"seed", "max_probes", "max_seconds"})
+    format: Count = SCHEMA_VERSION
+    resumed: bool = False
+    elements: Names = ()
+    keep: Names = ()
+    partition: str | None = None
+    priority: str | None = None
+    n_partitions: Count | None = None
+    granularity: str | None = None
+    complement_order: str | None = None
+    deflake: str | int | None = None
+    seed: int | None = None
+    max_probes: Count | None = None
+    max_seconds: float | None = None
+    failure_rate_runs: Count | None = None
+    reference: bool | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Round(Event):
+    """A round of the model-level reduction: its parts and the order it tries them in."""
+
+    KIND = "round"
+    index: Count
+    granularity: Count
+    size: Count
+    parts: tuple[Names, ...] = ()
+    removal_order: tuple[Count, ...] = ()
+    subsets: bool | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Probe(Event):
+    """One simulation whose result was used. `purpose`: "reduce" (deciding a candidate), "calibration",
+    "failure-rate", "independence", or the driver's own runs ("confirm", "picture"); `attempt` picks the
+    seed."""
+
+    KIND = "probe"
+    NULLS_WRITTEN = frozenset({"seed", "signature"})
+    purpose: str = "reduce"
+    kind: str | None = None
+    candidate: Names
+    size: Count | None = None
+    attempt: Count
+    seed: Count | None = None
+    outcome: OutcomeName
+    signature: JsonObject | None = None
+    sim_time: float | None = None
+    wall_time: float | None = None
+    detail: Any = None
+
+    @property
+    def result(self) -> Outcome:
+        return Outcome(self.outcome)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Decided(Event):
+    """A verdict on a candidate (the kinds below): does it reproduce the failure, on how many runs."""
+
+    kind: str | None = None
+    candidate: Names
+    size: Count | None = None
+    reproduces: bool
+    fails: Count
+    runs: Count
+    errors: Count | None = None
+    """ERROR runs among those the verdict was decided on."""
+    errored: bool | None = None
+    """The verdict rests on ERROR runs: not a verdict a resumed reduction reuses."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class Accept(Decided):
+    KIND = "accept"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Reject(Decided):
+    KIND = "reject"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Errored(Decided):
+    """Rejected only because of ERROR runs (decided again by a resumed reduction)."""
+
+    KIND = "errored"
+
+
+@dataclass(frozen=True, kw_only=True)
+class CacheHit(Decided):
+    """A verdict known already, looked up again."""
+
+    KIND = "cache-hit"
+
+
+@dataclass(frozen=True, kw_only=True)
+class RateBelow(Decided):
+    """An accepted world rejected after all: it failed significantly less often than the original."""
+
+    KIND = "rate-below"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Skip(Event):
+    """A candidate a precondition refused, never simulated."""
+
+    KIND = "skip"
+    kind: str | None = None
+    candidate: Names = ()
+    size: Count | None = None
+    reason: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class Step(Event):
+    """A smaller world adopted after `probes` decided probes."""
+
+    KIND = "step"
+    kind: str | None = None
+    candidate: Names
+    size: Count | None = None
+    probes: Count | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class BackOff(Event):
+    """The reduction went back to an earlier, larger world (`RateBelow`)."""
+
+    KIND = "back-off"
+    candidate: Names
+    size: Count | None = None
+    probes: Count | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Calibration(Event):
+    """deflake="auto": the original world's failure rate and the rule chosen from it."""
+
+    KIND = "calibration"
+    fails: Count
+    runs: Count
+    rule: str | int | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class FailureRate(Event):
+    """The failure rate of the minimal world."""
+
+    KIND = "failure-rate"
+    candidate: Names
+    fails: Count
+    runs: Count
+
+
+@dataclass(frozen=True, kw_only=True)
+class PreconditionCheck(Event):
+    """The minimal world without the elements only a precondition kept: how often it still fails."""
+
+    KIND = "precondition-check"
+    candidate: Names
+    fails: Count
+    runs: Count
+
+
+@dataclass(frozen=True, kw_only=True)
+class RateCheck(Event):
+    """The comparison of a reduced world's failure rate with the original's."""
+
+    KIND = "rate-check"
+    candidate: Names
+    original: tuple[Count, Count]
+    reduced: tuple[Count, Count]
+    p_value: float
+    decision: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class FailurePath(Event):
+    """The time stage's start points along the failing run and the time of its failure."""
+
+    KIND = "path"
+    failure_time: float
+    points: tuple[tuple[float, ...], ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class End(Event):
+    """A reduction ended: its result, as counted."""
+
+    KIND = "end"
+    NULLS_WRITTEN = frozenset({"incomplete_reason", "rate_check"})
+    minimal: Names = ()
+    size: Count | None = None
+    original_size: Count | None = None
+    probes: Count | None = None
+    simulations: Count | None = None
+    resumed_probes: Count | None = None
+    cache_hits: Count | None = None
+    skipped: Count | None = None
+    errors: Count | None = None
+    errored: Count | None = None
+    steps: Any = None
+    one_minimal: bool | None = None
+    incomplete_reason: str | None = None
+    failure_rate: Any = None
+    rate_check: str | None = None
+    rate_backoffs: Count | None = None
+    wall_time: float | None = None
+
+
+KINDS: Mapping[str, type[Event]] = {kind.KIND: kind for kind in (
+    Problem, Session, Usage, Start, Round, Probe, Accept, Reject, Errored, CacheHit, RateBelow, Skip, Step,
+    BackOff, Calibration, FailureRate, PreconditionCheck, RateCheck, FailurePath, End)}
+"""Every kind of event, by the name a line spells it with."""
+VERDICTS: tuple[type[Decided], ...] = (Accept, Reject, CacheHit, RateBelow)
+"""The decisions a resumed reduction reuses (unless `errored`)."""
+ADOPTED: tuple[type[Step], type[BackOff]] = (Step, BackOff)
+"""The events that adopt a world (`candidate`)."""
+
+
+@dataclass(frozen=True)
+class Unreadable:
+    """A line that holds no event this version can read, and why."""
+
+    problem: str
+
+
+def _written(event: Event) -> list[dataclasses.Field[Any]]:
+    """The fields of an event in the order a line holds them: its own, then ``elapsed``, then ``stage``."""
+    fields = [item for item in dataclasses.fields(event) if item.name not in ("stage", "elapsed")]
+    return fields + [item for item in dataclasses.fields(Event) if item.name == "elapsed"] + [
+        item for item in dataclasses.fields(Event) if item.name == "stage"]
+
+
+def to_json(event: Event) -> dict[str, Any]:
+    """The JSON object of an event (what its line holds, before numpy values and tuples are made JSON)."""
+    record: dict[str, Any] = {"event": event.KIND}
+    for item in _written(event):
+        value = getattr(event, item.name)
+        if value is not None or item.name in event.NULLS_WRITTEN:
+            record[item.name] = value
+    return record
+
+
+def encode(event: Event, jsonable: Callable[[Any], Any]) -> str:
+    """The line of `event` (without its newline): the one writer of run-log lines. `jsonable` turns
+    numpy values, tuples, paths ... into JSON values (`log.jsonable`)."""
+    return json.dumps(jsonable(to_json(event)), allow_nan=False)
+
+
+def from_json(record: Mapping[str, Any]) -> Event | Unreadable:
+    """The event a JSON object holds, or why it holds none."""
+    kind = record.get("event")
+    if not isinstance(kind, str):
+        return Unreadable("no 'event' name")
+    cls = KINDS.get(kind)
+    if cls is None:
+        return Unreadable(f"an unknown event {kind!r}")
+    values: dict[str, Any] = {}
+    for item in dataclasses.fields(cls):
+        if item.name not in record:
+            if item.default is dataclasses.MISSING:
+                return Unreadable(f"a {kind!r} record without '{item.name}'")
+            continue
+        what, valid, convert = _check(str(item.type))
+        value = record[item.name]
+        if not valid(value):
+            return Unreadable(f"'{item.name}' of a {kind!r} record is not {what}")
+        values[item.name] = convert(value)
+    return cls(**values)
+
+
+def decode(line: str) -> Event | Unreadable | None:
+    """The event one line of a run log holds (None: a blank line): the one reader of run-log lines."""
+    if not line.strip():
+        return None
+    try:
+        record = json_value(line)
+    except ValueError:  # invalid JSON, or nested too deep
+        return Unreadable("not a JSON object (or nested too deep)")
+    if not isinstance(record, dict):
+        return Unreadable("not a JSON object (or nested too deep)")
+    return from_json(record)
+
+
+def too_new(event: Event) -> bool:
+    """Whether `event` (a log's first) was written by a later schema version than this one reads."""
+    return isinstance(event, (Problem, Start)) and event.format > SCHEMA_VERSION
