@@ -47,7 +47,12 @@ def _integer(value: Any) -> bool:
 
 
 def _number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    """A finite number, or one that `log.jsonable` wrote as text ("nan", "inf", "-inf")."""
+    return (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)) or (
+        value in _NOT_FINITE)
+
+
+_NOT_FINITE = frozenset({"nan", "inf", "-inf"})
 
 
 def _names(value: Any) -> bool:
@@ -75,7 +80,7 @@ _CHECKS: Mapping[str, _Check] = {
     "str": ("a string", lambda value: isinstance(value, str), _same),
     "str | int": ("a string or an integer", lambda value: isinstance(value, str) or _integer(value), _same),
     "bool": ("true or false", lambda value: isinstance(value, bool), _same),
-    "float": ("a finite number", _number, float),
+    "float": ("a number", _number, float),
     "tuple[Count, Count]": ("[fails, runs]", lambda value: isinstance(value, list) and len(value) == 2
                             and all(map(_count, value)), tuple),
     "tuple[tuple[float, ...], ...]": ("a list of [distance, time, x, y, yaw]", lambda value: isinstance(value, list)
