@@ -65,7 +65,7 @@ def steps_from_log(log: Path) -> list[tuple[int, int]]:
             probes += 1
             if event.outcome == "fail":
                 last_fail[frozenset(event.candidate)] = probes
-        elif isinstance(event, events.ADOPTED):
+        elif isinstance(event, events.Adopted):
             key = frozenset(event.candidate)
             number = last_fail.get(key, probes) if isinstance(event, events.Step) else probes
             if (key, number) in adopted:
@@ -82,7 +82,7 @@ def accepted_probes_from_log(log: Path) -> set[int]:
     from pytest_ddenv.reduce import events
 
     logged = _last_reduction(log)
-    adopted = {frozenset(event.candidate) for event in logged if isinstance(event, events.ADOPTED)}
+    adopted = {frozenset(event.candidate) for event in logged if isinstance(event, events.Adopted)}
     return {number for number, probe in enumerate(_reduction_probes(logged), start=1) if probe.outcome == "fail"
             and (probe.purpose == "calibration" or frozenset(probe.candidate) in adopted)}
 

@@ -32,6 +32,7 @@ SCHEMA_VERSION: Final = 1
 Names: TypeAlias = tuple[str, ...]
 Count: TypeAlias = int
 """An integer >= 0."""
+FailsOfRuns: TypeAlias = tuple[Count, Count]
 OutcomeName: TypeAlias = str
 """An `Outcome`'s value."""
 JsonObject: TypeAlias = Mapping[str, Any]
@@ -81,7 +82,7 @@ _CHECKS: Mapping[str, _Check] = {
     "str | int": ("a string or an integer", lambda value: isinstance(value, str) or _integer(value), _same),
     "bool": ("true or false", lambda value: isinstance(value, bool), _same),
     "float": ("a number", _number, float),
-    "tuple[Count, Count]": ("[fails, runs]", lambda value: isinstance(value, list) and len(value) == 2
+    "FailsOfRuns": ("[fails, runs]", lambda value: isinstance(value, list) and len(value) == 2
                             and all(map(_count, value)), tuple),
     "tuple[tuple[float, ...], ...]": ("a list of [distance, time, x, y, yaw]", lambda value: isinstance(value, list)
                                       and all(_point(item) for item in value),
@@ -106,18 +107,23 @@ class Event:
     """What every event has: the stage that wrote it (None: the model-level reduction) and the seconds since
     its reduction started (None for the driver's events)."""
 
-    KIND: ClassVar[str] = ""
+    NAME: ClassVar[str] = ""
+    """The name a line gives this kind (its ``"event"``), given as ``class Step(Adopted, name="step")``."""
     NULLS_WRITTEN: ClassVar[frozenset[str]] = frozenset()
     """The fields written as null when None (the others are left out)."""
     stage: str | None = None
     elapsed: float | None = None
 
+    def __init_subclass__(cls, name: str = "", **options: Any) -> None:
+        super().__init_subclass__(**options)
+        if name:
+            cls.NAME = name
+
 
 @dataclass(frozen=True, kw_only=True)
-class Problem(Event):
+class Problem(Event, name="problem"):
     """The first event of an artifacts folder's log: which problem it belongs to (`driver.problem`)."""
 
-    KIND = "problem"
     NULLS_WRITTEN = frozenset({"reference"})
     format: Count = SCHEMA_VERSION
     fingerprint: str
@@ -128,29 +134,26 @@ class Problem(Event):
 
 
 @dataclass(frozen=True, kw_only=True)
-class Session(Event):
+class Session(Event, name="session"):
     """A run of the driver on this log began (a resumed reduction adds one per run)."""
 
-    KIND = "session"
     pid: int
     time: str
 
 
 @dataclass(frozen=True, kw_only=True)
-class Usage(Event):
+class Usage(Event, name="usage"):
     """The simulations and worker CPU seconds of this run of the driver so far (`final`: at its end)."""
 
-    KIND = "usage"
     simulations: Count = 0
     cpu_seconds: float = 0.0
     final: bool = False
 
 
 @dataclass(frozen=True, kw_only=True)
-class Start(Event):
+class Start(Event, name="start"):
     """A reduction began (`resumed`: from this log's verdicts) with these elements and settings."""
 
-    KIND = "start"
     NULLS_WRITTEN = frozenset({"seed", "max_probes", "max_seconds"})
     format: Count = SCHEMA_VERSION
     resumed: bool = False
@@ -170,10 +173,18 @@ class Start(Event):
 
 
 @dataclass(frozen=True, kw_only=True)
-class Round(Event):
+class Calibration(Event, name="calibration"):
+    """deflake="auto": the original world's failure rate and the rule chosen from it."""
+
+    fails: Count
+    runs: Count
+    rule: str | int | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Round(Event, name="round"):
     """A round of the model-level reduction: its parts and the order it tries them in."""
 
-    KIND = "round"
     index: Count
     granularity: Count
     size: Count
@@ -183,12 +194,11 @@ class Round(Event):
 
 
 @dataclass(frozen=True, kw_only=True)
-class Probe(Event):
+class Probe(Event, name="probe"):
     """One simulation whose result was used. `purpose`: "reduce" (deciding a candidate), "calibration",
     "failure-rate", "independence", or the driver's own runs ("confirm", "picture"); `attempt` picks the
     seed."""
 
-    KIND = "probe"
     NULLS_WRITTEN = frozenset({"seed", "signature"})
     purpose: str = "reduce"
     kind: str | None = None
@@ -204,16 +214,24 @@ class Probe(Event):
 
     @property
     def result(self) -> Outcome:
+        """`outcome` as an `Outcome`."""
         return Outcome(self.outcome)
 
 
 @dataclass(frozen=True, kw_only=True)
-class Decided(Event):
-    """A verdict on a candidate (the kinds below): does it reproduce the failure, on how many runs."""
+class OfCandidate(Event):
+    """An event about one candidate world: its elements in original order, their number, and the kind of trial
+    that made it (the engine's)."""
 
     kind: str | None = None
     candidate: Names
     size: Count | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Decided(OfCandidate):
+    """A verdict on a candidate (the kinds below): does it reproduce the failure, on how many runs."""
+
     reproduces: bool
     fails: Count
     runs: Count
@@ -223,153 +241,118 @@ class Decided(Event):
     """The verdict rests on ERROR runs: not a verdict a resumed reduction reuses."""
 
 
-@dataclass(frozen=True, kw_only=True)
-class Accept(Decided):
-    KIND = "accept"
+class Accept(Decided, name="accept"):
+    """The candidate reproduces the failure."""
 
 
-@dataclass(frozen=True, kw_only=True)
-class Reject(Decided):
-    KIND = "reject"
+class Reject(Decided, name="reject"):
+    """It does not."""
 
 
-@dataclass(frozen=True, kw_only=True)
-class Errored(Decided):
+class Errored(Decided, name="errored"):
     """Rejected only because of ERROR runs (decided again by a resumed reduction)."""
 
-    KIND = "errored"
 
-
-@dataclass(frozen=True, kw_only=True)
-class CacheHit(Decided):
+class CacheHit(Decided, name="cache-hit"):
     """A verdict known already, looked up again."""
 
-    KIND = "cache-hit"
 
-
-@dataclass(frozen=True, kw_only=True)
-class RateBelow(Decided):
+class RateBelow(Decided, name="rate-below"):
     """An accepted world rejected after all: it failed significantly less often than the original."""
 
-    KIND = "rate-below"
-
 
 @dataclass(frozen=True, kw_only=True)
-class Skip(Event):
+class Skip(OfCandidate, name="skip"):
     """A candidate a precondition refused, never simulated."""
 
-    KIND = "skip"
-    kind: str | None = None
-    candidate: Names = ()
-    size: Count | None = None
     reason: str = ""
 
 
 @dataclass(frozen=True, kw_only=True)
-class Step(Event):
-    """A smaller world adopted after `probes` decided probes."""
+class Adopted(OfCandidate):
+    """A world the reduction went on from, after `probes` decided probes (the kinds below)."""
 
-    KIND = "step"
-    kind: str | None = None
-    candidate: Names
-    size: Count | None = None
     probes: Count | None = None
 
 
-@dataclass(frozen=True, kw_only=True)
-class BackOff(Event):
-    """The reduction went back to an earlier, larger world (`RateBelow`)."""
+class Step(Adopted, name="step"):
+    """A smaller world adopted."""
 
-    KIND = "back-off"
-    candidate: Names
-    size: Count | None = None
-    probes: Count | None = None
+
+class BackOff(Adopted, name="back-off"):
+    """An earlier, larger world gone back to (after `RateBelow`)."""
 
 
 @dataclass(frozen=True, kw_only=True)
-class Calibration(Event):
-    """deflake="auto": the original world's failure rate and the rule chosen from it."""
+class Measured(OfCandidate):
+    """How often a candidate failed the same way on fresh runs (the kinds below)."""
 
-    KIND = "calibration"
     fails: Count
     runs: Count
-    rule: str | int | None = None
 
 
-@dataclass(frozen=True, kw_only=True)
-class FailureRate(Event):
+class FailureRate(Measured, name="failure-rate"):
     """The failure rate of the minimal world."""
 
-    KIND = "failure-rate"
-    candidate: Names
-    fails: Count
-    runs: Count
 
-
-@dataclass(frozen=True, kw_only=True)
-class PreconditionCheck(Event):
+class PreconditionCheck(Measured, name="precondition-check"):
     """The minimal world without the elements only a precondition kept: how often it still fails."""
 
-    KIND = "precondition-check"
-    candidate: Names
-    fails: Count
-    runs: Count
-
 
 @dataclass(frozen=True, kw_only=True)
-class RateCheck(Event):
+class RateCheck(OfCandidate, name="rate-check"):
     """The comparison of a reduced world's failure rate with the original's."""
 
-    KIND = "rate-check"
-    candidate: Names
-    original: tuple[Count, Count]
-    reduced: tuple[Count, Count]
+    original: FailsOfRuns
+    reduced: FailsOfRuns
     p_value: float
     decision: str
 
 
 @dataclass(frozen=True, kw_only=True)
-class FailurePath(Event):
+class FailurePath(Event, name="path"):
     """The time stage's start points along the failing run and the time of its failure."""
 
-    KIND = "path"
     failure_time: float
     points: tuple[tuple[float, ...], ...]
 
 
 @dataclass(frozen=True, kw_only=True)
-class End(Event):
+class End(Event, name="end"):
     """A reduction ended: its result, as counted."""
 
-    KIND = "end"
     NULLS_WRITTEN = frozenset({"incomplete_reason", "rate_check"})
-    minimal: Names = ()
-    size: Count | None = None
-    original_size: Count | None = None
-    probes: Count | None = None
-    simulations: Count | None = None
-    resumed_probes: Count | None = None
-    cache_hits: Count | None = None
-    skipped: Count | None = None
-    errors: Count | None = None
-    errored: Count | None = None
+    minimal: Names
+    size: Count
+    original_size: Count
+    probes: Count
+    """Decided probes, the resumed log's included (`Reduction.probes`)."""
+    simulations: Count
+    """Simulations this call started (`Reduction.simulations`)."""
+    resumed_probes: Count
+    cache_hits: Count
+    skipped: Count
+    """Candidates a precondition refused."""
+    errors: Count
+    errored: Count
+    """Candidates rejected only because of ERROR runs."""
     steps: Any = None
-    one_minimal: bool | None = None
+    """[probes, size] of the start and of each adopted world."""
+    one_minimal: bool
     incomplete_reason: str | None = None
     failure_rate: Any = None
+    """[fails, runs] of the minimal world."""
     rate_check: str | None = None
-    rate_backoffs: Count | None = None
-    wall_time: float | None = None
+    rate_backoffs: Count
+    wall_time: float
 
 
-KINDS: Mapping[str, type[Event]] = {kind.KIND: kind for kind in (
+KINDS: Mapping[str, type[Event]] = {kind.NAME: kind for kind in (
     Problem, Session, Usage, Start, Round, Probe, Accept, Reject, Errored, CacheHit, RateBelow, Skip, Step,
     BackOff, Calibration, FailureRate, PreconditionCheck, RateCheck, FailurePath, End)}
 """Every kind of event, by the name a line spells it with."""
 VERDICTS: tuple[type[Decided], ...] = (Accept, Reject, CacheHit, RateBelow)
 """The decisions a resumed reduction reuses (unless `errored`)."""
-ADOPTED: tuple[type[Step], type[BackOff]] = (Step, BackOff)
-"""The events that adopt a world (`candidate`)."""
 
 
 @dataclass(frozen=True)
@@ -388,7 +371,7 @@ def _written(event: Event) -> list[dataclasses.Field[Any]]:
 
 def to_json(event: Event) -> dict[str, Any]:
     """The JSON object of an event (what its line holds, before numpy values and tuples are made JSON)."""
-    record: dict[str, Any] = {"event": event.KIND}
+    record: dict[str, Any] = {"event": event.NAME}
     for item in _written(event):
         value = getattr(event, item.name)
         if value is not None or item.name in event.NULLS_WRITTEN:

@@ -7,7 +7,7 @@ algorithm looks at it (`consult`), so that the learner sees the same history wit
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
 from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.context import Context, Verdict
@@ -17,23 +17,16 @@ from pytest_ddenv.reduce.trial import Trial
 from pytest_ddenv.reduce.types import Decision, Observation, Outcome
 
 
+@dataclass
 class Journal:
     """Writes what deciding candidates did to the run log (time-stamped), counts it, feeds the learner."""
 
-    def __init__(
-        self,
-        log: ProbeLog | None,
-        elapsed: Callable[[], float],
-        counters: Counters,
-        context: Context,
-        keep: frozenset[str],
-    ) -> None:
-        self.log = log
-        self.elapsed = elapsed
-        self.counters = counters
-        self.context = context
-        self.keep = keep
-        self._consulted: set[frozenset[str]] = set()
+    log: ProbeLog | None
+    elapsed: Callable[[], float]
+    counters: Counters
+    context: Context
+    keep: frozenset[str]
+    _consulted: set[frozenset[str]] = field(default_factory=set, init=False)
 
     def probe(self, trial: Trial, attempt: int, observation: Observation, *, purpose: str) -> None:
         """One probe whose result is used ("reduce", "calibration" or "failure-rate")."""

@@ -131,7 +131,7 @@ class ProbeLog:
         line = events.encode(event, jsonable)
         written = events.decode(line)
         if not isinstance(written, Event):  # a writer's bug: never write what the reader would refuse
-            raise ReductionError(f"internal error: an unreadable {event.KIND!r} event: {written}")
+            raise ReductionError(f"internal error: an unreadable {event.NAME!r} event: {written}")
         if self.path is not None:
             self._append((line + "\n").encode("utf-8"))
         self.events.append(written)

@@ -19,7 +19,7 @@ RUNLOGS = Path(__file__).resolve().parents[1] / "data" / "runlogs"
 SAMPLES: dict[str, Any] = {
     "Names": ("a", "b"), "tuple[Names, ...]": (("a",), ("b",)), "Count": 3, "int": -2, "tuple[Count, ...]": (1, 0),
     "OutcomeName": "other", "str": "text", "str | int": "auto", "bool": True, "float": 0.25,
-    "tuple[Count, Count]": (2, 5), "tuple[tuple[float, ...], ...]": ((1.0, 2.0, 3.0, 4.0, 5.0),),
+    "FailsOfRuns": (2, 5), "tuple[tuple[float, ...], ...]": ((1.0, 2.0, 3.0, 4.0, 5.0),),
     "JsonObject": {"predicate": "stuck", "pose": [1.0, 2.0]}, "Any": [1, "two"],
 }
 """A value of each annotation a field has."""
@@ -41,7 +41,7 @@ def test_every_kind_reads_back_as_written_with_every_field_or_only_its_required_
     assert isinstance(bare, kind), bare
     for name in required:  # each required field is required
         missing = events.from_json({key: value for key, value in line.items() if key != name})
-        assert missing == events.Unreadable(f"a {kind.KIND!r} record without {name!r}".replace('"', "'"))
+        assert missing == events.Unreadable(f"a {kind.NAME!r} record without {name!r}".replace('"', "'"))
 
 
 @pytest.mark.parametrize("name", ["complete", "killed"])

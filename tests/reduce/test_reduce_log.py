@@ -142,9 +142,9 @@ def test_a_line_cut_short_by_a_crash_is_cut_off_and_said(tmp_path: Path) -> None
 
 def test_a_damaged_line_inside_the_log_is_ignored_and_said(tmp_path: Path) -> None:
     path = tmp_path / "runs.jsonl"
-    path.write_text('{"event": "start"}\nnot json\n[1, 2]\n{"event": "end"}\n')
+    path.write_text('{"event": "start"}\nnot json\n[1, 2]\n{"event": "step", "candidate": ["a"]}\n')
     log = ProbeLog.load(path)
-    assert [record["event"] for record in log.records] == ["start", "end"]
+    assert log.events == [events.Start(), events.Step(candidate=("a",))]
     expected = ("runs.jsonl: line(s) 2, 3 are not records (damaged; line 2: not a JSON object (or nested too deep)) "
                 "and were ignored; the candidates they decided are decided again")
     assert log.notes == [expected]
