@@ -420,6 +420,6 @@ def decode(line: str) -> Event | Unreadable | None:
     return from_json(record)
 
 
-def too_new(event: Event) -> bool:
-    """Whether `event` (a log's first) was written by a later schema version than this one reads."""
-    return isinstance(event, (Problem, Start)) and event.format > SCHEMA_VERSION
+def later_format(event: Event) -> int | None:
+    """The schema version of `event` (a log's first) when it is later than the one this version reads."""
+    return event.format if isinstance(event, (Problem, Start)) and event.format > SCHEMA_VERSION else None

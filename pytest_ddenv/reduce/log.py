@@ -265,11 +265,10 @@ class ProbeLog:
                 ignored.append(number)
                 first_problem = first_problem or f"line {number}: {event.problem}"
                 continue
-            if not found and events.too_new(event):
+            if not found and (later := events.later_format(event)) is not None:
                 raise ReductionError(
-                    f"{path}:{number}: a run log of a later pytest-ddenv (format {getattr(event, 'format', '?')}; "
-                    f"this one reads format {events.SCHEMA_VERSION}); pass another log path, or move the file away "
-                    "to start over")
+                    f"{path}:{number}: a run log of a later pytest-ddenv (format {later}; this one reads format "
+                    f"{events.SCHEMA_VERSION}); pass another log path, or move the file away to start over")
             found.append(event)
         if ignored:
             shown = ", ".join(map(str, ignored[:5])) + (f" and {len(ignored) - 5} more" if len(ignored) > 5 else "")
