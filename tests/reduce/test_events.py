@@ -72,8 +72,8 @@ def test_a_log_line_this_version_does_not_know_is_a_damaged_line_with_a_note(tmp
     path.write_text(f'{start}\n{{"event": "verdict-v2", "candidate": ["a"]}}\n')
     log = ProbeLog.load(path)
     assert log.events == [events.Start(elements=("a", "b"))]
-    assert log.notes == ["runs.jsonl: line(s) 2 are not records (damaged; line 2: an unknown event 'verdict-v2') "
-                         "and were ignored; the candidates they decided are decided again"]
+    assert log.notes == [("runs.jsonl: line(s) 2 are not records (damaged; line 2: an unknown event 'verdict-v2') "
+                          "and were ignored; the candidates they decided are decided again")]
 
 
 def test_a_log_of_a_later_schema_version_is_refused(tmp_path: Path) -> None:

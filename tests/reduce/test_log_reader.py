@@ -20,7 +20,7 @@ def test_blank_and_damaged_lines_are_skipped_and_numbered(tmp_path: Path) -> Non
     path = tmp_path / "runs.jsonl"
     probe = '{"event": "probe", "candidate": ["a"], "attempt": 0, "outcome": "fail"}'
     data = (b'{"event": "start"}\n\n[1]\n' + probe.encode() + b'\n\xff\xfe broken\n{"event": "probe"}\n'
-            b'{"event": "step", "candidate": []}\n{"event": "pro')  # the last line is torn: a writer is still writing it
+            b'{"event": "step", "candidate": []}\n{"event": "pro')  # the last line is torn: a writer is writing it
     path.write_bytes(data)
     assert list(numbered_records(path)) == [(1, {"event": "start"}), (3, None), (4, json.loads(probe)), (5, None),
                                             (6, {"event": "probe"}), (7, {"event": "step", "candidate": []}),

@@ -1,7 +1,9 @@
-"""How the run logs in this folder were made (with pytest-ddenv 0.x before the typed run log of issue 29):
-a real `ddenv reduce` of the yard world (tests/data/yard.yaml), run to the end (complete/) and killed with
-SIGKILL mid-reduction (killed/). Run from the repository root: ``python tests/data/runlogs/make_runlogs.py``.
-They are fixtures of tests/reliability/test_old_run_logs.py: an old log still resumes and reads the same."""
+"""How the run logs in this folder were made, by the release before the typed run log of issue 29 (pytest-ddenv
+0.1.0 at commit 7cba542): a real `ddenv reduce` of the yard world (tests/data/yard.yaml), run to the end
+(complete/) and killed with SIGKILL mid-reduction (killed/). Run from the repository root: ``python
+tests/data/runlogs/make_runlogs.py``. They are the fixtures of tests/test_old_run_logs.py (they read the same)
+and tests/reliability/test_old_run_logs_resume.py (they still resume); do not make them again with a later
+release."""
 
 from __future__ import annotations
 
