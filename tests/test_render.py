@@ -15,7 +15,6 @@ from pytest_ddenv.driver import picture_data, pictures
 from pytest_ddenv.driver.artifacts import ArtifactPaths
 from pytest_ddenv.oracle import FailureSignature
 from pytest_ddenv.reduce import Reduction, events
-from pytest_ddenv.reduce.log import jsonable
 from pytest_ddenv.driver.picture_data import reference_pose, reference_text
 from pytest_ddenv.render.canvas import pyplot
 from pytest_ddenv.sim import Run, RunSettings
@@ -176,7 +175,7 @@ def test_reduction_pictures_in_an_artifacts_folder(worlds: dict[str, World], tmp
         events.Probe(size=size, outcome=outcome, candidate=(), attempt=attempt) for attempt, (size, outcome)
         in enumerate([(18, "pass"), (18, "fail"), (9, "other"), (9, "fail"), (3, "fail"), (2, "error")])
     ]
-    paths.log.write_text("".join(events.encode(event, jsonable) + "\n" for event in logged))
+    paths.log.write_text("".join(events.encode(event) + "\n" for event in logged))
     paths.summary.write_text(json.dumps({"reference_failure": {"signature": {"pose": [0, -1, 0.2, 0, 0, 0.3]}}}))
     written = pictures.write_reduction_pictures(world, reduction, paths)
     assert written == [paths.reduction_png, paths.progress_png]
@@ -288,7 +287,7 @@ def write_parallel_log(path: Path) -> None:
             logged.append(events.Accept(candidate=tuple(candidate), reproduces=True, fails=2, runs=2)
                           if kind == "accept" else events.Reject(candidate=tuple(candidate), reproduces=False,
                                                                  fails=0, runs=2))
-    path.write_text("".join(events.encode(event, jsonable) + "\n" for event in logged))
+    path.write_text("".join(events.encode(event) + "\n" for event in logged))
 
 
 def test_with_parallel_probes_a_step_sits_on_its_accepting_probe(tmp_path: Path) -> None:

@@ -29,7 +29,7 @@ from pytest_ddenv.driver.problem import Problem
 from pytest_ddenv.driver.report import SUMMARY_FORMAT, ReductionReport, ReportFiles, identity_json
 from pytest_ddenv.errors import DdenvError, ReductionError
 from pytest_ddenv.reduce import Reduction, events
-from pytest_ddenv.reduce.log import jsonable, sync_directory, write_failure
+from pytest_ddenv.reduce.log import sync_directory, write_failure
 from pytest_ddenv.reduce.records import json_value, read_regular
 from pytest_ddenv.world.model import World
 
@@ -235,7 +235,7 @@ def prepare(directory: Path, problem: Problem, *,
     for name in STALE_OUTPUTS:
         with contextlib.suppress(OSError):
             (paths.directory / name).unlink()
-    write_text_atomic(paths.log, events.encode(problem.header(), jsonable) + "\n")
+    write_text_atomic(paths.log, events.encode(problem.header()) + "\n")
     return paths, notes
 
 

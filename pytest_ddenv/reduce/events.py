@@ -4,7 +4,7 @@
 A line is one JSON object whose ``"event"`` key names its kind (`KINDS`); the other keys are the fields of
 its class, with ``stage`` (the stage after the model-level reduction that wrote it, absent for the
 model-level reduction) and ``elapsed`` (seconds since the reduction started) on every kind. A field whose
-value is None is left out of the line, except the fields marked `written_when_none`. The schema version,
+value is None is left out of the line, except those in its class's `NULLS_WRITTEN`. The schema version,
 `SCHEMA_VERSION`, is written in the ``format`` field of the log's first event (`Problem`, `Start`); a log of
 a later version is refused rather than misread.
 
@@ -19,9 +19,12 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Final, TypeAlias
+
+import numpy as np
 
 from pytest_ddenv.reduce.records import json_value
 from pytest_ddenv.reduce.types import Outcome
@@ -48,7 +51,7 @@ def _integer(value: Any) -> bool:
 
 
 def _number(value: Any) -> bool:
-    """A finite number, or one that `log.jsonable` wrote as text ("nan", "inf", "-inf")."""
+    """A finite number, or one that `jsonable` wrote as text ("nan", "inf", "-inf")."""
     return (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)) or (
         value in _NOT_FINITE)
 
@@ -362,11 +365,37 @@ class Unreadable:
     problem: str
 
 
+_LAST = ("elapsed", "stage")
+"""The fields every event has, written after its own (in this order)."""
+
+
 def _written(event: Event) -> list[dataclasses.Field[Any]]:
-    """The fields of an event in the order a line holds them: its own, then ``elapsed``, then ``stage``."""
-    fields = [item for item in dataclasses.fields(event) if item.name not in ("stage", "elapsed")]
-    return fields + [item for item in dataclasses.fields(Event) if item.name == "elapsed"] + [
-        item for item in dataclasses.fields(Event) if item.name == "stage"]
+    """The fields of an event in the order a line holds them: its own, then `_LAST`."""
+    return sorted(dataclasses.fields(event), key=lambda item: _LAST.index(item.name) + 1 if item.name in _LAST else 0)
+
+
+def jsonable(value: Any) -> Any:
+    """A JSON-compatible copy of `value` (numpy scalars and arrays, tuples, sets, enums, paths ...)."""
+    if isinstance(value, Outcome):
+        return value.value
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        number = float(value)
+        return number if math.isfinite(number) else str(number)
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, Mapping):
+        return {str(key): jsonable(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(item) for item in value]
+    if isinstance(value, (set, frozenset)):
+        return sorted((jsonable(item) for item in value), key=str)
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    return repr(value)
 
 
 def to_json(event: Event) -> dict[str, Any]:
@@ -379,9 +408,8 @@ def to_json(event: Event) -> dict[str, Any]:
     return record
 
 
-def encode(event: Event, jsonable: Callable[[Any], Any]) -> str:
-    """The line of `event` (without its newline): the one writer of run-log lines. `jsonable` turns
-    numpy values, tuples, paths ... into JSON values (`log.jsonable`)."""
+def encode(event: Event) -> str:
+    """The line of `event` (without its newline): the one writer of run-log lines."""
     return json.dumps(jsonable(to_json(event)), allow_nan=False)
 
 

@@ -29,14 +29,11 @@ import contextlib
 import dataclasses
 import errno
 import json
-import math
 import os
 import threading
-from collections.abc import Collection, Iterator, Mapping
+from collections.abc import Collection, Iterator
 from pathlib import Path
 from typing import Any, Self
-
-import numpy as np
 
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import events
@@ -45,30 +42,6 @@ from pytest_ddenv.reduce.records import json_value, read_regular
 from pytest_ddenv.reduce.types import Decision, Outcome
 
 VOLATILE_FIELDS: tuple[str, ...] = ("elapsed", "wall_time")
-
-
-def jsonable(value: Any) -> Any:
-    """A JSON-compatible copy of `value` (numpy scalars and arrays, tuples, sets, enums, paths ...)."""
-    if isinstance(value, Outcome):
-        return value.value
-    if value is None or isinstance(value, (bool, str)):
-        return value
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        number = float(value)
-        return number if math.isfinite(number) else str(number)
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, Mapping):
-        return {str(key): jsonable(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [jsonable(item) for item in value]
-    if isinstance(value, (set, frozenset)):
-        return sorted((jsonable(item) for item in value), key=str)
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    return repr(value)
 
 
 class ProbeLog:
@@ -121,14 +94,14 @@ class ProbeLog:
     @property
     def records(self) -> list[dict[str, Any]]:
         """Every event as the JSON object its line holds (to look at a log; its readers use `events`)."""
-        return [json.loads(events.encode(event, jsonable)) for event in self.events]
+        return [json.loads(events.encode(event)) for event in self.events]
 
     # -- writing ------------------------------------------------------------------------------------------
 
     def write(self, event: Event) -> None:
         """Append one event; it is on disk (fsynced) when this returns. Raises ReductionError if it cannot be
         written (the file is left as it was: complete records only)."""
-        line = events.encode(event, jsonable)
+        line = events.encode(event)
         written = events.decode(line)
         if not isinstance(written, Event):  # a writer's bug: never write what the reader would refuse
             raise ReductionError(f"internal error: an unreadable {event.NAME!r} event: {written}")

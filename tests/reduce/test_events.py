@@ -12,7 +12,6 @@ import pytest
 
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import ProbeLog, events
-from pytest_ddenv.reduce.log import jsonable
 
 PACKAGE = Path(events.__file__).resolve().parents[1]
 RUNLOGS = Path(__file__).resolve().parents[1] / "data" / "runlogs"
@@ -34,9 +33,9 @@ def full(kind: type[events.Event]) -> events.Event:
 def test_every_kind_reads_back_as_written_with_every_field_or_only_its_required_ones(
         kind: type[events.Event]) -> None:
     event = full(kind)
-    assert events.decode(events.encode(event, jsonable)) == event
+    assert events.decode(events.encode(event)) == event
     required = {field.name for field in dataclasses.fields(kind) if field.default is dataclasses.MISSING}
-    line = json.loads(events.encode(event, jsonable))
+    line = json.loads(events.encode(event))
     bare = events.from_json({key: value for key, value in line.items() if key == "event" or key in required})
     assert isinstance(bare, kind), bare
     for name in required:  # each required field is required
@@ -49,7 +48,7 @@ def test_every_line_of_a_real_log_is_an_event_that_writes_back_the_same(name: st
     for line in (RUNLOGS / name / "runs.jsonl").read_text().splitlines():
         event = events.decode(line)
         assert isinstance(event, events.Event), (event, line)
-        assert events.decode(events.encode(event, jsonable)) == event
+        assert events.decode(events.encode(event)) == event
 
 
 @pytest.mark.parametrize(("line", "problem"), [
@@ -68,7 +67,7 @@ def test_what_is_not_an_event_is_said_never_misread(line: str, problem: str) -> 
 
 def test_a_log_line_this_version_does_not_know_is_a_damaged_line_with_a_note(tmp_path: Path) -> None:
     path = tmp_path / "runs.jsonl"
-    start = events.encode(events.Start(elements=("a", "b")), jsonable)
+    start = events.encode(events.Start(elements=("a", "b")))
     path.write_text(f'{start}\n{{"event": "verdict-v2", "candidate": ["a"]}}\n')
     log = ProbeLog.load(path)
     assert log.events == [events.Start(elements=("a", "b"))]
@@ -79,7 +78,7 @@ def test_a_log_line_this_version_does_not_know_is_a_damaged_line_with_a_note(tmp
 def test_a_log_of_a_later_schema_version_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "runs.jsonl"
     later = events.Problem(format=events.SCHEMA_VERSION + 1, fingerprint="f", parts={})
-    path.write_text(events.encode(later, jsonable) + "\n")
+    path.write_text(events.encode(later) + "\n")
     with pytest.raises(ReductionError, match=rf"runs.jsonl:1: a run log of a later pytest-ddenv \(format "
                                              rf"{events.SCHEMA_VERSION + 1}; this one reads format 1\)"):
         ProbeLog.load(path)
