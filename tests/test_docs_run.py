@@ -115,6 +115,9 @@ PAGES: dict[str, Page] = {
             "result.failure_rate == (5, 5)",
             "result.rate_check.decision == 'holds'",
             "Path('ddenv-artifacts/ditch/runs.jsonl').is_file()",
+        ), "log = ProbeLog.load(": (
+            "len(probes) == len(log.probes('reduce')) > 0",
+            "adopted[-1] == ('asphalt_plane', 'asphalt_plane_clone')",
         )},
         slow=True,
     ),

@@ -19,7 +19,7 @@ import pytest
 from pytest_ddenv.cli import main as cli
 from pytest_ddenv.driver.artifacts import ArtifactPaths, write_other_worlds
 from pytest_ddenv.driver.other_failures import OtherFailure, other_failures
-from pytest_ddenv.reduce import Reduction
+from pytest_ddenv.reduce import Reduction, events
 from pytest_ddenv.driver.report import Cost, ReductionReport, ReportFiles
 from pytest_ddenv.driver.report_text import other_failure_lines, result_lines
 from pytest_ddenv.world import World
@@ -30,24 +30,18 @@ STUCK = "stuck:window=5,min_progress=0.2"
 
 def probe(candidate: Sequence[str], *, predicate: str = "flipped", at: tuple[float, float, float] = (0.0, 0.0, 0.0),
           touched: Sequence[str] = (), time: float = 4.0, outcome: str = "other", attempt: int = 0,
-          seed: int | None = 0, stage: str | None = None, purpose: str = "reduce") -> dict[str, Any]:
-    """A probe record of the run log, as the engine writes it (`signature_record` for a predicate failure)."""
-    record: dict[str, Any] = {
-        "event": "probe", "purpose": purpose, "candidate": list(candidate), "size": len(candidate),
-        "attempt": attempt, "seed": seed, "outcome": outcome,
-        "signature": {"predicate": predicate, "time": time, "pose": [*at, 0.0, 0.0, 0.0], "touched": list(touched),
-                      "detail": ""},
-    }
-    if stage is not None:
-        record["stage"] = stage
-    return record
+          seed: int | None = 0, stage: str | None = None, purpose: str = "reduce") -> events.Probe:
+    """A probe event of the run log, as the engine writes it (`signature_record` for a predicate failure)."""
+    return events.Probe(
+        purpose=purpose, candidate=tuple(candidate), size=len(candidate), attempt=attempt, seed=seed,
+        outcome=outcome, stage=stage,
+        signature={"predicate": predicate, "time": time, "pose": [*at, 0.0, 0.0, 0.0], "touched": list(touched),
+                   "detail": ""})
 
 
-def raised(candidate: Sequence[str], exception: str, location: str, **options: Any) -> dict[str, Any]:
+def raised(candidate: Sequence[str], exception: str, location: str, **options: Any) -> events.Probe:
     """A probe whose test raised something else than a predicate failure (`{"exception", "location"}`)."""
-    record = probe(candidate, **options)
-    record["signature"] = {"exception": exception, "location": location}
-    return record
+    return dataclasses.replace(probe(candidate, **options), signature={"exception": exception, "location": location})
 
 
 # -- grouping ----------------------------------------------------------------------------------------------
@@ -86,15 +80,15 @@ def test_exceptions_are_grouped_by_type_and_location() -> None:
 
 def test_largest_group_first_then_by_first_probe_and_only_other_outcomes() -> None:
     records = [
-        {"event": "problem"}, {"event": "start", "elements": ["a", "b", "c"]},
+        events.Problem(fingerprint="", parts={}), events.Start(elements=("a", "b", "c")),
         probe("abc", outcome="fail"), probe("abc", predicate="stuck", outcome="pass"),  # not other failures
         probe("ab", predicate="fell", at=(5.0, 0.0, 0.0)),  # probe 2
         probe("ab", predicate="flipped"),  # probe 3
         probe("ac", predicate="stuck", at=(9.0, 0.0, 0.0)),  # probe 4
         probe("a", predicate="stuck", at=(9.2, 0.0, 0.0)),
         probe("a", predicate="fell", at=(5.1, 0.1, 0.0)),
-        {"event": "probe", "outcome": "other", "candidate": ["a"], "signature": None},  # unreadable: left out
-        {"event": "probe", "outcome": "other", "candidate": ["a"], "signature": {"predicate": "fell"}},
+        dataclasses.replace(probe("a"), signature=None),  # unreadable: left out
+        dataclasses.replace(probe("a"), signature={"predicate": "fell"}),
     ]
     groups = other_failures(records)
     assert [(g.predicate, g.probes, g.first_probe) for g in groups] == [("fell", 2, 2), ("stuck", 2, 4),

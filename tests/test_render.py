@@ -14,7 +14,7 @@ from pytest_ddenv import render
 from pytest_ddenv.driver import picture_data, pictures
 from pytest_ddenv.driver.artifacts import ArtifactPaths
 from pytest_ddenv.oracle import FailureSignature
-from pytest_ddenv.reduce import Reduction
+from pytest_ddenv.reduce import Reduction, events
 from pytest_ddenv.driver.picture_data import reference_pose, reference_text
 from pytest_ddenv.render.canvas import pyplot
 from pytest_ddenv.sim import Run, RunSettings
@@ -171,11 +171,11 @@ def test_reduction_pictures_in_an_artifacts_folder(worlds: dict[str, World], tmp
     minimal = world.names[:3]
     reduction = fake_reduction(world, minimal)
     paths = ArtifactPaths(tmp_path)
-    log_lines = [{"event": "start"}] + [
-        {"event": "probe", "purpose": "reduce", "size": size, "outcome": outcome, "candidate": []}
-        for size, outcome in [(18, "pass"), (18, "fail"), (9, "other"), (9, "fail"), (3, "fail"), (2, "error")]
+    logged = [events.Start()] + [
+        events.Probe(size=size, outcome=outcome, candidate=(), attempt=attempt) for attempt, (size, outcome)
+        in enumerate([(18, "pass"), (18, "fail"), (9, "other"), (9, "fail"), (3, "fail"), (2, "error")])
     ]
-    paths.log.write_text("".join(json.dumps(line) + "\n" for line in log_lines))
+    paths.log.write_text("".join(events.encode(event) + "\n" for event in logged))
     paths.summary.write_text(json.dumps({"reference_failure": {"signature": {"pose": [0, -1, 0.2, 0, 0, 0.3]}}}))
     written = pictures.write_reduction_pictures(world, reduction, paths)
     assert written == [paths.reduction_png, paths.progress_png]
@@ -274,16 +274,20 @@ PARALLEL_LOG = [  # the journal of a reduction on 2 workers (the two-post gap wo
 
 
 def write_parallel_log(path: Path) -> None:
-    lines = []
-    for kind, candidate, outcome in PARALLEL_LOG:
+    logged: list[events.Event] = []
+    for attempt, (kind, candidate, outcome) in enumerate(PARALLEL_LOG):
         if kind == "start":
-            lines.append({"event": "start", "resumed": 0, "elements": candidate, "keep": []})
+            logged.append(events.Start(elements=tuple(candidate)))
         elif outcome is not None:
-            lines.append({"event": "probe", "purpose": kind, "candidate": candidate, "size": len(candidate),
-                          "outcome": outcome})
+            logged.append(events.Probe(purpose=kind, candidate=tuple(candidate), size=len(candidate),
+                                       outcome=outcome, attempt=attempt))
+        elif kind == "step":
+            logged.append(events.Step(candidate=tuple(candidate)))
         else:
-            lines.append({"event": kind, "candidate": candidate})
-    path.write_text("".join(json.dumps(line) + "\n" for line in lines))
+            logged.append(events.Accept(candidate=tuple(candidate), reproduces=True, fails=2, runs=2)
+                          if kind == "accept" else events.Reject(candidate=tuple(candidate), reproduces=False,
+                                                                 fails=0, runs=2))
+    path.write_text("".join(events.encode(event) + "\n" for event in logged))
 
 
 def test_with_parallel_probes_a_step_sits_on_its_accepting_probe(tmp_path: Path) -> None:

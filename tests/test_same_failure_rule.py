@@ -25,7 +25,7 @@ from pytest_ddenv.oracle import (
 )
 from pytest_ddenv.driver.other_failures import original_reproduction, other_failures
 from pytest_ddenv.scenario.probe import ErrorInfo, FailureReference, check_rule, classify_result, why_not_reproduced
-from pytest_ddenv.reduce import Outcome, Reduction
+from pytest_ddenv.reduce import Outcome, Reduction, events
 from pytest_ddenv.driver.report import Cost, ReductionReport, ReportFiles
 from pytest_ddenv.cli.replay import ArtifactError, recorded_rule
 from pytest_ddenv.driver.report_text import result_lines
@@ -230,9 +230,9 @@ ORIGINAL = ("far_box", "wall")
 
 
 def record(outcome: str, attempt: int, signature: FailureSignature | None, *, purpose: str = "failure-rate",
-           candidate: tuple[str, ...] = ORIGINAL, **extra: Any) -> dict[str, Any]:
-    return {"event": "probe", "purpose": purpose, "candidate": list(candidate), "attempt": attempt, "seed": attempt,
-            "outcome": outcome, "signature": None if signature is None else signature.to_dict(), **extra}
+           candidate: tuple[str, ...] = ORIGINAL, **extra: Any) -> events.Probe:
+    return events.Probe(purpose=purpose, candidate=candidate, attempt=attempt, seed=attempt, outcome=outcome,
+                        signature=None if signature is None else signature.to_dict(), **extra)
 
 
 def test_the_original_worlds_rare_reproduction_is_said_with_the_reason_seen_most() -> None:

@@ -31,6 +31,8 @@ UNIT_MODULES = (
     # the oracle and the test's view of a run
     "test_oracle.py", "test_same_failure_rule.py", "test_custom_predicates.py", "test_reported_runs.py",
     "test_user_line.py", "test_code_identity.py",
+    # a run log of the release before, read back
+    "test_old_run_logs.py",
     # the simulation, in this process's own pybullet client
     "sim/test_controllers.py", "sim/test_driving.py", "sim/test_oracle_ditch.py", "sim/test_predicates.py",
     "sim/test_shapes_sim.py", "sim/test_urdf_robot.py", "sim/test_validation.py",

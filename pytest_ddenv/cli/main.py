@@ -681,6 +681,7 @@ def _robot_footprint(world: World) -> tuple[float, float] | None:
 def _read_runs(path: Path) -> tuple[list[Run], list[list[float]], list[str]]:
     """Runs (`ddenv run --record` lines), failure poses (probe-log lines) and each pose's outcome ("fail":
     the same failure as the reduced one, "other": another failure) of a JSON-lines file."""
+    from pytest_ddenv.reduce import events
     from pytest_ddenv.reduce.log import numbered_records
     from pytest_ddenv.reduce.records import MAX_JSON_NESTING
     from pytest_ddenv.sim import Run
@@ -701,11 +702,11 @@ def _read_runs(path: Path) -> tuple[list[Run], list[list[float]], list[str]]:
                 runs.append(Run.from_dict(record))
             except (KeyError, TypeError, ValueError) as error:
                 raise UsageError(f"{path}:{number}: not a recorded run ({error})") from None
-        elif record.get("event") == "probe":
-            pose = (record.get("signature") or {}).get("pose")
+        elif isinstance(probe := events.from_json(record), events.Probe):
+            pose = (probe.signature or {}).get("pose")
             if isinstance(pose, list) and len(pose) >= 3:
                 poses.append([float(v) for v in pose])
-                outcomes.append("other" if record.get("outcome") == "other" else "fail")
+                outcomes.append("other" if probe.outcome == "other" else "fail")
     if not runs and not poses:
         raise UsageError(f"{path}: no runs and no failure poses in this file")
     return runs, poses, outcomes

@@ -16,8 +16,8 @@ from pytest_ddenv import defaults
 from pytest_ddenv.driver.scenario_job import run_scenario
 from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.oracle.predicates import PredicateSpec
-from pytest_ddenv.reduce import Outcome
-from pytest_ddenv.reduce.log import read_records
+from pytest_ddenv.reduce import Outcome, events
+from pytest_ddenv.reduce.log import read_events
 from pytest_ddenv.reduce.records import json_value, read_regular
 from pytest_ddenv.scenario.robot_world import RobotFailure
 from pytest_ddenv.validation import expected
@@ -262,11 +262,10 @@ def recorded_seeds(log: Path, minimal: Sequence[str], fallback: int) -> list[int
     """Seeds of the logged runs of the minimal world that failed the same way, else [fallback]."""
     wanted = sorted(minimal)
     seeds: list[int] = []
-    for record in read_records(log):
-        if (record.get("event") == "probe" and record.get("outcome") == "fail"
-                and "stage" not in record and sorted(record.get("candidate", ())) == wanted
-                and isinstance(record.get("seed"), int) and record["seed"] not in seeds):
-            seeds.append(record["seed"])
+    for probe in read_events(log):
+        if (isinstance(probe, events.Probe) and probe.result is Outcome.FAIL and probe.stage is None
+                and sorted(probe.candidate) == wanted and probe.seed is not None and probe.seed not in seeds):
+            seeds.append(probe.seed)
     return seeds or [fallback]
 
 

@@ -28,8 +28,8 @@ from typing import TYPE_CHECKING, Any, Self
 from pytest_ddenv.driver.problem import Problem
 from pytest_ddenv.driver.report import SUMMARY_FORMAT, ReductionReport, ReportFiles, identity_json
 from pytest_ddenv.errors import DdenvError, ReductionError
-from pytest_ddenv.reduce import Reduction
-from pytest_ddenv.reduce.log import parse_record, sync_directory, write_failure
+from pytest_ddenv.reduce import Reduction, events
+from pytest_ddenv.reduce.log import sync_directory, write_failure
 from pytest_ddenv.reduce.records import json_value, read_regular
 from pytest_ddenv.world.model import World
 
@@ -213,10 +213,10 @@ def prepare(directory: Path, problem: Problem, *,
     if paths.log.exists():
         first, size = _first_record(paths.log)
         why = "its test, world, code or reduction settings differ"
-        if first is not None and first.get("event") == "problem":
-            if first.get("fingerprint") == problem.fingerprint:
-                reference = first.get("reference")
-                if isinstance(reference, Mapping) and same_reference(reference):
+        if isinstance(first, events.Problem):
+            if first.fingerprint == problem.fingerprint:
+                reference = first.reference
+                if reference is not None and same_reference(reference):
                     return paths, notes
                 why = "it reduced another failure"
             else:
@@ -235,19 +235,19 @@ def prepare(directory: Path, problem: Problem, *,
     for name in STALE_OUTPUTS:
         with contextlib.suppress(OSError):
             (paths.directory / name).unlink()
-    write_text_atomic(paths.log, json.dumps(problem.header()) + "\n")
+    write_text_atomic(paths.log, events.encode(problem.header()) + "\n")
     return paths, notes
 
 
-def _first_record(path: Path) -> tuple[dict[str, Any] | None, int]:
-    """The first line of a log parsed (None if it is not a record) and the file's size."""
+def _first_record(path: Path) -> tuple[events.Event | events.Unreadable | None, int]:
+    """The first line of a log read (an event, or why it is none) and the file's size."""
     try:
         with path.open("rb") as handle:  # a regular file (`prepare` checked)
             line = handle.readline(1 << 20)
         size = path.stat().st_size
     except OSError:
         return None, 0
-    return parse_record(line.decode("utf-8", errors="replace")), size
+    return events.decode(line.decode("utf-8", errors="replace")), size
 
 
 def _free_name(directory: Path, pattern: str) -> Path:
@@ -269,30 +269,25 @@ class Usage:
     those it logged, its CPU time is unknown."""
 
 
-def usage_of(records: Iterable[Mapping[str, Any]]) -> Usage:
-    """What the earlier runs in a log cost. Each run starts with a ``session`` record and records its
+def usage_of(logged: Iterable[events.Event]) -> Usage:
+    """What the earlier runs in a log cost. Each run starts with a ``session`` event and records its
     cumulative ``usage`` at every accepted step and at its end; a run stopped in between adds the probes it
-    logged after its last ``usage`` record."""
-    runs: list[dict[str, Any]] = []
-    for record in records:
-        event = record.get("event")
-        if event == "session" or (not runs and event in ("start", "probe")):
-            runs.append({"usage": None, "after": 0})
-            if event != "probe":
+    logged after its last ``usage`` event."""
+    runs: list[tuple[events.Usage | None, int]] = []  # (its last usage, the probes it logged after it)
+    for event in logged:
+        if isinstance(event, events.Session) or (not runs and isinstance(event, (events.Start, events.Probe))):
+            runs.append((None, 0))
+            if not isinstance(event, events.Probe):
                 continue
         if not runs:
             continue
-        if event == "usage":
-            runs[-1]["usage"], runs[-1]["after"] = record, 0
-        elif event == "probe":
-            runs[-1]["after"] += 1
-    simulations, cpu, complete = 0, 0.0, True
-    for run in runs:
-        usage = run["usage"] or {}
-        simulations += int(usage.get("simulations", 0)) + run["after"]
-        cpu += float(usage.get("cpu_seconds", 0.0))
-        complete = complete and bool(usage.get("final", False))
-    return Usage(len(runs), simulations, round(cpu, 6), complete)
+        if isinstance(event, events.Usage):
+            runs[-1] = (event, 0)
+        elif isinstance(event, events.Probe):
+            runs[-1] = (runs[-1][0], runs[-1][1] + 1)
+    usages = [(usage or events.Usage(), after) for usage, after in runs]
+    return Usage(len(runs), sum(usage.simulations + after for usage, after in usages),
+                 round(sum(usage.cpu_seconds for usage, _ in usages), 6), all(usage.final for usage, _ in usages))
 
 
 def read_summary(path: Path) -> dict[str, Any] | None:

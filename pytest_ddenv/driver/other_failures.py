@@ -2,7 +2,7 @@
 
 A reduction classifies each probe against the failure f it reduces; a probe that fails another way (another
 predicate, the same predicate elsewhere, an assert of the test) is OTHER, and the run log (`runs.jsonl`)
-keeps its signature. `other_failures(records, rule=..., reference=...)` reads those records (the model-level
+keeps its signature. `other_failures(logged, rule=..., reference=...)` reads those probes (the model-level
 probes, the driver's confirmation and picture runs and the stages' probes, every purpose) and groups them:
 
 - a predicate failure joins the first group whose first member it matches by the reduction's own rule
@@ -33,6 +33,8 @@ from typing import Any
 from pytest_ddenv import defaults
 from pytest_ddenv.oracle.predicates import FailureSignature
 from pytest_ddenv.oracle.verdict import OtherReason, SameFailureError, SameFailureRule, most_common_reason
+from pytest_ddenv.outcome import Outcome
+from pytest_ddenv.reduce import events
 from pytest_ddenv.scenario.probe import FailureReference, why_not_reproduced
 
 MODEL_LEVEL = "models"
@@ -122,20 +124,15 @@ class _Group:
     seen_in: dict[str, None] = field(default_factory=dict)
     why: str = ""
 
-    def add(self, record: Mapping[str, Any]) -> None:
+    def add(self, probe: events.Probe) -> None:
         self.probes += 1
-        seed, attempt = _integer(record.get("seed")), _integer(record.get("attempt"))
-        if seed is not None:
-            self.seeds.add(seed)
-        if attempt is not None:
-            self.attempts.add(attempt)
-        stage = record.get("stage")
-        self.seen_in[MODEL_LEVEL if stage is None else str(stage)] = None
-        candidate = record.get("candidate")
-        if stage is None and isinstance(candidate, list):  # a model-level world: a set of models
-            world = tuple(str(name) for name in candidate)
-            if self.smallest is None or len(world) < len(self.smallest[0]):
-                self.smallest = (world, seed, attempt)
+        if probe.seed is not None:
+            self.seeds.add(probe.seed)
+        self.attempts.add(probe.attempt)
+        self.seen_in[MODEL_LEVEL if probe.stage is None else probe.stage] = None
+        if probe.stage is None:  # a model-level world: a set of models
+            if self.smallest is None or len(probe.candidate) < len(self.smallest[0]):
+                self.smallest = (probe.candidate, probe.seed, probe.attempt)
 
     def frozen(self) -> OtherFailure:
         world, seed, attempt = self.smallest if self.smallest is not None else (None, None, None)
@@ -147,10 +144,10 @@ class _Group:
             why=self.why)
 
 
-def other_failures(records: Iterable[Mapping[str, Any]], tolerance: float = defaults.TOLERANCE, *,
+def other_failures(logged: Iterable[events.Event], tolerance: float = defaults.TOLERANCE, *,
                    rule: SameFailureRule | None = None,
                    reference: FailureReference | None = None) -> tuple[OtherFailure, ...]:
-    """The other failures in a run log's `records` (`ProbeLog.records`, `read_records`), grouped by `rule`'s
+    """The other failures in a run log's events (`ProbeLog.events`, `read_events`), grouped by `rule`'s
     built-in part (default: the default rule with `tolerance`), each with why it is not the `reference` failure
     (when given; a record the rule matches with it is left out); largest group first, then by first probe.
     Records without a readable signature are left out (module docstring)."""
@@ -159,14 +156,12 @@ def other_failures(records: Iterable[Mapping[str, Any]], tolerance: float = defa
     groups: list[_Group] = []
     by_exception: dict[tuple[str, str], _Group] = {}
     position = -1
-    for record in records:
-        if record.get("event") != "probe":
+    for probe in logged:
+        if not isinstance(probe, events.Probe):
             continue
         position += 1
-        if record.get("outcome") != "other":
-            continue
-        data = record.get("signature")
-        if not isinstance(data, Mapping):
+        data = probe.signature
+        if probe.result is not Outcome.OTHER or data is None:
             continue
         why = _why(data, reference, rule)
         if why is None:  # the reference failure itself under the rule
@@ -192,7 +187,7 @@ def other_failures(records: Iterable[Mapping[str, Any]], tolerance: float = defa
                 groups.append(group)
         else:
             continue
-        group.add(record)
+        group.add(probe)
     ordered = sorted(groups, key=lambda g: (-g.probes, g.first_probe))
     return tuple(group.frozen() for group in ordered)
 
@@ -237,20 +232,19 @@ class Reproduction:
         return {"fails": self.fails, "runs": self.runs, "reason": self.reason, "description": self.describe()}
 
 
-def original_reproduction(records: Iterable[Mapping[str, Any]], original: Sequence[str],
+def original_reproduction(logged: Iterable[events.Event], original: Sequence[str],
                           reference: FailureReference, rule: SameFailureRule) -> Reproduction | None:
     """When the original world's fresh runs in a run log (`FRESH_PURPOSES`, errors left out) failed the same way
     in fewer than `RARE_BELOW` of them (at least `RARE_MIN_RUNS` runs): how often, and why the others did
     not (`probe.why_not_reproduced`, the reason seen most). None otherwise."""
     wanted = frozenset(original)
     outcomes: dict[int, tuple[str, Any]] = {}
-    for record in records:
-        if (record.get("event") != "probe" or record.get("purpose") not in FRESH_PURPOSES or "stage" in record
-                or not isinstance(record.get("candidate"), list) or frozenset(record["candidate"]) != wanted):
+    for probe in logged:
+        if (not isinstance(probe, events.Probe) or probe.purpose not in FRESH_PURPOSES or probe.stage is not None
+                or frozenset(probe.candidate) != wanted):
             continue
-        attempt, outcome = _integer(record.get("attempt")), record.get("outcome")
-        if attempt is not None and outcome in ("fail", "other", "pass"):
-            outcomes.setdefault(attempt, (outcome, record.get("signature")))
+        if probe.result is not Outcome.ERROR:
+            outcomes.setdefault(probe.attempt, (probe.outcome, probe.signature))
     runs = len(outcomes)
     fails = sum(outcome == "fail" for outcome, _ in outcomes.values())
     if runs < RARE_MIN_RUNS or fails >= RARE_BELOW * runs:
@@ -267,6 +261,3 @@ def original_reproduction(records: Iterable[Mapping[str, Any]], original: Sequen
             reasons.append(reason)
     return Reproduction(fails, runs, most_common_reason(reasons, runs))
 
-
-def _integer(value: Any) -> int | None:
-    return value if isinstance(value, int) and not isinstance(value, bool) else None

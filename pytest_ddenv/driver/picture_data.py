@@ -4,35 +4,45 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeGuard
+
+if TYPE_CHECKING:
+    from pytest_ddenv.reduce.events import Event, Probe
 
 
-def _last_reduction(log: Path) -> list[dict[str, Any]]:
-    """The model-level records of the last reduction in a run log (from its last ``start`` that is not a
+def _last_reduction(log: Path) -> list[Event]:
+    """The model-level events of the last reduction in a run log (from its last ``start`` that is not a
     resumed one: a resumed reduction goes on with the probes of the runs before it)."""
-    from pytest_ddenv.reduce.log import read_records  # lazily: importing the pictures stays cheap
+    from pytest_ddenv.reduce import events  # lazily: importing the pictures stays cheap
+    from pytest_ddenv.reduce.log import read_events
 
-    records: list[dict[str, Any]] = []
-    for record in read_records(log):
-        if "stage" not in record:  # the stages after the models are not drawn here
-            if record.get("event") == "start" and not record.get("resumed"):
-                records = []
-            records.append(record)
-    return records
+    found: list[Event] = []
+    for event in read_events(log):
+        if event.stage is None:  # the stages after the models are not drawn here
+            if isinstance(event, events.Start) and not event.resumed:
+                found = []
+            found.append(event)
+    return found
 
 
-def _is_reduction_probe(record: dict[str, Any]) -> bool:
+def _is_reduction_probe(event: Event) -> TypeGuard[Probe]:
     """A probe whose result the reduction used: its runs of candidates and its calibration runs of the
     original world (what `Reduction.probes` counts)."""
-    return record.get("event") == "probe" and record.get("purpose", "reduce") in ("reduce", "calibration")
+    from pytest_ddenv.reduce import events
+
+    return isinstance(event, events.Probe) and event.purpose in ("reduce", "calibration")
+
+
+def _reduction_probes(logged: list[Event]) -> list[Probe]:
+    return [event for event in logged if _is_reduction_probe(event)]
 
 
 def probe_sizes_from_log(log: Path) -> list[tuple[int, int, str]]:
     """(probe number, candidate size, outcome) of the probes of the last reduction in a run log: its runs of
     candidates and its calibration runs, numbered in the order they were logged."""
-    probes = [r for r in _last_reduction(log) if _is_reduction_probe(r)]
-    return [(number, int(r.get("size", len(r.get("candidate", ())))), str(r.get("outcome", "")))
-            for number, r in enumerate(probes, start=1)]
+    probes = _reduction_probes(_last_reduction(log))
+    return [(number, len(probe.candidate) if probe.size is None else probe.size, probe.outcome)
+            for number, probe in enumerate(probes, start=1)]
 
 
 def steps_from_log(log: Path) -> list[tuple[int, int]]:
@@ -42,24 +52,26 @@ def steps_from_log(log: Path) -> list[tuple[int, int]]:
     candidates' runs are often logged between that run and the step); a back-off, which no probe justifies,
     where it happened. A step a resumed reduction adopts again from the log is drawn once. Empty when the
     log has no start."""
+    from pytest_ddenv.reduce import events
+
     steps: list[tuple[int, int]] = []
     adopted: set[tuple[frozenset[str], int]] = set()
     last_fail: dict[frozenset[str], int] = {}
     probes = 0
-    for record in _last_reduction(log):
-        if record.get("event") == "start" and not steps:
-            steps.append((0, len(record.get("elements", ())) + len(record.get("keep", ()))))
-        elif _is_reduction_probe(record):
+    for event in _last_reduction(log):
+        if isinstance(event, events.Start) and not steps:
+            steps.append((0, len(event.elements) + len(event.keep)))
+        elif _is_reduction_probe(event):
             probes += 1
-            if record.get("outcome") == "fail":
-                last_fail[frozenset(record.get("candidate", ()))] = probes
-        elif record.get("event") in ("step", "back-off") and isinstance(record.get("candidate"), list):
-            key = frozenset(record["candidate"])
-            number = last_fail.get(key, probes) if record["event"] == "step" else probes
+            if event.outcome == "fail":
+                last_fail[frozenset(event.candidate)] = probes
+        elif isinstance(event, events.Adopted):
+            key = frozenset(event.candidate)
+            number = last_fail.get(key, probes) if isinstance(event, events.Step) else probes
             if (key, number) in adopted:
                 continue
             adopted.add((key, number))
-            steps.append((max(number, steps[-1][0] if steps else 0), len(record["candidate"])))
+            steps.append((max(number, steps[-1][0] if steps else 0), len(event.candidate)))
     return steps
 
 
@@ -67,12 +79,12 @@ def accepted_probes_from_log(log: Path) -> set[int]:
     """The numbers (as in `probe_sizes_from_log`) of the probes that failed the same way on a world the
     reduction adopted (a step, or the original world's calibration runs); the other same-failure probes
     were not accepted (the deflake rule rejected their candidate, or another candidate was adopted first)."""
-    records = _last_reduction(log)
-    adopted = {frozenset(r["candidate"]) for r in records
-               if r.get("event") in ("step", "back-off") and isinstance(r.get("candidate"), list)}
-    numbered = [r for r in records if _is_reduction_probe(r)]
-    return {number for number, r in enumerate(numbered, start=1) if r.get("outcome") == "fail"
-            and (r.get("purpose") == "calibration" or frozenset(r.get("candidate", ())) in adopted)}
+    from pytest_ddenv.reduce import events
+
+    logged = _last_reduction(log)
+    adopted = {frozenset(event.candidate) for event in logged if isinstance(event, events.Adopted)}
+    return {number for number, probe in enumerate(_reduction_probes(logged), start=1) if probe.outcome == "fail"
+            and (probe.purpose == "calibration" or frozenset(probe.candidate) in adopted)}
 
 
 def _reference_failure(summary: Path) -> dict[str, Any] | None:

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.driver.code_identity import CodeIdentity, digest
-from pytest_ddenv.reduce.log import LOG_FORMAT
+from pytest_ddenv.reduce import events
 
 if TYPE_CHECKING:
     from pytest_ddenv.world.model import World
@@ -34,24 +34,22 @@ class Problem:
     code: CodeIdentity = field(default_factory=CodeIdentity)
     reference: Mapping[str, Any] | None = None
 
-    def header(self) -> dict[str, Any]:
-        """The first record of its run log."""
-        return {"event": "problem", "format": LOG_FORMAT, "fingerprint": self.fingerprint, "test": self.test_id,
-                "parts": dict(self.parts), "code": self.code.to_json(),
-                "reference": None if self.reference is None else dict(self.reference)}
+    def header(self) -> events.Problem:
+        """The first event of its run log."""
+        reference = None if self.reference is None else dict(self.reference)
+        return events.Problem(fingerprint=self.fingerprint, test=self.test_id, parts=dict(self.parts),
+                              code=self.code.to_json(), reference=reference)
 
-    def differences(self, header: Mapping[str, Any]) -> list[str]:
+    def differences(self, header: events.Problem) -> list[str]:
         """What differs between this problem and the one a log's `header` names, in words (empty when the
         header says too little to tell)."""
         said: list[str] = []
-        earlier = CodeIdentity.from_json(header.get("code"))
+        earlier = CodeIdentity.from_json(header.code)
         if earlier is not None:
             changes = self.code.changes_since(earlier)
             if changes:
                 said.append("the code under test changed: " + _listing(changes))
-        parts = header.get("parts")
-        if isinstance(parts, Mapping):
-            said += [f"{name} changed" for key, name in PARTS.items() if parts.get(key) != self.parts.get(key)]
+        said += [f"{name} changed" for key, name in PARTS.items() if header.parts.get(key) != self.parts.get(key)]
         return said
 
 

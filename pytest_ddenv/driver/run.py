@@ -40,6 +40,7 @@ from pytest_ddenv.reduce import (
     ProgressEvent,
     Reduction,
     ReductionInterrupted,
+    events,
     reduce,
 )
 from pytest_ddenv.reduce.deflake import make_policy
@@ -248,9 +249,9 @@ class _Locked:
         self.problem = problem
         self.notes = notes
         self.on_progress = on_progress
-        self.history = artifacts.usage_of(log.records)  # the earlier runs of this reduction, if resumed
-        log.write({"event": "session", "pid": os.getpid(), "time": time.strftime("%Y-%m-%dT%H:%M:%S")})
-        self.best = _last_step(log.own_records()) or plan.world.names
+        self.history = artifacts.usage_of(log.events)  # the earlier runs of this reduction, if resumed
+        log.write(events.Session(pid=os.getpid(), time=time.strftime("%Y-%m-%dT%H:%M:%S")))
+        self.best = _last_step(log.own_events()) or plan.world.names
         self.fresh = log.started_with() is None
 
     def cost(self, probes: int) -> Cost:
@@ -261,8 +262,8 @@ class _Locked:
 
     def record_usage(self, final: bool = False) -> None:
         stats = self.pool.stats
-        self.log.write({"event": "usage", "simulations": stats.simulations,
-                        "cpu_seconds": round(stats.cpu_seconds, 6), "final": final})
+        self.log.write(events.Usage(simulations=stats.simulations, cpu_seconds=round(stats.cpu_seconds, 6),
+                                    final=final))
 
     def progress(self, event: ProgressEvent) -> None:
         """At the start and at every accepted step: the best world so far and a provisional summary."""
@@ -287,8 +288,7 @@ class _Locked:
         """The outcome of a failure that the world without its removable models reproduced (the engine's
         `check_independence`): nothing reduced, a summary that says so, no minimal world."""
         plan = self.plan
-        empty = next((tuple(record["candidate"]) for record in reversed(self.log.own_records())
-                      if record.get("purpose") == INDEPENDENCE and isinstance(record.get("candidate"), list)), ())
+        empty = next((probe.candidate for probe in reversed(self.log.probes(INDEPENDENCE))), ())
         simulations = self.cost(reduction.probes).simulations
         only = f" (only {', '.join(empty)} kept)" if empty else ""
         message = (f"the failure does not depend on the world: it also happens with no models{only}, the same "
@@ -371,7 +371,7 @@ class _Locked:
             self.record_usage(final=True)
             files, how = artifacts.write_minimal_world(paths, plan.world, reduction, model_paths=plan.model_paths)
             others, other_worlds = artifacts.write_other_worlds(
-                paths, plan.world, other_failures(self.log.records, rule=plan.rule, reference=plan.reference),
+                paths, plan.world, other_failures(self.log.events, rule=plan.rule, reference=plan.reference),
                 plan.keep_other, plan.other_replay)
             files = replace(files, other_worlds=other_worlds)
             report = ReductionReport(
@@ -380,7 +380,7 @@ class _Locked:
                 fingerprint=self.problem.fingerprint,
                 files=files, cost=self.cost(reduction.probes), tolerance=plan.spec.tolerance, minimal_sdf=how,
                 same_failure=plan.rule,
-                reproduction=original_reproduction(self.log.records, plan.world.names, plan.reference, plan.rule),
+                reproduction=original_reproduction(self.log.events, plan.world.names, plan.reference, plan.rule),
                 notes=tuple(dict.fromkeys([*self.notes, *getattr(self.pool, "notes", ())])),
                 world_notes=tuple(plan.world.notes), stages=staged,
                 stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
@@ -417,7 +417,7 @@ def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _C
     """The stages after the models (`spec.stages`), from the minimal world, within their budget."""
     spec = plan.spec
     left = None if spec.max_probes is None else max(0, spec.max_probes - calls.started)
-    logged = sum(1 for record in log.own_records() if record.get("event") == "probe")  # resumed runs too
+    logged = len(log.probes())  # resumed runs too
     model_cost = max(logged, pool.stats.simulations)  # speculative runs cancelled unlogged count too
     limit, per_stage = stage_budget(model_cost, spec.stage_probes, left)
     started = calls.started
@@ -462,7 +462,8 @@ def _stage_runs_to_show(staged: StagesOutcome, calls: _Calls, log: ProbeLog, max
         return
     staged.simulations += 1
     run, _ = _logged_run(calls, log, world, 0, "picture", False)
-    if run is not None and log.records[-1].get("outcome") == Outcome.PASS.value:  # as it was classified
+    last = log.events[-1]
+    if run is not None and isinstance(last, events.Probe) and last.result is Outcome.PASS:  # as it was classified
         staged.passing_run = run
 
 
@@ -549,23 +550,20 @@ def same_reference(logged: Mapping[str, Any], reference: FailureReference, rule:
             and classify_result(now, FailureReference.of(earlier), rule) is Outcome.FAIL)
 
 
-def _last_step(records: list[dict[str, Any]]) -> tuple[str, ...] | None:
+def _last_step(logged: list[events.Event]) -> tuple[str, ...] | None:
     """The world adopted last in a log (the best world so far), if any."""
-    for record in reversed(records):
-        if record.get("event") == "step" and isinstance(record.get("candidate"), list):
-            return tuple(record["candidate"])
-    return None
+    return next((event.candidate for event in reversed(logged) if isinstance(event, events.Step)), None)
 
 
 def _log_run(log: ProbeLog, purpose: str, names: tuple[str, ...], attempt: int, result: ProbeResult | None,
              outcome: str) -> None:
     """A simulation of the driver's own (confirmation, picture) in the run log, as a probe record."""
     run = None if result is None else result.run
-    log.write({"event": "probe", "purpose": purpose, "kind": purpose, "candidate": list(names), "size": len(names),
-               "attempt": attempt, "seed": None if run is None else int(run.seed), "outcome": outcome,
-               "signature": None if result is None else signature_record(result.error),
-               "sim_time": 0.0 if run is None else float(run.sim_time),
-               "wall_time": 0.0 if run is None else float(run.wall_time), "detail": ""})
+    log.write(events.Probe(purpose=purpose, kind=purpose, candidate=names, size=len(names), attempt=attempt,
+                           seed=None if run is None else int(run.seed), outcome=outcome,
+                           signature=None if result is None else signature_record(result.error),
+                           sim_time=0.0 if run is None else float(run.sim_time),
+                           wall_time=0.0 if run is None else float(run.wall_time), detail=""))
 
 
 HEAVY_IMPORTS = ("sklearn.cluster", "sklearn.linear_model", "matplotlib.pyplot", "matplotlib.collections")

@@ -18,15 +18,16 @@ import concurrent.futures
 import os
 import time
 from collections.abc import Callable, Collection, MutableMapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from pytest_ddenv import defaults
 from pytest_ddenv.errors import ReductionError
+from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.budget import Budget, BudgetExhausted
 from pytest_ddenv.reduce.context import Context, Verdict
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy
-from pytest_ddenv.reduce.log import LOG_FORMAT, ProbeLog
+from pytest_ddenv.reduce.log import ProbeLog
 from pytest_ddenv.reduce.partition import Partitioner
 from pytest_ddenv.reduce.priority import Prioritizer
 from pytest_ddenv.reduce.prober import Prober
@@ -311,8 +312,7 @@ class _Engine:
             runs = sum(outcome is not Outcome.ERROR for outcome in outcomes)
             self.cache[frozenset(step.world)] = Decision(reproduces=False, fails=fails, runs=runs)
             self.context.history.append(Verdict(frozenset(step.world) - self.settings.keep, False))
-            self.write({"event": "rate-below", "candidate": list(step.world), "reproduces": False,
-                        "fails": fails, "runs": runs})
+            self.write(events.RateBelow(candidate=step.world, reproduces=False, fails=fails, runs=runs))
         self.backoffs += 1
         self.rate_check = None
         back = self.chain[good]
@@ -324,8 +324,7 @@ class _Engine:
         self.carried = None
         self.unverified = 0
         self.steps.append((self.probes(), len(back.world)))
-        self.write({"event": "back-off", "candidate": list(back.world), "size": len(back.world),
-                    "probes": self.probes()})
+        self.write(events.BackOff(candidate=back.world, size=len(back.world), probes=self.probes()))
         self.backoff_notes.append(
             f"back-off {self.backoffs}: a {len(rejected[-1].world)}-element minimal world failed significantly "
             f"less often than the original ({below.describe()}); {plural(len(rejected), 'accepted world')} "
@@ -351,7 +350,7 @@ class _Engine:
                                            known=logged, strict=True, into=into)
                 fails, runs = fails + more[0], runs + more[1]
             rule = policy.rule_for(fails, runs)
-            self.write({"event": "calibration", "fails": fails, "runs": runs, "rule": rule.label})
+            self.write(events.Calibration(fails=fails, runs=runs, rule=rule.label))
         else:
             fails, runs = known
             rule = policy.rule_for(fails, runs)
@@ -380,17 +379,10 @@ class _Engine:
         if plan is None:
             plan = self.fresh_plan(self.granularity)
         trials = self.trials_of(plan)
-        self.write(
-            {
-                "event": "round",
-                "index": self.round_index,
-                "granularity": self.granularity,
-                "size": len(self.full(self.current)),
-                "parts": [list(part) for part in plan.ordered],
-                "removal_order": [plan.ordered.index(part) for part in plan.removal],
-                "subsets": plan.subsets,
-            }
-        )
+        self.write(events.Round(index=self.round_index, granularity=self.granularity, size=len(self.full(self.current)),
+                                parts=tuple(tuple(part) for part in plan.ordered),
+                                removal_order=tuple(plan.ordered.index(part) for part in plan.removal),
+                                subsets=plan.subsets))
         self.emit("round")
         self.round_index += 1
         found = self.prober.first_reproducing([trial for trial, _ in trials])
@@ -487,15 +479,8 @@ class _Engine:
         self.minimal_runs = decision.runs
         self.chain.append(_Step(trial.candidate, decision.runs, decision.trace))
         self.steps.append((self.probes(), len(trial.candidate)))
-        self.write(
-            {
-                "event": "step",
-                "kind": trial.kind,
-                "candidate": list(trial.candidate),
-                "size": len(trial.candidate),
-                "probes": self.probes(),
-            }
-        )
+        self.write(events.Step(kind=trial.kind, candidate=tuple(trial.candidate), size=len(trial.candidate),
+                               probes=self.probes()))
         self.emit("step", candidate=trial.candidate)
 
     def final_rate(self) -> tuple[int, int]:
@@ -509,7 +494,7 @@ class _Engine:
         else:
             return (0, 0)
         minimal = self.full(self.current)
-        self.write({"event": "failure-rate", "candidate": list(minimal), "fails": rate.fails, "runs": rate.runs})
+        self.write(events.FailureRate(candidate=minimal, fails=rate.fails, runs=rate.runs))
         return rate.fails, rate.runs
 
     def precondition_kept(self) -> tuple[tuple[str, str], ...]:
@@ -531,7 +516,7 @@ class _Engine:
         world = self.full(tuple(name for name in self.current if name not in kept))
         rate = self.rates.rate(world, 0, min(3, self.rates.looks[0]))
         self.precondition_check = (rate.fails, rate.runs)
-        self.write({"event": "precondition-check", "candidate": list(world), "fails": rate.fails, "runs": rate.runs})
+        self.write(events.PreconditionCheck(candidate=world, fails=rate.fails, runs=rate.runs))
 
     # -- helpers ------------------------------------------------------------------------------------------
 
@@ -569,10 +554,9 @@ class _Engine:
             )
         )
 
-    def write(self, record: dict[str, Any]) -> None:
+    def write(self, event: events.Event) -> None:
         if self.log is not None:
-            record["elapsed"] = round(self.elapsed(), 6)
-            self.log.write(record)
+            self.log.write(replace(event, elapsed=round(self.elapsed(), 6)))
 
     def result(self, *, one_minimal: bool, incomplete: str | None, failure_rate: tuple[int, int]) -> Reduction:
         settings, counters = self.settings, self.prober.counters
@@ -615,51 +599,26 @@ class _Engine:
 
     def write_start(self) -> None:
         settings = self.settings
-        self.write(
-            {
-                "event": "start",
-                "format": LOG_FORMAT,
-                "resumed": self.resumed,
-                "elements": list(settings.elements),
-                "keep": [name for name in settings.elements if name in settings.keep],
-                "partition": settings.partitioner.name,
-                "priority": settings.prioritizer.name,
-                "n_partitions": settings.n_partitions,
-                "granularity": settings.granularity,
-                "complement_order": settings.complement_order,
-                "deflake": settings.policy.label,
-                "seed": settings.seed,
-                "max_probes": settings.max_probes,
-                "max_seconds": settings.max_seconds,
-                "failure_rate_runs": settings.failure_rate_runs,
-                "reference": settings.reference is not None,
-            }
-        )
+        self.write(events.Start(
+            resumed=self.resumed, elements=tuple(settings.elements),
+            keep=tuple(name for name in settings.elements if name in settings.keep),
+            partition=settings.partitioner.name, priority=settings.prioritizer.name,
+            n_partitions=settings.n_partitions, granularity=settings.granularity,
+            complement_order=settings.complement_order, deflake=settings.policy.label, seed=settings.seed,
+            max_probes=settings.max_probes, max_seconds=settings.max_seconds,
+            failure_rate_runs=settings.failure_rate_runs, reference=settings.reference is not None))
         self.emit("start")
 
     def write_end(self, reduction: Reduction) -> None:
-        self.write(
-            {
-                "event": "end",
-                "minimal": list(reduction.minimal),
-                "size": len(reduction.minimal),
-                "original_size": len(reduction.original),
-                "probes": reduction.probes,
-                "simulations": reduction.simulations,
-                "resumed_probes": reduction.resumed_probes,
-                "cache_hits": reduction.cache_hits,
-                "skipped": reduction.skipped,
-                "errors": reduction.errors,
-                "errored": reduction.errored,
-                "steps": [list(step) for step in reduction.steps],
-                "one_minimal": reduction.one_minimal,
-                "incomplete_reason": reduction.incomplete_reason,
-                "failure_rate": list(reduction.failure_rate),
-                "rate_check": None if reduction.rate_check is None else reduction.rate_check.decision,
-                "rate_backoffs": reduction.rate_backoffs,
-                "wall_time": reduction.wall_time,
-            }
-        )
+        self.write(events.End(
+            minimal=tuple(reduction.minimal), size=len(reduction.minimal), original_size=len(reduction.original),
+            probes=reduction.probes, simulations=reduction.simulations, resumed_probes=reduction.resumed_probes,
+            cache_hits=reduction.cache_hits, skipped=reduction.skipped, errors=reduction.errors,
+            errored=reduction.errored, steps=[list(step) for step in reduction.steps],
+            one_minimal=reduction.one_minimal, incomplete_reason=reduction.incomplete_reason,
+            failure_rate=list(reduction.failure_rate),
+            rate_check=None if reduction.rate_check is None else reduction.rate_check.decision,
+            rate_backoffs=reduction.rate_backoffs, wall_time=reduction.wall_time))
         self.emit("end")
 
     @staticmethod

@@ -7,8 +7,9 @@ algorithm looks at it (`consult`), so that the learner sees the same history wit
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from dataclasses import dataclass, field, replace
 
+from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.context import Context, Verdict
 from pytest_ddenv.reduce.counters import Counters
 from pytest_ddenv.reduce.log import ProbeLog
@@ -16,52 +17,31 @@ from pytest_ddenv.reduce.trial import Trial
 from pytest_ddenv.reduce.types import Decision, Observation, Outcome
 
 
+@dataclass
 class Journal:
     """Writes what deciding candidates did to the run log (time-stamped), counts it, feeds the learner."""
 
-    def __init__(
-        self,
-        log: ProbeLog | None,
-        elapsed: Callable[[], float],
-        counters: Counters,
-        context: Context,
-        keep: frozenset[str],
-    ) -> None:
-        self.log = log
-        self.elapsed = elapsed
-        self.counters = counters
-        self.context = context
-        self.keep = keep
-        self._consulted: set[frozenset[str]] = set()
+    log: ProbeLog | None
+    elapsed: Callable[[], float]
+    counters: Counters
+    context: Context
+    keep: frozenset[str]
+    _consulted: set[frozenset[str]] = field(default_factory=set, init=False)
 
     def probe(self, trial: Trial, attempt: int, observation: Observation, *, purpose: str) -> None:
         """One probe whose result is used ("reduce", "calibration" or "failure-rate")."""
         if observation.outcome is Outcome.ERROR:
             self.counters.errors += 1
-        self.write(
-            {
-                "event": "probe",
-                "purpose": purpose,
-                "kind": trial.kind,
-                "candidate": list(trial.candidate),
-                "size": len(trial.candidate),
-                "attempt": attempt,
-                "seed": observation.seed,
-                "outcome": observation.outcome.value,
-                "signature": observation.signature,
-                "sim_time": observation.sim_time,
-                "wall_time": observation.wall_time,
-                "detail": observation.detail,
-            }
-        )
+        self.write(events.Probe(purpose=purpose, kind=trial.kind, candidate=tuple(trial.candidate),
+                                size=len(trial.candidate), attempt=attempt, seed=observation.seed,
+                                outcome=observation.outcome.value, signature=observation.signature,
+                                sim_time=observation.sim_time, wall_time=observation.wall_time,
+                                detail=observation.detail))
 
     def verdict(self, trial: Trial, decision: Decision, errors: int) -> None:
         """A candidate just decided, on runs of which `errors` were ERROR."""
-        record = _decision_record("errored" if decision.errored else "accept" if decision.reproduces else "reject",
-                                  trial, decision)
-        if errors:
-            record["errors"] = errors
-        self.write(record)
+        kind = events.Errored if decision.errored else events.Accept if decision.reproduces else events.Reject
+        self.write(_decision(kind, trial, decision, errors=errors or None))
 
     def consult(self, trial: Trial, decision: Decision, *, cached: bool, quiet: bool) -> None:
         """The serial algorithm looks at this verdict now: feed the learner, count and log cache hits."""
@@ -71,10 +51,7 @@ class Journal:
             self.context.history.append(Verdict(frozenset(key - self.keep), decision.reproduces))
         if cached and not quiet:
             self.counters.cache_hits += 1
-            record = _decision_record("cache-hit", trial, decision)
-            if decision.errored:
-                record["errored"] = True
-            self.write(record)
+            self.write(_decision(events.CacheHit, trial, decision, errored=decision.errored or None))
 
     def skip(self, trial: Trial, reason: str, *, quiet: bool) -> None:
         """The serial algorithm looks at a candidate a precondition refused (logged once when `quiet`)."""
@@ -82,23 +59,17 @@ class Journal:
         first_time = key not in self.counters.skipped
         self.counters.skipped.add(key)
         if first_time or not quiet:
-            self.write(
-                {
-                    "event": "skip",
-                    "kind": trial.kind,
-                    "candidate": list(trial.candidate),
-                    "size": len(trial.candidate),
-                    "reason": reason,
-                }
-            )
+            self.write(events.Skip(kind=trial.kind, candidate=tuple(trial.candidate), size=len(trial.candidate),
+                                   reason=reason))
 
-    def write(self, record: dict[str, Any]) -> None:
+    def write(self, event: events.Event) -> None:
         if self.log is not None:
-            record["elapsed"] = round(self.elapsed(), 6)
-            self.log.write(record)
+            self.log.write(replace(event, elapsed=round(self.elapsed(), 6)))
 
 
-def _decision_record(event: str, trial: Trial, decision: Decision) -> dict[str, Any]:
-    """The log record of a decision about `trial` (a verdict, or a verdict looked up again)."""
-    return {"event": event, "kind": trial.kind, "candidate": list(trial.candidate), "size": len(trial.candidate),
-            "reproduces": decision.reproduces, "fails": decision.fails, "runs": decision.runs}
+def _decision(kind: type[events.Decided], trial: Trial, decision: Decision, *, errors: int | None = None,
+              errored: bool | None = None) -> events.Decided:
+    """The log event of a decision about `trial` (a verdict, or a verdict looked up again)."""
+    return kind(kind=trial.kind, candidate=tuple(trial.candidate), size=len(trial.candidate),
+                reproduces=decision.reproduces, fails=decision.fails, runs=decision.runs, errors=errors,
+                errored=errored)

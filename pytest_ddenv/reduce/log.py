@@ -1,17 +1,17 @@
-"""The probe log: one JSON object per line, per probe and per decision, written and flushed as it happens.
+"""The probe log: one event per line, per probe and per decision, written and flushed as it happens.
 
-Events (the ``"event"`` key): ``start``, ``round``, ``probe``, ``accept`` (the candidate reproduces f),
-``reject`` (it does not), ``skip`` (a precondition refused it), ``cache-hit`` (its verdict was already
-known), ``step`` (a smaller world was adopted), ``calibration`` (deflake="auto": the original world's
-failure rate and the re-runs chosen from it), ``failure-rate``, ``end``. Candidates are lists of element
-names in original order. The fields in `VOLATILE_FIELDS` hold wall-clock measurements; everything else is
-identical for two reductions with the same inputs and seed.
+The events are the typed records of `events` (``start``, ``round``, ``probe``, ``accept`` when the candidate
+reproduces f, ``reject`` when it does not, ``skip`` when a precondition refused it, ``cache-hit`` when its
+verdict was already known, ``step`` when a smaller world was adopted, ``calibration``, ``failure-rate``,
+``end``, and the driver's and the stages' own); `events.encode` writes each line and `events.decode` reads it
+back. Candidates are element names in original order. The fields in `VOLATILE_FIELDS` hold wall-clock
+measurements; everything else is identical for two reductions with the same inputs and seed.
 
 A log is also a cache: `ProbeLog.load(path)` (or ``reduce(..., log=path)`` on an existing file) reads the
 verdicts it holds, and the new reduction appends to the same file without simulating those candidates
 again. Runs of a candidate that was being decided when the reduction stopped are reused too. To read a log
-without changing it (the pictures, ``ddenv replay --recorded``, ``ddenv show --runs``): `read_records`, or
-`numbered_records` to name the damaged lines.
+without changing it (the pictures, ``ddenv replay --recorded``): `read_events`; ``ddenv show --runs``
+reads any JSON-lines file with `numbered_records`, to name the damaged lines.
 
 A log survives a crash at any moment: each line is written with one `write` on a file opened for appending
 and fsynced before the reduction goes on, so after a `kill -9`, an out-of-memory kill or a power cut the file
@@ -26,55 +26,30 @@ Errors are not verdicts: a candidate rejected only because of ERROR runs is logg
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import errno
 import json
-import math
 import os
 import threading
-from collections.abc import Collection, Iterator, Mapping
+from collections.abc import Collection, Iterator
 from pathlib import Path
 from typing import Any, Self
 
-import numpy as np
-
 from pytest_ddenv.errors import ReductionError
-from pytest_ddenv.reduce.records import json_value, read_regular, record_problem
+from pytest_ddenv.reduce import events
+from pytest_ddenv.reduce.events import Event
+from pytest_ddenv.reduce.records import json_value, read_regular
 from pytest_ddenv.reduce.types import Decision, Outcome
 
-LOG_FORMAT = 1
 VOLATILE_FIELDS: tuple[str, ...] = ("elapsed", "wall_time")
-
-
-def jsonable(value: Any) -> Any:
-    """A JSON-compatible copy of `value` (numpy scalars and arrays, tuples, sets, enums, paths ...)."""
-    if isinstance(value, Outcome):
-        return value.value
-    if value is None or isinstance(value, (bool, str)):
-        return value
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        number = float(value)
-        return number if math.isfinite(number) else str(number)
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, Mapping):
-        return {str(key): jsonable(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [jsonable(item) for item in value]
-    if isinstance(value, (set, frozenset)):
-        return sorted((jsonable(item) for item in value), key=str)
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    return repr(value)
 
 
 class ProbeLog:
     """A JSON-lines log of a reduction; also the source of verdicts when resuming.
 
     ``ProbeLog(path)`` appends to `path` and reads what it already holds, cutting off an incomplete last line
-    (``resume=False`` truncates it instead). ``ProbeLog(None)`` keeps the records in memory only. `records`
-    holds every record read or written, as parsed from its JSON line; `notes` what opening the file repaired.
+    (``resume=False`` truncates it instead). ``ProbeLog(None)`` keeps the events in memory only. `events`
+    holds every event read or written, as read back from its line; `notes` what opening the file repaired.
     `durable=False` skips the fsync after each line (faster, for throw-away logs).
     """
 
@@ -85,7 +60,7 @@ class ProbeLog:
     def __init__(self, path: str | os.PathLike[str] | None = None, *, resume: bool = True,
                  durable: bool = True) -> None:
         self.path: Path | None = Path(path) if path is not None else None
-        self.records: list[dict[str, Any]] = []
+        self.events: list[Event] = []
         self.notes: list[str] = []
         self.durable = durable
         self._fd: int | None = None
@@ -95,7 +70,7 @@ class ProbeLog:
         if self.path.is_dir():
             raise ReductionError(f"log path {self.path} is a directory; pass a file path such as runs.jsonl")
         if resume and self.path.exists():
-            self.records = self._read(self.path)
+            self.events = self._read(self.path)
         elif self.path.exists():
             os.truncate(self.path, 0)
 
@@ -112,20 +87,27 @@ class ProbeLog:
         ...) see only that stage's records, so each stage resumes on its own. Closing a view does nothing."""
         return _StageView(self, stage)
 
-    def own_records(self) -> list[dict[str, Any]]:
-        """The records of this log's stage (those without a ``stage`` key for the model-level log)."""
-        return [record for record in self.records if record.get("stage") == self.stage]
+    def own_events(self) -> list[Event]:
+        """The events of this log's stage (those of no stage for the model-level log)."""
+        return [event for event in self.events if event.stage == self.stage]
+
+    @property
+    def records(self) -> list[dict[str, Any]]:
+        """Every event as the JSON object its line holds (to look at a log; its readers use `events`)."""
+        return [json.loads(events.encode(event)) for event in self.events]
 
     # -- writing ------------------------------------------------------------------------------------------
 
-    def write(self, record: Mapping[str, Any]) -> None:
-        """Append one record; it is on disk (fsynced) when this returns. Raises ReductionError if it cannot be
+    def write(self, event: Event) -> None:
+        """Append one event; it is on disk (fsynced) when this returns. Raises ReductionError if it cannot be
         written (the file is left as it was: complete records only)."""
-        line = json.dumps(jsonable(record), allow_nan=False)
-        parsed = json.loads(line)
+        line = events.encode(event)
+        written = events.decode(line)
+        if not isinstance(written, Event):  # a writer's bug: never write what the reader would refuse
+            raise ReductionError(f"internal error: an unreadable {event.NAME!r} event: {written}")
         if self.path is not None:
             self._append((line + "\n").encode("utf-8"))
-        self.records.append(parsed)
+        self.events.append(written)
 
     def _append(self, data: bytes) -> None:
         assert self.path is not None
@@ -170,37 +152,35 @@ class ProbeLog:
 
     def started_with(self) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
         """(elements, keep) of the first reduction recorded in this log, or None if it has none."""
-        for record in self.own_records():
-            if record.get("event") == "start":
-                return tuple(record.get("elements", ())), tuple(record.get("keep", ()))
+        for event in self.own_events():
+            if isinstance(event, events.Start):
+                return event.elements, event.keep
         return None
 
     def calibration(self) -> tuple[int, int] | None:
         """(fails, runs) of the first deflake calibration recorded in this log, or None."""
-        for record in self.own_records():
-            if record.get("event") == "calibration":
-                return int(record["fails"]), int(record["runs"])
+        for event in self.own_events():
+            if isinstance(event, events.Calibration):
+                return event.fails, event.runs
         return None
 
     def decisions(self) -> dict[frozenset[str], Decision]:
         """The verdict on every candidate this log decided (the latest one if several). Rejections that rest
         on ERROR runs (``errored``) are not verdicts and are left out."""
         decided: dict[frozenset[str], Decision] = {}
-        for record in self.own_records():
-            if (record.get("event") in ("accept", "reject", "cache-hit", "rate-below")
-                    and not record.get("errored", False)):
-                decided[frozenset(record["candidate"])] = Decision(
-                    reproduces=bool(record["reproduces"]), fails=int(record["fails"]), runs=int(record["runs"])
-                )
+        for event in self.own_events():
+            if isinstance(event, events.VERDICTS) and not event.errored:
+                decided[frozenset(event.candidate)] = Decision(reproduces=event.reproduces, fails=event.fails,
+                                                               runs=event.runs)
         return decided
 
     def partial_runs(self) -> dict[frozenset[str], list[Outcome]]:
         """Outcomes of attempts 0, 1, ... of candidates whose runs were logged but not yet decided, up to the
         first ERROR run or missing attempt (an ERROR is no outcome of the seed: that attempt runs again)."""
         runs: dict[frozenset[str], dict[int, Outcome]] = {}
-        for record in self.own_records():
-            if record.get("event") == "probe" and record.get("purpose", "reduce") == "reduce":
-                runs.setdefault(frozenset(record["candidate"]), {})[int(record["attempt"])] = Outcome(record["outcome"])
+        for event in self.own_events():
+            if isinstance(event, events.Probe) and event.purpose == "reduce":
+                runs.setdefault(frozenset(event.candidate), {})[event.attempt] = event.result
         decided = self.decisions()
         partial: dict[frozenset[str], list[Outcome]] = {}
         for key, by_attempt in runs.items():
@@ -218,20 +198,21 @@ class ProbeLog:
         ERROR runs left out (they run again)."""
         key = frozenset(candidate)
         found: dict[int, Outcome] = {}
-        for record in self.own_records():
-            if (record.get("event") == "probe" and record.get("purpose") == purpose
-                    and frozenset(record.get("candidate", ())) == key and record.get("outcome") != "error"):
-                found[int(record["attempt"])] = Outcome(record["outcome"])
+        for event in self.probes(purpose):
+            if frozenset(event.candidate) == key and event.result is not Outcome.ERROR:
+                found[event.attempt] = event.result
         return found
+
+    def probes(self, *purposes: str) -> list[events.Probe]:
+        """This log's stage's probe events with one of these purposes (any purpose when none is given)."""
+        return [event for event in self.own_events()
+                if isinstance(event, events.Probe) and (not purposes or event.purpose in purposes)]
 
     def decided_probes(self) -> int:
         """Probe runs whose result a reduction used (reduction and calibration runs), in this log so far."""
-        return sum(
-            1 for record in self.own_records()
-            if record.get("event") == "probe" and record.get("purpose", "reduce") in ("reduce", "calibration")
-        )
+        return len(self.probes("reduce", "calibration"))
 
-    def _read(self, path: Path) -> list[dict[str, Any]]:
+    def _read(self, path: Path) -> list[Event]:
         try:
             data = read_regular(path)
         except OSError as error:
@@ -244,27 +225,29 @@ class ProbeLog:
                 f"{path.name}: its last line was incomplete ({len(data) - complete} bytes, cut short by a crash "
                 "or a full disk) and was removed; every complete record before it is reused"
             )
-        records: list[dict[str, Any]] = []
+        found: list[Event] = []
         ignored: list[int] = []
         first_problem = ""
-        for number, record in _numbered(data[:complete].decode("utf-8", errors="replace")):
-            problem = "not a JSON object (or nested too deep)" if record is None else record_problem(record)
-            if problem is not None:
-                if not records:
+        for number, event in _numbered_events(data[:complete].decode("utf-8", errors="replace")):
+            if isinstance(event, events.Unreadable):
+                if not found:
                     raise ReductionError(
                         f"{path}:{number}: not a probe-log record, so this file is not a pytest-ddenv run log; "
                         "pass another log path, or move the file away to start over"
                     )
                 ignored.append(number)
-                first_problem = first_problem or f"line {number}: {problem}"
+                first_problem = first_problem or f"line {number}: {event.problem}"
                 continue
-            assert record is not None
-            records.append(record)
+            if not found and (later := events.later_format(event)) is not None:
+                raise ReductionError(
+                    f"{path}:{number}: a run log of a later pytest-ddenv (format {later}; this one reads format "
+                    f"{events.SCHEMA_VERSION}); pass another log path, or move the file away to start over")
+            found.append(event)
         if ignored:
             shown = ", ".join(map(str, ignored[:5])) + (f" and {len(ignored) - 5} more" if len(ignored) > 5 else "")
             self.notes.append(f"{path.name}: line(s) {shown} are not records (damaged; {first_problem}) and were "
                               "ignored; the candidates they decided are decided again")
-        return records
+        return found
 
 
 def parse_record(line: str) -> dict[str, Any] | None:
@@ -287,13 +270,15 @@ def numbered_records(path: Path) -> Iterator[tuple[int, dict[str, Any] | None]]:
     return _numbered(read_regular(path).decode("utf-8", errors="replace"))
 
 
-def read_records(path: Path) -> list[dict[str, Any]]:
-    """The records of the JSON-lines file at `path` in order, blank and damaged lines skipped; [] when it is
-    missing or cannot be read. Read-only (see `numbered_records`)."""
+def read_events(path: Path) -> list[Event]:
+    """The events of the run log at `path` in order, blank and unreadable lines (damaged, or an event this
+    version does not know) skipped; [] when it is missing or cannot be read. Read-only (see
+    `numbered_records`)."""
     try:
-        return [record for _, record in numbered_records(path) if record is not None]
+        text = read_regular(path).decode("utf-8", errors="replace")
     except OSError:
         return []
+    return [event for _, event in _numbered_events(text) if isinstance(event, Event)]
 
 
 def _numbered(text: str) -> Iterator[tuple[int, dict[str, Any] | None]]:
@@ -302,12 +287,19 @@ def _numbered(text: str) -> Iterator[tuple[int, dict[str, Any] | None]]:
             yield number, parse_record(line)
 
 
+def _numbered_events(text: str) -> Iterator[tuple[int, Event | events.Unreadable]]:
+    for number, line in enumerate(text.split("\n"), start=1):
+        event = events.decode(line)
+        if event is not None:
+            yield number, event
+
+
 class _StageView(ProbeLog):
     """`ProbeLog.view`: one stage's records, written through the parent log (same file, same lock)."""
 
     def __init__(self, parent: ProbeLog, stage: str) -> None:
         self.path = parent.path
-        self.records = parent.records
+        self.events = parent.events
         self.notes = []
         self.durable = parent.durable
         self.stage = stage
@@ -315,8 +307,8 @@ class _StageView(ProbeLog):
         self._fd = None
         self._lock = threading.Lock()
 
-    def write(self, record: Mapping[str, Any]) -> None:
-        self._parent.write({**record, "stage": self.stage})
+    def write(self, event: Event) -> None:
+        self._parent.write(dataclasses.replace(event, stage=self.stage))
 
     def close(self) -> None:
         """The parent log owns the file."""

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Any
 
+from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.extra_runs import ExtraRuns
 from pytest_ddenv.reduce.log import ProbeLog
 from pytest_ddenv.reduce.rates import LOOKS, Rate, RateComparison, compare
@@ -28,7 +28,7 @@ class RateChecker:
     """Runs worlds on fresh attempts and compares each with the original world (whose runs are shared)."""
 
     def __init__(self, extra_runs: ExtraRuns, log: ProbeLog | None, original: Candidate, max_runs: int,
-                 write: Callable[[dict[str, Any]], None]) -> None:
+                 write: Callable[[events.Event], None]) -> None:
         self.extra_runs = extra_runs
         self.log = log
         self.original = original
@@ -75,14 +75,10 @@ class RateChecker:
             if comparison.decision != "continue":
                 break
         if comparison is not None:
-            self.write({
-                "event": "rate-check",
-                "candidate": list(world),
-                "original": [comparison.original.fails, comparison.original.runs],
-                "reduced": [comparison.reduced.fails, comparison.reduced.runs],
-                "p_value": comparison.p_value,
-                "decision": comparison.decision,
-            })
+            self.write(events.RateCheck(
+                candidate=tuple(world), original=(comparison.original.fails, comparison.original.runs),
+                reduced=(comparison.reduced.fails, comparison.reduced.runs), p_value=comparison.p_value,
+                decision=comparison.decision))
         return comparison
 
     def _logged(self, world: Candidate) -> dict[int, Outcome]:

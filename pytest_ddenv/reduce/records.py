@@ -1,11 +1,9 @@
-"""What a record read back from a file must be: JSON nested within a bound, and, for a run-log record, the
-fields its readers use of the types its writer gives them.
+"""What a file read back must be: a regular file, and JSON nested within a bound.
 
 A file that pytest-ddenv wrote and reads again (`runs.jsonl`, `summary.json`, a `ddenv run --record` file)
 may have been damaged or edited since. `json_value` refuses text nested deeper than `MAX_JSON_NESTING` before
-parsing it (the parser would recurse once per level), and `record_problem` says why a run-log record cannot be
-used (a field of the wrong type), so that the log's readers can ignore it as a damaged line, with a note,
-instead of failing in the middle of a reduction.
+parsing it (the parser would recurse once per level); what a run-log record must hold besides is
+`events.decode`'s business.
 """
 
 from __future__ import annotations
@@ -13,11 +11,9 @@ from __future__ import annotations
 import errno
 import itertools
 import json
-import math
 import os
 import re
 import stat
-from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -55,65 +51,3 @@ def json_value(text: str, limit: int = MAX_JSON_NESTING) -> Any:
         if depth > limit:
             raise ValueError(f"lists and objects nested more than {limit} deep")
     return json.loads(text)
-
-
-def _integer(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
-
-
-def _number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _names(value: Any) -> bool:
-    return isinstance(value, list) and all(isinstance(item, str) for item in value)
-
-
-def _point(value: Any) -> bool:
-    return isinstance(value, list) and len(value) == 5 and all(_number(item) for item in value)
-
-
-OUTCOMES = ("fail", "other", "pass", "error")
-_KINDS: Mapping[str, tuple[str, Callable[[Any], bool]]] = {
-    "names": ("a list of model names", _names),
-    "count": ("an integer >= 0", _integer),
-    "seed": ("an integer >= 0 or null", lambda value: value is None or _integer(value)),
-    "outcome": (f"one of {', '.join(OUTCOMES)}", lambda value: value in OUTCOMES),
-    "text": ("a string", lambda value: isinstance(value, str)),
-    "flag": ("true or false", lambda value: isinstance(value, bool)),
-    "number": ("a finite number", _number),
-    "points": ("a list of [distance, time, x, y, yaw]", lambda value: isinstance(value, list)
-               and all(_point(item) for item in value)),
-    "signature": ("an object or null", lambda value: value is None or isinstance(value, dict)),
-}
-_VERDICT = {"candidate": "names!", "reproduces": "flag!", "fails": "count!", "runs": "count!", "errored": "flag"}
-_RATE = {"candidate": "names!", "fails": "count!", "runs": "count!"}
-EVENTS: Mapping[str, Mapping[str, str]] = {
-    "probe": {"candidate": "names!", "attempt": "count!", "outcome": "outcome!", "purpose": "text", "seed": "seed",
-              "signature": "signature"},
-    "accept": _VERDICT, "reject": _VERDICT, "errored": _VERDICT, "cache-hit": _VERDICT, "rate-below": _VERDICT,
-    "calibration": {"fails": "count!", "runs": "count!"},
-    "failure-rate": _RATE, "precondition-check": _RATE,
-    "step": {"candidate": "names"}, "back-off": {"candidate": "names"}, "skip": {"candidate": "names"},
-    "start": {"elements": "names", "keep": "names"},
-    "usage": {"simulations": "count", "cpu_seconds": "number", "final": "flag"},
-    "path": {"points": "points!", "failure_time": "number!"},
-}
-"""The fields of each event that its readers use, of the kind in `_KINDS` ("!": the record must have it)."""
-
-
-def record_problem(record: Mapping[str, Any]) -> str | None:
-    """Why a run-log record cannot be used (a field its readers need missing, or of the wrong type), or None."""
-    event = record.get("event")
-    if not isinstance(event, str):
-        return "no 'event' name"
-    fields = {"stage": "text", **EVENTS.get(event, {})}
-    for name, kind in fields.items():
-        if name not in record:
-            if kind.endswith("!"):
-                return f"a {event!r} record without '{name}'"
-            continue
-        what, valid = _KINDS[kind.rstrip("!")]
-        if not valid(record[name]):
-            return f"'{name}' of a {event!r} record is not {what}"
-    return None

@@ -190,8 +190,8 @@ def _simplify(context: StageContext, simulating: Sequence[str], models: Reductio
         reference = (reference[0] + fails, reference[1] + runs)
         outcome.minimal_rate = reference
         shown = failing or shown
-    touched = structure.touched_at_failure(context.log.own_records(), base.names) | structure.touched_at_failure(
-        context.log.view("rates").own_records(), ["minimal world"])
+    touched = structure.touched_at_failure(context.log.probes(), base.names) | structure.touched_at_failure(
+        context.log.view("rates").probes(), ["minimal world"])
     for number, stage in enumerate(simulating):
         decisions = budget.decisions
         left = budget.left()

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from pytest_ddenv.execution import ProbeDeadline
 from pytest_ddenv.outcome import Outcome
-from pytest_ddenv.reduce import Observation, ProbeLog, Reduction, reduce
+from pytest_ddenv.reduce import Observation, ProbeLog, Reduction, events, reduce
 from pytest_ddenv.reduce.deflake import ConfirmedRuns, DeflakePolicy
 from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
 from pytest_ddenv.scenario.probe import (
@@ -137,18 +137,18 @@ class StageContext:
             except ProbeDeadline:  # the time budget ran out: undecided, like the probe budget
                 return Decided(None, _count(outcomes, passes), len(outcomes))
             except Exception as error:  # noqa: BLE001 - the pool could not run it: no verdict
-                view.write({"event": "probe", "purpose": "reduce", "candidate": [label], "attempt": attempt,
-                            "outcome": "error", "detail": f"{type(error).__name__}: {error}"[:300]})
+                view.write(events.Probe(candidate=(label,), attempt=attempt, outcome=Outcome.ERROR.value,
+                                        detail=f"{type(error).__name__}: {error}"[:300]))
                 return Decided(None, _count(outcomes, passes), len(outcomes), error=str(error))
             outcome = classify_result(last.error, self.reference, self.rule)
             record = signature_record(last.error)
             signature = None if record is None else dict(record)
-            view.write({"event": "probe", "purpose": "reduce", "kind": "decide", "candidate": [label], "size": 1,
-                        "attempt": attempt, "seed": None if last.run is None else int(last.run.seed),
-                        "outcome": outcome.value, "signature": signature,
-                        "detail": "" if last.error is None or outcome is Outcome.FAIL else last.error.describe()[:2000],
-                        "sim_time": 0.0 if last.run is None else float(last.run.sim_time),
-                        "wall_time": 0.0 if last.run is None else float(last.run.wall_time)})
+            view.write(events.Probe(
+                kind="decide", candidate=(label,), size=1, attempt=attempt,
+                seed=None if last.run is None else int(last.run.seed), outcome=outcome.value, signature=signature,
+                sim_time=0.0 if last.run is None else float(last.run.sim_time),
+                wall_time=0.0 if last.run is None else float(last.run.wall_time),
+                detail="" if last.error is None or outcome is Outcome.FAIL else last.error.describe()[:2000]))
             if outcome is Outcome.ERROR:
                 return Decided(None, _count(outcomes, passes), len(outcomes),
                                error=last.error.describe() if last.error is not None else "error")
@@ -156,8 +156,8 @@ class StageContext:
             logged.append((outcome, signature))
         fails = _count(outcomes, passes)
         self.budget.decisions += 1
-        view.write({"event": "accept" if verdict else "reject", "candidate": [label], "reproduces": verdict,
-                    "fails": fails, "runs": len(outcomes)})
+        view.write((events.Accept if verdict else events.Reject)(candidate=(label,), reproduces=verdict, fails=fails,
+                                                                 runs=len(outcomes)))
         return Decided(verdict, fails, len(outcomes), signatures=[entry[1] for entry in logged],
                        run=None if last is None else last.run)
 
@@ -183,11 +183,11 @@ class StageContext:
                     errors += 1
                     continue
                 outcome = classify_result(result.error, self.reference, self.rule)
-                view.write({"event": "probe", "purpose": "failure-rate", "candidate": [label], "size": 1,
-                            "attempt": attempt, "outcome": outcome.value,
-                            "signature": signature_record(result.error),
-                            "sim_time": 0.0 if result.run is None else float(result.run.sim_time),
-                            "wall_time": 0.0 if result.run is None else float(result.run.wall_time)})
+                view.write(events.Probe(
+                    purpose="failure-rate", candidate=(label,), size=1, attempt=attempt, outcome=outcome.value,
+                    signature=signature_record(result.error),
+                    sim_time=0.0 if result.run is None else float(result.run.sim_time),
+                    wall_time=0.0 if result.run is None else float(result.run.wall_time)))
             if outcome is Outcome.ERROR:
                 errors += 1
                 continue
@@ -212,9 +212,9 @@ class Decided:
 def _logged(view: ProbeLog, label: str) -> list[tuple[Outcome, dict[str, object] | None]]:
     """Outcomes and signatures of attempts 0, 1, ... of `label` already in the stage's log (no ERROR)."""
     by_attempt: dict[int, tuple[Outcome, dict[str, object] | None]] = {}
-    for record in view.own_records():
-        if record.get("event") == "probe" and record.get("candidate") == [label] and record.get("outcome") != "error":
-            by_attempt[int(record["attempt"])] = (Outcome(record["outcome"]), record.get("signature"))
+    for probe in view.probes():
+        if probe.candidate == (label,) and probe.result is not Outcome.ERROR:
+            by_attempt[probe.attempt] = (probe.result, None if probe.signature is None else dict(probe.signature))
     found: list[tuple[Outcome, dict[str, object] | None]] = []
     while len(found) in by_attempt:
         found.append(by_attempt[len(found)])

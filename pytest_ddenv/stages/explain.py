@@ -13,25 +13,24 @@ from collections import Counter
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from pytest_ddenv.reduce import ProbeLog, Reduction
+from pytest_ddenv.outcome import Outcome
+from pytest_ddenv.reduce import ProbeLog, Reduction, events
 from pytest_ddenv.stages.context import StageContext
 from pytest_ddenv.stages.result import StageResult
 
 STAGE = "explain"
 
 
-def _summary(records: Iterable[Mapping[str, Any]]) -> dict[str, Any] | None:
-    """Counts of the outcomes of the probe records given, and the other failures seen (None: no runs)."""
+def _summary(probes: Iterable[events.Probe]) -> dict[str, Any] | None:
+    """Counts of the outcomes of the probes given, and the other failures seen (None: no runs)."""
     outcomes: Counter[str] = Counter()
     others: Counter[str] = Counter()
-    for record in records:
-        outcome = str(record.get("outcome"))
-        if outcome == "error":
+    for probe in probes:
+        if probe.result is Outcome.ERROR:
             continue
-        outcomes[outcome] += 1
-        signature = record.get("signature")
-        if outcome == "other" and isinstance(signature, Mapping):
-            others[_failure_text(signature)] += 1
+        outcomes[probe.outcome] += 1
+        if probe.result is Outcome.OTHER and probe.signature is not None:
+            others[_failure_text(probe.signature)] += 1
     if not outcomes:
         return None
     return {"pass": outcomes["pass"], "same": outcomes["fail"], "other": outcomes["other"],
@@ -66,13 +65,11 @@ def describe(counts: Mapping[str, Any]) -> str:
 def logged_without(log: ProbeLog, world_names: Iterable[str], element: str) -> dict[str, Any] | None:
     """What the log's own stage saw for the world `world_names` without `element` (None: never run)."""
     key = frozenset(world_names) - {element}
-    counts = _summary(record for record in log.own_records()
-                      if record.get("event") == "probe" and record.get("purpose", "reduce") == "reduce"
-                      and frozenset(record.get("candidate", ())) == key)
-    for record in log.own_records():
-        if record.get("event") == "rate-below" and frozenset(record.get("candidate", ())) == key:
+    counts = _summary(probe for probe in log.probes("reduce") if frozenset(probe.candidate) == key)
+    for event in log.own_events():
+        if isinstance(event, events.RateBelow) and frozenset(event.candidate) == key:
             counts = counts or {"pass": 0, "same": 0, "other": 0, "other_failures": []}
-            counts["rate_below"] = [int(record["fails"]), int(record["runs"])]
+            counts["rate_below"] = [event.fails, event.runs]
     return counts
 
 
@@ -96,9 +93,8 @@ def run(context: StageContext, models: Reduction, shapes: StageResult | None, *,
                 and element not in kept_by:
             decided = context.decide(STAGE, f"without {element}", final.without([element]), stage_begin=begin)
             if decided.runs:
-                counts = _summary(record for record in context.log.view(STAGE).own_records()
-                                  if record.get("event") == "probe"
-                                  and record.get("candidate") == [f"without {element}"])
+                counts = _summary(probe for probe in context.log.view(STAGE).probes()
+                                  if probe.candidate == (f"without {element}",))
                 source = "simulated: the final world without it"
         entry: dict[str, Any] = {"element": element, "kind": kind, "source": source if counts else "not run"}
         if counts is not None:

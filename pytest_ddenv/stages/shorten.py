@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pytest_ddenv.reduce import events
 from pytest_ddenv.stages import runs_kept
 from pytest_ddenv.stages.attributes import ANGLES, LENGTHS
 from pytest_ddenv.stages.context import StageContext
@@ -86,17 +87,17 @@ def path_points(context: StageContext, trajectory: Run | None) -> tuple[list[Poi
     """The start points and the failure time: from the stage's log when it has them (a resumed reduction
     uses the same path whatever run it has now), else from `trajectory` (then logged)."""
     view = context.log.view(STAGE)
-    for record in view.own_records():
-        if record.get("event") == "path":
-            return [Point(*point) for point in record["points"]], float(record["failure_time"])
+    for event in view.own_events():
+        if isinstance(event, events.FailurePath):
+            return [Point(*point) for point in event.points], event.failure_time
     if trajectory is None or len(trajectory.times) < 2:
         return None
     failure_time = float(trajectory.failure.time) if trajectory.failure is not None else float(trajectory.times[-1])
     clearance = float(trajectory.footprint[0])  # a start closer than a robot length is where it got stuck
     points = [Point(distance, float(trajectory.times[index]), *(float(trajectory.poses[index][k]) for k in (0, 1, 5)))
               for distance, index in start_points(trajectory, failure_time) if distance >= clearance or index == 0]
-    view.write({"event": "path", "failure_time": failure_time,
-                "points": [[p.distance, p.time, p.x, p.y, p.yaw] for p in points]})
+    view.write(events.FailurePath(failure_time=failure_time,
+                                  points=tuple((p.distance, p.time, p.x, p.y, p.yaw) for p in points)))
     return points, failure_time
 
 
@@ -147,7 +148,7 @@ def run(context: StageContext) -> StageResult:
 
 
 def _logged_path(context: StageContext) -> bool:
-    return any(record.get("event") == "path" for record in context.log.view(STAGE).own_records())
+    return any(isinstance(event, events.FailurePath) for event in context.log.view(STAGE).own_events())
 
 
 def _failing_run(context: StageContext, begin: int) -> Run | None:

@@ -26,7 +26,7 @@ import numpy as np
 import shapely
 
 from pytest_ddenv.outcome import Outcome
-from pytest_ddenv.reduce import Observation
+from pytest_ddenv.reduce import Observation, events
 from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
 from pytest_ddenv.world.files import resolve_mesh_path
 from pytest_ddenv.world.geometry import FloatArray, box_corners, cylinder_extent_points
@@ -163,19 +163,14 @@ def keeps_structure(base: World, build: Callable[[Candidate], World], robot_widt
     return precondition
 
 
-def touched_at_failure(records: Iterable[Mapping[str, Any]], names: Collection[str]) -> frozenset[str]:
-    """The models the robot touched when `names` (a world's models) failed the same way, by its probe
-    records in a run log."""
+def touched_at_failure(probes: Iterable[events.Probe], names: Collection[str]) -> frozenset[str]:
+    """The models the robot touched when `names` (a world's models) failed the same way, by its probes in a
+    run log."""
     key = frozenset(names)
     touched: set[str] = set()
-    for record in records:
-        if record.get("event") != "probe" or record.get("outcome") != Outcome.FAIL.value:
-            continue
-        if frozenset(record.get("candidate", ())) != key:
-            continue
-        signature = record.get("signature")
-        if isinstance(signature, Mapping):
-            touched.update(str(name) for name in signature.get("touched", ()))
+    for probe in probes:
+        if probe.result is Outcome.FAIL and frozenset(probe.candidate) == key and probe.signature is not None:
+            touched.update(str(name) for name in probe.signature.get("touched", ()))
     return frozenset(touched)
 
 

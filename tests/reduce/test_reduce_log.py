@@ -14,6 +14,7 @@ from pytest_ddenv.reduce import (
     Outcome,
     ProbeLog,
     ReductionInterrupted,
+    events,
     reduce,
 )
 
@@ -132,18 +133,18 @@ def test_a_line_cut_short_by_a_crash_is_cut_off_and_said(tmp_path: Path) -> None
     assert len(log.records) == len(text.splitlines())
     assert path.read_text() == text, "the fragment is cut off, not appended to"
     assert "last line was incomplete (24 bytes" in log.notes[0]
-    log.write({"event": "note"})
+    log.write(events.Session(pid=1, time="now"))
     log.close()
-    assert ProbeLog.load(path).records[-1] == {"event": "note"} and ProbeLog.load(path).notes == []
+    assert ProbeLog.load(path).events[-1] == events.Session(pid=1, time="now") and ProbeLog.load(path).notes == []
     again = reduce(names(8), SetOracle(frozenset({"m0001"})), log=path, deflake=0)
     assert again.notes == () and again.probes > 0
 
 
 def test_a_damaged_line_inside_the_log_is_ignored_and_said(tmp_path: Path) -> None:
     path = tmp_path / "runs.jsonl"
-    path.write_text('{"event": "start"}\nnot json\n[1, 2]\n{"event": "end"}\n')
+    path.write_text('{"event": "start"}\nnot json\n[1, 2]\n{"event": "step", "candidate": ["a"]}\n')
     log = ProbeLog.load(path)
-    assert [record["event"] for record in log.records] == ["start", "end"]
+    assert log.events == [events.Start(), events.Step(candidate=("a",))]
     expected = ("runs.jsonl: line(s) 2, 3 are not records (damaged; line 2: not a JSON object (or nested too deep)) "
                 "and were ignored; the candidates they decided are decided again")
     assert log.notes == [expected]
@@ -167,7 +168,7 @@ def test_every_line_is_fsynced(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
     monkeypatch.setattr(os, "fsync", lambda fd: (synced.append(fd), real_fsync(fd))[1])
     log = ProbeLog(tmp_path / "runs.jsonl")
     for index in range(3):
-        log.write({"event": "probe", "attempt": index})
+        log.write(events.Probe(candidate=("a",), attempt=index, outcome="pass"))
     log.close()
     assert len(synced) >= 3
 
@@ -179,7 +180,8 @@ def test_a_write_that_fails_leaves_complete_lines_only(tmp_path: Path, monkeypat
 
     path = tmp_path / "runs.jsonl"
     log = ProbeLog(path)
-    log.write({"event": "start"})
+    log.write(events.Start())
+    written = path.read_text()
     real_write = os.write
 
     def half_then_full(fd: int, data: bytes) -> int:
@@ -191,10 +193,10 @@ def test_a_write_that_fails_leaves_complete_lines_only(tmp_path: Path, monkeypat
     monkeypatch.setattr(os, "write", half_then_full)
     with pytest.raises(ReductionError, match=r"cannot write .*runs.jsonl: No space left on device \(ENOSPC\)\. "
                                              r"Every record written before is intact.*resumes from the log"):
-        log.write({"event": "probe", "candidate": ["a"]})
+        log.write(events.Probe(candidate=("a",), attempt=0, outcome="fail"))
     monkeypatch.undo()
     log.close()
-    assert path.read_text() == '{"event": "start"}\n'
+    assert path.read_text() == written
     assert [record["event"] for record in ProbeLog.load(path).records] == ["start"]
 
 

@@ -17,7 +17,8 @@ from pytest_ddenv.cli import main as cli
 from pytest_ddenv.driver.artifacts import ArtifactsError, FolderLock
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import Observation, Outcome, ProbeLog, reduce
-from pytest_ddenv.reduce.records import MAX_JSON_NESTING, json_value, record_problem
+from pytest_ddenv.reduce import events
+from pytest_ddenv.reduce.records import MAX_JSON_NESTING, json_value
 
 from .test_bad_input import YARD
 
@@ -62,10 +63,11 @@ def test_json_read_back_is_bounded_in_nesting_before_it_is_parsed() -> None:
     ({"event": "usage", "simulations": "x"}, "'simulations'"),
     ({"event": "path", "points": [[1, 2]], "failure_time": 1.0}, "'points'"),
     ({"event": 5}, "no 'event' name"),
+    ({"event": "note"}, "an unknown event 'note'"),
 ])
 def test_a_record_of_the_wrong_types_is_named(record: dict, problem: str) -> None:
-    found = record_problem(record)
-    assert found is not None and problem in found, found
+    found = events.from_json(record)
+    assert isinstance(found, events.Unreadable) and problem in found.problem, found
 
 
 def test_a_log_with_deep_and_mistyped_records_is_read_with_a_note(tmp_path: Path) -> None:
