@@ -52,6 +52,23 @@ class DdenvOptions:
         return marker if marker is not None else self.stages_ini
 
 
+_options_key = pytest.StashKey[DdenvOptions]()
+
+
+def stash_options(config: pytest.Config, options: DdenvOptions) -> DdenvOptions:
+    """Keep the session's checked settings in its config's stash (`pytest_configure`)."""
+    config.stash[_options_key] = options
+    return options
+
+
+def options_of(config: pytest.Config) -> DdenvOptions:
+    """The session's checked settings (read once, in `pytest_configure`)."""
+    options = config.stash.get(_options_key, None)
+    if options is None:  # a config that did not go through pytest_configure (unusual): read them now
+        options = stash_options(config, read_options(config))
+    return options
+
+
 def add_options(parser: pytest.Parser) -> None:
     """The `--ddenv-*` options and their ini twins (`ddenv_*`), as `driver/settings.py` declares them."""
     group = parser.getgroup("ddenv", "robot world reduction (pytest-ddenv)")
