@@ -95,7 +95,7 @@ def _type(kind: Check, where: str) -> Callable[[str], Any]:
 def _resolved_media(given: str | None) -> str:
     """--media, else $DDENV_MEDIA, else all."""
     try:
-        return SETTING["media"].check(given, "--media")  # type: ignore[no-any-return]
+        return str(SETTING["media"].check(given, "--media"))
     except SettingError as error:
         raise UsageError(str(error)) from None
 

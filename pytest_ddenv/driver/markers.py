@@ -92,7 +92,7 @@ def parse_same_failure(value: Any, where: str) -> str:
     """A same-failure match: "all", "place", "touched", or a module-level function `same_failure(reference,
     signature) -> bool` (held as "module:qualname", so that `ddenv replay` can import it)."""
     try:
-        return SETTING["same_failure"].check(value, where)  # type: ignore[no-any-return]
+        return str(SETTING["same_failure"].check(value, where))
     except SettingError as error:
         raise MarkerError(str(error)) from None
 

@@ -43,13 +43,14 @@ def pytest_configure(config: pytest.Config) -> None:
     for line in MARKERS:
         config.addinivalue_line("markers", line)
     options = stash_options(config, read_options(config))
-    if options.reduce:
+    from pytest_ddenv.pytest_plugin.worker import WORKER
+
+    worker = config.stash.get(WORKER, False)  # a probe worker's session runs the test, and reduces nothing
+    if options.reduce and not worker:
         from pytest_ddenv.pytest_plugin.reduction import ReductionPlugin
 
         config.pluginmanager.register(ReductionPlugin(config), "ddenv-reduction")
-    from pytest_ddenv.pytest_plugin.worker import WORKER
-
-    if options.world and not config.stash.get(WORKER, False):  # a @given test runs once on that world (replay)
+    if options.world and not worker:  # a @given test runs once on that world (replay)
         from pytest_ddenv.pytest_plugin.given_example import GivenReplay
 
         config.pluginmanager.register(GivenReplay(options.world), "ddenv-given-replay")
