@@ -80,14 +80,13 @@ def _recording_given_calls(item: pytest.Function) -> contextlib.AbstractContextM
     """For a `@given` test that may be reduced: record its calls, to find the falsifying example."""
     from pytest_ddenv.pytest_plugin.given_example import inner_test, recording_calls
 
-    if not options_of(item.config).reduce or FIXTURE not in item.fixturenames or inner_test(item) is None:
+    if FIXTURE not in item.fixturenames or inner_test(item) is None:
         return contextlib.nullcontext([])
     return recording_calls(item)
 
 
 def _should_reduce(item: pytest.Function, error: BaseException) -> bool:
-    config = item.config
-    if not options_of(config).reduce or config.getoption("usepdb", False):
+    if item.config.getoption("usepdb", False):
         return False
     if FIXTURE not in item.fixturenames or item.get_closest_marker("xfail") is not None:
         return False
