@@ -12,7 +12,7 @@ import pytest
 
 from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.errors import DdenvError, shown
-from pytest_ddenv.pytest_plugin.options import options_of
+from pytest_ddenv.pytest_plugin.options import expand_home, options_of
 from pytest_ddenv.validation import expected
 from pytest_ddenv.world.files import is_file, regular_file_problem
 
@@ -23,8 +23,6 @@ if TYPE_CHECKING:
 
 def _world_path(item: pytest.Item, raw: str | os.PathLike[str]) -> Path:
     """A world path as given: absolute, else relative to the test file, else to the rootdir."""
-    from pytest_ddenv.pytest_plugin.options import expand_home
-
     path = expand_home(str(raw), "world")
     if path.is_absolute():
         return path
