@@ -60,3 +60,31 @@ def expected(what: str, value: object, where: str = "", *, got: str | None = Non
     """
     message = f"expected {what}, got {shown(value) if got is None else got}"
     return f"{where}: {message}" if where else message
+
+
+def at_least(value: Any, minimum: int, *, text: bool = False) -> int | None:
+    """`value` as an integer >= `minimum`, or None if it is not one (`text`: its digits are read, as an option's
+    or an ini key's value is given)."""
+    if text and isinstance(value, str):
+        try:
+            value = int(value)
+        except ValueError:  # not digits, or more than Python reads (sys.get_int_max_str_digits)
+            return None
+    return value if is_integer(value) and value >= minimum else None
+
+
+def positive_finite(value: Any, *, text: bool = False) -> float | None:
+    """`value` as a positive, finite float, or None if it is not one (NaN, an infinity, 0, a negative number, a
+    word, an integer too large for a float); `text`: read as a number written out."""
+    if text and isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            return None
+    if not is_number(value):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) and number > 0 else None

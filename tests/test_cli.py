@@ -102,7 +102,7 @@ def test_version_help_and_no_command(capsys: pytest.CaptureFixture[str]) -> None
         (["frobnicate"], "invalid choice"),
         (["run"], "the following arguments are required: world"),
         (["run", "w.yaml", "--seed", "-1"], "expected an integer >= 0"),
-        (["run", "w.yaml", "--timeout", "0"], "expected a number > 0"),
+        (["run", "w.yaml", "--timeout", "0"], "expected a positive, finite number, got '0'"),
         (["reduce", "w.yaml"], "--predicate"),
         (["reduce", "w.yaml", "-p", "stuck", "--partition", "nope"], "invalid choice: 'nope'"),
     ],

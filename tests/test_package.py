@@ -31,7 +31,7 @@ def test_pytest_header_lists_the_plugin(pytester: pytest.Pytester) -> None:
 
 def test_pytest_header_says_how_to_reproduce_the_reductions(pytester: pytest.Pytester) -> None:
     pytester.makepyfile("def test_ok():\n    pass\n")
-    off = pytester.runpytest_subprocess()
+    off = pytester.runpytest_subprocess("-v")  # without -v, no line: tests/plugin/test_plugin_inactive.py
     off.stdout.fnmatch_lines(["ddenv: reduction off (--ddenv-reduce to reduce failing robot tests), seed per marker*"])
     on = pytester.runpytest_subprocess("--ddenv-reduce", "--ddenv-seed", "7", "--ddenv-workers", "2",
                                        "--ddenv-media", "none")

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import re
 import shlex
@@ -24,6 +23,7 @@ from pytest_ddenv import defaults
 from pytest_ddenv._version import __version__
 from pytest_ddenv.cli.output import appended, check_matplotlib_backend, check_output, check_record
 from pytest_ddenv.cli.world_options import (
+    WORLD_SETTINGS,
     UsageError,
     add_scenario_options,
     add_world_options,
@@ -34,6 +34,19 @@ from pytest_ddenv.cli.world_options import (
     with_scenario,
 )
 from pytest_ddenv.driver.progress import ProgressLine
+from pytest_ddenv.driver.settings import (
+    SETTING,
+    Check,
+    Setting,
+    SettingError,
+    flag,
+    flag_settings,
+    integer,
+    names,
+    positive,
+    same_failure,
+    watchdog,
+)
 from pytest_ddenv.driver.user_code import UserCodeExit, is_exit
 from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.oracle.predicates import PredicateSpec, check_predicate_models
@@ -67,92 +80,41 @@ class _Parser(argparse.ArgumentParser):
 
 
 # -- argument types -------------------------------------------------------------------------------------
-def _non_negative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {shown(text)}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {shown(text)}")
-    return value
+def _type(kind: Check, where: str) -> Callable[[str], Any]:
+    """An argparse `type` that checks a flag's text as `kind` (argparse names the flag in its message)."""
 
+    def check(text: str) -> Any:
+        try:
+            return kind(text, where, True)
+        except SettingError as error:
+            raise argparse.ArgumentTypeError(str(error).removeprefix(f"{where}: ")) from None
 
-def _positive_int(text: str) -> int:
-    value = _non_negative_int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {shown(text)}")
-    return value
-
-
-def _at_least_two(text: str) -> int:
-    value = _non_negative_int(text)
-    if value < 2:  # as reduce() and the marker: a first split into one part splits nothing
-        raise argparse.ArgumentTypeError(f"expected an integer >= 2, got {shown(text)}")
-    return value
-
-
-def _media(text: str) -> str:
-    from pytest_ddenv.media.writer import MediaChoiceError, media_choice
-
-    try:
-        return media_choice(text, "--media")
-    except MediaChoiceError as error:
-        raise argparse.ArgumentTypeError(str(error).removeprefix("--media: ")) from None
+    return check
 
 
 def _resolved_media(given: str | None) -> str:
     """--media, else $DDENV_MEDIA, else all."""
-    from pytest_ddenv.media.writer import MediaChoiceError, media_choice
-
     try:
-        return media_choice(given, "--media")
-    except MediaChoiceError as error:
+        return str(SETTING["media"].check(given, "--media"))
+    except SettingError as error:
         raise UsageError(str(error)) from None
 
 
-def _workers(text: str) -> int | str:
-    if text == "auto":
-        return text
-    return _positive_int(text)
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {shown(text)}") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {shown(text)}")
-    return value
-
-
-def _stages(text: str) -> tuple[str, ...]:
-    from pytest_ddenv.driver.markers import MarkerError, parse_stage_list
-
-    try:
-        return parse_stage_list(text, "--stages")
-    except MarkerError as error:
-        raise argparse.ArgumentTypeError(str(error).removeprefix("--stages: ")) from None
-
-
-def _probe_timeout(text: str) -> float | str:
-    """--probe-timeout: seconds, 'auto' or 'none'."""
-    if text.strip().lower() in ("auto", "none"):
-        return text.strip().lower()
-    try:
-        return _positive_float(text)
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, 'auto' or 'none', got {shown(text)}") \
-            from None
-
-
-def _executor(text: str) -> str:
-    from pytest_ddenv.execution.factory import executor_problem
-
-    problem = executor_problem(text)
-    if problem is not None:
-        raise argparse.ArgumentTypeError(problem)
-    return text
+def add_setting_flags(parser: argparse.ArgumentParser, settings: Sequence[Setting]) -> None:
+    """The flags of `settings` (`driver/settings.py`), each with its declared help, default and check."""
+    for setting in settings:
+        options: dict[str, Any] = {"dest": setting.name, "default": setting.default, "help": setting.help}
+        if setting.kind is flag:
+            options["action"] = "store_true"
+        elif setting.kind is names:
+            options.update(action="append", default=[], metavar=setting.metavar)
+        elif setting.choices is not None:
+            options["choices"] = setting.choices()
+        elif setting.kind is same_failure:  # MODULE:FUNCTION is loaded once the --import modules are
+            options["metavar"] = setting.metavar
+        else:
+            options.update(type=_type(setting.kind, setting.flag_name), metavar=setting.metavar)
+        parser.add_argument(setting.flag_name, **options)
 
 
 def parse_predicate(text: str) -> PredicateSpec:
@@ -268,11 +230,13 @@ def _add_user_code_options(parser: argparse.ArgumentParser, *, controller: bool 
 def _add_run(commands: Any, common: argparse.ArgumentParser) -> None:
     run = commands.add_parser("run", parents=[common], help="simulate a world's scenario once and picture it")
     run.add_argument("world", help="world file (.yaml, .sdf)")
-    run.add_argument("--seed", type=_non_negative_int, default=0, help="seed of the run's noise (default 0)")
+    run.add_argument("--seed", type=_type(integer(0), "--seed"), default=0, help="seed of the run's noise (default 0)")
     _add_predicate_option(run, required=False)
     _add_user_code_options(run)
-    run.add_argument("--timeout", type=_positive_float, help="simulated seconds (default: the world's scenario)")
-    run.add_argument("--run-timeout", type=_positive_float, default=DEFAULT_RUN_TIMEOUT, metavar="SECONDS",
+    run.add_argument("--timeout", type=_type(positive(), "--timeout"),
+                     help="simulated seconds (default: the world's scenario)")
+    run.add_argument("--run-timeout", type=_type(positive(" of seconds"), "--run-timeout"),
+                     default=DEFAULT_RUN_TIMEOUT, metavar="SECONDS",
                      help="wall-clock seconds the run may take before it fails with ControllerTimeout (default "
                           f"{DEFAULT_RUN_TIMEOUT:g}): bounds a controller that is too slow")
     add_scenario_options(run)
@@ -295,69 +259,26 @@ def _add_show(commands: Any, common: argparse.ArgumentParser) -> None:
 
 
 def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
-    from pytest_ddenv.reduce import (
-        GRANULARITIES,
-        PARTITIONS,
-        PRIORITIES,
-        PRIORITY_ALIASES,
-    )
-    from pytest_ddenv.reduce.partition import PARTITION_ALIASES
-
     reduce = commands.add_parser("reduce", parents=[common],
                                  help="reduce a failing world to the models the failure needs")
     reduce.add_argument("world", help="world file (.yaml, .sdf)")
     _add_predicate_option(reduce, required=True)
     _add_user_code_options(reduce)
-    reduce.add_argument("--partition", default=defaults.PARTITION, choices=[*PARTITIONS, *PARTITION_ALIASES],
-                        help="partition schema (default model2model)")
-    reduce.add_argument("--priority", default=defaults.PRIORITY, choices=[*PRIORITIES, *PRIORITY_ALIASES],
-                        help="priority schema (default avg-trajectory-proximal)")
-    reduce.add_argument("--granularity", default=defaults.GRANULARITY, choices=GRANULARITIES, help="default ddmin")
-    reduce.add_argument("--n-partitions", type=_at_least_two, default=defaults.N_PARTITIONS, metavar="N",
-                        help="first split (default 2)")
-    reduce.add_argument("--deflake", default=defaults.DEFLAKE, metavar="N|adaptive|auto",
-                        help="re-runs of a candidate that does not fail, 'adaptive', or 'auto' (the default: a rule "
-                             "calibrated on the original world's failure rate)")
-    reduce.add_argument("--tolerance", type=_positive_float, default=defaults.TOLERANCE, metavar="M",
-                        help="same failure: failure position within this many metres (default 0.5)")
-    reduce.add_argument("--same-failure", default=defaults.SAME_FAILURE, metavar="RULE",
-                        help="which failures are the one reduced: 'all' (the default: same predicate, within the "
-                             "tolerance, touching one of the models it touched), 'place' (touched models ignored), "
-                             "'touched' (place ignored) or MODULE:FUNCTION, a function same_failure(reference, "
-                             "signature) -> bool")
-    reduce.add_argument("--keep", action="append", default=[], metavar="MODEL", help="never remove this model")
-    reduce.add_argument("--seed", type=_non_negative_int, default=defaults.SEED,
-                        help="seed of the runs and the schemas")
-    reduce.add_argument("--timeout", type=_positive_float, help="simulated seconds per run (default: the world's)")
+    reduce.add_argument("--timeout", type=_type(positive(), "--timeout"),
+                        help="simulated seconds per run (default: the world's)")
     add_scenario_options(reduce)
     add_world_options(reduce)
-    reduce.add_argument("--max-probes", type=_positive_int, metavar="N", help="stop after N simulations")
-    reduce.add_argument("--max-time", type=_positive_float, metavar="S", help="stop after S wall seconds")
-    reduce.add_argument("--stages", type=_stages, default=None, metavar="LIST",
-                        help="what to do after the model-level reduction, comma-separated: models (always), shapes, "
-                             "attributes, time, explain, passing, or 'all' (default: models,explain,passing)")
-    reduce.add_argument("--media", type=_media, default=None, metavar="WHAT",
-                        help="what to show besides the files: 'all' (pictures, original.gif/minimal.gif "
-                             "animations, recording.rrd when rerun-sdk is installed), 'pictures' or 'none' "
-                             "(default: $DDENV_MEDIA, else all)")
-    reduce.add_argument("--stage-probes", type=_positive_int, metavar="N",
-                        help="simulations each stage after the models may start (default: all of them together "
-                             "at most twice the model-level simulations)")
-    reduce.add_argument("--probe-timeout", type=_probe_timeout, metavar="S",
-                        help="wall-clock limit of one probe: S seconds, 'auto' (max(60 s, 10 x the longest of the "
-                             "original run and the slowest probe)) or 'none'; a probe past it is an error, not a "
-                             "verdict (default: $DDENV_PROBE_TIMEOUT, else auto)")
-    reduce.add_argument("--workers", type=_workers, default="auto", metavar="N",
-                        help="probe worker processes: a number, or 'auto' for one per core (the default); 1 "
-                             "simulates in this process")
-    reduce.add_argument("--executor", default=None, metavar="ADDRESS", type=_executor,
-                        help="where probes run: 'local' worker processes (default), 'dask' (a local dask "
-                             "cluster) or tcp://HOST:PORT of a dask scheduler")
-    reduce.add_argument("--keep-other", type=_non_negative_int, default=0, metavar="N",
-                        help="write the smallest worlds of the N most frequent other failures the probes met as "
-                             "other-1.yaml ... other-N.yaml in the artifacts folder (default 0)")
-    reduce.add_argument("--out", metavar="DIR", help="artifacts folder (default ddenv-artifacts/WORLD)")
-    reduce.add_argument("--quiet", "-q", action="store_true", help="no progress on stderr")
+    add_setting_flags(reduce, [setting for setting in flag_settings() if setting.name not in WORLD_SETTINGS])
+    for flags, options in REDUCE_FLAGS.items():
+        reduce.add_argument(*flags, **options)
+
+
+REDUCE_FLAGS: dict[tuple[str, ...], dict[str, Any]] = {
+    ("--out",): {"metavar": "DIR", "help": "artifacts folder (default ddenv-artifacts/WORLD)"},
+    ("--quiet", "-q"): {"action": "store_true", "help": "no progress on stderr"},
+}
+"""The `ddenv reduce` flags of this command alone (besides the world, predicate, user code and scenario ones);
+the reduction's settings are `driver/settings.py`'s."""
 
 
 def _add_replay(commands: Any, common: argparse.ArgumentParser) -> None:
@@ -367,13 +288,14 @@ def _add_replay(commands: Any, common: argparse.ArgumentParser) -> None:
                         help="a folder written by ddenv reduce or pytest --ddenv-reduce")
     _add_predicate_option(replay, required=False)
     _add_user_code_options(replay)
-    replay.add_argument("--runs", type=_positive_int, default=10, metavar="N",
+    replay.add_argument("--runs", type=_type(integer(1), "--runs"), default=10, metavar="N",
                         help="run N fresh seeds, none a reduction probe used (default 10); with --recorded, at "
                              "most N of the seeds the reduction saw fail")
     replay.add_argument("--recorded", action="store_true",
                         help="re-run the seeds on which the reduction saw the minimal world fail (each should "
                              "fail again) instead of fresh ones")
-    replay.add_argument("--tolerance", type=_positive_float, metavar="M", help="default: the recorded one")
+    replay.add_argument("--tolerance", type=_type(positive(), "--tolerance"), metavar="M",
+                        help="default: the recorded one")
     replay.add_argument("--same-failure", metavar="RULE",
                         help="all, place, touched or MODULE:FUNCTION (default: the recorded rule)")
     replay.add_argument("--animate", nargs="?", const="", default=None, metavar="GIF",
@@ -714,10 +636,9 @@ def _read_runs(path: Path) -> tuple[list[Run], list[list[float]], list[str]]:
 
 # -- reduce ------------------------------------------------------------------------------------------------
 def _cmd_reduce(arguments: argparse.Namespace) -> int:
-    from pytest_ddenv.driver.markers import parse_deflake
     from pytest_ddenv.driver.scenario_job import ScenarioJob
     from pytest_ddenv.execution import check_executor, make_pool
-    from pytest_ddenv.reduce import DEFLAKE_POLICIES, PRIORITY_ALIASES
+    from pytest_ddenv.reduce import PRIORITY_ALIASES
 
     arguments.media = _resolved_media(arguments.media)
     if arguments.media != "none":
@@ -727,7 +648,6 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     predicates = _predicates(arguments.predicates)
     _check_predicate_models(predicates, world)
     arguments.same_failure_match = _same_failure(arguments.same_failure)
-    deflake = parse_deflake(arguments.deflake, "--deflake", DEFLAKE_POLICIES)
     keep = _keep(world, arguments.keep)
     priority = PRIORITY_ALIASES.get(arguments.priority, arguments.priority)
     executor = check_executor(arguments.executor)
@@ -745,11 +665,8 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     in_process = job.handler() if executor is None and arguments.workers == 1 else None
     ahead: threading.Thread | None = None
     try:
-        from pytest_ddenv.execution.base import DEFAULT
-
-        chosen = arguments.probe_timeout  # None: not given ($DDENV_PROBE_TIMEOUT, else auto)
-        watchdog = DEFAULT if chosen is None else None if chosen == "none" else chosen
-        with make_pool(job, arguments.workers, executor, in_process=in_process, watchdog=watchdog) as pool:
+        with make_pool(job, arguments.workers, executor, in_process=in_process,
+                       watchdog=watchdog(arguments.probe_timeout)) as pool:
             if in_process is None:  # the workers run the original: the engine's imports meanwhile
                 ahead = import_ahead()
             progress.note(f"simulating the original world ({len(world)} models, seed {arguments.seed}; "
@@ -758,7 +675,7 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
             if original.error is None or original.error.ddenv_error or original.error.phase != "call":
                 return _does_not_fail(arguments, original)
             progress.note(f"it fails: {_failure_text(original)}; reducing")
-            outcome, interrupted = _reduce(arguments, world, original, predicates, deflake, keep, priority, pool,
+            outcome, interrupted = _reduce(arguments, world, original, predicates, keep, priority, pool,
                                            progress)
     finally:
         progress.close()
@@ -820,7 +737,7 @@ def _artifacts_folder(arguments: argparse.Namespace) -> Path:
 
 
 def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicates: Sequence[PredicateSpec],
-            deflake: int | str, keep: tuple[str, ...], priority: str, pool: Any,
+            keep: tuple[str, ...], priority: str, pool: Any,
             progress: ProgressLine) -> tuple[Any, bool]:
     import dataclasses
 
@@ -832,9 +749,9 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
 
     spec = dataclasses.replace(
         ReductionSpec(), partition=arguments.partition, priority=priority, n_partitions=arguments.n_partitions,
-        granularity=arguments.granularity, deflake=deflake, tolerance=arguments.tolerance,
+        granularity=arguments.granularity, deflake=arguments.deflake, tolerance=arguments.tolerance,
         same_failure=arguments.same_failure_match, keep=keep,
-        seed=arguments.seed, max_probes=arguments.max_probes, max_seconds=arguments.max_time,
+        seed=arguments.seed, max_probes=arguments.max_probes, max_seconds=arguments.max_seconds,
         stages=arguments.stages, stage_probes=arguments.stage_probes,
     )
     folder = _artifacts_folder(arguments)
@@ -907,7 +824,7 @@ def _command_line(arguments: argparse.Namespace) -> list[str]:
         words += ["--model-path", folders]
     if arguments.skip_unsupported:
         words.append("--skip-unsupported")
-    words += ["--partition", arguments.partition, "--priority", arguments.priority, "--deflake", arguments.deflake,
+    words += ["--partition", arguments.partition, "--priority", arguments.priority, "--deflake", str(arguments.deflake),
               "--seed", str(arguments.seed)]
     if arguments.keep_other:
         words += ["--keep-other", str(arguments.keep_other)]

@@ -12,6 +12,7 @@ import os
 import sys
 from pathlib import Path
 
+from pytest_ddenv.driver.settings import SETTING
 from pytest_ddenv.errors import DdenvError, shown, shown_path
 from pytest_ddenv.world.files import MISSING, dangling_link, file_kind, resolve_relative
 from pytest_ddenv.world.model import Pose, RobotDescription, Scenario, World
@@ -27,14 +28,17 @@ class UsageError(DdenvError):
     """The command line is wrong: a bad option value, an unknown model, a missing file."""
 
 
+WORLD_SETTINGS = ("model_paths", "skip_unsupported")
+"""The settings (`driver/settings.py`) every command that reads a world takes: --model-path, --skip-unsupported."""
+
+
 def add_world_options(parser: argparse.ArgumentParser) -> None:
-    """--model-path and --skip-unsupported (every command that reads a world)."""
-    parser.add_argument("--model-path", dest="model_paths", action="append", default=[], metavar="DIRS",
-                        help=f"folders searched for SDF <include>s of model://NAME, separated by '{os.pathsep}' "
-                             "(repeatable; before GAZEBO_MODEL_PATH and the other environment variables)")
-    parser.add_argument("--skip-unsupported", action="store_true",
-                        help="drop the SDF models that cannot be simulated (actors, ...) with a note naming each, "
-                             "instead of refusing the world")
+    """--model-path (repeatable, before GAZEBO_MODEL_PATH and the other environment variables) and
+    --skip-unsupported (every command that reads a world)."""
+    model_paths, skip = (SETTING[name] for name in WORLD_SETTINGS)
+    parser.add_argument(model_paths.flag_name, dest=model_paths.name, action="append", default=[],
+                        metavar=model_paths.metavar, help=f"{model_paths.help}; repeatable")
+    parser.add_argument(skip.flag_name, dest=skip.name, action="store_true", help=skip.help)
 
 
 def add_scenario_options(parser: argparse.ArgumentParser) -> None:

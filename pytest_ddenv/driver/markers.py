@@ -7,32 +7,26 @@ error that names the test.
 from __future__ import annotations
 
 import inspect
-import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv import defaults
+from pytest_ddenv.driver.settings import SETTING, SettingError, marker_settings
 from pytest_ddenv.errors import DdenvError, shown
-from pytest_ddenv.validation import expected, is_integer, is_number
 
 if TYPE_CHECKING:
     from pytest_ddenv.oracle.predicates import PredicateSpec
     from pytest_ddenv.oracle.verdict import SameFailureRule
 
-DDENV_KEYWORDS = (
-    "world", "partition", "priority", "n_partitions", "granularity", "deflake", "tolerance", "same_failure", "keep",
-    "seed", "budget", "skip_unsupported", "stages",
-)
-MAX_STAGE_ITEMS = 20
-MAX_STAGE_NAME = 40
-"""Bounds of a list of stages as given (the names are short words): what is beyond is refused unread."""
+DDENV_KEYWORDS = tuple(str(setting.marker) for setting in marker_settings())
+"""The `ddenv(...)` marker's arguments (`driver/settings.py` declares them)."""
 SAME_FAILURE_KEYWORD = "same_failure"
 """The `robot_failure` keyword that sets the predicate's own same-failure rule (not a predicate parameter)."""
 
 
-class MarkerError(DdenvError):
+class MarkerError(SettingError):
     """A marker's arguments are invalid; the message names the marker and the argument."""
 
 
@@ -72,14 +66,7 @@ class ReductionSpec:
 
 
 def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> ReductionSpec:
-    from pytest_ddenv.reduce import (
-        DEFLAKE_POLICIES,
-        PARTITIONS,
-        PRIORITIES,
-        PRIORITY_ALIASES,
-    )
-    from pytest_ddenv.reduce.partition import PARTITION_ALIASES
-
+    """The marker's arguments, each checked as `driver/settings.py` declares it (MarkerError naming it)."""
     if len(args) > 1:
         raise MarkerError("ddenv(...) takes at most one positional argument, the world file")
     values = dict(kwargs)
@@ -90,94 +77,24 @@ def parse_ddenv_marker(args: Sequence[Any], kwargs: Mapping[str, Any]) -> Reduct
     unknown = sorted(set(values) - set(DDENV_KEYWORDS))
     if unknown:
         raise MarkerError(f"ddenv(...): unknown argument '{unknown[0]}'; valid arguments: {', '.join(DDENV_KEYWORDS)}")
-    spec = ReductionSpec()
     updates: dict[str, Any] = {}
-    if "world" in values:
-        updates["world"] = _string(values["world"], "world")
-    if "partition" in values:  # the spellings reduce() and `ddenv reduce --partition` accept
-        given = values["partition"]
-        partition = PARTITION_ALIASES.get(given, given) if isinstance(given, str) else given
-        updates["partition"] = _choice(partition, "partition", PARTITIONS, given=given)
-    if "priority" in values:
-        given = values["priority"]
-        priority = PRIORITY_ALIASES.get(given, given) if isinstance(given, str) else given
-        updates["priority"] = _choice(priority, "priority", PRIORITIES, given=given)
-    if "granularity" in values:
-        updates["granularity"] = _choice(values["granularity"], "granularity", ("ddmin", "paper"))
-    if "n_partitions" in values:
-        updates["n_partitions"] = _integer(values["n_partitions"], "n_partitions", minimum=2)
-    if "deflake" in values:
-        updates["deflake"] = parse_deflake(values["deflake"], "ddenv(deflake=...)", DEFLAKE_POLICIES)
-    if "tolerance" in values:
-        updates["tolerance"] = _positive(values["tolerance"], "tolerance")
-    if "same_failure" in values:
-        updates["same_failure"] = parse_same_failure(values["same_failure"], "ddenv(same_failure=...)")
-    if "keep" in values:
-        keep = values["keep"]
-        if isinstance(keep, str):
-            keep = (keep,)
-        if not isinstance(keep, (list, tuple, set, frozenset)) or not all(isinstance(k, str) for k in keep):
-            raise MarkerError(expected("a list of model names", keep, "ddenv(keep=...)"))
-        updates["keep"] = tuple(keep)
-    if "seed" in values:
-        updates["seed"] = _integer(values["seed"], "seed", minimum=0)
-    if "budget" in values:
-        updates.update(_budget(values["budget"]))
-    if "skip_unsupported" in values:
-        if not isinstance(values["skip_unsupported"], bool):
-            raise MarkerError(expected("True or False", values["skip_unsupported"], "ddenv(skip_unsupported=...)"))
-        updates["skip_unsupported"] = values["skip_unsupported"]
-    if "stages" in values:
-        updates["stages"] = parse_stage_list(values["stages"], "ddenv(stages=...)")
-    return ReductionSpec(**{**spec.__dict__, **updates})
+    for setting in marker_settings():
+        if setting.marker in values:
+            try:
+                value = setting.check(values[setting.marker], f"ddenv({setting.marker}=...)")
+            except SettingError as error:
+                raise MarkerError(str(error)) from None
+            updates.update(value if setting.name == "budget" else {setting.name: value})
+    return replace(ReductionSpec(), **updates)
 
 
 def parse_same_failure(value: Any, where: str) -> str:
     """A same-failure match: "all", "place", "touched", or a module-level function `same_failure(reference,
     signature) -> bool` (held as "module:qualname", so that `ddenv replay` can import it)."""
-    from pytest_ddenv.oracle.verdict import same_failure_match
-
     try:
-        return same_failure_match(value, where)
-    except DdenvError as error:
+        return str(SETTING["same_failure"].check(value, where))
+    except SettingError as error:
         raise MarkerError(str(error)) from None
-
-
-def parse_stage_list(value: Any, where: str) -> tuple[str, ...]:
-    """The stages after the model-level reduction: 'models,shapes,...', a list of names, or 'all'."""
-    from pytest_ddenv.stages import StagesError, parse_stages
-
-    if not isinstance(value, (str, list, tuple)):
-        raise MarkerError(expected("a comma-separated string or a list of stage names", value, where))
-    items = value.split(",") if isinstance(value, str) else list(value)
-    if len(items) > MAX_STAGE_ITEMS or any(not isinstance(item, str) or len(item) > MAX_STAGE_NAME
-                                           for item in items):  # no stage name is long: keep the message short
-        raise MarkerError(expected(f"at most {MAX_STAGE_ITEMS} stage names of at most {MAX_STAGE_NAME} characters "
-                                   "each, comma-separated or in a list", value, where))
-    try:
-        return parse_stages(value)
-    except StagesError as error:
-        raise MarkerError(f"{where}: {error}") from None
-
-
-def parse_deflake(value: Any, where: str, policies: Sequence[str] | None = None) -> int | str:
-    """An integer >= 0 (re-runs of a non-reproducing candidate) or a named policy ('adaptive', 'auto')."""
-    if policies is None:
-        from pytest_ddenv.reduce import DEFLAKE_POLICIES
-
-        policies = DEFLAKE_POLICIES
-    from pytest_ddenv.reduce import deflake as deflake_module
-
-    most: int | None = getattr(deflake_module, "MAX_DEFLAKE", None)
-    if isinstance(value, str) and value in policies:
-        return value
-    given = value
-    if isinstance(value, str) and value.isdigit() and len(value) <= 20:
-        value = int(value)
-    if not is_integer(value) or value < 0 or (most is not None and value > most):
-        bound = "" if most is None else f" and <= {most}"
-        raise MarkerError(expected(f"an integer >= 0{bound} or one of {', '.join(policies)}", given, where))
-    return value
 
 
 def parse_failure_markers(markers: Sequence[tuple[Sequence[Any], Mapping[str, Any]]]) -> tuple[PredicateSpec, ...]:
@@ -263,46 +180,3 @@ def defined_after(lines: Sequence[str], first: int) -> str | None:
         if match:
             return match.group(1)
     return None
-
-
-def _string(value: Any, name: str) -> str:
-    if not isinstance(value, str) or not value:
-        raise MarkerError(expected("a non-empty string", value, f"ddenv({name}=...)"))
-    return value
-
-
-def _choice(value: Any, name: str, choices: Sequence[str], *, given: Any = None) -> str:
-    if not isinstance(value, str) or value not in choices:
-        raise MarkerError(
-            f"ddenv({name}=...): unknown {name} {shown(given if given is not None else value)}; "
-            f"valid choices: {', '.join(choices)}"
-        )
-    return str(value)
-
-
-def _integer(value: Any, name: str, *, minimum: int) -> int:
-    if not is_integer(value) or value < minimum:
-        raise MarkerError(expected(f"an integer >= {minimum}", value, f"ddenv({name}=...)"))
-    return value
-
-
-def _positive(value: Any, name: str) -> float:
-    number = math.nan
-    if is_number(value):
-        number = float(value) if isinstance(value, float) or value.bit_length() < 1000 else math.inf
-    if not 0 < number < math.inf:
-        raise MarkerError(expected("a positive, finite number", value, f"ddenv({name}=...)"))
-    return number
-
-
-def _budget(value: Any) -> dict[str, Any]:
-    if is_integer(value):
-        return {"max_probes": _integer(value, "budget", minimum=1)}
-    if isinstance(value, Mapping) and value and set(value) <= {"probes", "seconds"}:
-        budget: dict[str, Any] = {}
-        if "probes" in value:
-            budget["max_probes"] = _integer(value["probes"], "budget", minimum=1)
-        if "seconds" in value:
-            budget["max_seconds"] = _positive(value["seconds"], "budget")
-        return budget
-    raise MarkerError(expected("a probe count or {'probes': N, 'seconds': S}", value, "ddenv(budget=...)"))

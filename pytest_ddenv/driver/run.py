@@ -40,6 +40,7 @@ from pytest_ddenv.reduce import (
     ProgressEvent,
     Reduction,
     ReductionInterrupted,
+    ReductionSettings,
     events,
     reduce,
 )
@@ -320,14 +321,16 @@ class _Locked:
                    if pool.size > 1 else None)
         clean = False
         try:
-            reduction = reduce(
-                world.names, probe, geometry=world,
-                reference=trace_of(plan.reference_run) if plan.reference_run is not None else None,
+            settings = ReductionSettings(
                 partition=partition, priority=priority, n_partitions=spec.n_partitions,
                 granularity=spec.granularity, deflake=spec.deflake, keep=tuple(sorted(keep)),
-                preconditions=(keeps_start_support(world),), max_probes=left,
-                max_seconds=seconds, seed=spec.seed, log=self.log, on_progress=self.progress,
-                executor=threads, workers=pool.size, check_independence=True,
+                preconditions=(keeps_start_support(world),), max_probes=left, max_seconds=seconds, seed=spec.seed,
+                workers=pool.size, check_independence=True,
+            )
+            reduction = reduce(
+                world.names, probe, settings, geometry=world,
+                reference=trace_of(plan.reference_run) if plan.reference_run is not None else None,
+                log=self.log, on_progress=self.progress, executor=threads,
             )
             clean = True
             return reduction, None

@@ -7,8 +7,6 @@ runs); the plugin keeps it in the config's stash and reads it from there, as pyt
 
 from __future__ import annotations
 
-import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -16,10 +14,8 @@ from typing import Any
 import pytest
 
 from pytest_ddenv.driver.artifacts import folder_problem
-from pytest_ddenv.driver.markers import MarkerError, parse_deflake
+from pytest_ddenv.driver.settings import SETTING, SettingError, option_settings, watchdog
 from pytest_ddenv.errors import DdenvError, shown, shown_path
-from pytest_ddenv.execution.factory import executor_problem
-from pytest_ddenv.validation import expected
 
 DEFAULT_ARTIFACTS = "ddenv-artifacts"
 
@@ -56,57 +52,35 @@ class DdenvOptions:
         return marker if marker is not None else self.stages_ini
 
 
-def add_options(parser: pytest.Parser) -> None:
-    """The `--ddenv-*` options and their ini twins (`ddenv_*`)."""
-    group = parser.getgroup("ddenv", "robot world reduction (pytest-ddenv)")
-    options: list[tuple[str, str, dict[str, Any]]] = [
-        ("reduce", "when a robot scenario test fails, reduce its world to the models the failure needs",
-         {"action": "store_true", "ini_type": "bool"}),
-        ("artifacts", ("folder for minimal worlds, run logs and summaries (default: ddenv-artifacts); a relative "
-                      "path is relative to the folder pytest runs in (in an ini file: to that file's folder)"),
-         {"metavar": "DIR"}),
-        ("deflake", ("re-runs of a candidate that did not reproduce the failure: an integer, 'adaptive', or "
-                    "'auto' (calibrated on the original world's failure rate)"),
-         {"metavar": "N"}),
-        ("max-probes", "stop a reduction after this many simulations (best world so far is kept)", {"metavar": "N"}),
-        ("max-time", "stop a reduction after this many wall-clock seconds", {"metavar": "SECONDS"}),
-        ("seed", "base seed of every robot run (default: the marker's seed, else 0)", {"metavar": "N"}),
-        ("workers", ("simulation worker processes: a number, 'auto' for one per core (the default), or 1 to "
-         "simulate in the pytest process"), {"metavar": "N"}),
-        ("executor", ("where probes simulate: 'local' worker processes (default), 'dask' (a local dask cluster) "
-         "or tcp://HOST:PORT of a dask scheduler"), {"metavar": "ADDRESS"}),
-        ("world", "run every robot test against this world file instead of its own (e.g. a minimal.yaml)",
-         {"metavar": "PATH"}),
-        ("model-path", "extra folders (separated by ':') searched for SDF <include>s of model://NAME",
-         {"metavar": "DIRS"}),
-        ("probe-timeout", ("wall-clock limit of one probe of a reduction: SECONDS, 'auto' (the default: max(60 s, "
-                          "10 x the longest of the original run and the slowest probe)) or 'none'; a probe past "
-                          "it is an error, not a verdict (default: $DDENV_PROBE_TIMEOUT, else auto)"),
-         {"metavar": "SECONDS"}),
-        ("stages", ("what to do after the model-level reduction, comma-separated: models (always), shapes, "
-                   "attributes, time, explain, passing, or 'all' (default: models,explain,passing; the marker's "
-                   "stages= when this is not given on the command line)"), {"metavar": "LIST"}),
-        ("media", ("what a reduction shows besides its files: 'all' (pictures, original.gif/minimal.gif "
-                  "animations, recording.rrd when rerun-sdk is installed), 'pictures' or 'none' (default: "
-                  "$DDENV_MEDIA, else all)"), {"metavar": "WHAT"}),
-        ("stage-probes", ("simulations each stage after the models may start (default: all of them together at "
-                         "most twice the model-level simulations)"), {"metavar": "N"}),
-        ("keep-other", ("write the smallest worlds of the N most frequent other failures a reduction's probes "
-                       "met as other-1.yaml ... other-N.yaml in its artifacts folder (default 0: listed in the "
-                       "report and summary.json only)"), {"metavar": "N"}),
-        ("run-timeout", ("wall-clock seconds one robot_world.run() may take before it fails with ControllerTimeout "
-                        "(default 300): bounds a controller that is too slow"), {"metavar": "SECONDS"}),
-    ]
-    for name, help_text, extra in options:
-        ini_name = f"ddenv_{name.replace('-', '_')}"
-        ini_type = extra.pop("ini_type", "string")
-        group.addoption(f"--ddenv-{name}", dest=ini_name, default=None, help=help_text, **extra)
-        parser.addini(ini_name, help_text, type=ini_type, default=False if ini_type == "bool" else "")
+_options_key = pytest.StashKey[DdenvOptions]()
 
+
+def stash_options(config: pytest.Config, options: DdenvOptions) -> DdenvOptions:
+    """Keep the session's checked settings in its config's stash (`pytest_configure`)."""
+    config.stash[_options_key] = options
+    return options
+
+
+def options_of(config: pytest.Config) -> DdenvOptions:
+    """The session's checked settings (read once, in `pytest_configure`)."""
+    options = config.stash.get(_options_key, None)
+    if options is None:  # a config that did not go through pytest_configure (unusual): read them now
+        options = stash_options(config, read_options(config))
+    return options
+
+
+def add_options(parser: pytest.Parser) -> None:
+    """The `--ddenv-*` options and their ini twins (`ddenv_*`), as `driver/settings.py` declares them."""
+    group = parser.getgroup("ddenv", "robot world reduction (pytest-ddenv)")
+    for setting in option_settings():
+        extra: dict[str, Any] = {"action": "store_true"} if setting.ini_type == "bool" else {"metavar": setting.metavar}
+        group.addoption(setting.option_name, dest=setting.ini_name, default=None, help=setting.help, **extra)
+        parser.addini(setting.ini_name, setting.help, type=setting.ini_type,
+                      default=False if setting.ini_type == "bool" else "")
 
 
 def _setting(config: pytest.Config, name: str) -> Any:
-    """The command-line value of a setting, else its ini value (validated by `_validate_options`)."""
+    """The command-line value of a setting, else its ini value (validated by `_checked`)."""
     value = config.getoption(name)
     return config.getini(name) if value in (None, False) else value
 
@@ -119,84 +93,33 @@ def _where(config: pytest.Config, name: str) -> str:
     return f"{name} in {config.inipath.name}" if config.inipath is not None else f"ini option {name}"
 
 
-def _int_setting(config: pytest.Config, name: str, minimum: int) -> int | None:
-    value = _setting(config, name)
-    if value in (None, ""):
+def _checked(config: pytest.Config, name: str, value: Any = None) -> Any:
+    """A setting (its command-line value, else its ini value; or `value`) checked as declared; None when not
+    given. A usage error naming the option or ini key otherwise."""
+    setting = SETTING[name]
+    if value is None:
+        value = _setting(config, setting.ini_name)
+    if value in (None, "") and name != "media":  # media: unset is $DDENV_MEDIA, else all
         return None
     try:
-        number = int(value)
-    except (TypeError, ValueError):
-        number = minimum - 1
-    if number < minimum:
-        raise pytest.UsageError(expected(f"an integer >= {minimum}", value, _where(config, name)))
-    return number
-
-
-def _media_setting(config: pytest.Config) -> str:
-    """--ddenv-media, else the ini value, else $DDENV_MEDIA, else all."""
-    from pytest_ddenv.media.writer import MediaChoiceError, media_choice
-
-    value = _setting(config, "ddenv_media")
-    try:
-        return media_choice(value, _where(config, "ddenv_media"))
-    except MediaChoiceError as error:
-        raise pytest.UsageError(str(error)) from None
-
-
-def _positive_seconds(value: Any) -> float | None:
-    """`value` (a number or its text) as a positive, finite number of seconds; None if it is not one (nan, inf,
-    0, a negative number, a word)."""
-    try:
-        seconds = float(value)
-    except (TypeError, ValueError):
-        return None
-    return seconds if math.isfinite(seconds) and seconds > 0 else None
-
-
-def _seconds_setting(config: pytest.Config, name: str) -> float | None:
-    value = _setting(config, name)
-    if value in (None, ""):
-        return None
-    seconds = _positive_seconds(value)
-    if seconds is None:
-        raise pytest.UsageError(expected("a positive, finite number of seconds", value, _where(config, name)))
-    return seconds
-
-
-def _stage_list(config: pytest.Config, value: Any) -> tuple[str, ...] | None:
-    from pytest_ddenv.driver.markers import parse_stage_list
-
-    if value in (None, ""):
-        return None
-    try:
-        return parse_stage_list(value, _where(config, "ddenv_stages"))
-    except MarkerError as error:
+        return setting.check_text(value, _where(config, setting.ini_name))
+    except SettingError as error:
         raise pytest.UsageError(str(error)) from None
 
 
 def _watchdog_setting(config: pytest.Config) -> Any:
-    """`--ddenv-probe-timeout` as the pools' `watchdog` argument: seconds, 'auto', None, or DEFAULT (unset:
-    $DDENV_PROBE_TIMEOUT, else auto)."""
-    from pytest_ddenv.execution.base import DEFAULT
-
-    value = _setting(config, "ddenv_probe_timeout")
-    if value in (None, ""):
+    """`--ddenv-probe-timeout` as the pools' `watchdog` argument (`driver.settings.watchdog`); unset, the
+    $DDENV_PROBE_TIMEOUT the pools will read is checked now, not when a test fails."""
+    timeout = _checked(config, "probe_timeout")
+    if timeout is None:
         from pytest_ddenv.execution import PoolConfigError
-        from pytest_ddenv.execution.base import check_watchdog
+        from pytest_ddenv.execution.base import DEFAULT, check_watchdog
 
-        try:  # $DDENV_PROBE_TIMEOUT is read by the pools: checked now, not when a test fails
+        try:
             check_watchdog(DEFAULT)
         except PoolConfigError as error:
             raise pytest.UsageError(str(error)) from None
-        return DEFAULT
-    text = str(value).strip().lower()
-    if text in ("auto", "none"):
-        return None if text == "none" else "auto"
-    seconds = _positive_seconds(text)
-    if seconds is None:
-        raise pytest.UsageError(expected("a positive, finite number of seconds, 'auto' or 'none'", value,
-                                         _where(config, "ddenv_probe_timeout")))
-    return seconds
+    return watchdog(timeout)
 
 
 def read_options(config: pytest.Config) -> DdenvOptions:
@@ -216,23 +139,10 @@ def _read_options(config: pytest.Config) -> DdenvOptions:
     except (pytest.UsageError, ValueError) as error:  # pytest before 9.2 raises ValueError for a bad ini bool
         raise pytest.UsageError(f"{_where(config, 'ddenv_reduce')}: expected true or false (or 1/0, yes/no, "
                                 f"on/off): {error}") from None
-    deflake = _setting(config, "ddenv_deflake")
-    if deflake not in (None, ""):
-        try:
-            deflake = parse_deflake(deflake, _where(config, "ddenv_deflake"))
-        except MarkerError as error:
-            raise pytest.UsageError(str(error)) from None
-    workers = _setting(config, "ddenv_workers")
-    if workers not in (None, "", "auto"):
-        workers = _int_setting(config, "ddenv_workers", 1)
-    executor = _setting(config, "ddenv_executor")
-    problem = executor_problem(str(executor)) if executor not in (None, "") else None
-    if problem is not None:
-        raise pytest.UsageError(f"{_where(config, 'ddenv_executor')}: {problem}")
     world = _setting(config, "ddenv_world")
     if world not in (None, "") and not _kind_is(Path(world), "file", config, "ddenv_world"):
         raise pytest.UsageError(f"{_where(config, 'ddenv_world')}: no such file: {shown_path(world)}")
-    model_paths = tuple(p for p in str(_setting(config, "ddenv_model_path") or "").split(os.pathsep) if p)
+    model_paths = _checked(config, "model_paths") or ()
     for folder in model_paths:
         if not _kind_is(_expanded_setting(folder, config, "ddenv_model_path"), "folder", config, "ddenv_model_path"):
             raise pytest.UsageError(f"{_where(config, 'ddenv_model_path')}: no such folder: {shown_path(folder)}")
@@ -241,16 +151,14 @@ def _read_options(config: pytest.Config) -> DdenvOptions:
     if problem is not None:
         raise pytest.UsageError(f"{_where(config, 'ddenv_artifacts')}: {problem}")
     return DdenvOptions(
-        reduce=reduce, artifacts=root, artifacts_given=given, deflake=None if deflake in (None, "") else deflake,
-        max_probes=_int_setting(config, "ddenv_max_probes", 1),
-        max_seconds=_seconds_setting(config, "ddenv_max_time"), seed=_int_setting(config, "ddenv_seed", 0),
-        workers=workers or None, executor=executor or None, world=world or None, model_paths=model_paths,
-        watchdog=_watchdog_setting(config),
-        stages_command_line=_stage_list(config, config.getoption("ddenv_stages")),
-        stages_ini=_stage_list(config, config.getini("ddenv_stages")),
-        stage_probes=_int_setting(config, "ddenv_stage_probes", 1),
-        run_timeout=_seconds_setting(config, "ddenv_run_timeout"), media=_media_setting(config),
-        keep_other=_int_setting(config, "ddenv_keep_other", 0) or 0,
+        reduce=reduce, artifacts=root, artifacts_given=given, deflake=_checked(config, "deflake"),
+        max_probes=_checked(config, "max_probes"), max_seconds=_checked(config, "max_seconds"),
+        seed=_checked(config, "seed"), workers=_checked(config, "workers"), executor=_checked(config, "executor"),
+        world=world or None, model_paths=model_paths, watchdog=_watchdog_setting(config),
+        stages_command_line=_checked(config, "stages", config.getoption("ddenv_stages")),
+        stages_ini=_checked(config, "stages", config.getini("ddenv_stages") or None),
+        stage_probes=_checked(config, "stage_probes"), run_timeout=_checked(config, "run_timeout"),
+        media=_checked(config, "media"), keep_other=_checked(config, "keep_other") or 0,
     )
 
 

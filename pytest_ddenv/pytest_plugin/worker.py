@@ -174,8 +174,11 @@ class ProbeServer:
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_pyfunc_call(self, pyfuncitem: pytest.Function) -> bool | None:
-        """A `@given` test runs once on its falsifying example with the candidate world (no Hypothesis)."""
+        """The test gets the candidate world, even from an overridden fixture; a `@given` test runs once on its
+        falsifying example with the candidate world (no Hypothesis)."""
         binding = pyfuncitem.config.stash.get(PROBE_BINDING, None)
+        if binding is not None:
+            bind_probe(pyfuncitem, binding)
         if self.job.example is None or binding is None:
             return None
         self.job.example.call(pyfuncitem, fixture_arguments(pyfuncitem), binding.world)
@@ -212,6 +215,17 @@ class ProbeServer:
         robot_world = None if binding.robot_world is None else binding.robot_world.latest
         run = robot_world.runs[-1] if robot_world is not None and robot_world.runs else None
         return ProbeResult(error, run)
+
+
+def bind_probe(item: pytest.Function, binding: ProbeBinding) -> None:
+    """The test's `robot_world` is the probe's candidate world and attempt, even from an overridden fixture."""
+    given = item.funcargs.get(FIXTURE)
+    if not isinstance(given, RobotWorld):
+        return
+    if given.world is not binding.world or given.attempt != binding.attempt:
+        given = given.rebound(binding.world, attempt=binding.attempt)
+        item.funcargs[FIXTURE] = given
+    binding.robot_world = given
 
 
 def fixture_arguments(item: pytest.Function) -> dict[str, Any]:

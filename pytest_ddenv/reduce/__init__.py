@@ -16,7 +16,7 @@ from pytest_ddenv.reduce.log import VOLATILE_FIELDS, ProbeLog
 from pytest_ddenv.reduce.partition import PARTITIONS, Partitioner
 from pytest_ddenv.reduce.priority import PRIORITIES, PRIORITY_ALIASES, Prioritizer
 from pytest_ddenv.reduce.rates import Rate, RateComparison
-from pytest_ddenv.reduce.settings import COMPLEMENT_ORDERS, GRANULARITIES
+from pytest_ddenv.reduce.settings import COMPLEMENT_ORDERS, GRANULARITIES, ReductionSettings
 from pytest_ddenv.reduce.types import (
     Candidate,
     Decision,
@@ -59,6 +59,7 @@ __all__ = [
     "RateComparison",
     "Reduction",
     "ReductionInterrupted",
+    "ReductionSettings",
     "SequentialTest",
     "Trace",
     "reduce",

@@ -15,39 +15,35 @@ again from there (at most MAX_BACKOFFS times). See docs/algorithm.md.
 from __future__ import annotations
 
 import concurrent.futures
+import functools
 import os
 import time
-from collections.abc import Callable, Collection, MutableMapping, Sequence
+from collections.abc import Callable, MutableMapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from pytest_ddenv import defaults
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.budget import Budget, BudgetExhausted
 from pytest_ddenv.reduce.context import Context, Verdict
-from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy
+from pytest_ddenv.reduce.deflake import CalibratedReruns
 from pytest_ddenv.reduce.log import ProbeLog
-from pytest_ddenv.reduce.partition import Partitioner
-from pytest_ddenv.reduce.priority import Prioritizer
 from pytest_ddenv.reduce.prober import Prober
 from pytest_ddenv.reduce.rate_check import RateChecker
 from pytest_ddenv.reduce.rates import RateComparison
-from pytest_ddenv.reduce.settings import Settings, validate
+from pytest_ddenv.reduce.settings import SETTING_NAMES, ReductionSettings, Settings, validate
 from pytest_ddenv.reduce.trial import Trial
 from pytest_ddenv.reduce.types import (
     Candidate,
     Decision,
     Geometry,
     Outcome,
-    Precondition,
     Probe,
     ProgressEvent,
     Reduction,
     ReductionInterrupted,
     Trace,
 )
-from pytest_ddenv.validation import is_integral
 
 INDEPENDENCE = "independence"
 """The log's purpose of the run of the world without its reducible elements (`check_independence`)."""
@@ -62,79 +58,61 @@ def plural(count: int, noun: str) -> str:
     return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
+def _keyword_settings(function: Callable[..., Reduction]) -> Callable[..., Reduction]:
+    """The former spelling `reduce(elements, probe, max_probes=10, deflake=0, ...)` still works: each keyword
+    that names a `ReductionSettings` field goes into the settings (not beside a `settings=` of its own)."""
+
+    @functools.wraps(function)
+    def reduce(*arguments: Any, **keywords: Any) -> Reduction:
+        named = {name: keywords.pop(name) for name in SETTING_NAMES if name in keywords}
+        unknown = sorted(set(keywords) - set(_ARGUMENTS))
+        if unknown:
+            raise ReductionError(f"reduce() got an unknown argument {unknown[0]!r}; its arguments are "
+                                 f"{', '.join(_ARGUMENTS)}, and the settings are "
+                                 f"ReductionSettings({', '.join(SETTING_NAMES)})")
+        if named:
+            given = keywords.pop("settings", None) if len(arguments) < 3 else arguments[2]
+            if given is not None:
+                raise ReductionError(f"reduce(): {', '.join(named)} given beside settings=; put them in the "
+                                     "ReductionSettings")
+            keywords["settings"] = ReductionSettings(**named)
+            arguments = arguments[:2]
+        return function(*arguments, **keywords)
+
+    return reduce
+
+
+@_keyword_settings
 def reduce(
     elements: Sequence[str],
     probe: Probe,
+    settings: ReductionSettings | None = None,
     *,
     geometry: Geometry | None = None,
     reference: Trace | None = None,
-    partition: str | Partitioner = defaults.PARTITION,
-    priority: str | Prioritizer = defaults.PRIORITY,
-    n_partitions: int = defaults.N_PARTITIONS,
-    granularity: str = defaults.GRANULARITY,
-    deflake: int | str | DeflakePolicy = defaults.DEFLAKE,
-    confidence: float = 0.95,
-    keep: Collection[str] = (),
-    preconditions: Sequence[Precondition] = (),
-    max_probes: int | None = None,
-    max_seconds: float | None = None,
-    seed: int = defaults.SEED,
-    cache: MutableMapping[Any, Any] | None = None,
-    executor: concurrent.futures.Executor | None = None,
-    workers: int | None = None,
     log: ProbeLog | str | os.PathLike[str] | None = None,
-    failure_rate_runs: int = 20,
+    executor: concurrent.futures.Executor | None = None,
     on_progress: Callable[[ProgressEvent], None] | None = None,
-    complement_order: str = "reverse",
-    check_independence: bool = False,
 ) -> Reduction:
     """Reduce a failing world to a 1-minimal failing sub-world.
 
     `elements` are the names of the world's elements (original order; the original world is assumed to
     fail with f: its run is `reference`, attempt 0). `probe(candidate, attempt)` simulates a sub-world
-    (names in original order, `keep` elements included) and returns an Observation. See docs/algorithm.md
-    for every option. `workers` is how many probes a round keeps running at once on `executor` (pass the
-    number of workers it has; default: the number of CPUs; ignored without one). Raises ReductionError for
-    invalid arguments and ReductionInterrupted (carrying the partial `.reduction`) on KeyboardInterrupt;
-    budgets end the reduction early with the best world so far and ``incomplete_reason`` set.
-    `check_independence`: first run the world without its reducible elements once (those the preconditions
-    need stay); if it reproduces f, nothing is reduced (`Reduction.independent`).
+    (names in original order, `keep` elements included) and returns an Observation. `settings`: how to
+    reduce (`ReductionSettings`, every field documented in docs/algorithm.md; default: the defaults).
+    `geometry` and `reference` are what the partition and priority schemas read; `log` the run log (a path
+    or a `ProbeLog`: verdicts are resumed from it); `executor` runs a round's probes concurrently
+    (`settings.workers` of them at once); `on_progress` is called with a `ProgressEvent` after each step.
+    Raises ReductionError for invalid arguments and ReductionInterrupted (carrying the partial `.reduction`)
+    on KeyboardInterrupt; budgets end the reduction early with the best world so far and
+    ``incomplete_reason`` set.
     """
-    settings = validate(
-        elements,
-        probe,
-        geometry=geometry,
-        reference=reference,
-        partition=partition,
-        priority=priority,
-        n_partitions=n_partitions,
-        granularity=granularity,
-        complement_order=complement_order,
-        deflake=deflake,
-        confidence=confidence,
-        keep=keep,
-        preconditions=preconditions,
-        max_probes=max_probes,
-        max_seconds=max_seconds,
-        seed=seed,
-        cache=cache,
-        executor=executor,
-        log=log,
-        failure_rate_runs=failure_rate_runs,
-        on_progress=on_progress,
-        check_independence=check_independence,
-    )
-    return _Engine(settings, probe_window(workers)).run()
+    checked = validate(elements, probe, ReductionSettings() if settings is None else settings, geometry=geometry,
+                       reference=reference, executor=executor, log=log, on_progress=on_progress)
+    return _Engine(checked).run()
 
 
-def probe_window(workers: int | None) -> int:
-    """How many probes a round keeps running at once on the executor: `workers` (an int >= 1), by default
-    the number of CPUs (the executor's own worker count is not public)."""
-    if workers is None:
-        return os.cpu_count() or 2
-    if not is_integral(workers) or int(workers) < 1:
-        raise ReductionError(f"workers: expected None or an integer >= 1, got {workers!r}")
-    return int(workers)
+_ARGUMENTS = ("elements", "probe", "settings", "geometry", "reference", "log", "executor", "on_progress")
 
 
 Part = tuple[str, ...]
@@ -173,8 +151,7 @@ class _Plan:
 class _Engine:
     """The state of one reduction."""
 
-    def __init__(self, settings: Settings, workers: int) -> None:
-        """`workers`: how many probes a round keeps running at once on `settings.executor`."""
+    def __init__(self, settings: Settings) -> None:
         self.settings = settings
         self.started_at = time.monotonic()
         self.log = self._open_log(settings)
@@ -208,7 +185,7 @@ class _Engine:
             preloaded=preloaded,
             budget=Budget(settings.max_probes, settings.max_seconds, self.started_at),
             executor=settings.executor,
-            workers=workers,
+            workers=settings.workers,
             log=self.log,
             context=self.context,
             elapsed=self.elapsed,

@@ -1,13 +1,15 @@
-"""Eager validation of `reduce`'s arguments into one frozen `Settings` value."""
+"""`ReductionSettings`, what the caller gives `reduce`, and its eager validation into one frozen `Settings`
+value (the checked settings with the probe, the inputs and the services of one reduction)."""
 
 from __future__ import annotations
 
 import concurrent.futures
 import os
 from collections.abc import Callable, Collection, MutableMapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
+from pytest_ddenv import defaults
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.deflake import DeflakePolicy, make_policy
 from pytest_ddenv.reduce.log import ProbeLog
@@ -49,6 +51,8 @@ class Settings:
     failure_rate_runs: int
     on_progress: Callable[[ProgressEvent], None] | None
     check_independence: bool = False
+    workers: int = 1
+    """How many probes a round keeps running at once on `executor`."""
 
     @property
     def reducible(self) -> tuple[str, ...]:
@@ -73,41 +77,62 @@ def _choice(name: str, value: object, choices: tuple[str, ...]) -> str:
     return str(value)
 
 
+@dataclass(frozen=True)
+class ReductionSettings:
+    """How `reduce` works: every setting of the engine, with its default (docs/algorithm.md says what each
+    does). Strategies may be given as objects: `partition` a `Partitioner`, `priority` a `Prioritizer`,
+    `deflake` a `DeflakePolicy`. Checked when `reduce` starts (ReductionError naming the field)."""
+
+    partition: str | Partitioner = defaults.PARTITION
+    priority: str | Prioritizer = defaults.PRIORITY
+    n_partitions: int = defaults.N_PARTITIONS
+    granularity: str = defaults.GRANULARITY
+    complement_order: str = "reverse"
+    deflake: int | str | DeflakePolicy = defaults.DEFLAKE
+    confidence: float = 0.95
+    keep: Collection[str] = ()
+    preconditions: Sequence[Precondition] = ()
+    max_probes: int | None = None
+    max_seconds: float | None = None
+    seed: int = defaults.SEED
+    failure_rate_runs: int = 20
+    check_independence: bool = False
+    """First run the world without its reducible elements once (those the preconditions need stay); if it
+    reproduces f, nothing is reduced (`Reduction.independent`)."""
+    workers: int | None = None
+    """How many probes a round keeps running at once on the executor (default: the number of CPUs; ignored
+    without one)."""
+    cache: MutableMapping[Any, Any] | None = None
+    """Verdicts shared between reductions of the same elements (candidate -> outcomes)."""
+
+
+SETTING_NAMES: tuple[str, ...] = tuple(field.name for field in fields(ReductionSettings))
+
+
 def validate(
     elements: Sequence[str],
     probe: Probe,
+    given: ReductionSettings,
     *,
     geometry: Geometry | None,
     reference: Trace | None,
-    partition: str | Partitioner,
-    priority: str | Prioritizer,
-    n_partitions: int,
-    granularity: str,
-    complement_order: str,
-    deflake: int | str | DeflakePolicy,
-    confidence: float,
-    keep: Collection[str],
-    preconditions: Sequence[Precondition],
-    max_probes: int | None,
-    max_seconds: float | None,
-    seed: int,
-    cache: MutableMapping[Any, Any] | None,
     executor: concurrent.futures.Executor | None,
     log: ProbeLog | str | os.PathLike[str] | None,
-    failure_rate_runs: int,
     on_progress: Callable[[ProgressEvent], None] | None,
-    check_independence: bool = False,
 ) -> Settings:
     """Check every argument; raise ReductionError naming the argument, the value and what is allowed."""
+    if not isinstance(given, ReductionSettings):
+        raise ReductionError(expected("a ReductionSettings", given, "settings"))
     names = _elements(elements)
     if not callable(probe):
         raise ReductionError(expected("a callable probe(candidate, attempt) -> Observation", probe, "probe"))
-    kept = _keep(keep, names)
+    kept = _keep(given.keep, names)
     _check_inputs(geometry, reference)
-    checks = _preconditions(preconditions)
-    seconds = _max_seconds(max_seconds)
-    _check_services(cache, executor, log, on_progress)
-    if max_probes == 0 and cache is None and log is None:  # nothing to decide from: it would do nothing
+    checks = _preconditions(given.preconditions)
+    seconds = _max_seconds(given.max_seconds)
+    _check_services(given.cache, executor, log, on_progress)
+    max_probes = given.max_probes
+    if max_probes == 0 and given.cache is None and log is None:  # nothing to decide from: it would do nothing
         raise ReductionError(expected("an integer >= 1 (0, no simulation at all, only goes with a log or a cache "
                                       "to reuse verdicts from)", max_probes, "max_probes"))
     return Settings(
@@ -116,23 +141,34 @@ def validate(
         probe=probe,
         geometry=geometry,
         reference=reference,
-        partitioner=make_partitioner(partition),
-        prioritizer=make_prioritizer(priority),
-        n_partitions=_int("n_partitions", n_partitions, 2),
-        granularity=_choice("granularity", granularity, GRANULARITIES),
-        complement_order=_choice("complement_order", complement_order, COMPLEMENT_ORDERS),
-        policy=make_policy(deflake, confidence),
+        partitioner=make_partitioner(given.partition),
+        prioritizer=make_prioritizer(given.priority),
+        n_partitions=_int("n_partitions", given.n_partitions, 2),
+        granularity=_choice("granularity", given.granularity, GRANULARITIES),
+        complement_order=_choice("complement_order", given.complement_order, COMPLEMENT_ORDERS),
+        policy=make_policy(given.deflake, given.confidence),
         preconditions=checks,
         max_probes=None if max_probes is None else _int("max_probes", max_probes, 0),
         max_seconds=seconds,
-        seed=_int("seed", seed, 0),
-        cache=cache,
+        seed=_int("seed", given.seed, 0),
+        cache=given.cache,
         executor=executor,
         log=log,
-        failure_rate_runs=_int("failure_rate_runs", failure_rate_runs, 0),
+        failure_rate_runs=_int("failure_rate_runs", given.failure_rate_runs, 0),
         on_progress=on_progress,
-        check_independence=_flag("check_independence", check_independence),
+        check_independence=_flag("check_independence", given.check_independence),
+        workers=_workers(given.workers),
     )
+
+
+def _workers(workers: int | None) -> int:
+    """How many probes a round keeps running at once on the executor: `workers` (an int >= 1), by default
+    the number of CPUs (the executor's own worker count is not public)."""
+    if workers is None:
+        return os.cpu_count() or 2
+    if not is_integral(workers) or int(workers) < 1:
+        raise ReductionError(f"workers: expected None or an integer >= 1, got {workers!r}")
+    return int(workers)
 
 
 def _elements(elements: Sequence[str]) -> tuple[str, ...]:

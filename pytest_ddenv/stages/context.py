@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from pytest_ddenv.execution import ProbeDeadline
 from pytest_ddenv.outcome import Outcome
-from pytest_ddenv.reduce import Observation, ProbeLog, Reduction, events, reduce
+from pytest_ddenv.reduce import Observation, ProbeLog, Reduction, ReductionSettings, events, reduce
 from pytest_ddenv.reduce.deflake import ConfirmedRuns, DeflakePolicy
 from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
 from pytest_ddenv.scenario.probe import (
@@ -105,11 +105,13 @@ class StageContext:
         probe = make_probe(self.base, self.call, self.reference, rule=self.rule, build=build)
         if invert:
             probe = _passing_probe(probe)
-        reduction = reduce(
-            tuple(elements), self.wrap(probe), partition="model2model", priority="sequential",
-            deflake=policy or self.policy, preconditions=tuple(preconditions), max_probes=left, seed=self.seed,
-            log=self.log.view(stage), failure_rate_runs=rate_runs, executor=self.executor, workers=self.workers,
+        settings = ReductionSettings(
+            partition="model2model", priority="sequential", deflake=policy or self.policy,
+            preconditions=tuple(preconditions), max_probes=left, seed=self.seed, failure_rate_runs=rate_runs,
+            workers=self.workers,
         )
+        reduction = reduce(tuple(elements), self.wrap(probe), settings, log=self.log.view(stage),
+                           executor=self.executor)
         self.budget.decisions += reduction.probes
         return reduction
 
