@@ -35,7 +35,7 @@ from pytest_ddenv.cli.world_options import (
 )
 from pytest_ddenv.driver.progress import ProgressLine
 from pytest_ddenv.driver.user_code import UserCodeExit, is_exit
-from pytest_ddenv.errors import DdenvError, shown
+from pytest_ddenv.errors import DdenvError, raised_by_ddenv, shown
 from pytest_ddenv.oracle.predicates import PredicateSpec, check_predicate_models
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -546,9 +546,9 @@ def _cmd_run(arguments: argparse.Namespace) -> int:
     try:
         run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout, controller=controller,
                            max_wall_time=arguments.run_timeout)
-    except DdenvError:
-        raise
-    except Exception as error:  # noqa: BLE001 - the controller under test raised or misbehaved: the scenario failed
+    except Exception as error:
+        if raised_by_ddenv(error):
+            raise
         return _run_raised(arguments, world, error)
     picture = None
     if not arguments.no_picture:

@@ -50,8 +50,9 @@ _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 
 
 class ArtifactsError(ReductionError):
-    """The artifacts folder cannot be used: another reduction holds it, or it cannot be written (a full disk,
-    no permission). The message says which folder or file, why, and what to do."""
+    """The artifacts folder cannot be used: another reduction holds it, it cannot be written (a full disk, no
+    permission), or (`ddenv replay`) it is missing a file or holds something that cannot be replayed. The
+    message says which folder or file, why, and what to do."""
 
 
 def artifact_dir_name(test_id: str) -> str:

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from pytest_ddenv.driver.markers import ReductionSpec
-from pytest_ddenv.errors import DdenvError, shown
+from pytest_ddenv.errors import DdenvError, raised_by_ddenv, shown
 from pytest_ddenv.pytest_plugin.options import DdenvOptions, add_options, read_options
 from pytest_ddenv.pytest_plugin.progress import PytestProgress, close_log, open_log
 from pytest_ddenv.scenario.robot_world import FIXTURE
@@ -358,7 +358,7 @@ def _should_reduce(item: pytest.Function, error: BaseException) -> bool:
         return False
     if FIXTURE not in item.fixturenames or item.get_closest_marker("xfail") is not None:
         return False
-    if isinstance(error, pytest.skip.Exception) or isinstance(error, DdenvError):
+    if isinstance(error, pytest.skip.Exception) or raised_by_ddenv(error):
         return False  # a broken setup (bad world file, bad scenario) is not a failure to reduce
     from pytest_ddenv.scenario.robot_world import RobotWorld
 

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pytest_ddenv import defaults
-from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.errors import raised_by_ddenv
 from pytest_ddenv.reduce import Observation as ProbeObservation
 from pytest_ddenv.reduce import Outcome, Trace
 from pytest_ddenv.scenario.robot_world import RobotFailure
@@ -73,7 +73,7 @@ def describe_error(error: BaseException, test_file: str | Path | None, *, phase:
         location=raise_location(error, test_file),
         traceback=user_traceback(error)[-20 * DETAIL_LIMIT:],
         signature=error.signature if isinstance(error, RobotFailure) else None,
-        ddenv_error=isinstance(error, DdenvError),
+        ddenv_error=raised_by_ddenv(error),
         phase=phase,
     )
 

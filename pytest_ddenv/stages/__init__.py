@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedReruns
 from pytest_ddenv.scenario.probe import start_support
 from pytest_ddenv.stages import attributes, explain, minimality, passing, runs_kept, shapes, shorten, structure
@@ -49,7 +50,7 @@ CHECK_RESERVE = 3
 still 1-minimal (`minimality`)."""
 
 
-class StagesError(ValueError):
+class StagesError(DdenvError, ValueError):
     """A stage list that names an unknown stage."""
 
 

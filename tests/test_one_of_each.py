@@ -1,0 +1,46 @@
+"""Issue 29, point 6: one of each mechanism (errors, rate statistics, budget, names), and the driver's typed
+hand-overs (point 5)."""
+
+from __future__ import annotations
+
+import pytest
+
+from pytest_ddenv.errors import ControllerError, ControllerTimeout, DdenvError
+
+
+def test_every_error_the_package_raises_on_purpose_is_a_ddenv_error() -> None:
+    from pytest_ddenv.media.writer import MediaChoiceError, media_choice
+    from pytest_ddenv.stages import StagesError, parse_stages
+
+    for error_type in (ControllerError, ControllerTimeout, StagesError, MediaChoiceError):
+        assert issubclass(error_type, DdenvError), error_type
+    # the builtin base classes users may catch stay
+    assert issubclass(StagesError, ValueError) and issubclass(MediaChoiceError, ValueError)
+    with pytest.raises(DdenvError, match="unknown stage"):
+        parse_stages("models,colours")
+    with pytest.raises(DdenvError, match=r"--media: expected one of all, pictures, none, got 'movies'"):
+        media_choice("movies", "--media")
+
+
+def test_a_controller_error_stays_the_tests_failure_not_an_error_of_ddenv() -> None:
+    """ControllerError is a DdenvError now, but what the controller under test did is still the test's
+    failure (a verdict), never an error of pytest-ddenv (which a probe reports as ERROR)."""
+    from pytest_ddenv.errors import raised_by_ddenv
+    from pytest_ddenv.outcome import Outcome
+    from pytest_ddenv.scenario.probe import FailureReference, classify_result, describe_error
+
+    try:
+        raise ControllerTimeout("the run went past its wall-clock limit")
+    except ControllerTimeout as error:
+        info = describe_error(error, None)
+    assert not info.ddenv_error and not raised_by_ddenv(ControllerError("x"))
+    assert raised_by_ddenv(DdenvError("x"))
+    reference = FailureReference(info.type_name, info.location)
+    assert classify_result(info, reference, 0.5) is Outcome.FAIL
+
+
+def test_one_artifacts_error_for_the_folder_and_its_replay() -> None:
+    from pytest_ddenv.cli.replay import ArtifactError
+    from pytest_ddenv.driver.artifacts import ArtifactsError
+
+    assert ArtifactError is ArtifactsError
