@@ -19,6 +19,7 @@ from pytest_ddenv.errors import raised_by_ddenv, shown
 from pytest_ddenv.oracle.predicates import PredicateSpec
 from pytest_ddenv.reduce import Outcome
 from pytest_ddenv.reduce.log import read_records
+from pytest_ddenv.reduce.rates import Rate, wilson_interval
 from pytest_ddenv.reduce.records import json_value, read_regular
 from pytest_ddenv.scenario.robot_world import RobotFailure
 from pytest_ddenv.validation import expected
@@ -122,12 +123,7 @@ class ReplayResult:
     @property
     def interval(self) -> tuple[float, float]:
         """The failure rate's 95 % confidence interval (Wilson score), from the replayed runs."""
-        from scipy.stats import binomtest
-
-        if not self.runs:
-            return 0.0, 1.0
-        low, high = binomtest(self.reproduced, len(self.runs)).proportion_ci(CONFIDENCE, method="wilson")
-        return float(low), float(high)
+        return wilson_interval(Rate(self.reproduced, len(self.runs)), CONFIDENCE)
 
     @property
     def ok(self) -> bool:
