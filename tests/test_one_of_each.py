@@ -44,3 +44,29 @@ def test_one_artifacts_error_for_the_folder_and_its_replay() -> None:
     from pytest_ddenv.driver.artifacts import ArtifactsError
 
     assert ArtifactError is ArtifactsError
+
+
+def _classes_named(*names: str) -> list[str]:
+    import ast
+    from pathlib import Path
+
+    import pytest_ddenv
+
+    package = Path(pytest_ddenv.__file__).parent
+    return sorted(f"{path.relative_to(package)}:{node.name}" for path in package.rglob("*.py")
+                  for node in ast.walk(ast.parse(path.read_text()))
+                  if isinstance(node, ast.ClassDef) and node.name in names)
+
+
+def test_one_budget_module_and_one_observation_per_meaning() -> None:
+    """The engine's budget and the stages' share of the driver's count are both in reduce/budget.py; the
+    controller's `Observation` (the simulation's) and the probe's `ProbeObservation` (the engine's) differ by
+    name."""
+    from pytest_ddenv import reduce, stages
+    from pytest_ddenv.reduce import budget
+
+    assert _classes_named("Budget", "StageBudget") == ["reduce/budget.py:Budget", "reduce/budget.py:StageBudget"]
+    assert _classes_named("Observation", "ProbeObservation") == ["reduce/types.py:ProbeObservation",
+                                                                 "sim/control.py:Observation"]
+    assert stages.StageBudget is budget.StageBudget and stages.Budget is budget.StageBudget  # the old name
+    assert reduce.Observation is reduce.ProbeObservation  # the old name, for one release

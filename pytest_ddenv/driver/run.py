@@ -31,12 +31,10 @@ from pytest_ddenv.media.writer import DEFAULT_MEDIA, PendingMedia, Shown
 from pytest_ddenv.oracle.predicates import FailureSignature
 from pytest_ddenv.oracle.verdict import SameFailureRule
 from pytest_ddenv.reduce import (
-    Observation as ProbeObservation,
-)
-from pytest_ddenv.reduce import (
     Outcome,
     ProbeCancelled,
     ProbeLog,
+    ProbeObservation,
     ProgressEvent,
     Reduction,
     ReductionInterrupted,
@@ -58,7 +56,7 @@ from pytest_ddenv.scenario.probe import (
 )
 from pytest_ddenv.stages import (
     DEFAULT_STAGES,
-    Budget,
+    StageBudget,
     StageContext,
     StagesOutcome,
     run_stages,
@@ -437,7 +435,7 @@ def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _C
 
     context = StageContext(
         base=plan.world.select(reduction.minimal), call=calls, reference=plan.reference, rule=plan.rule,
-        log=log, policy=policy, seed=spec.seed, budget=Budget(limit, lambda: calls.started, started, per_stage),
+        log=log, policy=policy, seed=spec.seed, budget=StageBudget(limit, lambda: calls.started, started, per_stage),
         executor=threads, workers=pool.size, wrap=wrap,
     )
     try:

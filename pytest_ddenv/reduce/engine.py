@@ -91,7 +91,7 @@ def reduce(
 
     `elements` are the names of the world's elements (original order; the original world is assumed to
     fail with f: its run is `reference`, attempt 0). `probe(candidate, attempt)` simulates a sub-world
-    (names in original order, `keep` elements included) and returns an Observation. See docs/algorithm.md
+    (names in original order, `keep` elements included) and returns an ProbeObservation. See docs/algorithm.md
     for every option. `workers` is how many probes a round keeps running at once on `executor` (pass the
     number of workers it has; default: the number of CPUs; ignored without one). Raises ReductionError for
     invalid arguments and ReductionInterrupted (carrying the partial `.reduction`) on KeyboardInterrupt;

@@ -101,7 +101,7 @@ def validate(
     """Check every argument; raise ReductionError naming the argument, the value and what is allowed."""
     names = _elements(elements)
     if not callable(probe):
-        raise ReductionError(expected("a callable probe(candidate, attempt) -> Observation", probe, "probe"))
+        raise ReductionError(expected("a callable probe(candidate, attempt) -> ProbeObservation", probe, "probe"))
     kept = _keep(keep, names)
     _check_inputs(geometry, reference)
     checks = _preconditions(preconditions)

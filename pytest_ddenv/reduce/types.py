@@ -81,8 +81,9 @@ class Trace:
 
 
 @dataclass(frozen=True)
-class Observation:
-    """What a probe returns for one simulation of one candidate."""
+class ProbeObservation:
+    """What a probe returns for one simulation of one candidate (a controller's view of the robot is
+    `pytest_ddenv.Observation`, the simulation's)."""
 
     outcome: Outcome
     trace: Trace | None = None
@@ -109,8 +110,8 @@ class Geometry(Protocol):
         ...
 
 
-Probe = Callable[[Candidate, int], Observation]
-"""probe(candidate, attempt) -> Observation. attempt is 0, 1, 2, ... per candidate (a distinct seed each)."""
+Probe = Callable[[Candidate, int], ProbeObservation]
+"""probe(candidate, attempt) -> ProbeObservation. attempt is 0, 1, 2, ... per candidate (a distinct seed each)."""
 
 Precondition = Callable[[Candidate], "str | None"]
 """precondition(candidate) -> None to allow probing it, or the reason to skip it (treated as not f)."""

@@ -19,8 +19,7 @@ import numpy as np
 
 from pytest_ddenv import defaults
 from pytest_ddenv.errors import raised_by_ddenv
-from pytest_ddenv.reduce import Observation as ProbeObservation
-from pytest_ddenv.reduce import Outcome, Trace
+from pytest_ddenv.reduce import Outcome, ProbeObservation, Trace
 from pytest_ddenv.scenario.robot_world import RobotFailure
 from pytest_ddenv.world.model import World
 

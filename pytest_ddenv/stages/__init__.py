@@ -17,11 +17,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.reduce.budget import StageBudget
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedReruns
 from pytest_ddenv.reduce.rates import rate_drops
 from pytest_ddenv.scenario.probe import start_support
 from pytest_ddenv.stages import attributes, explain, minimality, passing, runs_kept, shapes, shorten, structure
-from pytest_ddenv.stages.context import FRESH_ATTEMPTS, Budget, StageContext
+from pytest_ddenv.stages.context import FRESH_ATTEMPTS, StageContext
 from pytest_ddenv.stages.result import StageResult
 
 if TYPE_CHECKING:
@@ -258,5 +259,8 @@ def stage_budget(model_simulations: int, stage_probes: int | None,
     return limit, stage_probes
 
 
-__all__ = ["DEFAULT_STAGES", "STAGES", "Budget", "StageContext", "StageResult", "StagesError", "StagesOutcome",
-           "parse_stages", "run_stages", "stage_budget", "stage_policy"]
+Budget = StageBudget
+"""The old name of `StageBudget`, kept for one release."""
+
+__all__ = ["DEFAULT_STAGES", "STAGES", "Budget", "StageBudget", "StageContext", "StageResult", "StagesError",
+           "StagesOutcome", "parse_stages", "run_stages", "stage_budget", "stage_policy"]
