@@ -70,3 +70,53 @@ def test_one_budget_module_and_one_observation_per_meaning() -> None:
                                                                  "sim/control.py:Observation"]
     assert stages.StageBudget is budget.StageBudget and stages.Budget is budget.StageBudget  # the old name
     assert reduce.Observation is reduce.ProbeObservation  # the old name, for one release
+
+
+def test_the_pool_protocol_declares_what_its_callers_use() -> None:
+    """The driver and the front ends use `in_process`, `expect` and `notes` of a pool and a typed `call`:
+    the protocol declares them (no `getattr(pool, ...)`), and both pools have them."""
+    import inspect
+    import typing
+
+    from pytest_ddenv.execution import DaskPool, LocalPool, Pool
+    from pytest_ddenv.scenario.probe import ProbeResult
+
+    for name in ("in_process", "expect", "notes", "call", "size", "stats", "close"):
+        assert name in vars(Pool), name
+    assert typing.get_args(Pool[ProbeResult]) == (ProbeResult,)  # `call` returns the job's result type
+    assert inspect.signature(Pool.call).return_annotation == "ResultT_co"
+    assert isinstance(vars(DaskPool)["in_process"], property) and isinstance(vars(LocalPool)["in_process"], property)
+
+
+def _package_lines_with(*fragments: str) -> list[str]:
+    from pathlib import Path
+
+    import pytest_ddenv
+
+    package = Path(pytest_ddenv.__file__).parent
+    return [f"{path.relative_to(package)}:{number}" for path in sorted(package.rglob("*.py"))
+            for number, line in enumerate(path.read_text().splitlines(), 1)
+            if any(fragment in line for fragment in fragments)]
+
+
+def test_no_getattr_on_a_pool_and_no_data_attached_to_an_exception_past_its_type() -> None:
+    assert _package_lines_with("getattr(pool", "getattr(self.pool", "getattr(stop") == []
+    assert _package_lines_with(".outcome = outcome  # type: ignore", "stop.outcome, True  # type: ignore") == []
+
+
+def test_an_interrupted_reductions_outcome_is_a_typed_field() -> None:
+    import typing
+
+    from pytest_ddenv.driver.run import ReductionOutcome, interrupted_outcome
+    from pytest_ddenv.reduce import Reduction, ReductionInterrupted
+
+    reduction = Reduction(original=("a", "b"), minimal=("a",), kept=(), probes=3, cache_hits=0, skipped=0, errors=0,
+                          steps=(), one_minimal=False, incomplete_reason="interrupted", failure_rate=(0, 0),
+                          wall_time=0.0, partition="model2model", priority="sequential", granularity="binary",
+                          deflake=0, seed=0)
+    stop = ReductionInterrupted(reduction)
+    assert stop.outcome is None and interrupted_outcome(stop) is None
+    assert "outcome" in typing.get_type_hints(ReductionInterrupted)
+    outcome = ReductionOutcome("reduced")
+    stop.outcome = outcome
+    assert interrupted_outcome(stop) is outcome

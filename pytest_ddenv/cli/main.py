@@ -40,6 +40,7 @@ from pytest_ddenv.oracle.predicates import PredicateSpec, check_predicate_models
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.driver.report import ReductionReport
+    from pytest_ddenv.execution import Pool
     from pytest_ddenv.sim import Run
     from pytest_ddenv.world.model import World
 
@@ -777,8 +778,8 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     return EXIT_INTERRUPTED if interrupted else EXIT_OK
 
 
-def _where(pool: Any) -> str:
-    if getattr(pool, "in_process", False):
+def _where(pool: Pool[Any]) -> str:
+    if pool.in_process:
         return "in this process"
     return f"{pool.size} workers"
 
@@ -825,7 +826,7 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
 
     from pytest_ddenv.cli.replay import predicates_to_json
     from pytest_ddenv.driver.markers import ReductionSpec
-    from pytest_ddenv.driver.run import ReductionPlan, run_reduction
+    from pytest_ddenv.driver.run import ReductionPlan, interrupted_outcome, run_reduction
     from pytest_ddenv.reduce import ReductionInterrupted
     from pytest_ddenv.scenario.probe import FailureReference
 
@@ -858,7 +859,10 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
         return run_reduction(plan, pool, note=progress.note, on_progress=progress.update), False
     except ReductionInterrupted as stop:
         progress.note("interrupted: the best world found so far is written")
-        return stop.outcome, True  # type: ignore[attr-defined]
+        outcome = interrupted_outcome(stop)
+        if outcome is None:  # pragma: no cover - run_reduction always writes its outcome before it re-raises
+            raise
+        return outcome, True
     finally:
         progress.close()
 

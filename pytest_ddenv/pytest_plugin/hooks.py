@@ -441,7 +441,7 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call:
     try:
         session.example = _given_example(item, given_call)
         with _probe_pool(item, session.example, lambda text: progress(text, final=True)) as pool:
-            if getattr(pool, "in_process", False):
+            if pool.in_process:
                 _warn_about_shared_fixtures(item)
             result = session.run(pool)
     except KeyboardInterrupt:

@@ -264,8 +264,13 @@ class ReductionInterrupted(ReductionError, KeyboardInterrupt):
     ``incomplete_reason == "interrupted"`` and ``one_minimal == False``.
     """
 
+    outcome: object | None
+    """What the caller made of the interrupted reduction before it re-raised this (the driver's
+    `ReductionOutcome`, the files written: read it with the driver's `interrupted_outcome`); None from `reduce`."""
+
     def __init__(self, reduction: Reduction) -> None:
         self.reduction = reduction
+        self.outcome = None
         super().__init__(
             f"reduction interrupted after {reduction.probes} probes; best world so far has "
             f"{len(reduction.minimal)} of {len(reduction.original)} elements"
