@@ -120,3 +120,15 @@ def test_an_interrupted_reductions_outcome_is_a_typed_field() -> None:
     outcome = ReductionOutcome("reduced")
     stop.outcome = outcome
     assert interrupted_outcome(stop) is outcome
+
+
+def test_the_engine_uses_its_deciding_parts_without_a_pass_through_facade() -> None:
+    """`Prober` only forwarded calls to the decider, the scheduler, the runner and the extra runs: the engine
+    calls them itself; what is left wires them together and has no method."""
+    import dataclasses
+
+    from pytest_ddenv.reduce import prober
+
+    assert not hasattr(prober, "Prober")
+    assert dataclasses.is_dataclass(prober.Probing)
+    assert [name for name, value in vars(prober.Probing).items() if callable(value) and not name.startswith("_")] == []
