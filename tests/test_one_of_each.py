@@ -132,3 +132,30 @@ def test_the_engine_uses_its_deciding_parts_without_a_pass_through_facade() -> N
     assert not hasattr(prober, "Prober")
     assert dataclasses.is_dataclass(prober.Probing)
     assert [name for name, value in vars(prober.Probing).items() if callable(value) and not name.startswith("_")] == []
+
+
+def test_one_verdict_function_judges_a_run_and_what_a_test_raised() -> None:
+    """`classify` (a run against a reference signature) is `classify_result` (what a test raised against the
+    reference failure) applied to the run's failure: one verdict, in the oracle."""
+    import inspect
+
+    from pytest_ddenv.oracle import verdict
+    from pytest_ddenv.oracle.predicates import FailureSignature
+    from pytest_ddenv.outcome import Outcome
+    from pytest_ddenv.scenario import probe
+
+    assert probe.classify_result is verdict.classify_result and probe.ErrorInfo is verdict.ErrorInfo
+    assert probe.FailureReference is verdict.FailureReference
+    assert "classify_result(" in inspect.getsource(verdict.classify)
+
+    class Failed:
+        def __init__(self, failure: FailureSignature | None) -> None:
+            self.failure = failure
+
+    here = FailureSignature("stuck", 3.0, (1.0, 0.0, 0.0, 0.0, 0.0, 0.0), ("wall",))
+    near = FailureSignature("stuck", 3.5, (1.2, 0.0, 0.0, 0.0, 0.0, 0.0), ("wall",))
+    far = FailureSignature("stuck", 3.5, (4.0, 0.0, 0.0, 0.0, 0.0, 0.0), ("wall",))
+    assert [verdict.classify(Failed(f), here, 0.5) for f in (near, far, None)] == [
+        Outcome.FAIL, Outcome.OTHER, Outcome.PASS]
+    assert verdict.classify(None, here) is Outcome.ERROR
+    assert verdict.classify(Failed(near), here, error=RuntimeError("x")) is Outcome.ERROR

@@ -827,8 +827,8 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
     from pytest_ddenv.cli.replay import predicates_to_json
     from pytest_ddenv.driver.markers import ReductionSpec
     from pytest_ddenv.driver.run import ReductionPlan, interrupted_outcome, run_reduction
+    from pytest_ddenv.oracle.verdict import FailureReference
     from pytest_ddenv.reduce import ReductionInterrupted
-    from pytest_ddenv.scenario.probe import FailureReference
 
     spec = dataclasses.replace(
         ReductionSpec(), partition=arguments.partition, priority=priority, n_partitions=arguments.n_partitions,

@@ -27,8 +27,7 @@ from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.oracle.predicates import FailureSignature
-    from pytest_ddenv.oracle.verdict import SameFailureRule
-    from pytest_ddenv.scenario.probe import FailureReference
+    from pytest_ddenv.oracle.verdict import FailureReference, SameFailureRule
     from pytest_ddenv.sim import ControllerLike, Run
 
 SUMMARY_LIMIT = 64 * 1024 * 1024
@@ -72,7 +71,7 @@ def predicates_from_json(data: Any) -> tuple[PredicateSpec, ...]:
 
 def reference_of(run: Run) -> FailureReference:
     """The failure a reduction of this run's world must reproduce."""
-    from pytest_ddenv.scenario.probe import FailureReference
+    from pytest_ddenv.oracle.verdict import FailureReference
 
     if run.failure is None:
         raise ValueError("the run did not fail")

@@ -9,9 +9,9 @@ from collections import OrderedDict
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.execution import Pool, ProbeDeadline
-from pytest_ddenv.oracle.verdict import SameFailureRule
+from pytest_ddenv.oracle.verdict import FailureReference, SameFailureRule, classify_result
 from pytest_ddenv.reduce import Outcome, ProbeCancelled, ProbeObservation
-from pytest_ddenv.scenario.probe import FailureReference, ProbeResult, classify_result
+from pytest_ddenv.scenario.probe import ProbeResult
 
 if TYPE_CHECKING:
     from pytest_ddenv.reduce.types import Candidate, Probe

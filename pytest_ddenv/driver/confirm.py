@@ -7,8 +7,9 @@ from typing import TYPE_CHECKING, NamedTuple
 
 from pytest_ddenv.driver.calls import Calls
 from pytest_ddenv.execution import WorkerError, WorkerStartError
+from pytest_ddenv.oracle.verdict import ErrorInfo, FailureReference, classify_result
 from pytest_ddenv.reduce import Outcome
-from pytest_ddenv.scenario.probe import ErrorInfo, FailureReference, ProbeResult, classify_result
+from pytest_ddenv.scenario.probe import ProbeResult
 
 if TYPE_CHECKING:
     from collections.abc import Callable

@@ -30,7 +30,7 @@ from pytest_ddenv.driver.report import Cost, ReductionReport
 from pytest_ddenv.execution import Pool
 from pytest_ddenv.media.writer import DEFAULT_MEDIA, PendingMedia, Shown
 from pytest_ddenv.oracle.predicates import FailureSignature
-from pytest_ddenv.oracle.verdict import SameFailureRule
+from pytest_ddenv.oracle.verdict import ErrorInfo, FailureReference, SameFailureRule, classify_result
 from pytest_ddenv.reduce import (
     Outcome,
     ProbeLog,
@@ -42,11 +42,8 @@ from pytest_ddenv.reduce import (
 from pytest_ddenv.reduce.deflake import make_policy
 from pytest_ddenv.reduce.engine import INDEPENDENCE
 from pytest_ddenv.scenario.probe import (
-    ErrorInfo,
-    FailureReference,
     ProbeResult,
     check_rule,
-    classify_result,
     keeps_start_support,
     make_probe,
     signature_record,

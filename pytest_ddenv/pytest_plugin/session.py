@@ -22,9 +22,10 @@ from pytest_ddenv.driver.report_text import result_lines, status_of
 from pytest_ddenv.driver.run import ReductionOutcome, ReductionPlan, interrupted_outcome, run_reduction
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.media.writer import DEFAULT_MEDIA
+from pytest_ddenv.oracle.verdict import FailureReference
 from pytest_ddenv.pytest_plugin.given_example import GivenExample, reproduction
 from pytest_ddenv.reduce.types import ProgressEvent, Reduction, ReductionInterrupted
-from pytest_ddenv.scenario.probe import FailureReference, describe_error
+from pytest_ddenv.scenario.probe import describe_error
 from pytest_ddenv.scenario.robot_world import FIXTURE, RobotWorld
 
 if TYPE_CHECKING:

@@ -15,19 +15,13 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from pytest_ddenv.execution import ProbeDeadline
+from pytest_ddenv.oracle.verdict import FailureReference, classify_result
 from pytest_ddenv.outcome import Outcome
 from pytest_ddenv.reduce import ProbeLog, ProbeObservation, Reduction, reduce
 from pytest_ddenv.reduce.budget import StageBudget
 from pytest_ddenv.reduce.deflake import ConfirmedRuns, DeflakePolicy
 from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
-from pytest_ddenv.scenario.probe import (
-    FailureReference,
-    ProbeCall,
-    ProbeResult,
-    classify_result,
-    make_probe,
-    signature_record,
-)
+from pytest_ddenv.scenario.probe import ProbeCall, ProbeResult, make_probe, signature_record
 
 if TYPE_CHECKING:
     from pytest_ddenv.oracle.verdict import SameFailureRule
