@@ -159,3 +159,19 @@ def test_one_verdict_function_judges_a_run_and_what_a_test_raised() -> None:
         Outcome.FAIL, Outcome.OTHER, Outcome.PASS]
     assert verdict.classify(None, here) is Outcome.ERROR
     assert verdict.classify(Failed(near), here, error=RuntimeError("x")) is Outcome.ERROR
+
+
+def test_the_driver_writes_files_one_way() -> None:
+    """The driver builds what a file says (a summary in report.py, a world by its format's writer) and then
+    writes it (artifacts.py): artifacts.py knows no report, and no driver module goes back through the
+    `World` methods that dispatch to the format layer."""
+    import ast
+    from pathlib import Path
+
+    from pytest_ddenv import driver
+
+    folder = Path(driver.__file__).parent
+    tree = ast.parse((folder / "artifacts.py").read_text())
+    imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
+    assert "pytest_ddenv.driver.report" not in imported and "pytest_ddenv.reduce" not in imported
+    assert [line for line in _package_lines_with(".to_yaml(", ".to_sdf(") if line.startswith("driver/")] == []

@@ -15,7 +15,7 @@ import threading
 import time
 import warnings
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -26,7 +26,13 @@ from pytest_ddenv.driver.confirm import Confirmation, ConfirmationRun, confirm
 from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.driver.other_failures import original_reproduction, other_failures
 from pytest_ddenv.driver.problem import Problem, problem_of
-from pytest_ddenv.driver.report import Cost, ReductionReport
+from pytest_ddenv.driver.report import (
+    Cost,
+    ReductionReport,
+    ReportFiles,
+    provisional_summary,
+    world_independent_summary,
+)
 from pytest_ddenv.execution import Pool
 from pytest_ddenv.media.writer import DEFAULT_MEDIA, PendingMedia, Shown
 from pytest_ddenv.oracle.predicates import FailureSignature
@@ -265,14 +271,17 @@ class _Locked:
                 assert event.candidate is not None
                 self.best = event.candidate
                 self.calls.pin(self.best)
-            plan = self.plan
-            artifacts.write_progress(
-                self.paths, plan.world, self.best, test_id=plan.test_id, problem_fingerprint=self.problem.fingerprint,
-                replay_command=plan.replay_command, reference=plan.reference.to_dict(),
-                counts=self.cost(event.probes).to_json(),
+            plan, paths = self.plan, self.paths
+            best = plan.world.select(self.best)
+            artifacts.write_world(paths.minimal_yaml, best, paths.directory)
+            artifacts.write_json(paths.summary, provisional_summary(
+                test_id=plan.test_id, world=plan.world.source or plan.world.name, original=plan.world.names,
+                best=best.names, problem_fingerprint=self.problem.fingerprint, replay_command=plan.replay_command,
+                reference=plan.reference.to_dict(), counts=self.cost(event.probes).to_json(),
+                files=ReportFiles(paths.minimal_yaml, paths.log, paths.summary),
                 extra={**plan.run_settings, "tolerance": plan.spec.tolerance,
                        "same_failure": plan.rule.to_json(), "notes": self.notes,
-                       "world_notes": list(plan.world.notes)})
+                       "world_notes": list(plan.world.notes)}))
             self.record_usage()
         if self.on_progress is not None:
             self.on_progress(event)
@@ -289,9 +298,11 @@ class _Locked:
                    f"way ({plan.reference.describe()}); no reduction was run ({_count(simulations, 'simulation')}). "
                    "Look at the code under test rather than the world.")
         self.record_usage(final=True)
-        artifacts.write_world_independent(self.paths, test_id=plan.test_id, world=plan.world, kept=empty,
-                                          message=message, reference=plan.reference.to_dict(),
-                                          counts=self.cost(reduction.probes).to_json())
+        artifacts.remove_outputs(self.paths)
+        artifacts.write_json(self.paths.summary, world_independent_summary(
+            test_id=plan.test_id, world=plan.world.source or plan.world.name, original_size=len(plan.world),
+            kept=empty, message=message, reference=plan.reference.to_dict(),
+            counts=self.cost(reduction.probes).to_json(), log=self.paths.log, summary=self.paths.summary))
         return ReductionOutcome("world-independent", message=message)
 
     def reduce_models(self, partition: str, priority: str) -> tuple[Reduction, ReductionInterrupted | None]:
@@ -355,11 +366,13 @@ class _Locked:
         plan, paths = self.plan, self.paths
         with interrupts_deferred() as deferred:
             self.record_usage(final=True)
-            files, how = artifacts.write_minimal_world(paths, plan.world, reduction, model_paths=plan.model_paths)
+            how = artifacts.write_minimal_world(paths, plan.world, plan.world.select(reduction.minimal),
+                                                reduction.removed, model_paths=plan.model_paths)
             others, other_worlds = artifacts.write_other_worlds(
                 paths, plan.world, other_failures(self.log.records, rule=plan.rule, reference=plan.reference),
                 plan.keep_other, plan.other_replay)
-            files = replace(files, other_worlds=other_worlds)
+            files = ReportFiles(paths.minimal_yaml, paths.log, paths.summary,
+                                minimal_sdf=paths.minimal_sdf if how is not None else None, other_worlds=other_worlds)
             report = ReductionReport(
                 test=plan.test_id, world=plan.world.source or plan.world.name, reduction=reduction,
                 reference_failure=plan.reference.to_dict(), replay=plan.replay_command,
@@ -371,7 +384,7 @@ class _Locked:
                 world_notes=tuple(plan.world.notes), stages=staged,
                 stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
                 run_settings=plan.run_settings, other_failures=others)
-            artifacts.write_summary(paths, report)
+            artifacts.write_json(paths.summary, report.to_json())
         if deferred and interrupted is None:
             interrupted = ReductionInterrupted(reduction)
         attachments = [paths.minimal_yaml, paths.log, paths.summary, *map(Path, report.stage_files.values()),
@@ -388,7 +401,7 @@ class _Locked:
                 attachments += media.paths
                 if media.info:  # what was made and what it took, in the summary
                     report = report.with_media(media.info, media.seconds)
-                    artifacts.write_summary(paths, report)
+                    artifacts.write_json(paths.summary, report.to_json())
         except KeyboardInterrupt as stop:  # the summary is written: only pictures and media are missing
             interrupted = interrupted or ReductionInterrupted(reduction)
             interrupted.__cause__ = interrupted.__cause__ or stop
