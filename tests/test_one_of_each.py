@@ -172,6 +172,7 @@ def test_the_driver_writes_files_one_way() -> None:
 
     folder = Path(driver.__file__).parent
     tree = ast.parse((folder / "artifacts.py").read_text())
-    imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
-    assert "pytest_ddenv.driver.report" not in imported and "pytest_ddenv.reduce" not in imported
+    modules = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
+    names = {alias.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) for alias in node.names}
+    assert "pytest_ddenv.driver.report" not in modules and "Reduction" not in names
     assert [line for line in _package_lines_with(".to_yaml(", ".to_sdf(") if line.startswith("driver/")] == []
