@@ -45,12 +45,12 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pytest_ddenv.driver.scenario_job import ScenarioJob
 from pytest_ddenv.execution import Pool, check_executor, make_pool, resolve_workers
 from pytest_ddenv.oracle import PredicateSpec
-from pytest_ddenv.scenario.probe import FailureReference, ProbeResult, keeps_start_support, make_probe, trace_of
-from pytest_ddenv.reduce import Observation, Outcome, Reduction, reduce
+from pytest_ddenv.reduce import Outcome, ProbeObservation, Reduction, reduce
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedReruns
-from pytest_ddenv.driver.scenario_job import ScenarioJob
+from pytest_ddenv.scenario.probe import FailureReference, ProbeResult, keeps_start_support, make_probe, trace_of
 from pytest_ddenv.world import World
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -206,7 +206,7 @@ class Problem:
             raise TypeError(f"the pool's job returned {type(result).__name__}, not a ProbeResult")
         return result
 
-    def probe(self) -> Callable[[tuple[str, ...], int], Observation]:
+    def probe(self) -> Callable[[tuple[str, ...], int], ProbeObservation]:
         return make_probe(self.world, self.call, self.reference, tolerance=TOLERANCE)
 
     def preconditions(self) -> tuple[Callable[[tuple[str, ...]], str | None], ...]:

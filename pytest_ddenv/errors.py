@@ -75,15 +75,23 @@ class ReductionError(DdenvError):
     """The reduction engine was called with invalid arguments or cannot proceed."""
 
 
-class ControllerError(Exception):
+class ControllerError(DdenvError):
     """The controller under test broke its contract: it returned something that is not a command (or a
     NaN), or its run went past the wall-clock limit. Like any exception of the test, it fails the run; it
-    is the failure being reduced only if the original failure was this same error."""
+    is the failure being reduced only if the original failure was this same error. The one `DdenvError` that
+    is the system under test's failure, not pytest-ddenv's (`raised_by_ddenv`)."""
 
 
 class ControllerTimeout(ControllerError):
     """A run took longer than its wall-clock limit (`max_wall_time`): the controller (or the world) is too
     slow. The simulated time limit did not end it first."""
+
+
+def raised_by_ddenv(error: BaseException) -> bool:
+    """Whether `error` is one pytest-ddenv raised about its input or its own work (a world, a setting, a worker):
+    every `DdenvError` but a `ControllerError`, which says what the controller under test did (the test's
+    failure, judged like any other exception of the test)."""
+    return isinstance(error, DdenvError) and not isinstance(error, ControllerError)
 
 
 class _ShortRepr(reprlib.Repr):

@@ -338,8 +338,8 @@ def test_subprocess_smoke(worlds: dict[str, Path]) -> None:
 def test_the_failure_rate_line_compares_with_the_original_and_warns() -> None:
     from dataclasses import replace
 
-    from pytest_ddenv.reduce import Rate, reduce
     from pytest_ddenv.driver.report_text import failure_rate_line
+    from pytest_ddenv.reduce import Rate, reduce
 
     solid = reduce(("a", "b"), lambda candidate, attempt: _observation("a" in candidate), deflake="auto",
                    failure_rate_runs=4)
@@ -356,9 +356,9 @@ def test_the_failure_rate_line_compares_with_the_original_and_warns() -> None:
 
 
 def _observation(failed: bool) -> Any:
-    from pytest_ddenv.reduce import Observation, Outcome
+    from pytest_ddenv.reduce import Outcome, ProbeObservation
 
-    return Observation(Outcome.FAIL if failed else Outcome.PASS)
+    return ProbeObservation(Outcome.FAIL if failed else Outcome.PASS)
 
 
 # -- progress in CI logs ---------------------------------------------------------------------------------

@@ -13,9 +13,9 @@ import pytest
 from pytest_ddenv import render
 from pytest_ddenv.driver import picture_data, pictures
 from pytest_ddenv.driver.artifacts import ArtifactPaths
+from pytest_ddenv.driver.picture_data import reference_pose, reference_text
 from pytest_ddenv.oracle import FailureSignature
 from pytest_ddenv.reduce import Reduction, events
-from pytest_ddenv.driver.picture_data import reference_pose, reference_text
 from pytest_ddenv.render.canvas import pyplot
 from pytest_ddenv.sim import Run, RunSettings
 from pytest_ddenv.world import World
@@ -246,12 +246,12 @@ def test_probe_failure_poses_are_coloured_by_outcome_with_a_legend(worlds: dict[
 
 def test_progress_steps_are_drawn_at_the_probe_that_justified_them(tmp_path: Path) -> None:
     """Each accepted step sits on the probe dot of the candidate it adopted (same numbering as the dots)."""
-    from pytest_ddenv.reduce import Observation, Outcome, reduce
+    from pytest_ddenv.reduce import Outcome, ProbeObservation, reduce
 
     names = tuple(f"m{i}" for i in range(12))
 
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
-        return Observation(Outcome.FAIL if {"m3", "m8"} <= set(candidate) else Outcome.PASS)
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
+        return ProbeObservation(Outcome.FAIL if {"m3", "m8"} <= set(candidate) else Outcome.PASS)
 
     log = tmp_path / "runs.jsonl"
     reduce(names, probe, partition="even", priority="sequential", deflake=1, log=log, failure_rate_runs=0)

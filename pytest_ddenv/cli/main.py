@@ -48,11 +48,12 @@ from pytest_ddenv.driver.settings import (
     watchdog,
 )
 from pytest_ddenv.driver.user_code import UserCodeExit, is_exit
-from pytest_ddenv.errors import DdenvError, shown
+from pytest_ddenv.errors import DdenvError, raised_by_ddenv, shown
 from pytest_ddenv.oracle.predicates import PredicateSpec, check_predicate_models
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.driver.report import ReductionReport
+    from pytest_ddenv.execution import Pool
     from pytest_ddenv.sim import Run
     from pytest_ddenv.world.model import World
 
@@ -468,9 +469,9 @@ def _cmd_run(arguments: argparse.Namespace) -> int:
     try:
         run = run_scenario(world, predicates, seed=arguments.seed, timeout=arguments.timeout, controller=controller,
                            max_wall_time=arguments.run_timeout)
-    except DdenvError:
-        raise
-    except Exception as error:  # noqa: BLE001 - the controller under test raised or misbehaved: the scenario failed
+    except Exception as error:
+        if raised_by_ddenv(error):
+            raise
         return _run_raised(arguments, world, error)
     picture = None
     if not arguments.no_picture:
@@ -695,8 +696,8 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     return EXIT_INTERRUPTED if interrupted else EXIT_OK
 
 
-def _where(pool: Any) -> str:
-    if getattr(pool, "in_process", False):
+def _where(pool: Pool[Any]) -> str:
+    if pool.in_process:
         return "in this process"
     return f"{pool.size} workers"
 
@@ -743,9 +744,9 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
 
     from pytest_ddenv.cli.replay import predicates_to_json
     from pytest_ddenv.driver.markers import ReductionSpec
-    from pytest_ddenv.driver.run import ReductionPlan, run_reduction
+    from pytest_ddenv.driver.run import ReductionPlan, interrupted_outcome, run_reduction
+    from pytest_ddenv.oracle.verdict import FailureReference
     from pytest_ddenv.reduce import ReductionInterrupted
-    from pytest_ddenv.scenario.probe import FailureReference
 
     spec = dataclasses.replace(
         ReductionSpec(), partition=arguments.partition, priority=priority, n_partitions=arguments.n_partitions,
@@ -776,7 +777,10 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
         return run_reduction(plan, pool, note=progress.note, on_progress=progress.update), False
     except ReductionInterrupted as stop:
         progress.note("interrupted: the best world found so far is written")
-        return stop.outcome, True  # type: ignore[attr-defined]
+        outcome = interrupted_outcome(stop)
+        if outcome is None:  # pragma: no cover - run_reduction always writes its outcome before it re-raises
+            raise
+        return outcome, True
     finally:
         progress.close()
 

@@ -13,11 +13,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv import defaults
+from pytest_ddenv.driver.artifacts import ArtifactsError
 from pytest_ddenv.driver.scenario_job import run_scenario
-from pytest_ddenv.errors import DdenvError, shown
+from pytest_ddenv.errors import raised_by_ddenv, shown
 from pytest_ddenv.oracle.predicates import PredicateSpec
 from pytest_ddenv.reduce import Outcome, events
 from pytest_ddenv.reduce.log import read_events
+from pytest_ddenv.reduce.rates import Rate, wilson_interval
 from pytest_ddenv.reduce.records import json_value, read_regular
 from pytest_ddenv.scenario.robot_world import RobotFailure
 from pytest_ddenv.validation import expected
@@ -25,8 +27,7 @@ from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.oracle.predicates import FailureSignature
-    from pytest_ddenv.oracle.verdict import SameFailureRule
-    from pytest_ddenv.scenario.probe import FailureReference
+    from pytest_ddenv.oracle.verdict import FailureReference, SameFailureRule
     from pytest_ddenv.sim import ControllerLike, Run
 
 SUMMARY_LIMIT = 64 * 1024 * 1024
@@ -35,8 +36,9 @@ REFERENCE_LOCATION = "ddenv"
 """The `FailureReference.location` of a failure found by running a world's scenario (no test file)."""
 
 
-class ArtifactError(DdenvError):
-    """An artifacts folder is missing a file or holds something that cannot be replayed."""
+ArtifactError = ArtifactsError
+"""The old name of `ArtifactsError` (an artifacts folder is missing a file or holds something that cannot be
+replayed), kept for one release."""
 
 
 def predicates_to_json(predicates: Sequence[PredicateSpec]) -> list[dict[str, Any]]:
@@ -50,15 +52,15 @@ def predicates_from_json(data: Any) -> tuple[PredicateSpec, ...]:
     from pytest_ddenv.oracle.predicates import PREDICATES, predicate_spec
 
     if not isinstance(data, list):
-        raise ArtifactError(expected("a list of {name, params}", data, "'predicates'"))
+        raise ArtifactsError(expected("a list of {name, params}", data, "'predicates'"))
     specs = []
     for item in data:
         if not isinstance(item, Mapping) or not isinstance(item.get("name"), str) \
                 or not isinstance(item.get("params") or {}, Mapping):
-            raise ArtifactError(expected("{name, params} for each predicate", item, "'predicates'"))
+            raise ArtifactsError(expected("{name, params} for each predicate", item, "'predicates'"))
         if item["name"] not in PREDICATES:
             given = f" (the test gave it as {shown(item['object'])})" if "object" in item else ""
-            raise ArtifactError(
+            raise ArtifactsError(
                 f"predicate {shown(item['name'])}{given} is not registered here: pass --import MODULE (a module that "
                 "calls pytest_ddenv.register_predicate), or --predicate, or replay with pytest (summary.json's "
                 "'replay' command)"
@@ -69,7 +71,7 @@ def predicates_from_json(data: Any) -> tuple[PredicateSpec, ...]:
 
 def reference_of(run: Run) -> FailureReference:
     """The failure a reduction of this run's world must reproduce."""
-    from pytest_ddenv.scenario.probe import FailureReference
+    from pytest_ddenv.oracle.verdict import FailureReference
 
     if run.failure is None:
         raise ValueError("the run did not fail")
@@ -120,12 +122,7 @@ class ReplayResult:
     @property
     def interval(self) -> tuple[float, float]:
         """The failure rate's 95 % confidence interval (Wilson score), from the replayed runs."""
-        from scipy.stats import binomtest
-
-        if not self.runs:
-            return 0.0, 1.0
-        low, high = binomtest(self.reproduced, len(self.runs)).proportion_ci(CONFIDENCE, method="wilson")
-        return float(low), float(high)
+        return wilson_interval(Rate(self.reproduced, len(self.runs)), CONFIDENCE)
 
     @property
     def ok(self) -> bool:
@@ -191,34 +188,34 @@ class ReplayResult:
 
 
 def read_artifacts(directory: Path) -> tuple[dict[str, Any], World]:
-    """summary.json and minimal.yaml of an artifacts folder (ArtifactError when missing or invalid)."""
+    """summary.json and minimal.yaml of an artifacts folder (ArtifactsError when missing or invalid)."""
     summary_path, minimal_path = directory / "summary.json", directory / "minimal.yaml"
     if not directory.is_dir():
-        raise ArtifactError(f"{directory}: no such artifacts folder")
+        raise ArtifactsError(f"{directory}: no such artifacts folder")
     try:
         summary = json_value(read_regular(summary_path, SUMMARY_LIMIT).decode("utf-8", errors="replace"))
     except FileNotFoundError:
-        raise ArtifactError(f"{summary_path}: missing; is {directory} a ddenv artifacts folder?") from None
+        raise ArtifactsError(f"{summary_path}: missing; is {directory} a ddenv artifacts folder?") from None
     except OSError as error:
-        raise ArtifactError(f"{summary_path}: cannot be read: {error.strerror or error}") from None
+        raise ArtifactsError(f"{summary_path}: cannot be read: {error.strerror or error}") from None
     except ValueError as error:
-        raise ArtifactError(f"{summary_path}: not valid JSON ({error})") from None
+        raise ArtifactsError(f"{summary_path}: not valid JSON ({error})") from None
     if not isinstance(summary, dict):
-        raise ArtifactError(f"{summary_path}: expected a JSON object")
+        raise ArtifactsError(f"{summary_path}: expected a JSON object")
     if not minimal_path.is_file():
-        raise ArtifactError(f"{minimal_path}: missing; the reduction did not write its minimal world")
+        raise ArtifactsError(f"{minimal_path}: missing; the reduction did not write its minimal world")
     return summary, World.load(minimal_path)
 
 
 def summary_field(summary: Mapping[str, Any], name: str, where: Path, what: str, valid: Callable[[Any], bool],
                   default: Any) -> Any:
-    """`summary[name]` when it is `what` (`valid`), `default` when absent; ArtifactError naming the file and the
+    """`summary[name]` when it is `what` (`valid`), `default` when absent; ArtifactsError naming the file and the
     field when it is something else (a summary damaged or edited since the reduction wrote it)."""
     if name not in summary:
         return default
     value = summary[name]
     if not valid(value):
-        raise ArtifactError(expected(what, value, f"{where}, field '{name}'"))
+        raise ArtifactsError(expected(what, value, f"{where}, field '{name}'"))
     return value
 
 
@@ -242,13 +239,13 @@ def recorded_signature(summary: Mapping[str, Any], where: Path) -> FailureSignat
                               lambda value: isinstance(value, Mapping), {})
     signature = reference.get("signature")
     if not isinstance(signature, Mapping):
-        raise ArtifactError(f"{where}: the reference failure has no predicate signature (the test failed "
+        raise ArtifactsError(f"{where}: the reference failure has no predicate signature (the test failed "
                             "with an exception, not a failure predicate); replay it with the 'replay' command "
                             "in summary.json instead")
     try:
         return FailureSignature.from_dict(signature)
     except (KeyError, TypeError, ValueError) as error:
-        raise ArtifactError(f"{where}: invalid reference failure signature ({error})") from None
+        raise ArtifactsError(f"{where}: invalid reference failure signature ({error})") from None
 
 
 def recorded_predicates(summary: Mapping[str, Any], reference: FailureSignature) -> tuple[PredicateSpec, ...]:
@@ -271,7 +268,7 @@ def recorded_seeds(log: Path, minimal: Sequence[str], fallback: int) -> list[int
 
 def recorded_rule(summary: Mapping[str, Any], where: Path) -> SameFailureRule:
     """The same-failure rule the reduction recorded (`same_failure`), else the default rule with its tolerance
-    (a summary written before rules were recorded). A user's function is imported now (`ArtifactError`)."""
+    (a summary written before rules were recorded). A user's function is imported now (`ArtifactsError`)."""
     from pytest_ddenv.oracle.verdict import SameFailureError, SameFailureRule
 
     try:
@@ -279,7 +276,7 @@ def recorded_rule(summary: Mapping[str, Any], where: Path) -> SameFailureRule:
             return SameFailureRule.from_json(summary["same_failure"], f"{where}: same_failure")
         return SameFailureRule(tolerance=float(summary.get("tolerance", defaults.TOLERANCE)))
     except (SameFailureError, TypeError, ValueError) as error:
-        raise ArtifactError(str(error)) from None
+        raise ArtifactsError(str(error)) from None
 
 
 def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None = None, max_runs: int = 10,
@@ -317,9 +314,9 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
     for run_seed in seeds:
         try:
             run = run_scenario(world, chosen, seed=run_seed, timeout=run_timeout, controller=controller)
-        except DdenvError:
-            raise
-        except Exception as error:  # noqa: BLE001 - the controller under test raised: another failure than the reference
+        except Exception as error:
+            if raised_by_ddenv(error):
+                raise
             results.append(ReplayRun(run_seed, Outcome.OTHER, None, f"{type(error).__name__}: {error}"))
             continue
         outcome = classify(run, reference, rule)

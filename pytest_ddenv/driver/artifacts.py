@@ -1,5 +1,6 @@
 """Files a reduction leaves behind: minimal world (YAML, SDF), run log, summary, pictures; and the lock that
-keeps two reductions out of one folder.
+keeps two reductions out of one folder. What the files say is decided before they are written (the summary by
+`report.py`, a world by its format's writer, `world/formats.py`): this module only writes.
 
 Every file is written atomically and durably (write a temporary file, fsync it, rename it over the old one,
 fsync the folder), so a crash at any moment leaves either the old or the new file, never half of one. The
@@ -26,11 +27,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self
 
 from pytest_ddenv.driver.problem import Problem
-from pytest_ddenv.driver.report import SUMMARY_FORMAT, ReductionReport, ReportFiles, identity_json
 from pytest_ddenv.errors import DdenvError, ReductionError
-from pytest_ddenv.reduce import Reduction, events
+from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.log import sync_directory, write_failure
 from pytest_ddenv.reduce.records import json_value, read_regular
+from pytest_ddenv.world.formats import FORMATS
 from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:
@@ -50,8 +51,9 @@ _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 
 
 class ArtifactsError(ReductionError):
-    """The artifacts folder cannot be used: another reduction holds it, or it cannot be written (a full disk,
-    no permission). The message says which folder or file, why, and what to do."""
+    """The artifacts folder cannot be used: another reduction holds it, it cannot be written (a full disk, no
+    permission), or (`ddenv replay`) it is missing a file or holds something that cannot be replayed. The
+    message says which folder or file, why, and what to do."""
 
 
 def artifact_dir_name(test_id: str) -> str:
@@ -299,25 +301,26 @@ def read_summary(path: Path) -> dict[str, Any] | None:
     return data if isinstance(data, dict) else None
 
 
-def write_minimal_world(paths: ArtifactPaths, world: World, reduction: Reduction, *,
-                        model_paths: Sequence[str | Path] = ()) -> tuple[ReportFiles, str | None]:
-    """Write the minimal world (`minimal.yaml`, and `minimal.sdf` for a world read from SDF); returns the
-    reduction's files and how `minimal.sdf` was made (None: not written).
+def write_minimal_world(paths: ArtifactPaths, world: World, minimal: World, removed: Sequence[str], *,
+                        model_paths: Sequence[str | Path] = ()) -> str | None:
+    """Write the minimal world `minimal` of `world` (`minimal.yaml`, and `minimal.sdf` for a world read from
+    SDF); returns how `minimal.sdf` was made (None: not written).
 
-    `minimal.sdf` of a world read from an SDF file is that file with the removed models cut out (see
+    `minimal.sdf` of a world read from an SDF file is that file with the `removed` models cut out (see
     `write_minimal_sdf`); `model_paths` are those the world was read with (to name its includes again).
     """
-    minimal = world.select(reduction.minimal)
-    write_text_atomic(paths.minimal_yaml, minimal.to_yaml(relative_to=paths.directory))
-    how = write_minimal_sdf(paths.minimal_sdf, world, minimal, reduction.removed, model_paths)
-    files = ReportFiles(paths.minimal_yaml, paths.log, paths.summary,
-                        minimal_sdf=paths.minimal_sdf if how is not None else None)
-    return files, how
+    write_world(paths.minimal_yaml, minimal, paths.directory)
+    return write_minimal_sdf(paths.minimal_sdf, world, minimal, removed, model_paths)
 
 
-def write_summary(paths: ArtifactPaths, report: ReductionReport) -> None:
-    """Write `summary.json` (atomically) from the reduction's report."""
-    write_text_atomic(paths.summary, json.dumps(report.to_json(), indent=2) + "\n")
+def write_world(path: Path, world: World, folder: Path) -> None:
+    """`world` as a YAML file at `path` in `folder` (its relative paths rebased onto the folder)."""
+    write_text_atomic(path, FORMATS["yaml"].dump(world, folder))
+
+
+def write_json(path: Path, data: Mapping[str, Any]) -> None:
+    """Write a JSON file (`summary.json`) atomically."""
+    write_text_atomic(path, json.dumps(data, indent=2) + "\n")
 
 
 def write_stage_worlds(paths: ArtifactPaths, staged: StagesOutcome) -> dict[str, str]:
@@ -332,10 +335,10 @@ def write_stage_worlds(paths: ArtifactPaths, staged: StagesOutcome) -> dict[str,
             for stale in (path, sdf):
                 stale.unlink(missing_ok=True)
             continue
-        write_text_atomic(path, world.to_yaml(relative_to=paths.directory))
+        write_world(path, world, paths.directory)
         files[f"{key}_yaml"] = str(path)
         try:
-            text = world.to_sdf()
+            text = FORMATS["sdf"].dump(world, None)
         except DdenvError:  # a world SDF cannot say (a robot given as a URDF description): YAML only
             sdf.unlink(missing_ok=True)
             continue
@@ -362,7 +365,7 @@ def write_other_worlds(paths: ArtifactPaths, world: World, failures: Sequence[Ot
         models = failure.smallest_world
         if len(written) < keep and models is not None and set(models) <= known:
             path = paths.directory / f"other-{len(written) + 1}.yaml"
-            write_text_atomic(path, world.select(models).to_yaml(relative_to=paths.directory))
+            write_world(path, world.select(models), paths.directory)
             written.append(path)
             failure = replace(failure, world_file=str(path), replay=None if replay is None
                                           else replay(path, failure.smallest_seed))
@@ -373,45 +376,13 @@ def write_other_worlds(paths: ArtifactPaths, world: World, failures: Sequence[Ot
     return tuple(result), tuple(written)
 
 
-def write_progress(paths: ArtifactPaths, world: World, best: Sequence[str], *, test_id: str, problem_fingerprint: str,
-                   replay_command: str, reference: dict[str, Any], counts: Mapping[str, Any],
-                   extra: Mapping[str, Any] | None = None) -> None:
-    """The best world so far (`minimal.yaml`) and a provisional `summary.json` (``"complete": false``,
-    ``"incomplete_reason": "in progress"``): what a reduction stopped at any moment leaves behind."""
-    minimal = world.select(best)
-    write_text_atomic(paths.minimal_yaml, minimal.to_yaml(relative_to=paths.directory))
-    summary = {
-        **identity_json(test_id, world.source or world.name, world.names, minimal.names),
-        "complete": False,
-        "incomplete_reason": "in progress",
-        "provisional": True,
-        "one_minimal": False,
-        **dict(counts),
-        "reference_failure": reference,
-        "replay": replay_command,
-        "fingerprint": problem_fingerprint,
-        "files": ReportFiles(paths.minimal_yaml, paths.log, paths.summary).to_json(),
-        **dict(extra or {}),
-    }
-    write_text_atomic(paths.summary, json.dumps(summary, indent=2) + "\n")
-
-
-def write_world_independent(paths: ArtifactPaths, *, test_id: str, world: World, kept: Sequence[str], message: str,
-                            reference: Mapping[str, Any], counts: Mapping[str, Any]) -> None:
-    """`summary.json` of a failure that does not depend on the world (its world without the removable models
-    fails the same way), and no minimal world: nothing was reduced."""
+def remove_outputs(paths: ArtifactPaths) -> None:
+    """Remove the worlds and pictures of an earlier reduction (a failure that turned out not to depend on the
+    world has none)."""
     for name in ("minimal.yaml", "simplified.yaml", "simplified.sdf", "passing.yaml", "passing.sdf",
                  *STALE_OUTPUTS):
         with contextlib.suppress(OSError):
             (paths.directory / name).unlink()
-    summary = {
-        "format": SUMMARY_FORMAT, "test": test_id, "world": world.source or world.name,
-        "original_size": len(world), "status": "world-independent", "complete": True, "message": message,
-        "kept_models": list(kept),
-        "reference_failure": dict(reference), **dict(counts),
-        "files": {"log": str(paths.log), "summary": str(paths.summary)},
-    }
-    write_text_atomic(paths.summary, json.dumps(summary, indent=2) + "\n")
 
 
 def write_minimal_sdf(target: Path, world: World, minimal: World, removed: Sequence[str],

@@ -32,10 +32,16 @@ from typing import Any
 
 from pytest_ddenv import defaults
 from pytest_ddenv.oracle.predicates import FailureSignature
-from pytest_ddenv.oracle.verdict import OtherReason, SameFailureError, SameFailureRule, most_common_reason
+from pytest_ddenv.oracle.verdict import (
+    FailureReference,
+    OtherReason,
+    SameFailureError,
+    SameFailureRule,
+    most_common_reason,
+)
 from pytest_ddenv.outcome import Outcome
 from pytest_ddenv.reduce import events
-from pytest_ddenv.scenario.probe import FailureReference, why_not_reproduced
+from pytest_ddenv.scenario.probe import why_not_reproduced
 
 MODEL_LEVEL = "models"
 """The name `OtherFailure.seen_in` gives the model-level reduction (and the driver's own runs)."""

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.driver.code_identity import CodeIdentity, digest
 from pytest_ddenv.reduce import events
+from pytest_ddenv.world.formats import FORMATS
 
 if TYPE_CHECKING:
     from pytest_ddenv.world.model import World
@@ -57,7 +58,8 @@ def problem_of(world: World, settings: Mapping[str, Any], test_source: str, code
                test_id: str = "", reference: Mapping[str, Any] | None = None) -> Problem:
     """The problem of a reduction (`reference`, the failure reduced, is checked apart from the fingerprint:
     a resumed log must have reduced the same failure, under the same-failure rule, not an identical one)."""
-    parts = {"world": _digest(world.to_yaml()), "settings": _digest(settings), "test": _digest(test_source)}
+    parts = {"world": _digest(FORMATS["yaml"].dump(world, None)), "settings": _digest(settings),
+             "test": _digest(test_source)}
     code = CodeIdentity({**code.files, **{_shown(path): digest(path) for path in world_files(world)}}, code.packages)
     fingerprint = _digest({**parts, "code": code.to_json(),
                            "pybullet": version("pybullet")})  # a run is bit-identical only with the same pybullet

@@ -177,7 +177,7 @@ class ReductionReport:
 
 
 def identity_json(test: str, world: str, original: Sequence[str], minimal: Sequence[str]) -> dict[str, Any]:
-    """The entries a summary has whether final or provisional (`artifacts.write_progress`): which test and
+    """The entries a summary has whether final or provisional (`provisional_summary`): which test and
     world, and which models the (best so far) minimal world keeps."""
     kept = set(minimal)
     return {
@@ -198,3 +198,38 @@ def percent_removed(original_size: int, minimal_size: int) -> float:
 
 def _rate_json(rate: tuple[int, int] | None) -> dict[str, int] | None:
     return None if rate is None else {"fails": rate[0], "runs": rate[1]}
+
+
+def provisional_summary(*, test_id: str, world: str, original: Sequence[str], best: Sequence[str],
+                        problem_fingerprint: str, replay_command: str, reference: Mapping[str, Any],
+                        counts: Mapping[str, Any], files: ReportFiles,
+                        extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The summary of a reduction in progress (``"complete": false``, ``"incomplete_reason": "in progress"``),
+    with the best world so far: what a reduction stopped at any moment leaves behind."""
+    return {
+        **identity_json(test_id, world, original, best),
+        "complete": False,
+        "incomplete_reason": "in progress",
+        "provisional": True,
+        "one_minimal": False,
+        **dict(counts),
+        "reference_failure": dict(reference),
+        "replay": replay_command,
+        "fingerprint": problem_fingerprint,
+        "files": files.to_json(),
+        **dict(extra or {}),
+    }
+
+
+def world_independent_summary(*, test_id: str, world: str, original_size: int, kept: Sequence[str], message: str,
+                              reference: Mapping[str, Any], counts: Mapping[str, Any], log: Path,
+                              summary: Path) -> dict[str, Any]:
+    """The summary of a failure that does not depend on the world (its world without the removable models
+    fails the same way): nothing was reduced."""
+    return {
+        "format": SUMMARY_FORMAT, "test": test_id, "world": world,
+        "original_size": original_size, "status": "world-independent", "complete": True, "message": message,
+        "kept_models": list(kept),
+        "reference_failure": dict(reference), **dict(counts),
+        "files": {"log": str(log), "summary": str(summary)},
+    }

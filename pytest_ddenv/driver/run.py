@@ -14,28 +14,31 @@ import signal
 import threading
 import time
 import warnings
-from collections import OrderedDict
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.driver import artifacts
+from pytest_ddenv.driver.calls import Calls
 from pytest_ddenv.driver.code_identity import CodeIdentity
+from pytest_ddenv.driver.confirm import Confirmation, ConfirmationRun, confirm
 from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.driver.other_failures import original_reproduction, other_failures
 from pytest_ddenv.driver.problem import Problem, problem_of
-from pytest_ddenv.driver.report import Cost, ReductionReport
-from pytest_ddenv.execution import Pool, ProbeDeadline, WorkerError, WorkerStartError
+from pytest_ddenv.driver.report import (
+    Cost,
+    ReductionReport,
+    ReportFiles,
+    provisional_summary,
+    world_independent_summary,
+)
+from pytest_ddenv.execution import Pool
 from pytest_ddenv.media.writer import DEFAULT_MEDIA, PendingMedia, Shown
 from pytest_ddenv.oracle.predicates import FailureSignature
-from pytest_ddenv.oracle.verdict import SameFailureRule
-from pytest_ddenv.reduce import (
-    Observation as ProbeObservation,
-)
+from pytest_ddenv.oracle.verdict import ErrorInfo, FailureReference, SameFailureRule, classify_result
 from pytest_ddenv.reduce import (
     Outcome,
-    ProbeCancelled,
     ProbeLog,
     ProgressEvent,
     Reduction,
@@ -46,13 +49,9 @@ from pytest_ddenv.reduce import (
 )
 from pytest_ddenv.reduce.deflake import make_policy
 from pytest_ddenv.reduce.engine import INDEPENDENCE
-from pytest_ddenv.reduce.types import Probe
 from pytest_ddenv.scenario.probe import (
-    ErrorInfo,
-    FailureReference,
     ProbeResult,
     check_rule,
-    classify_result,
     keeps_start_support,
     make_probe,
     signature_record,
@@ -60,7 +59,7 @@ from pytest_ddenv.scenario.probe import (
 )
 from pytest_ddenv.stages import (
     DEFAULT_STAGES,
-    Budget,
+    StageBudget,
     StageContext,
     StagesOutcome,
     run_stages,
@@ -77,8 +76,6 @@ TRAJECTORY_PRIORITIES = ("failure-proximal", "avg-trajectory-proximal", "min-tra
 BUDGETS = ("max_probes", "max_seconds", "stages", "stage_probes")
 """Settings that do not change the problem: a run with another budget (or other stages after the models)
 resumes the same log."""
-AUTO_CONFIRMATIONS = 4
-"""Runs that may confirm the failure with deflake="auto"/"adaptive" (1 + the paper's default 3 re-runs)."""
 
 
 @dataclass(frozen=True)
@@ -145,12 +142,16 @@ class ReductionOutcome:
         return None if self.report is None else self.report.reduction
 
 
+def interrupted_outcome(stop: ReductionInterrupted) -> ReductionOutcome | None:
+    """The outcome `run_reduction` wrote before Ctrl-C or SIGTERM stopped it (None: `reduce` itself was
+    interrupted, or a caller of its own)."""
+    return stop.outcome if isinstance(stop.outcome, ReductionOutcome) else None
+
+
 Note = Callable[[str], None]
-PICTURE_RUNS_KEPT = 16
-"""Failing runs kept in memory for the pictures (the accepted world's run is pinned at each step)."""
 
 
-def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: None,
+def run_reduction(plan: ReductionPlan, pool: Pool[ProbeResult], *, note: Note = lambda text: None,
                   on_progress: Callable[[ProgressEvent], None] | None = None) -> ReductionOutcome:
     """Confirm `plan.reference` on `pool`, reduce `plan.world`, write the artifacts; see `ReductionOutcome`.
 
@@ -159,26 +160,29 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
     `minimal.yaml` with a provisional `summary.json` is rewritten at every accepted step. The budgets
     (`spec.max_probes`, `spec.max_seconds`) cover every simulation of the reduction, the confirmation and
     picture runs included; running probes are stopped at the time budget's deadline. Raises
-    `ReductionInterrupted` on Ctrl-C or SIGTERM, after writing the best world so far (the outcome is attached
-    as `.outcome`), and `ArtifactsError` / `ReductionError` when the folder or the log cannot be written (the
-    log keeps every complete record: run again to resume)."""
+    `ReductionInterrupted` on Ctrl-C or SIGTERM, after writing the best world so far (its outcome:
+    `interrupted_outcome`), and `ArtifactsError` / `ReductionError` when the folder or the log cannot be
+    written (the log keeps every complete record: run again to resume).
+
+    The phases, each a call that returns what the next needs: `confirm` (is the failure there?), the
+    folder (`artifacts.prepare`, the log), `_Locked.reduce_models`, `_Locked.runs_to_show`, `_run_stages`,
+    `_Locked.write` (the files, the report, the pictures and the media)."""
     spec, world = plan.spec, plan.world
     make_policy(spec.deflake, 0.95)  # an invalid deflake fails now, before any simulation
     deadline = None if spec.max_seconds is None else time.monotonic() + spec.max_seconds
-    expect = getattr(pool, "expect", None)
-    if plan.reference_run is not None and callable(expect):  # the watchdog scales with the original run
-        expect(float(getattr(plan.reference_run, "wall_time", 0.0) or 0.0))
+    if plan.reference_run is not None:  # the watchdog scales with the original run
+        pool.expect(plan.reference_run.wall_time)
     # This process waits for the workers: import meanwhile (a caller may have started it earlier).
-    ahead = None if getattr(pool, "in_process", False) else import_ahead()
+    ahead = None if pool.in_process else import_ahead()
     try:
         check_rule(plan.reference, plan.rule)  # a user's rule that cannot match the failure itself fails now
-        calls = _Calls(pool, plan.reference, plan.rule, deadline)
+        calls = Calls(pool, plan.reference, plan.rule, deadline)
         with _sigterm_as_interrupt():
-            confirmations: list[tuple[int, ProbeResult | None, str]] = []
-            if not plan.confirmed:
-                failed = _confirm(plan, calls, note, confirmations)
-                if failed is not None:
-                    return failed
+            confirmation = Confirmation() if plan.confirmed else confirm(
+                world, plan.reference, plan.rule, calls, deflake=spec.deflake, max_probes=spec.max_probes,
+                record=plan.media == "all", note=note)
+            if confirmation.status != "confirmed":
+                return ReductionOutcome(confirmation.status, message=confirmation.message)
             partition, priority, notes = _schemas(spec, plan.reference_run, plan.no_run_reason)
             for text in notes:
                 note(text)
@@ -195,7 +199,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
                     note(text)
                 try:
                     return _reduce_locked(plan, pool, calls, paths, log, problem, partition, priority,
-                                          notes + prepared + log.notes, confirmations, on_progress)
+                                          notes + prepared + log.notes, confirmation.runs, on_progress)
                 finally:
                     log.close()
     finally:
@@ -203,12 +207,13 @@ def run_reduction(plan: ReductionPlan, pool: Pool, *, note: Note = lambda text: 
             ahead.join(IMPORT_AHEAD_WAIT)
 
 
-def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifacts.ArtifactPaths, log: ProbeLog,
-                   problem: Problem, partition: str, priority: str, notes: list[str],
-                   confirmations: list[tuple[int, ProbeResult | None, str]],
+def _reduce_locked(plan: ReductionPlan, pool: Pool[ProbeResult], calls: Calls, paths: artifacts.ArtifactPaths,
+                   log: ProbeLog, problem: Problem, partition: str, priority: str, notes: list[str],
+                   confirmations: tuple[ConfirmationRun, ...],
                    on_progress: Callable[[ProgressEvent], None] | None) -> ReductionOutcome:
     """The reduction once its folder is locked and its log open, in its phases: the model-level reduction,
-    the runs to show, the stages, the files (`_Locked`)."""
+    the runs to show, the stages, the files (`_Locked`). Ctrl-C in a phase skips the phases after it but the
+    files."""
     locked = _Locked(plan, pool, calls, paths, log, problem, notes, on_progress)
     for attempt, result, verdict in confirmations:
         _log_run(log, "confirmation", plan.world.names, attempt, result, verdict)
@@ -218,24 +223,19 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
     locked.notes = list(dict.fromkeys([*locked.notes, *reduction.notes]))
     minimal_run: Run | None = None
     shown: list[Shown] = []
-    if interrupted is None:
-        try:
-            minimal_run, shown = locked.runs_to_show(reduction, confirmations)
-        except KeyboardInterrupt as stop:  # the models are reduced: the summary says so, no pictures
-            pool.close()
-            interrupted = ReductionInterrupted(reduction)
-            interrupted.__cause__ = stop
     staged: StagesOutcome | None = None
-    if interrupted is None and len(plan.spec.stages or DEFAULT_STAGES) > 1 and reduction.minimal:
-        try:
+    try:
+        if interrupted is None:
+            minimal_run, shown = locked.runs_to_show(reduction, confirmations)
+        if interrupted is None and len(plan.spec.stages or DEFAULT_STAGES) > 1 and reduction.minimal:
             staged = _run_stages(plan, pool, reduction, calls, log, paths, minimal_run)
-        except KeyboardInterrupt as stop:
-            pool.close()
-            interrupted = ReductionInterrupted(reduction)
-            interrupted.__cause__ = stop
+    except KeyboardInterrupt as stop:  # the models are reduced: the summary says so, no pictures
+        pool.close()
+        interrupted = ReductionInterrupted(reduction)
+        interrupted.__cause__ = stop
     outcome = locked.write(reduction, staged, interrupted, minimal_run, shown)
     if outcome.interrupted is not None:
-        outcome.interrupted.outcome = outcome  # type: ignore[attr-defined]
+        outcome.interrupted.outcome = outcome
         raise outcome.interrupted
     return outcome
 
@@ -243,7 +243,7 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifa
 class _Locked:
     """One reduction in its locked folder: its log, its usage and the files it writes."""
 
-    def __init__(self, plan: ReductionPlan, pool: Pool, calls: _Calls, paths: artifacts.ArtifactPaths,
+    def __init__(self, plan: ReductionPlan, pool: Pool[ProbeResult], calls: Calls, paths: artifacts.ArtifactPaths,
                  log: ProbeLog, problem: Problem, notes: list[str],
                  on_progress: Callable[[ProgressEvent], None] | None) -> None:
         self.plan, self.pool, self.calls, self.paths, self.log = plan, pool, calls, paths, log
@@ -273,14 +273,17 @@ class _Locked:
                 assert event.candidate is not None
                 self.best = event.candidate
                 self.calls.pin(self.best)
-            plan = self.plan
-            artifacts.write_progress(
-                self.paths, plan.world, self.best, test_id=plan.test_id, problem_fingerprint=self.problem.fingerprint,
-                replay_command=plan.replay_command, reference=plan.reference.to_dict(),
-                counts=self.cost(event.probes).to_json(),
+            plan, paths = self.plan, self.paths
+            best = plan.world.select(self.best)
+            artifacts.write_world(paths.minimal_yaml, best, paths.directory)
+            artifacts.write_json(paths.summary, provisional_summary(
+                test_id=plan.test_id, world=plan.world.source or plan.world.name, original=plan.world.names,
+                best=best.names, problem_fingerprint=self.problem.fingerprint, replay_command=plan.replay_command,
+                reference=plan.reference.to_dict(), counts=self.cost(event.probes).to_json(),
+                files=ReportFiles(paths.minimal_yaml, paths.log, paths.summary),
                 extra={**plan.run_settings, "tolerance": plan.spec.tolerance,
                        "same_failure": plan.rule.to_json(), "notes": self.notes,
-                       "world_notes": list(plan.world.notes)})
+                       "world_notes": list(plan.world.notes)}))
             self.record_usage()
         if self.on_progress is not None:
             self.on_progress(event)
@@ -296,9 +299,11 @@ class _Locked:
                    f"way ({plan.reference.describe()}); no reduction was run ({_count(simulations, 'simulation')}). "
                    "Look at the code under test rather than the world.")
         self.record_usage(final=True)
-        artifacts.write_world_independent(self.paths, test_id=plan.test_id, world=plan.world, kept=empty,
-                                          message=message, reference=plan.reference.to_dict(),
-                                          counts=self.cost(reduction.probes).to_json())
+        artifacts.remove_outputs(self.paths)
+        artifacts.write_json(self.paths.summary, world_independent_summary(
+            test_id=plan.test_id, world=plan.world.source or plan.world.name, original_size=len(plan.world),
+            kept=empty, message=message, reference=plan.reference.to_dict(),
+            counts=self.cost(reduction.probes).to_json(), log=self.paths.log, summary=self.paths.summary))
         return ReductionOutcome("world-independent", message=message)
 
     def reduce_models(self, partition: str, priority: str) -> tuple[Reduction, ReductionInterrupted | None]:
@@ -306,15 +311,7 @@ class _Locked:
         plan, calls, pool = self.plan, self.calls, self.pool
         spec, world = plan.spec, plan.world
         keep = (set(spec.keep) & set(world.names)) | {m.name for m in world.models if m.keep}
-        inner = make_probe(world, calls, plan.reference, rule=plan.rule)
-
-        def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
-            calls.local.cancelled = False
-            observation = inner(candidate, attempt)
-            if calls.local.cancelled:  # stopped at the time budget's deadline: not an outcome
-                raise ProbeCancelled("budget: max_seconds")
-            return observation
-
+        probe = calls.cancellable(make_probe(world, calls, plan.reference, rule=plan.rule))
         left = spec.max_probes if spec.max_probes is None else max(0, spec.max_probes - calls.started)
         seconds = None if calls.deadline is None else max(0.0, calls.deadline - time.monotonic())
         threads = (concurrent.futures.ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-probe")
@@ -344,7 +341,7 @@ class _Locked:
             if threads is not None:
                 threads.shutdown(wait=clean, cancel_futures=True)
 
-    def runs_to_show(self, reduction: Reduction, confirmations: list[tuple[int, ProbeResult | None, str]]
+    def runs_to_show(self, reduction: Reduction, confirmations: tuple[ConfirmationRun, ...]
                      ) -> tuple[Run | None, list[Shown]]:
         """The minimal world's failing run for the pictures, and the runs to animate and record (run now,
         before the summary, so that its counts include every simulation)."""
@@ -372,11 +369,13 @@ class _Locked:
         plan, paths = self.plan, self.paths
         with interrupts_deferred() as deferred:
             self.record_usage(final=True)
-            files, how = artifacts.write_minimal_world(paths, plan.world, reduction, model_paths=plan.model_paths)
+            how = artifacts.write_minimal_world(paths, plan.world, plan.world.select(reduction.minimal),
+                                                reduction.removed, model_paths=plan.model_paths)
             others, other_worlds = artifacts.write_other_worlds(
                 paths, plan.world, other_failures(self.log.events, rule=plan.rule, reference=plan.reference),
                 plan.keep_other, plan.other_replay)
-            files = replace(files, other_worlds=other_worlds)
+            files = ReportFiles(paths.minimal_yaml, paths.log, paths.summary,
+                                minimal_sdf=paths.minimal_sdf if how is not None else None, other_worlds=other_worlds)
             report = ReductionReport(
                 test=plan.test_id, world=plan.world.source or plan.world.name, reduction=reduction,
                 reference_failure=plan.reference.to_dict(), replay=plan.replay_command,
@@ -384,11 +383,11 @@ class _Locked:
                 files=files, cost=self.cost(reduction.probes), tolerance=plan.spec.tolerance, minimal_sdf=how,
                 same_failure=plan.rule,
                 reproduction=original_reproduction(self.log.events, plan.world.names, plan.reference, plan.rule),
-                notes=tuple(dict.fromkeys([*self.notes, *getattr(self.pool, "notes", ())])),
+                notes=tuple(dict.fromkeys([*self.notes, *self.pool.notes])),
                 world_notes=tuple(plan.world.notes), stages=staged,
                 stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
                 run_settings=plan.run_settings, other_failures=others)
-            artifacts.write_summary(paths, report)
+            artifacts.write_json(paths.summary, report.to_json())
         if deferred and interrupted is None:
             interrupted = ReductionInterrupted(reduction)
         attachments = [paths.minimal_yaml, paths.log, paths.summary, *map(Path, report.stage_files.values()),
@@ -397,7 +396,7 @@ class _Locked:
         try:
             if interrupted is None and shown:  # with worker processes, an animation renders beside the pictures
                 pending = PendingMedia(paths.directory, shown, failure_text=plan.reference.describe(),
-                                       helper=self.pool.size > 1 and not getattr(self.pool, "in_process", False))
+                                       helper=self.pool.size > 1 and not self.pool.in_process)
             if interrupted is None and plan.media != "none":
                 attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
             if pending is not None:
@@ -405,7 +404,7 @@ class _Locked:
                 attachments += media.paths
                 if media.info:  # what was made and what it took, in the summary
                     report = report.with_media(media.info, media.seconds)
-                    artifacts.write_summary(paths, report)
+                    artifacts.write_json(paths.summary, report.to_json())
         except KeyboardInterrupt as stop:  # the summary is written: only pictures and media are missing
             interrupted = interrupted or ReductionInterrupted(reduction)
             interrupted.__cause__ = interrupted.__cause__ or stop
@@ -415,7 +414,7 @@ class _Locked:
                                 interrupted=interrupted, minimal_run=minimal_run)
 
 
-def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _Calls, log: ProbeLog,
+def _run_stages(plan: ReductionPlan, pool: Pool[ProbeResult], reduction: Reduction, calls: Calls, log: ProbeLog,
                 paths: artifacts.ArtifactPaths, minimal_run: Run | None) -> StagesOutcome:
     """The stages after the models (`spec.stages`), from the minimal world, within their budget."""
     spec = plan.spec
@@ -428,20 +427,10 @@ def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _C
     threads = (concurrent.futures.ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-stage")
                if pool.size > 1 else None)
 
-    def wrap(inner: Probe) -> Probe:
-        def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
-            calls.local.cancelled = False
-            observation = inner(candidate, attempt)
-            if calls.local.cancelled:
-                raise ProbeCancelled("budget: max_seconds")
-            return observation
-
-        return probe
-
     context = StageContext(
         base=plan.world.select(reduction.minimal), call=calls, reference=plan.reference, rule=plan.rule,
-        log=log, policy=policy, seed=spec.seed, budget=Budget(limit, lambda: calls.started, started, per_stage),
-        executor=threads, workers=pool.size, wrap=wrap,
+        log=log, policy=policy, seed=spec.seed, budget=StageBudget(limit, lambda: calls.started, started, per_stage),
+        executor=threads, workers=pool.size, wrap=calls.cancellable,
     )
     try:
         staged = run_stages(spec.stages or DEFAULT_STAGES, context, reduction, minimal_run=minimal_run,
@@ -454,7 +443,7 @@ def _run_stages(plan: ReductionPlan, pool: Pool, reduction: Reduction, calls: _C
     return staged
 
 
-def _stage_runs_to_show(staged: StagesOutcome, calls: _Calls, log: ProbeLog, max_probes: int | None) -> None:
+def _stage_runs_to_show(staged: StagesOutcome, calls: Calls, log: ProbeLog, max_probes: int | None) -> None:
     """A passing run of the nearest passing world for `passing.png` when the stages decided it from the log
     (by default, they simulate nothing): one run (attempt 0, logged as "picture", counted in the stages'
     simulations, within their budget and the reduction's), kept only if it passed: a picture never shows a
@@ -468,71 +457,6 @@ def _stage_runs_to_show(staged: StagesOutcome, calls: _Calls, log: ProbeLog, max
     last = log.events[-1]
     if run is not None and isinstance(last, events.Probe) and last.result is Outcome.PASS:  # as it was classified
         staged.passing_run = run
-
-
-class _Calls:
-    """The driver's way to the pool: counts the probes it starts (the budget), stops them at the time
-    budget's deadline, and keeps recent failing runs for the pictures (no extra simulation for them)."""
-
-    def __init__(self, pool: Pool, reference: FailureReference, rule: SameFailureRule, deadline: float | None) -> None:
-        self.pool = pool
-        self.reference = reference
-        self.rule = rule
-        self.deadline = deadline
-        self.started = 0
-        self.local = threading.local()
-        self._lock = threading.Lock()
-        self._runs: OrderedDict[frozenset[str], Run] = OrderedDict()
-        self._pinned: tuple[frozenset[str], Run] | None = None
-
-    def __call__(self, world: World, attempt: int, *, record: bool = False) -> ProbeResult:
-        left = None if self.deadline is None else self.deadline - time.monotonic()
-        if left is not None and left <= 0:
-            self.local.cancelled = True
-            raise ProbeDeadline("the reduction's time budget ran out before this probe started")
-        with self._lock:
-            self.started += 1
-        try:
-            options: dict[str, Any] = {"record": True} if record else {}
-            if left is not None:
-                options["timeout"] = left
-            result = self.pool.call(world, attempt, **options)
-        except ProbeDeadline:
-            self.local.cancelled = True
-            raise
-        if not isinstance(result, ProbeResult):
-            raise TypeError(f"the pool's job returned {type(result).__name__}, not a ProbeResult")
-        if result.run is not None and classify_result(result.error, self.reference, self.rule) is Outcome.FAIL:
-            with self._lock:
-                key = frozenset(world.names)
-                self._runs[key] = result.run
-                self._runs.move_to_end(key)
-                while len(self._runs) > PICTURE_RUNS_KEPT:
-                    self._runs.popitem(last=False)
-        return result
-
-    def pin(self, candidate: tuple[str, ...]) -> None:
-        """An accepted world: keep its failing run (if this process saw it) for the pictures."""
-        key = frozenset(candidate)
-        with self._lock:
-            if key in self._runs:
-                self._pinned = (key, self._runs[key])
-
-    def run_of(self, names: tuple[str, ...], world: World, original: Run | None) -> Run | None:
-        """A failing run of the world `names` seen during this reduction (the original's for no removal)."""
-        key = frozenset(names)
-        if key == frozenset(world.names) and original is not None:
-            return original
-        with self._lock:
-            if self._pinned is not None and self._pinned[0] == key:
-                return self._pinned[1]
-            return self._runs.get(key)
-
-    def may_start(self, max_probes: int | None) -> bool:
-        """Another simulation is within the budgets."""
-        if self.deadline is not None and time.monotonic() >= self.deadline:
-            return False
-        return max_probes is None or self.started < max_probes
 
 
 def _count(number: int, noun: str) -> str:
@@ -611,69 +535,6 @@ def _import_heavy_modules() -> None:
             return
 
 
-def _confirm(plan: ReductionPlan, call: _Calls, note: Note,
-             confirmations: list[tuple[int, ProbeResult | None, str]]) -> ReductionOutcome | None:
-    """None when the failure reproduces on the pool; else the outcome that says why it does not. Each run
-    is appended to `confirmations` (attempt, result, outcome) for the log."""
-    deflake = plan.spec.deflake
-    runs = 1 + deflake if isinstance(deflake, int) else AUTO_CONFIRMATIONS
-    if plan.spec.max_probes is not None:
-        runs = max(1, min(runs, plan.spec.max_probes))
-    seen: list[str] = []
-    errors: list[str] = []
-    for attempt in range(runs):
-        note(f"confirming the failure: run {attempt + 1} of up to {runs}")  # it stops at the first that fails
-        try:
-            result = call(plan.world, attempt, record=plan.media == "all")
-        except WorkerStartError as error:
-            return ReductionOutcome("error", message=f"the test could not be run in a probe worker: {error}")
-        except WorkerError as error:
-            errors.append(str(error))
-            seen.append("error")
-            confirmations.append((attempt, None, "error"))
-            continue
-        outcome = classify_result(result.error, plan.reference, plan.rule)
-        confirmations.append((attempt, result, outcome.value))
-        if outcome is Outcome.FAIL:
-            return None
-        if outcome is Outcome.ERROR and result.error is not None:
-            errors.append(result.error.describe() + ("\n" + result.error.traceback if result.error.traceback else ""))
-        seen.append(outcome.value if result.error is None or outcome is Outcome.ERROR
-                    else f"{outcome.value} ({result.error.type_name} at {result.error.location})")
-    if errors and len(errors) == runs:
-        return ReductionOutcome("error", message=f"every confirmation run of the test raised an error instead of "
-                                f"running; the first one: {errors[0]}")
-    raised = _same_exception_every_time(confirmations, runs)
-    if raised is not None:
-        return ReductionOutcome("error", message=(
-            f"every confirmation run of the test raised {raised.describe()} instead of failing the same way "
-            f"({plan.reference.describe()}): the test behaves differently in a probe than in the pytest process "
-            "(an environment variable, a file, state left by other tests?). No reduction was run.\n"
-            f"{raised.traceback}"))
-    return ReductionOutcome(
-        "not-reproducible",
-        message=(f"not reproducible: 0 of {runs} re-runs failed the same way ({plan.reference.describe()}); they "
-                 f"gave: {', '.join(seen)}. No reduction was run. The failure may depend on state outside the "
-                 "world (other fixtures, globals) or on the seed; try a larger --ddenv-deflake."),
-    )
-
-
-def _same_exception_every_time(confirmations: list[tuple[int, ProbeResult | None, str]],
-                               runs: int) -> ErrorInfo | None:
-    """The exception every confirmation run raised, when they all raised the same one (type and place) and
-    it is an error rather than a robot's failure or an assertion: what the test does in a probe, shown as
-    it is rather than as "not reproducible"."""
-    raised = [result.error for _, result, _ in confirmations if result is not None and result.error is not None]
-    if len(raised) != runs or not raised:
-        return None
-    first = raised[0]
-    if first.signature is not None or first.type_name == "AssertionError":
-        return None
-    if any((error.type_name, error.location) != (first.type_name, first.location) for error in raised):
-        return None
-    return first
-
-
 NO_RUN = "the test made no robot_world.run() and no robot_world.report(), so there is no trajectory"
 
 
@@ -691,7 +552,7 @@ def _schemas(spec: ReductionSpec, reference_run: Run | None, no_run_reason: str 
     return partition, priority, notes
 
 
-def _logged_run(call: _Calls, log: ProbeLog, world: World, attempt: int, purpose: str,
+def _logged_run(call: Calls, log: ProbeLog, world: World, attempt: int, purpose: str,
                 record: bool) -> tuple[Run | None, bool]:
     """A run of `world` for the pictures (`record`: and the animations, with its full detail), logged: the
     run (None if it cannot be had) and whether it failed the same way."""
@@ -705,8 +566,8 @@ def _logged_run(call: _Calls, log: ProbeLog, world: World, attempt: int, purpose
     return result.run, outcome is Outcome.FAIL
 
 
-def _recorded_original(plan: ReductionPlan, call: _Calls, log: ProbeLog,
-                       confirmations: list[tuple[int, ProbeResult | None, str]]) -> tuple[Run | None, bool]:
+def _recorded_original(plan: ReductionPlan, call: Calls, log: ProbeLog,
+                       confirmations: tuple[ConfirmationRun, ...]) -> tuple[Run | None, bool]:
     """The original world's failing run with its full detail: the run that confirmed the failure, else one
     more run (attempt 0, logged) when the budget allows; and whether it failed the same way."""
     for _, result, verdict in confirmations:

@@ -22,7 +22,7 @@ from pytest_ddenv.errors import DdenvError, shown, shown_path
 from pytest_ddenv.validation import expected
 
 if TYPE_CHECKING:
-    from pytest_ddenv.scenario.probe import ErrorInfo
+    from pytest_ddenv.oracle.verdict import ErrorInfo
 
 
 class UserCodeError(DdenvError):
@@ -164,7 +164,7 @@ def exit_location(error: SystemExit) -> str:
 
 def exit_error(error: SystemExit, what: str) -> ErrorInfo:
     """What a probe whose code under test exited reports: an error (never a verdict), saying how and where."""
-    from pytest_ddenv.scenario.probe import ErrorInfo
+    from pytest_ddenv.oracle.verdict import ErrorInfo
 
     return ErrorInfo(type(error).__qualname__, exit_message(error, what), exit_location(error), ddenv_error=True)
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 import os
 import threading
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Any, Protocol, Self, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, Self, TypeVar, runtime_checkable
 
 from pytest_ddenv.validation import expected, is_finite_number
 
@@ -116,8 +117,12 @@ class StatsBook:
             )
 
 
+ResultT_co = TypeVar("ResultT_co", covariant=True)
+"""What a pool's job returns from a probe: the driver's pools return a `ProbeResult` (`Pool[ProbeResult]`)."""
+
+
 @runtime_checkable
-class Pool(Protocol):
+class Pool(Protocol[ResultT_co]):
     """Runs probes of one `Job` somewhere else; `call` is thread-safe and blocks until the result is back."""
 
     @property
@@ -129,9 +134,23 @@ class Pool(Protocol):
         ...
 
     @property
+    def in_process(self) -> bool:
+        """The probes run in the calling process, one at a time (no worker process to wait for)."""
+        ...
+
+    @property
     def stats(self) -> PoolStats: ...
 
-    def call(self, world: World, attempt: int, *, timeout: float | None = None, record: bool = False) -> Any:
+    @property
+    def notes(self) -> Sequence[str]:
+        """What the pool changed on its own while it ran that a report should say (a probe moved to a worker)."""
+        ...
+
+    def expect(self, seconds: float) -> None:
+        """The original run of the test took `seconds` (wall): the automatic watchdog scales with it."""
+        ...
+
+    def call(self, world: World, attempt: int, *, timeout: float | None = None, record: bool = False) -> ResultT_co:
         """`timeout`: seconds this probe may take before it is stopped (`ProbeDeadline`), e.g. the rest of a
         reduction's time budget; the watchdog applies as well. `record`: the probe's runs record their full
         detail (`Run.detail`)."""

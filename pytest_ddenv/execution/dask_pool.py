@@ -193,10 +193,16 @@ class DaskPool:
         self._closed = False
         self._start_error: WorkerStartError | None = None
         self._pending: set[Any] = set()
+        self.notes: list[str] = []
+        """Nothing to say so far: a dask pool changes nothing on its own (`Pool.notes`)."""
 
     @property
     def size(self) -> int:
         return self._size
+
+    @property
+    def in_process(self) -> bool:
+        return False
 
     @property
     def stats(self) -> PoolStats:

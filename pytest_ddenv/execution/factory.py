@@ -49,7 +49,7 @@ def make_pool(
     in_process: Handler | None = None,
     cluster: DaskCluster | None = None,
     **options: Any,
-) -> Pool:
+) -> Pool[Any]:
     """The pool for `--ddenv-workers` / `--ddenv-executor` (and the `ddenv` command's `--workers`/`--executor`).
 
     `executor` None (or "local"): `workers` local worker processes serving `job`; with 1 worker and an

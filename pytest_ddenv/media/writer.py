@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.world.model import World
 
@@ -29,7 +30,7 @@ MEDIA_ENV = "DDENV_MEDIA"
 DEFAULT_MEDIA = "all"
 
 
-class MediaChoiceError(ValueError):
+class MediaChoiceError(DdenvError, ValueError):
     """A media setting that is not one of `MEDIA_CHOICES`; the message says where it was given."""
 
 

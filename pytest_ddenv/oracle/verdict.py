@@ -1,4 +1,5 @@
-"""The oracle: whether a run's failure is the failure being reduced (`classify`, `same_failure`).
+"""The oracle: whether a run's failure, or what a test raised, is the failure being reduced (`classify_result`,
+and `classify` for a run; `same_failure`).
 
 A run ends in the reference failure f (FAIL), another failure (OTHER), no failure (PASS) or an error
 (ERROR). The predicates that produce failure signatures are `oracle.predicates` (the simulation checks them
@@ -323,7 +324,8 @@ def classify(
     *,
     error: BaseException | None = None,
 ) -> Outcome:
-    """Classify a run against the reference failure, by `rule` (or the default rule with this tolerance).
+    """Classify a run against the reference failure, by `rule` (or the default rule with this tolerance):
+    `classify_result` of the run's failure.
 
     - ERROR: `error` is given or `run` is None (the simulation or the test broke).
     - PASS: the run has no failure signature.
@@ -334,10 +336,80 @@ def classify(
       included) tells it from "blocked by the wall at ground level". Other rules: `SameFailureRule`.
     - OTHER: any other failure.
     """
-    rule = as_rule(rule)
     if error is not None or run is None:
         return Outcome.ERROR
     failure = run.failure
-    if failure is None:
+    raised = None if failure is None else ErrorInfo(ROBOT_FAILURE, "", "", signature=failure)
+    return classify_result(raised, FailureReference(ROBOT_FAILURE, "", reference), rule)
+
+
+ROBOT_FAILURE = "RobotFailure"
+"""The exception type of a predicate's failure (`RobotFailure`), as `ErrorInfo.type_name` says it."""
+
+
+@dataclass(frozen=True)
+class ErrorInfo:
+    """What a test raised, as plain data.
+
+    `location` is file:line of the deepest frame inside the test file (else the deepest frame);
+    `signature` is set for a `RobotFailure`; `ddenv_error` for an error of pytest-ddenv itself (a world that
+    cannot be simulated, a worker that could not run the test), which is never a verdict. `phase` is
+    "call" unless the test's setup or teardown broke (an error, not a verdict either).
+    """
+
+    type_name: str
+    message: str
+    location: str
+    traceback: str = ""
+    signature: FailureSignature | None = None
+    ddenv_error: bool = False
+    phase: str = "call"
+
+    def describe(self) -> str:
+        where = f" (in the test's {self.phase})" if self.phase != "call" else ""
+        return f"{self.type_name}: {self.message} at {self.location}{where}"
+
+
+@dataclass(frozen=True)
+class FailureReference:
+    """The original failure a probe must reproduce.
+
+    A predicate failure (`RobotFailure`) is matched by its signature (same predicate, failure position within
+    tolerance); any other exception by its type and the line of the test that raised it.
+    """
+
+    exception_type: str
+    location: str
+    signature: FailureSignature | None = None
+
+    @classmethod
+    def of(cls, error: ErrorInfo) -> FailureReference:
+        return cls(error.type_name, error.location, error.signature)
+
+    def describe(self) -> str:
+        if self.signature is not None:
+            return f"{self.signature.predicate} at t={self.signature.time:.1f} s"
+        return f"{self.exception_type} at {self.location}"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "exception_type": self.exception_type,
+            "location": self.location,
+            "signature": None if self.signature is None else self.signature.to_dict(),
+        }
+
+
+def classify_result(error: ErrorInfo | None, reference: FailureReference, rule: SameFailureRule | float) -> Outcome:
+    """Compare what a probe raised with the original failure: a predicate failure by `rule` (a
+    `SameFailureRule`, or the default rule with this tolerance), an exception by its type and line."""
+    if error is None:
         return Outcome.PASS
-    return Outcome.FAIL if rule.same(failure, reference) else Outcome.OTHER
+    if error.ddenv_error or error.phase != "call":
+        return Outcome.ERROR
+    if error.signature is not None:
+        if reference.signature is None:
+            return Outcome.OTHER
+        return Outcome.FAIL if as_rule(rule).same(error.signature, reference.signature) else Outcome.OTHER
+    if reference.signature is None and error.type_name == reference.exception_type:
+        return Outcome.FAIL if error.location == reference.location else Outcome.OTHER
+    return Outcome.OTHER

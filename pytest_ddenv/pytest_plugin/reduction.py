@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.errors import DdenvError, raised_by_ddenv
 from pytest_ddenv.pytest_plugin.marks import spec_of
 from pytest_ddenv.pytest_plugin.options import options_of
 from pytest_ddenv.pytest_plugin.progress import PytestProgress, close_log, open_log
@@ -90,7 +90,7 @@ def _should_reduce(item: pytest.Function, error: BaseException) -> bool:
         return False
     if FIXTURE not in item.fixturenames or item.get_closest_marker("xfail") is not None:
         return False
-    if isinstance(error, pytest.skip.Exception) or isinstance(error, DdenvError):
+    if isinstance(error, pytest.skip.Exception) or raised_by_ddenv(error):
         return False  # a broken setup (bad world file, bad scenario) is not a failure to reduce
     from pytest_ddenv.scenario.robot_world import RobotWorld
 
@@ -164,7 +164,7 @@ def _reduce_failed_test(plugin: ReductionPlugin, item: pytest.Function, error: B
     try:
         session.example = _given_example(item, given_call)
         with _probe_pool(plugin, item, session.example, lambda text: progress(text, final=True)) as pool:
-            if getattr(pool, "in_process", False):
+            if pool.in_process:
                 _warn_about_shared_fixtures(item)
             result = session.run(pool)
     except KeyboardInterrupt:

@@ -19,17 +19,19 @@ from pytest_ddenv.driver import artifacts
 from pytest_ddenv.driver.code_identity import CodeIdentity, collected_elsewhere, identify
 from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.driver.report_text import result_lines, status_of
-from pytest_ddenv.driver.run import ReductionOutcome, ReductionPlan, run_reduction
+from pytest_ddenv.driver.run import ReductionOutcome, ReductionPlan, interrupted_outcome, run_reduction
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.media.writer import DEFAULT_MEDIA
+from pytest_ddenv.oracle.verdict import FailureReference
 from pytest_ddenv.pytest_plugin.given_example import GivenExample, reproduction
 from pytest_ddenv.reduce.types import ProgressEvent, Reduction, ReductionInterrupted
-from pytest_ddenv.scenario.probe import FailureReference, describe_error
+from pytest_ddenv.scenario.probe import describe_error
 from pytest_ddenv.scenario.robot_world import FIXTURE, RobotWorld
 
 if TYPE_CHECKING:
     from pytest_ddenv.driver.report import ReductionReport
     from pytest_ddenv.execution import Pool
+    from pytest_ddenv.scenario.probe import ProbeResult
 
 Progress = Callable[..., None]
 
@@ -54,7 +56,7 @@ class ReductionSession:
     verbose: bool = False
     """-v: the report section also gives the statistics of the failure-rate comparison."""
 
-    def run(self, pool: Pool) -> dict[str, Any]:
+    def run(self, pool: Pool[ProbeResult]) -> dict[str, Any]:
         fixture: RobotWorld = self.item.funcargs[FIXTURE]  # type: ignore[assignment]
         robot_world = fixture.latest  # the world the test ran last (a @given test rebinds each example's)
         world = robot_world.world
@@ -83,7 +85,7 @@ class ReductionSession:
         try:
             outcome = run_reduction(plan, pool, note=self.progress, on_progress=self._on_progress)
         except ReductionInterrupted as stop:
-            interrupted: ReductionOutcome | None = getattr(stop, "outcome", None)
+            interrupted = interrupted_outcome(stop)
             if interrupted is not None:
                 self.progress(self._describe(interrupted)["line"], final=True)
             raise

@@ -21,16 +21,20 @@ from pytest_ddenv.reduce.types import (
     Candidate,
     Decision,
     Geometry,
-    Observation,
     Outcome,
     Precondition,
     Probe,
     ProbeCancelled,
+    ProbeObservation,
     ProgressEvent,
     Reduction,
     ReductionInterrupted,
     Trace,
 )
+
+Observation = ProbeObservation
+"""The old name of `ProbeObservation` (what a probe returns), kept for one release: `pytest_ddenv.Observation`
+is what a controller sees."""
 
 __all__ = [
     "COMPLEMENT_ORDERS",
@@ -54,6 +58,7 @@ __all__ = [
     "Probe",
     "ProbeCancelled",
     "ProbeLog",
+    "ProbeObservation",
     "ProgressEvent",
     "Rate",
     "RateComparison",

@@ -1,8 +1,10 @@
-"""Budgets: whether a reduction may still start a simulation (probe count, wall time, a cancelled probe)."""
+"""Budgets: whether a reduction may still start a simulation (probe count, wall time, a cancelled probe), and
+the stages' share of the driver's count (`StageBudget`)."""
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 
@@ -43,3 +45,31 @@ class Budget:
         if self.max_seconds is None:
             return None
         return max(0.0, self.started_at + self.max_seconds - time.monotonic())
+
+
+@dataclass
+class StageBudget:
+    """The simulations the stages after the models may still start: `limit` (None: no limit) minus what
+    `started()` counts (the driver's count of every simulation of this reduction) since `begin`. Each engine
+    call of a stage gets what is `left` as its `Budget.max_probes`."""
+
+    limit: int | None
+    started: Callable[[], int]
+    begin: int = 0
+    per_stage: int | None = None
+    reserve: int = 0
+    """Simulations kept for what comes later (the final world's failure rate, the passing world)."""
+    share: int | None = None
+    """The most the current stage may start (its fair share of what is left), None: no share."""
+    decisions: int = 0
+    """Worlds decided so far by the stages (the engine's decided candidates and single decisions made
+    here; not the failure-rate runs): the stages' "probes", comparable with the model-level probes."""
+
+    def left(self, stage_begin: int | None = None) -> int | None:
+        spent = self.started() - self.begin
+        left = None if self.limit is None else max(0, self.limit - self.reserve - spent)
+        for cap in (self.per_stage, self.share):
+            if cap is not None and stage_begin is not None:
+                stage_left = max(0, cap - (self.started() - stage_begin))
+                left = stage_left if left is None else min(left, stage_left)
+        return left

@@ -16,7 +16,7 @@ from pytest_ddenv.reduce.counters import Counters
 from pytest_ddenv.reduce.deflake import DeflakePolicy
 from pytest_ddenv.reduce.journal import Journal
 from pytest_ddenv.reduce.trial import Trial
-from pytest_ddenv.reduce.types import Candidate, Decision, Observation, Outcome, Precondition, Trace
+from pytest_ddenv.reduce.types import Candidate, Decision, Outcome, Precondition, ProbeObservation, Trace
 
 
 @dataclass
@@ -28,7 +28,7 @@ class OpenCandidate:
     trace: Trace | None = None
     in_flight: set[int] = field(default_factory=set)
     """Attempts running now."""
-    early: dict[int, Observation] = field(default_factory=dict)
+    early: dict[int, ProbeObservation] = field(default_factory=dict)
     """Results of speculative attempts that arrived before an earlier attempt's (applied in attempt order)."""
     decision: Decision | None = None
 
@@ -88,7 +88,7 @@ class Decider:
             return OpenCandidate(trial, list(earlier.outcomes), earlier.trace, early=early)
         return OpenCandidate(trial, list(self.preloaded.get(key, ())))
 
-    def take(self, state: OpenCandidate, attempt: int, observation: Observation) -> None:
+    def take(self, state: OpenCandidate, attempt: int, observation: ProbeObservation) -> None:
         """Apply the next attempt's result (attempt == len(state.outcomes)): counted, logged, reported."""
         self.counters.probes += 1
         state.outcomes.append(observation.outcome)
@@ -102,7 +102,7 @@ class Decider:
         verdict = self.policy.verdict(state.outcomes)
         return None if verdict is None else self._decide(state, verdict)
 
-    def observe(self, state: OpenCandidate, attempt: int, observation: Observation) -> dict[int, Observation]:
+    def observe(self, state: OpenCandidate, attempt: int, observation: ProbeObservation) -> dict[int, ProbeObservation]:
         """Apply an attempt's result that may arrive out of order: results are applied in attempt order
         (later ones wait in `state.early`) until the verdict. Once decided, returns the results that came
         past the verdict (and forgets them); else an empty dict."""

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from pytest_ddenv.errors import ReductionError
+from pytest_ddenv.reduce.rates import Rate, chance_at_most, estimated
 from pytest_ddenv.reduce.types import Outcome
 from pytest_ddenv.validation import expected, is_integer, is_number
 
@@ -148,11 +149,10 @@ class CalibratedReruns:
         probability at most 1 - confidence (capped at `max_runs`): 3/3 or 5/5 give 2-of-3, 3/5 2-of-6,
         2/5 1-of-6, 1/5 or fewer 1-of-10.
         """
-        rate = (fails + 0.5) / (runs + 1.0)
+        rate = estimated(Rate(fails, runs))
         confirm = 2 if rate >= 0.5 else 1
         for count in range(confirm, self.max_runs + 1):
-            missed = sum(math.comb(count, k) * rate**k * (1.0 - rate) ** (count - k) for k in range(confirm))
-            if missed <= 1.0 - self.confidence:
+            if chance_at_most(confirm - 1, count, rate) <= 1.0 - self.confidence:
                 return ConfirmedRuns(count, confirm)
         return ConfirmedRuns(self.max_runs, confirm)
 

@@ -28,7 +28,7 @@ from pytest_ddenv.reduce.budget import Budget, BudgetExhausted
 from pytest_ddenv.reduce.context import Context, Verdict
 from pytest_ddenv.reduce.deflake import CalibratedReruns
 from pytest_ddenv.reduce.log import ProbeLog
-from pytest_ddenv.reduce.prober import Prober
+from pytest_ddenv.reduce.prober import probing
 from pytest_ddenv.reduce.rate_check import RateChecker
 from pytest_ddenv.reduce.rates import RateComparison
 from pytest_ddenv.reduce.settings import SETTING_NAMES, ReductionSettings, Settings, validate
@@ -98,7 +98,7 @@ def reduce(
 
     `elements` are the names of the world's elements (original order; the original world is assumed to
     fail with f: its run is `reference`, attempt 0). `probe(candidate, attempt)` simulates a sub-world
-    (names in original order, `keep` elements included) and returns an Observation. `settings`: how to
+    (names in original order, `keep` elements included) and returns a ProbeObservation. `settings`: how to
     reduce (`ReductionSettings`, every field documented in docs/algorithm.md; default: the defaults).
     `geometry` and `reference` are what the partition and priority schemas read; `log` the run log (a path
     or a `ProbeLog`: verdicts are resumed from it); `executor` runs a round's probes concurrently
@@ -176,7 +176,7 @@ class _Engine:
         self.carried: _Plan | None = None
         """After a complement was adopted, ddmin goes on with the remaining n-1 parts."""
         self.minimal_runs = 1  # the reference run of the original world is its attempt 0
-        self.prober = Prober(
+        self.probing = probing(
             probe=settings.probe,
             policy=settings.policy,
             keep=settings.keep,
@@ -195,7 +195,7 @@ class _Engine:
         self.steps: list[tuple[int, int]] = [(0, len(settings.elements))]
         self.chain: list[_Step] = [_Step(settings.elements, 1, settings.reference)]
         """The accepted worlds since the original (or since the last back-off's good world), in order."""
-        self.rates = RateChecker(self.prober.extra_runs, self.log, settings.elements, settings.failure_rate_runs,
+        self.rates = RateChecker(self.probing.extra_runs, self.log, settings.elements, settings.failure_rate_runs,
                                  self.write)
         self.rate_check: RateComparison | None = None
         self.backoffs = 0
@@ -225,7 +225,7 @@ class _Engine:
             self.write_end(reduction)
             return reduction
         finally:
-            self.prober.close()
+            self.probing.runner.close()
             if self.log is not None:
                 self.log.close()
 
@@ -260,13 +260,13 @@ class _Engine:
         if len(needed) == len(self.current) or self.refused(empty) is not None:
             return False
         known = self.log.measured(INDEPENDENCE, empty) if self.log is not None else {}
-        fails, runs = self.prober.measure(empty, 0, 1, purpose=INDEPENDENCE, known=known, strict=True)
+        fails, runs = self.probing.extra_runs.measure(empty, 0, 1, purpose=INDEPENDENCE, known=known, strict=True)
         self.independent = runs == 1 and fails == 1
         return self.independent
 
     def refused(self, candidate: Candidate) -> str | None:
         """Why a precondition refuses `candidate` (None: none does)."""
-        return next((str(reason) for check in self.prober.preconditions if (reason := check(candidate)) is not None),
+        return next((str(reason) for check in self.probing.preconditions if (reason := check(candidate)) is not None),
                     None)
 
     def back_off(self) -> bool:
@@ -320,11 +320,12 @@ class _Engine:
             original = self.settings.elements
             logged = self.log.measured("calibration", original) if self.log is not None else {}
             into = self.rates.record_of(original)
-            fails, runs = self.prober.measure(original, 1, policy.sure_runs, purpose="calibration", known=logged,
-                                              strict=True, into=into)
+            measure = self.probing.extra_runs.measure
+            fails, runs = measure(original, 1, policy.sure_runs, purpose="calibration", known=logged, strict=True,
+                                  into=into)
             if fails < runs:
-                more = self.prober.measure(original, 1 + runs, policy.runs - runs, purpose="calibration",
-                                           known=logged, strict=True, into=into)
+                more = measure(original, 1 + runs, policy.runs - runs, purpose="calibration", known=logged,
+                               strict=True, into=into)
                 fails, runs = fails + more[0], runs + more[1]
             rule = policy.rule_for(fails, runs)
             self.write(events.Calibration(fails=fails, runs=runs, rule=rule.label))
@@ -332,7 +333,7 @@ class _Engine:
             fails, runs = known
             rule = policy.rule_for(fails, runs)
         self.calibration = (fails, runs)
-        self.prober.policy = rule
+        self.probing.decider.policy = rule
         self.minimal_runs = 1 + runs  # the failure-rate runs of an unreduced world continue after these
 
     def reduce_to_one_minimal(self) -> bool:
@@ -362,7 +363,7 @@ class _Engine:
                                 subsets=plan.subsets))
         self.emit("round")
         self.round_index += 1
-        found = self.prober.first_reproducing([trial for trial, _ in trials])
+        found = self.probing.scheduler.first_reproducing([trial for trial, _ in trials])
         if found is None:
             return None
         trial, part = trials[found[0]]
@@ -389,13 +390,13 @@ class _Engine:
         trials = self.verify_trials()
         self.verifying = True
         try:
-            found = self.prober.first_reproducing(trials, quiet=True)
-            while found is None and self.prober.retry_errored(trials):
-                found = self.prober.first_reproducing(trials, quiet=True)
+            found = self.probing.scheduler.first_reproducing(trials, quiet=True)
+            while found is None and self.probing.decider.retry_errored(trials):
+                found = self.probing.scheduler.first_reproducing(trials, quiet=True)
         finally:
             self.verifying = False
         if found is None:
-            self.unverified = len(self.prober.errored_among(trials))
+            self.unverified = len(self.probing.decider.errored_among(trials))
             return False
         self.adopt(trials[found[0]], found[1])
         self.granularity = len(self.current)
@@ -415,13 +416,13 @@ class _Engine:
             return [(self.full(self.current), attempt)
                     for attempt in range(self.minimal_runs, self.minimal_runs + runs)]
         if self.granularity >= len(self.current):
-            return self.prober.planned(self.verify_trials())
+            return self.probing.scheduler.planned(self.verify_trials())
         try:
             plan = self.fresh_plan(self.coarser_or_finer(progress=None))
         except Exception:  # noqa: BLE001 - only a guess; the real round reports the error
             return []
         trials = self.trials_of(plan)
-        return self.prober.planned([trial for trial, _ in trials])
+        return self.probing.scheduler.planned([trial for trial, _ in trials])
 
     def coarser_or_finer(self, progress: str | None) -> int:
         """The next granularity after a round that adopted a subset, a complement, or nothing (None)."""
@@ -488,7 +489,7 @@ class _Engine:
         """Cheap information: does the minimal world without its precondition-kept elements still fail?
         A few runs (the first look), preconditions bypassed, within the budget."""
         kept = {name for name, _ in self.precondition_kept()}
-        if not kept or not self.rates.looks or self.prober.exhausted():
+        if not kept or not self.rates.looks or self.probing.runner.exhausted():
             return
         world = self.full(tuple(name for name in self.current if name not in kept))
         rate = self.rates.rate(world, 0, min(3, self.rates.looks[0]))
@@ -514,7 +515,7 @@ class _Engine:
 
     def probes(self) -> int:
         """Probes decided in the whole history: the resumed log's and this call's."""
-        return self.history + self.prober.counters.probes
+        return self.history + self.probing.counters.probes
 
     def emit(self, kind: str, *, candidate: Candidate | None = None, outcome: Outcome | None = None) -> None:
         if self.settings.on_progress is None:
@@ -536,7 +537,7 @@ class _Engine:
             self.log.write(replace(event, elapsed=round(self.elapsed(), 6)))
 
     def result(self, *, one_minimal: bool, incomplete: str | None, failure_rate: tuple[int, int]) -> Reduction:
-        settings, counters = self.settings, self.prober.counters
+        settings, counters = self.settings, self.probing.counters
         notes = [*(self.log.notes if self.log is not None else []), *self.backoff_notes]
         if self.unverified:
             notes.append(
@@ -560,7 +561,7 @@ class _Engine:
             partition=settings.partitioner.name,
             priority=settings.prioritizer.name,
             granularity=settings.granularity,
-            deflake=settings.policy.label if self.calibration is None else f"auto:{self.prober.policy.label}",
+            deflake=settings.policy.label if self.calibration is None else f"auto:{self.probing.decider.policy.label}",
             seed=settings.seed,
             calibration=self.calibration,
             simulations=counters.simulations,

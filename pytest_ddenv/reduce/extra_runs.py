@@ -13,7 +13,7 @@ from pytest_ddenv.reduce.budget import BudgetExhausted
 from pytest_ddenv.reduce.journal import Journal
 from pytest_ddenv.reduce.runner import Runner
 from pytest_ddenv.reduce.trial import Trial
-from pytest_ddenv.reduce.types import Candidate, Observation, Outcome
+from pytest_ddenv.reduce.types import Candidate, Outcome, ProbeObservation
 
 Started = list[tuple[int, concurrent.futures.Future[Any]]]
 """Attempts started for a measurement, in attempt order: (attempt, future)."""
@@ -78,10 +78,10 @@ class ExtraRuns:
 
     def _collect(
         self, candidate: Candidate, started: Started, exhausted: str | None
-    ) -> tuple[dict[int, Observation], str | None]:
+    ) -> tuple[dict[int, ProbeObservation], str | None]:
         """Wait for the started attempts' results (not past the time budget); the results by attempt and why
         the budget stopped the measurement (None: it did not)."""
-        results: dict[int, Observation] = {}
+        results: dict[int, ProbeObservation] = {}
         stopped = exhausted is not None and exhausted != "budget: max_probes"  # time is up: wait for nothing more
         try:
             for attempt, future in started:

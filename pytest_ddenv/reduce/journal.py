@@ -14,7 +14,7 @@ from pytest_ddenv.reduce.context import Context, Verdict
 from pytest_ddenv.reduce.counters import Counters
 from pytest_ddenv.reduce.log import ProbeLog
 from pytest_ddenv.reduce.trial import Trial
-from pytest_ddenv.reduce.types import Decision, Observation, Outcome
+from pytest_ddenv.reduce.types import Decision, Outcome, ProbeObservation
 
 
 @dataclass
@@ -28,7 +28,7 @@ class Journal:
     keep: frozenset[str]
     _consulted: set[frozenset[str]] = field(default_factory=set, init=False)
 
-    def probe(self, trial: Trial, attempt: int, observation: Observation, *, purpose: str) -> None:
+    def probe(self, trial: Trial, attempt: int, observation: ProbeObservation, *, purpose: str) -> None:
         """One probe whose result is used ("reduce", "calibration" or "failure-rate")."""
         if observation.outcome is Outcome.ERROR:
             self.counters.errors += 1

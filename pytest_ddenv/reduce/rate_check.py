@@ -2,7 +2,8 @@
 
 Both worlds are run on fresh attempts (the original's after its reference run, a reduced world's after the
 runs it was accepted on: runs selected for failing are never counted) and compared look by look with
-`rates.compare` (a one-sided group-sequential Fisher test, see rates.py and docs/algorithm.md). Every run is
+`rates.compare` (a one-sided group-sequential Fisher test, see rates.py and docs/algorithm.md): this module
+runs and logs, the statistics are rates.py's. Every run is
 logged with purpose "failure-rate", so a resumed reduction reuses them; the original world's calibration
 runs (deflake="auto") count as its first fresh runs.
 """
@@ -15,13 +16,8 @@ from dataclasses import replace
 from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.extra_runs import ExtraRuns
 from pytest_ddenv.reduce.log import ProbeLog
-from pytest_ddenv.reduce.rates import LOOKS, Rate, RateComparison, compare
+from pytest_ddenv.reduce.rates import Rate, RateComparison, compare, looks_up_to
 from pytest_ddenv.reduce.types import Candidate, Outcome
-
-
-def looks_up_to(max_runs: int) -> tuple[int, ...]:
-    """The looks of a comparison that runs each world at most `max_runs` times: LOOKS below it, then it."""
-    return (*(look for look in LOOKS if look < max_runs), max_runs) if max_runs > 0 else ()
 
 
 class RateChecker:

@@ -1,4 +1,8 @@
-"""Does a reduced world still fail as often as the original? A group-sequential one-sided test.
+"""Failure-rate statistics, all of them: the reduction's end-of-run comparison, the stages' "does the rate
+drop", the deflake rule's sizing and `ddenv replay`'s confidence interval. `rate_check.py` runs the worlds
+and logs the comparison; the numbers are decided here.
+
+Does a reduced world still fail as often as the original? A group-sequential one-sided test.
 
 A deflake rule such as "2 of 3 runs" accepts a candidate that fails 40 % of its runs about a third of the
 time; after dozens of candidates, the accepted minimal world can fail far less often than the original, and
@@ -18,6 +22,7 @@ selected for failing.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
@@ -27,6 +32,11 @@ LEVEL = 0.05
 
 LOOKS = (5, 10, 20)
 """After how many runs of each world the test looks (the last one is the most a comparison runs)."""
+
+NOISE = 0.2
+"""`rate_drops`: a world whose failures on its fresh runs would be this unlikely at the reference world's rate
+(about one standard deviation, one-sided) fails less often beyond the noise of those runs (a stage's world
+against the minimal world's: the stage is reverted)."""
 
 Decision = Literal["holds", "below", "continue"]
 
@@ -74,19 +84,21 @@ def next_look(runs: int, looks: Sequence[int] = LOOKS) -> int:
     return next((look for look in looks if look > runs), 0)
 
 
+def looks_up_to(max_runs: int) -> tuple[int, ...]:
+    """The looks of a comparison that runs each world at most `max_runs` times: LOOKS below it, then it."""
+    return (*(look for look in LOOKS if look < max_runs), max_runs) if max_runs > 0 else ()
+
+
 def compare(original: Rate, reduced: Rate, looks: Sequence[int] = LOOKS, level: float = LEVEL) -> RateComparison:
     """Decide at this look. `reduced.runs` is the number of runs made; it is the last look when no further
     look is left. The original's runs may be more than the reduced world's (reused calibration runs)."""
-    from scipy.stats import fisher_exact
-
     if not looks or list(looks) != sorted(set(looks)) or looks[0] < 1:
         raise ValueError(f"looks must be increasing positive run counts, got {list(looks)}")
     per_look = level / len(looks)
     if original.runs == 0 or reduced.runs == 0:
         return RateComparison(original, reduced, 1.0, "continue" if next_look(reduced.runs, looks) else "holds",
                               per_look)
-    table = [[reduced.fails, reduced.runs - reduced.fails], [original.fails, original.runs - original.fails]]
-    p_value = float(fisher_exact(table, alternative="less").pvalue)
+    p_value = p_below(reduced, original)
     decision: Decision
     if p_value < per_look:
         decision = "below"
@@ -95,3 +107,43 @@ def compare(original: Rate, reduced: Rate, looks: Sequence[int] = LOOKS, level: 
     else:
         decision = "continue"
     return RateComparison(original, reduced, p_value, decision, per_look)
+
+
+def p_below(rate: Rate, reference: Rate) -> float:
+    """The one-sided p-value of "`rate` fails less often than `reference`" (Fisher's exact test on the 2x2
+    table of fails and passes, ``alternative="less"``)."""
+    from scipy.stats import fisher_exact
+
+    table = [[rate.fails, rate.runs - rate.fails], [reference.fails, reference.runs - reference.fails]]
+    return float(fisher_exact(table, alternative="less").pvalue)
+
+
+def estimated(rate: Rate) -> float:
+    """A failure rate estimated from few runs, never 0 or 1: (fails + 0.5) / (runs + 1)."""
+    return (rate.fails + 0.5) / (rate.runs + 1.0)
+
+
+def chance_at_most(fails: int, runs: int, rate: float) -> float:
+    """The chance that a world failing at `rate` fails at most `fails` times in `runs` runs (binomial tail)."""
+    return sum(math.comb(runs, k) * rate**k * (1.0 - rate) ** (runs - k) for k in range(fails + 1))
+
+
+def rate_drops(rate: tuple[int, int], reference: tuple[int, int], noise: float = NOISE) -> bool:
+    """(fails, runs) `rate` is below the `reference` rate beyond the noise of its runs: at the reference's
+    estimated rate (`estimated`), `rate`'s runs would show as few failures with a chance below `noise`
+    (binomial tail), or it is significantly below the reference's (Fisher, one-sided, 5 %)."""
+    if rate[1] == 0 or reference[1] == 0:
+        return False
+    measured, expected = Rate(*rate), Rate(*reference)
+    return chance_at_most(measured.fails, measured.runs, estimated(expected)) < noise or \
+        p_below(measured, expected) < LEVEL
+
+
+def wilson_interval(rate: Rate, confidence: float) -> tuple[float, float]:
+    """The failure rate's `confidence` interval (Wilson score); (0, 1) without runs."""
+    from scipy.stats import binomtest
+
+    if rate.runs == 0:
+        return 0.0, 1.0
+    low, high = binomtest(rate.fails, rate.runs).proportion_ci(confidence, method="wilson")
+    return float(low), float(high)

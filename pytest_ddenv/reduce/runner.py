@@ -16,7 +16,7 @@ from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce.budget import Budget, BudgetExhausted
 from pytest_ddenv.reduce.counters import Counters
 from pytest_ddenv.reduce.prefetch import Prefetch
-from pytest_ddenv.reduce.types import Candidate, Observation, Outcome, Probe, ProbeCancelled
+from pytest_ddenv.reduce.types import Candidate, Outcome, Probe, ProbeCancelled, ProbeObservation
 
 
 def call_probe(probe: Probe, candidate: Candidate, attempt: int, counters: Counters | None = None) -> Any:
@@ -30,24 +30,24 @@ def call_probe(probe: Probe, candidate: Candidate, attempt: int, counters: Count
     except ProbeCancelled:
         raise
     except Exception as error:  # noqa: BLE001 - a probe runs user code: whatever it raises is an ERROR outcome
-        return Observation(
+        return ProbeObservation(
             Outcome.ERROR,
             detail=f"probe raised {type(error).__name__}: {error}",
             wall_time=time.perf_counter() - started,
         )
 
 
-def checked_observation(value: Any) -> Observation:
-    """The probe's result as an Observation (an outcome given by its value converted); ReductionError if
+def checked_observation(value: Any) -> ProbeObservation:
+    """The probe's result as an ProbeObservation (an outcome given by its value converted); ReductionError if
     it is not one."""
-    if not isinstance(value, Observation):
-        raise ReductionError(f"the probe must return an Observation, got {type(value).__name__}: {value!r}")
+    if not isinstance(value, ProbeObservation):
+        raise ReductionError(f"the probe must return an ProbeObservation, got {type(value).__name__}: {value!r}")
     if not isinstance(value.outcome, Outcome):
         try:
             value = replace(value, outcome=Outcome(value.outcome))
         except ValueError:
             choices = ", ".join(outcome.value for outcome in Outcome)
-            raise ReductionError(f"Observation.outcome must be one of {choices}, got {value.outcome!r}") from None
+            raise ReductionError(f"ProbeObservation.outcome must be one of {choices}, got {value.outcome!r}") from None
     return value
 
 
@@ -102,7 +102,7 @@ class Runner:
         submit = functools.partial(self.executor.submit, call_probe, self.probe, candidate, attempt, self.counters)
         self.prefetch.start((frozenset(candidate), attempt), submit)
 
-    def result(self, future: concurrent.futures.Future[Any], timeout: float | None = None) -> Observation:
+    def result(self, future: concurrent.futures.Future[Any], timeout: float | None = None) -> ProbeObservation:
         """The checked observation of a started attempt. Raises BudgetExhausted when the probe was cancelled,
         and TimeoutError when `timeout` seconds pass first."""
         try:

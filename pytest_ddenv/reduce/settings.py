@@ -125,7 +125,7 @@ def validate(
         raise ReductionError(expected("a ReductionSettings", given, "settings"))
     names = _elements(elements)
     if not callable(probe):
-        raise ReductionError(expected("a callable probe(candidate, attempt) -> Observation", probe, "probe"))
+        raise ReductionError(expected("a callable probe(candidate, attempt) -> ProbeObservation", probe, "probe"))
     kept = _keep(given.keep, names)
     _check_inputs(geometry, reference)
     checks = _preconditions(given.preconditions)

@@ -81,8 +81,9 @@ class Trace:
 
 
 @dataclass(frozen=True)
-class Observation:
-    """What a probe returns for one simulation of one candidate."""
+class ProbeObservation:
+    """What a probe returns for one simulation of one candidate (a controller's view of the robot is
+    `pytest_ddenv.Observation`, the simulation's)."""
 
     outcome: Outcome
     trace: Trace | None = None
@@ -109,8 +110,8 @@ class Geometry(Protocol):
         ...
 
 
-Probe = Callable[[Candidate, int], Observation]
-"""probe(candidate, attempt) -> Observation. attempt is 0, 1, 2, ... per candidate (a distinct seed each)."""
+Probe = Callable[[Candidate, int], ProbeObservation]
+"""probe(candidate, attempt) -> ProbeObservation. attempt is 0, 1, 2, ... per candidate (a distinct seed each)."""
 
 Precondition = Callable[[Candidate], "str | None"]
 """precondition(candidate) -> None to allow probing it, or the reason to skip it (treated as not f)."""
@@ -263,8 +264,13 @@ class ReductionInterrupted(ReductionError, KeyboardInterrupt):
     ``incomplete_reason == "interrupted"`` and ``one_minimal == False``.
     """
 
+    outcome: object | None
+    """What the caller made of the interrupted reduction before it re-raised this (the driver's
+    `ReductionOutcome`, the files written: read it with the driver's `interrupted_outcome`); None from `reduce`."""
+
     def __init__(self, reduction: Reduction) -> None:
         self.reduction = reduction
+        self.outcome = None
         super().__init__(
             f"reduction interrupted after {reduction.probes} probes; best world so far has "
             f"{len(reduction.minimal)} of {len(reduction.original)} elements"

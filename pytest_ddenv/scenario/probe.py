@@ -18,43 +18,19 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pytest_ddenv import defaults
-from pytest_ddenv.errors import DdenvError
-from pytest_ddenv.reduce import Observation as ProbeObservation
-from pytest_ddenv.reduce import Outcome, Trace
+from pytest_ddenv.errors import raised_by_ddenv
+from pytest_ddenv.oracle.verdict import ErrorInfo, FailureReference, classify_result
+from pytest_ddenv.reduce import Outcome, ProbeObservation, Trace
 from pytest_ddenv.scenario.robot_world import RobotFailure
 from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:
-    from pytest_ddenv.oracle.predicates import FailureSignature
     from pytest_ddenv.oracle.verdict import OtherReason, SameFailureRule
     from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
     from pytest_ddenv.sim import Run
 
 DETAIL_LIMIT = 2000
 """Characters of an error's text kept in a probe's log line (the full traceback is in the first one)."""
-
-
-@dataclass(frozen=True)
-class ErrorInfo:
-    """What a test raised, as plain data.
-
-    `location` is file:line of the deepest frame inside the test file (else the deepest frame);
-    `signature` is set for a `RobotFailure`; `ddenv_error` for an error of pytest-ddenv itself (a world that
-    cannot be simulated, a worker that could not run the test), which is never a verdict. `phase` is
-    "call" unless the test's setup or teardown broke (an error, not a verdict either).
-    """
-
-    type_name: str
-    message: str
-    location: str
-    traceback: str = ""
-    signature: FailureSignature | None = None
-    ddenv_error: bool = False
-    phase: str = "call"
-
-    def describe(self) -> str:
-        where = f" (in the test's {self.phase})" if self.phase != "call" else ""
-        return f"{self.type_name}: {self.message} at {self.location}{where}"
 
 
 @dataclass(frozen=True)
@@ -73,7 +49,7 @@ def describe_error(error: BaseException, test_file: str | Path | None, *, phase:
         location=raise_location(error, test_file),
         traceback=user_traceback(error)[-20 * DETAIL_LIMIT:],
         signature=error.signature if isinstance(error, RobotFailure) else None,
-        ddenv_error=isinstance(error, DdenvError),
+        ddenv_error=raised_by_ddenv(error),
         phase=phase,
     )
 
@@ -99,53 +75,6 @@ def raise_location(error: BaseException, test_file: str | Path | None) -> str:
     inside = [f for f in frames if test_file is not None and Path(f.filename) == Path(test_file)]
     frame = (inside or frames)[-1]
     return f"{Path(frame.filename).name}:{frame.lineno}"
-
-
-@dataclass(frozen=True)
-class FailureReference:
-    """The original failure a probe must reproduce.
-
-    A predicate failure (`RobotFailure`) is matched by its signature (same predicate, failure position within
-    tolerance); any other exception by its type and the line of the test that raised it.
-    """
-
-    exception_type: str
-    location: str
-    signature: FailureSignature | None = None
-
-    @classmethod
-    def of(cls, error: ErrorInfo) -> FailureReference:
-        return cls(error.type_name, error.location, error.signature)
-
-    def describe(self) -> str:
-        if self.signature is not None:
-            return f"{self.signature.predicate} at t={self.signature.time:.1f} s"
-        return f"{self.exception_type} at {self.location}"
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "exception_type": self.exception_type,
-            "location": self.location,
-            "signature": None if self.signature is None else self.signature.to_dict(),
-        }
-
-
-def classify_result(error: ErrorInfo | None, reference: FailureReference, rule: SameFailureRule | float) -> Outcome:
-    """Compare what a probe raised with the original failure: a predicate failure by `rule` (a
-    `SameFailureRule`, or the default rule with this tolerance), an exception by its type and line."""
-    from pytest_ddenv.oracle.verdict import as_rule
-
-    if error is None:
-        return Outcome.PASS
-    if error.ddenv_error or error.phase != "call":
-        return Outcome.ERROR
-    if error.signature is not None:
-        if reference.signature is None:
-            return Outcome.OTHER
-        return Outcome.FAIL if as_rule(rule).same(error.signature, reference.signature) else Outcome.OTHER
-    if reference.signature is None and error.type_name == reference.exception_type:
-        return Outcome.FAIL if error.location == reference.location else Outcome.OTHER
-    return Outcome.OTHER
 
 
 def check_rule(reference: FailureReference, rule: SameFailureRule) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from pytest_ddenv.errors import ControllerError, DdenvError
+from pytest_ddenv.errors import DdenvError
 
 PACKAGE = str(Path(__file__).resolve().parents[1]) + os.sep
 """The folder of pytest_ddenv."""
@@ -32,7 +32,7 @@ def hidden_in_tracebacks(excinfo: Any) -> bool:
     error = getattr(excinfo, "value", None)
     if not isinstance(error, BaseException):
         return False
-    if isinstance(error, (DdenvError, ControllerError)):  # on purpose: the world, the scenario, the controller
+    if isinstance(error, DdenvError):  # on purpose: the world, the scenario, the controller (`ControllerError`)
         return True
     if isinstance(error, AssertionError) and type(error) is not AssertionError:  # a test failure: RobotFailure
         return True  # (a plain AssertionError inside the package is one of its own asserts that failed)

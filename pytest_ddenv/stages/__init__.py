@@ -16,10 +16,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.reduce.budget import StageBudget
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedReruns
+from pytest_ddenv.reduce.rates import rate_drops
 from pytest_ddenv.scenario.probe import start_support
 from pytest_ddenv.stages import attributes, explain, minimality, passing, runs_kept, shapes, shorten, structure
-from pytest_ddenv.stages.context import FRESH_ATTEMPTS, Budget, StageContext
+from pytest_ddenv.stages.context import FRESH_ATTEMPTS, StageContext
 from pytest_ddenv.stages.result import StageResult
 
 if TYPE_CHECKING:
@@ -39,9 +42,6 @@ FINAL_RATE_RUNS = 10
 """Fresh runs (at most) of the world each stage that changes it leaves, compared with the minimal world's:
 a stage whose world fails significantly less often is reverted, so the final world never overstates. They
 are kept out of the budget of the stage itself, so that the rate is always measured."""
-NOISE = 0.2
-"""A stage's world whose failures on its fresh runs would be this unlikely at the minimal world's rate (about
-one standard deviation, one-sided) fails less often beyond the noise of those runs: the stage is reverted."""
 PASSING_RESERVE = 6
 """Simulations kept for the nearest passing world while the stages before it run."""
 CHECK_RESERVE = 3
@@ -49,7 +49,7 @@ CHECK_RESERVE = 3
 still 1-minimal (`minimality`)."""
 
 
-class StagesError(ValueError):
+class StagesError(DdenvError, ValueError):
     """A stage list that names an unknown stage."""
 
 
@@ -240,29 +240,6 @@ def _rate(context: StageContext, label: str, world: World, number: int) -> tuple
     return fails + more[0], runs + more[1], errors + more[2], failing or more[3]
 
 
-def rate_drops(rate: tuple[int, int], minimal: tuple[int, int]) -> bool:
-    """A stage's world fails less often than the minimal world beyond the noise of its runs: at the minimal
-    world's rate (estimated as (fails + 0.5) / (runs + 1), never 0 or 1), `rate[1]` runs would show as few
-    failures as `rate[0]` with probability below `NOISE` (binomial tail), or the rate is significantly below
-    the minimal world's (Fisher, one-sided, 5 %)."""
-    if rate[1] == 0 or minimal[1] == 0:
-        return False
-    from scipy.stats import binom
-
-    expected = (minimal[0] + 0.5) / (minimal[1] + 1.0)
-    return bool(binom.cdf(rate[0], rate[1], expected) < NOISE) or _significantly_below(rate, minimal)
-
-
-def _significantly_below(final: tuple[int, int], minimal: tuple[int, int]) -> bool:
-    """The final world fails significantly less often than the minimal one (Fisher, one-sided, 5 %)."""
-    if final[1] == 0 or minimal[1] == 0:
-        return False
-    from scipy.stats import fisher_exact
-
-    table = [[final[0], final[1] - final[0]], [minimal[0], minimal[1] - minimal[0]]]
-    return bool(fisher_exact(table, alternative="less").pvalue < 0.05)
-
-
 def stage_policy(policy: DeflakePolicy, models: Reduction) -> DeflakePolicy:
     """The deflake rule of the stages: the rule the models stage used (`deflake="auto"`: the one it
     calibrated; uncalibrated: 3 re-runs)."""
@@ -282,5 +259,8 @@ def stage_budget(model_simulations: int, stage_probes: int | None,
     return limit, stage_probes
 
 
-__all__ = ["DEFAULT_STAGES", "STAGES", "Budget", "StageContext", "StageResult", "StagesError", "StagesOutcome",
-           "parse_stages", "run_stages", "stage_budget", "stage_policy"]
+Budget = StageBudget
+"""The old name of `StageBudget`, kept for one release."""
+
+__all__ = ["DEFAULT_STAGES", "STAGES", "Budget", "StageBudget", "StageContext", "StageResult", "StagesError",
+           "StagesOutcome", "parse_stages", "run_stages", "stage_budget", "stage_policy"]

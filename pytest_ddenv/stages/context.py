@@ -15,18 +15,13 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from pytest_ddenv.execution import ProbeDeadline
+from pytest_ddenv.oracle.verdict import FailureReference, classify_result
 from pytest_ddenv.outcome import Outcome
-from pytest_ddenv.reduce import Observation, ProbeLog, Reduction, ReductionSettings, events, reduce
+from pytest_ddenv.reduce import ProbeLog, ProbeObservation, Reduction, ReductionSettings, events, reduce
+from pytest_ddenv.reduce.budget import StageBudget
 from pytest_ddenv.reduce.deflake import ConfirmedRuns, DeflakePolicy
 from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
-from pytest_ddenv.scenario.probe import (
-    FailureReference,
-    ProbeCall,
-    ProbeResult,
-    classify_result,
-    make_probe,
-    signature_record,
-)
+from pytest_ddenv.scenario.probe import ProbeCall, ProbeResult, make_probe, signature_record
 
 if TYPE_CHECKING:
     from pytest_ddenv.oracle.verdict import SameFailureRule
@@ -43,33 +38,6 @@ PASSES_RULE = ConfirmedRuns(max_runs=3, confirm=3)
 
 
 @dataclass
-class Budget:
-    """The simulations the stages may still start: `limit` (None: no limit) minus what `started()` counts
-    (the driver's count of every simulation of this reduction) since `begin`."""
-
-    limit: int | None
-    started: Callable[[], int]
-    begin: int = 0
-    per_stage: int | None = None
-    reserve: int = 0
-    """Simulations kept for what comes later (the final world's failure rate, the passing world)."""
-    share: int | None = None
-    """The most the current stage may start (its fair share of what is left), None: no share."""
-    decisions: int = 0
-    """Worlds decided so far by the stages (the engine's decided candidates and single decisions made
-    here; not the failure-rate runs): the stages' "probes", comparable with the model-level probes."""
-
-    def left(self, stage_begin: int | None = None) -> int | None:
-        spent = self.started() - self.begin
-        left = None if self.limit is None else max(0, self.limit - self.reserve - spent)
-        for cap in (self.per_stage, self.share):
-            if cap is not None and stage_begin is not None:
-                stage_left = max(0, cap - (self.started() - stage_begin))
-                left = stage_left if left is None else min(left, stage_left)
-        return left
-
-
-@dataclass
 class StageContext:
     """`base`: the world the stages start from (the model-level minimal world); `call` runs the test on a
     world; `rule` decides which failures are the reference failure; `wrap` turns a probe into the driver's (it
@@ -82,7 +50,7 @@ class StageContext:
     log: ProbeLog
     policy: DeflakePolicy
     seed: int
-    budget: Budget
+    budget: StageBudget
     run: Run | None = None
     executor: concurrent.futures.Executor | None = None
     workers: int | None = None
@@ -238,12 +206,12 @@ def _passing_probe(probe: Probe) -> Probe:
     """The probe of the property "the world passes": PASS reads as FAIL (the property holds), FAIL and
     another failure as PASS; ERROR stays ERROR."""
 
-    def passing(candidate: Candidate, attempt: int) -> Observation:
+    def passing(candidate: Candidate, attempt: int) -> ProbeObservation:
         observed = probe(candidate, attempt)
         if observed.outcome is Outcome.ERROR:
             return observed
         flipped = Outcome.FAIL if observed.outcome is Outcome.PASS else Outcome.PASS
-        return Observation(outcome=flipped, trace=None, signature=observed.signature, seed=observed.seed,
+        return ProbeObservation(outcome=flipped, trace=None, signature=observed.signature, seed=observed.seed,
                            sim_time=observed.sim_time, wall_time=observed.wall_time, detail=observed.detail)
 
     return passing

@@ -26,7 +26,7 @@ import numpy as np
 import shapely
 
 from pytest_ddenv.outcome import Outcome
-from pytest_ddenv.reduce import Observation, events
+from pytest_ddenv.reduce import ProbeObservation, events
 from pytest_ddenv.reduce.types import Candidate, Precondition, Probe
 from pytest_ddenv.world.files import resolve_mesh_path
 from pytest_ddenv.world.geometry import FloatArray, box_corners, cylinder_extent_points
@@ -186,7 +186,7 @@ def touching_only(probe: Probe, allowed: frozenset[str]) -> Probe:
     if not allowed:
         return probe
 
-    def checked(candidate: Candidate, attempt: int) -> Observation:
+    def checked(candidate: Candidate, attempt: int) -> ProbeObservation:
         observed = probe(candidate, attempt)
         signature = observed.signature
         if observed.outcome is not Outcome.FAIL or not isinstance(signature, Mapping):
@@ -194,7 +194,7 @@ def touching_only(probe: Probe, allowed: frozenset[str]) -> Probe:
         others = sorted(set(map(str, signature.get("touched", ()))) - allowed)
         if not others:
             return observed
-        return Observation(Outcome.OTHER, trace=None, signature=signature, seed=observed.seed,
+        return ProbeObservation(Outcome.OTHER, trace=None, signature=signature, seed=observed.seed,
                            sim_time=observed.sim_time, wall_time=observed.wall_time,
                            detail=f"a different structure: the robot failed touching {', '.join(others)}, which "
                                   f"the failing runs it started from never touched ({', '.join(sorted(allowed))})")

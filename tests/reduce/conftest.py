@@ -15,7 +15,7 @@ from types import ModuleType
 import numpy as np
 import pytest
 
-from pytest_ddenv.reduce import Observation, Outcome, Trace
+from pytest_ddenv.reduce import Outcome, ProbeObservation, Trace
 
 
 @dataclass(frozen=True)
@@ -75,11 +75,11 @@ class SetOracle:
     trace: Trace | None = None
     calls: list[tuple[tuple[str, ...], int]] = field(default_factory=list)
 
-    def __call__(self, candidate: tuple[str, ...], attempt: int) -> Observation:
+    def __call__(self, candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         self.calls.append((candidate, attempt))
         if self.culprits <= set(candidate) and uniform(candidate, attempt, self.salt) < self.rate:
-            return Observation(Outcome.FAIL, trace=self.trace, signature={"kind": "stuck"}, seed=attempt)
-        return Observation(Outcome.PASS, seed=attempt)
+            return ProbeObservation(Outcome.FAIL, trace=self.trace, signature={"kind": "stuck"}, seed=attempt)
+        return ProbeObservation(Outcome.PASS, seed=attempt)
 
 
 @dataclass
@@ -89,9 +89,9 @@ class FunctionOracle:
     fails: Callable[[frozenset[str]], bool]
     calls: list[tuple[tuple[str, ...], int]] = field(default_factory=list)
 
-    def __call__(self, candidate: tuple[str, ...], attempt: int) -> Observation:
+    def __call__(self, candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         self.calls.append((candidate, attempt))
-        return Observation(Outcome.FAIL if self.fails(frozenset(candidate)) else Outcome.PASS, seed=attempt)
+        return ProbeObservation(Outcome.FAIL if self.fails(frozenset(candidate)) else Outcome.PASS, seed=attempt)
 
 
 def uniform(candidate: Collection[str], attempt: int, salt: int) -> float:

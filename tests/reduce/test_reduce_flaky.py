@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from pytest_ddenv.errors import ReductionError
-from pytest_ddenv.reduce import Observation, Outcome, reduce
+from pytest_ddenv.reduce import Outcome, ProbeObservation, reduce
 from pytest_ddenv.reduce.deflake import (
     CalibratedReruns,
     ConfirmedRuns,
@@ -137,11 +137,11 @@ def test_auto_deflake_runs_the_original_first_then_the_calibrated_rule(rate: flo
 def test_auto_deflake_seldom_accepts_a_world_that_fails_only_by_luck() -> None:
     """The culprits fail 90 % of runs; without m0012 they still fail 15 % of runs (by luck)."""
 
-    def fails(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def fails(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         present = set(candidate)
         rate = 0.9 if present >= CULPRITS else 0.15 if present >= CULPRITS - {"m0012"} else 0.0
         failed = uniform(candidate, attempt, salt) < rate
-        return Observation(Outcome.FAIL if failed else Outcome.PASS, seed=attempt)
+        return ProbeObservation(Outcome.FAIL if failed else Outcome.PASS, seed=attempt)
 
     kept: dict[int | str, int] = {"auto": 0, 1: 0, 3: 0}
     for salt in range(60):

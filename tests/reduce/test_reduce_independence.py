@@ -7,13 +7,13 @@ from pathlib import Path
 
 import pytest
 
-from pytest_ddenv.reduce import Observation, Outcome, ReductionInterrupted, reduce
+from pytest_ddenv.reduce import Outcome, ProbeObservation, ReductionInterrupted, reduce
 
 from .conftest import SetOracle, names
 
 
-def always_fails(candidate: tuple[str, ...], attempt: int) -> Observation:
-    return Observation(Outcome.FAIL)
+def always_fails(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
+    return ProbeObservation(Outcome.FAIL)
 
 
 def records(path: Path) -> list[dict]:
@@ -54,7 +54,7 @@ def test_a_failure_that_needs_an_element_costs_one_run_more_and_reduces_as_befor
 def test_an_interrupt_during_the_check_keeps_the_log(tmp_path: Path) -> None:
     log = tmp_path / "runs.jsonl"
 
-    def interrupted(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def interrupted(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         raise KeyboardInterrupt
 
     with pytest.raises(ReductionInterrupted) as stop:

@@ -10,9 +10,9 @@ import pytest
 
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import (
-    Observation,
     Outcome,
     ProbeLog,
+    ProbeObservation,
     ReductionInterrupted,
     events,
     reduce,
@@ -49,7 +49,7 @@ def test_log_is_flushed_as_it_happens(tmp_path: Path) -> None:
     path = tmp_path / "runs.jsonl"
     seen: list[int] = []
 
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         seen.append(len(path.read_text().splitlines()) if path.exists() else 0)
         return SetOracle(CULPRITS)(candidate, attempt)
 
@@ -60,10 +60,10 @@ def test_log_is_flushed_as_it_happens(tmp_path: Path) -> None:
 def test_signatures_and_seeds_become_json(tmp_path: Path) -> None:
     path = tmp_path / "runs.jsonl"
 
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         fails = "m0001" in candidate
         signature = {"where": np.array([1.5, 2.0]), "count": np.int64(3), "names": {"a", "b"}, "nan": float("nan")}
-        return Observation(Outcome.FAIL if fails else Outcome.PASS, signature=signature, seed=np.int64(7))
+        return ProbeObservation(Outcome.FAIL if fails else Outcome.PASS, signature=signature, seed=np.int64(7))
 
     reduce(names(3), probe, log=path, deflake=0)
     probe_line = next(record for record in read_lines(path) if record["event"] == "probe")
@@ -100,7 +100,7 @@ def test_resume_after_an_interrupt(tmp_path: Path) -> None:
     path = tmp_path / "runs.jsonl"
     calls = 0
 
-    def interrupted(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def interrupted(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         nonlocal calls
         calls += 1
         if calls == 9:
@@ -207,9 +207,9 @@ def test_errored_rejections_are_not_verdicts_and_are_retried_on_resume(tmp_path:
     path = tmp_path / "runs.jsonl"
     culprit = frozenset({"m0001"})
 
-    def erroring(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def erroring(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         if frozenset(candidate) == culprit:
-            return Observation(Outcome.ERROR, detail="WorkerError: the worker was killed by SIGKILL")
+            return ProbeObservation(Outcome.ERROR, detail="WorkerError: the worker was killed by SIGKILL")
         return SetOracle(culprit)(candidate, attempt)
 
     first = reduce(names(4), erroring, log=path, deflake=0, failure_rate_runs=0, priority="sequential")
@@ -233,9 +233,9 @@ def test_a_rejection_is_errored_only_when_the_errors_made_it(tmp_path: Path) -> 
     PASS then PASS is a verdict."""
     path = tmp_path / "runs.jsonl"
 
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         if candidate == ("m0000",) and attempt == 0:
-            return Observation(Outcome.ERROR, detail="worker killed")
+            return ProbeObservation(Outcome.ERROR, detail="worker killed")
         return SetOracle(frozenset({"m0000", "m0001"}))(candidate, attempt)
 
     reduce(names(2), probe, log=path, deflake=1, failure_rate_runs=0, priority="sequential")

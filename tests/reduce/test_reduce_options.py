@@ -15,9 +15,9 @@ from pytest_ddenv.reduce import (
     DEFLAKE_POLICIES,
     PARTITIONS,
     PRIORITIES,
-    Observation,
     Outcome,
     ProbeCancelled,
+    ProbeObservation,
     ProgressEvent,
     ReductionInterrupted,
     reduce,
@@ -86,7 +86,7 @@ def test_the_time_budget_interrupts_running_probes() -> None:
     release = threading.Event()
     waited: list[bool] = []
 
-    def blocking(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def blocking(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         if len(candidate) < 64:
             waited.append(release.wait(60))
         return SetOracle(CULPRITS)(candidate, attempt)
@@ -105,7 +105,7 @@ def test_the_time_budget_interrupts_running_probes() -> None:
 def test_a_probe_cancelled_by_its_caller_ends_the_reduction_without_a_verdict(tmp_path: Path) -> None:
     path = tmp_path / "runs.jsonl"
 
-    def cancelled_later(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def cancelled_later(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         if len(cancelled_later.calls) == 3:  # type: ignore[attr-defined]
             raise ProbeCancelled("budget: max_seconds")
         cancelled_later.calls.append(candidate)  # type: ignore[attr-defined]
@@ -132,7 +132,7 @@ def test_keyboard_interrupt_raises_with_the_partial_result(tmp_path: Path) -> No
     path = tmp_path / "runs.jsonl"
     calls = 0
 
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         nonlocal calls
         calls += 1
         if calls == 12:
@@ -189,9 +189,9 @@ def test_a_precondition_bypass_check_whose_runs_all_errored_says_it_could_not_ru
     ground = "m0000"
     oracle = SetOracle(CULPRITS)
 
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         if ground not in candidate:  # a world without the ground cannot even start
-            return Observation(Outcome.ERROR, seed=attempt)
+            return ProbeObservation(Outcome.ERROR, seed=attempt)
         return oracle(candidate, attempt)
 
     result = reduce(names(24), probe, preconditions=[lambda c: None if ground in c else "spawns on m0000"], deflake=0)
@@ -228,10 +228,10 @@ def test_empty_world_and_failure_without_any_element() -> None:
 
 @pytest.mark.parametrize("outcome", [Outcome.OTHER, Outcome.ERROR, Outcome.PASS])
 def test_only_the_same_failure_counts(outcome: Outcome) -> None:
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         if reproduces(candidate):
-            return Observation(Outcome.FAIL)
-        return Observation(outcome if len(candidate) < 10 else Outcome.PASS)
+            return ProbeObservation(Outcome.FAIL)
+        return ProbeObservation(outcome if len(candidate) < 10 else Outcome.PASS)
 
     result = reduce(names(32), probe, deflake=1)
     assert set(result.minimal) == CULPRITS
@@ -239,7 +239,7 @@ def test_only_the_same_failure_counts(outcome: Outcome) -> None:
 
 
 def test_a_probe_that_raises_is_an_error_outcome() -> None:
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         if len(candidate) == 1:
             raise RuntimeError("simulator crashed")
         return FunctionOracle(lambda c: reproduces(tuple(c)))(candidate, attempt)
@@ -249,11 +249,11 @@ def test_a_probe_that_raises_is_an_error_outcome() -> None:
 
 
 def test_a_probe_that_returns_garbage_is_reported() -> None:
-    with pytest.raises(ReductionError, match="must return an Observation"):
+    with pytest.raises(ReductionError, match="must return an ProbeObservation"):
         reduce(names(4), lambda candidate, attempt: True, deflake=0)  # type: ignore[arg-type,return-value]
     with pytest.raises(ReductionError, match="outcome must be one of fail, other, pass, error"):
-        reduce(names(4), lambda candidate, attempt: Observation("boom"), deflake=0)  # type: ignore[arg-type]
-    result = reduce(names(4), lambda candidate, attempt: Observation("fail"), deflake=0)  # type: ignore[arg-type]
+        reduce(names(4), lambda candidate, attempt: ProbeObservation("boom"), deflake=0)  # type: ignore[arg-type]
+    result = reduce(names(4), lambda candidate, attempt: ProbeObservation("fail"), deflake=0)  # type: ignore[arg-type]
     assert result.minimal == ()
 
 
@@ -337,6 +337,6 @@ def test_invalid_elements(elements: Any, message: str) -> None:
 
 
 def test_invalid_probe() -> None:
-    with pytest.raises(ReductionError, match=r"probe: expected a callable probe\(candidate, attempt\) -> Observation, "
+    with pytest.raises(ReductionError, match=r"probe: expected a callable probe\(candidate, attempt\) -> ProbeObservation, "
                                              "got 'probe'"):
         reduce(names(3), "probe")  # type: ignore[arg-type]

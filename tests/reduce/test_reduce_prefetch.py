@@ -9,7 +9,7 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 
 from pytest_ddenv.errors import ReductionError
-from pytest_ddenv.reduce import Observation, reduce
+from pytest_ddenv.reduce import ProbeObservation, reduce
 
 from .conftest import SetOracle, names
 
@@ -23,7 +23,7 @@ def test_an_idle_worker_starts_the_next_round_while_the_last_probe_of_a_round_ru
     next_round_started = threading.Event()
     waited: list[bool] = []
 
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         if len(candidate) == 1:  # a first-round candidate has 2 elements; the next round's have 1 or 3
             next_round_started.set()
         if candidate == ("c", "d") and attempt == 2:  # the last probe of the first round
@@ -44,7 +44,7 @@ def test_no_probe_is_simulated_twice_with_slow_flaky_probes() -> None:
     culprits = frozenset({"m0003", "m0011", "m0020"})
     oracle = SetOracle(culprits, rate=0.6, salt=11)
 
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         time.sleep(0.002 * (hash((candidate, attempt)) % 5))  # finishing order differs from starting order
         return oracle(candidate, attempt)
 
@@ -61,7 +61,7 @@ def test_the_adaptive_policy_keeps_one_attempt_in_flight_per_candidate() -> None
     lock = threading.Lock()
     oracle = SetOracle(NEEDS, rate=0.6, salt=1)
 
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         nonlocal most
         with lock:
             in_flight[candidate] = in_flight.get(candidate, 0) + 1
@@ -83,7 +83,7 @@ def test_workers_is_the_number_of_probes_a_round_keeps_running() -> None:
     lock = threading.Lock()
     oracle = SetOracle(frozenset({"m0002", "m0009"}), rate=0.7, salt=3)
 
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         nonlocal running, most
         with lock:
             running += 1

@@ -63,14 +63,14 @@ def test_bad_arguments_are_refused() -> None:
 
 def rare_without_b(salt: int):  # type: ignore[no-untyped-def]
     """f always with both 'a' and 'b'; with 'a' alone f only 30 % of the runs (a lucky deflake rule accepts it)."""
-    from pytest_ddenv.reduce import Observation, Outcome
+    from pytest_ddenv.reduce import Outcome, ProbeObservation
 
     from .conftest import uniform
 
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
         present = set(candidate)
         fails = {"a", "b"} <= present or ("a" in present and uniform(candidate, attempt, salt) < 0.3)
-        return Observation(Outcome.FAIL if fails else Outcome.PASS, signature={"kind": "stuck"}, seed=attempt)
+        return ProbeObservation(Outcome.FAIL if fails else Outcome.PASS, signature={"kind": "stuck"}, seed=attempt)
 
     return probe
 

@@ -16,8 +16,7 @@ import pytest
 from pytest_ddenv.cli import main as cli
 from pytest_ddenv.driver.artifacts import ArtifactsError, FolderLock
 from pytest_ddenv.errors import ReductionError
-from pytest_ddenv.reduce import Observation, Outcome, ProbeLog, reduce
-from pytest_ddenv.reduce import events
+from pytest_ddenv.reduce import Outcome, ProbeLog, ProbeObservation, events, reduce
 from pytest_ddenv.reduce.records import MAX_JSON_NESTING, json_value
 
 from .test_bad_input import YARD
@@ -111,8 +110,8 @@ def test_ddenv_reduce_resumes_a_damaged_log_with_a_note(tmp_path: Path) -> None:
 
 
 def test_reduce_refuses_a_budget_of_no_simulation_with_nothing_to_decide_from() -> None:
-    def probe(candidate: tuple[str, ...], attempt: int) -> Observation:
-        return Observation(Outcome.FAIL)
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
+        return ProbeObservation(Outcome.FAIL)
 
     with pytest.raises(ReductionError, match=r"max_probes: expected an integer >= 1 \(0, no simulation at all"):
         reduce(["a", "b"], probe, max_probes=0)

@@ -13,11 +13,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pytest_ddenv.oracle import SameFailureRule
-from pytest_ddenv.scenario.probe import ErrorInfo, FailureReference, ProbeResult, make_probe
 from pytest_ddenv.reduce import ProbeLog, Reduction, reduce
 from pytest_ddenv.reduce.deflake import FixedReruns
+from pytest_ddenv.scenario.probe import ErrorInfo, FailureReference, ProbeResult, make_probe
 from pytest_ddenv.stages import (
-    Budget,
+    StageBudget,
     StageContext,
     StagesOutcome,
     parse_stages,
@@ -73,7 +73,7 @@ def reduce_all(world: World, rule: Rule, stages: tuple[str, ...], log: ProbeLog 
                     partition="model2model", priority="sequential", failure_rate_runs=5)
     context = StageContext(base=world.select(models.minimal), call=call, reference=REFERENCE,
                            rule=SameFailureRule(), log=log, policy=FixedReruns(1), seed=0,
-                           budget=Budget(limit, lambda: call.counter["calls"], call.counter["calls"]))  # type: ignore[attr-defined]
+                           budget=StageBudget(limit, lambda: call.counter["calls"], call.counter["calls"]))  # type: ignore[attr-defined]
     outcome = run_stages(stages, context, models, minimal_run=None, folder=Path("/nonexistent"))
     return models, outcome, log
 
@@ -150,7 +150,7 @@ def test_a_resumed_reduction_reuses_every_stage_decision(tmp_path: Path) -> None
     call = call_of(fails)
     context = StageContext(base=world.select(first_models.minimal), call=call, reference=REFERENCE,
                            rule=SameFailureRule(), log=log, policy=FixedReruns(1), seed=0,
-                           budget=Budget(None, lambda: call.counter["calls"]))  # type: ignore[attr-defined]
+                           budget=StageBudget(None, lambda: call.counter["calls"]))  # type: ignore[attr-defined]
     again = run_stages(parse_stages("all"), context, first_models, minimal_run=None, folder=tmp_path)
     assert again.final == first.final and again.passing == first.passing
     assert call.counter["calls"] == 0  # type: ignore[attr-defined]
@@ -254,7 +254,7 @@ def test_a_stage_world_that_fails_less_often_is_never_the_result() -> None:
 
     context = StageContext(base=world.select(models.minimal), call=flaky_call, reference=REFERENCE,
                            rule=SameFailureRule(), log=log, policy=FixedReruns(1), seed=0,
-                           budget=Budget(None, lambda: call.counter["calls"]))  # type: ignore[attr-defined]
+                           budget=StageBudget(None, lambda: call.counter["calls"]))  # type: ignore[attr-defined]
     outcome = run_stages(parse_stages("models,shapes"), context, models, minimal_run=None, folder=Path("/x"))
     shapes = outcome.result("shapes")
     assert shapes is not None and outcome.final is not None

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from pytest_ddenv.outcome import Outcome
-from pytest_ddenv.reduce import Observation
+from pytest_ddenv.reduce import ProbeObservation
 from pytest_ddenv.stages.attributes import proposals, simplified
 from pytest_ddenv.stages.structure import clearance, keeps_structure, nearest_gaps, relation, touching_only
 from pytest_ddenv.world import Model, Pose, Shape, World
@@ -67,14 +67,14 @@ def test_no_position_or_size_is_rounded_on_a_grid_coarser_than_the_nearest_gap()
     assert clearance(rounded.model("left"), rounded.model("right"), None) > 0.02
 
 
-def observation(outcome: Outcome, touched: list[str]) -> Observation:
-    return Observation(outcome, signature={"predicate": "stuck", "touched": touched, "pose": [0, 0, 0, 0, 0, 0]})
+def observation(outcome: Outcome, touched: list[str]) -> ProbeObservation:
+    return ProbeObservation(outcome, signature={"predicate": "stuck", "touched": touched, "pose": [0, 0, 0, 0, 0, 0]})
 
 
 def test_a_failure_touching_a_model_the_world_never_failed_on_is_another_failure() -> None:
-    seen: dict[str, Observation] = {
+    seen: dict[str, ProbeObservation] = {
         "same": observation(Outcome.FAIL, ["left"]), "new": observation(Outcome.FAIL, ["left", "crate"]),
-        "passes": Observation(Outcome.PASS),
+        "passes": ProbeObservation(Outcome.PASS),
     }
     probe = touching_only(lambda candidate, attempt: seen[candidate[0]], frozenset({"left", "right"}))
     assert probe(("same",), 0).outcome is Outcome.FAIL
