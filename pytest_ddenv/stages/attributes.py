@@ -301,7 +301,7 @@ def run(context: StageContext, folder: Path) -> StageResult:
             incomplete = reduction.incomplete_reason
             break
         different = dict(reduction.precondition_kept)  # applying it alone would change the structure
-        for name in needed:
+        for name in reduction.minimal:  # in the world's order, not a set's: the findings' order is reproducible
             if name in different:
                 refused[name] = (by_name[name], different[name])
                 broke.pop(name, None)
