@@ -242,6 +242,7 @@ def _add_run(commands: Any, common: argparse.ArgumentParser) -> None:
                           f"{DEFAULT_RUN_TIMEOUT:g}): bounds a controller that is too slow")
     add_scenario_options(run)
     add_world_options(run)
+    add_setting_flags(run, [SETTING["engine"]])
     run.add_argument("-o", "--output", help="picture to write (default: WORLD-run.png in the current folder)")
     run.add_argument("--no-picture", action="store_true", help="do not write a picture")
     run.add_argument("--record", metavar="RUNS.jsonl", help="append the run (trajectory included) to this file")
@@ -289,6 +290,7 @@ def _add_replay(commands: Any, common: argparse.ArgumentParser) -> None:
                         help="a folder written by ddenv reduce or pytest --ddenv-reduce")
     _add_predicate_option(replay, required=False)
     _add_user_code_options(replay)
+    add_setting_flags(replay, [SETTING["engine"]])
     replay.add_argument("--runs", type=_type(integer(1), "--runs"), default=10, metavar="N",
                         help="run N fresh seeds, none a reduction probe used (default 10); with --recorded, at "
                              "most N of the seeds the reduction saw fail")
@@ -539,7 +541,7 @@ def _run_text(path: str, world: World, run: Run, picture: Path | None) -> str:
         lines = [head + f"reached the goal at t = {run.goal_time or run.sim_time:.2f} s"]
     else:
         lines = [head + f"FAILED (the goal was not reached within {run.sim_time:.1f} s; no predicate fired)"]
-    lines.append(f"simulated {run.sim_time:.1f} s in {run.wall_time:.2f} s wall")
+    lines.append(f"simulated {run.sim_time:.1f} s in {run.wall_time:.2f} s wall ({run.engine} {run.engine_version})")
     if picture is not None:
         lines.append(f"picture: {picture}")
     return "\n".join(lines)
@@ -885,9 +887,11 @@ def _cmd_replay(arguments: argparse.Namespace) -> int:
     with recording_detail(arguments.animate is not None):
         result = replay(arguments.artifacts, predicates=predicates, max_runs=arguments.runs,
                         tolerance=arguments.tolerance, controller=controller, recorded=arguments.recorded,
+                        engine=arguments.engine,
                         same_failure=None if arguments.same_failure is None else _same_failure(arguments.same_failure))
     reference = result.reference
-    lines = [(f"{arguments.artifacts}: minimal world of {len(result.world)} models; reference failure: "
+    lines = [(f"{arguments.artifacts}: minimal world of {len(result.world)} models in "
+              f"{result.world.physics.engine}; reference failure: "
              f"{reference.predicate} at t = {reference.time:.2f} s at ({reference.position[0]:.2f}, "
              f"{reference.position[1]:.2f}, {reference.position[2]:.2f}) m")]
     for run in result.runs:

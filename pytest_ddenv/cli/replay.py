@@ -282,11 +282,12 @@ def recorded_rule(summary: Mapping[str, Any], where: Path) -> SameFailureRule:
 def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None = None, max_runs: int = 10,
            tolerance: float | None = None, timeout: float | None = None,
            controller: ControllerLike | None = None, recorded: bool = False,
-           same_failure: str | None = None) -> ReplayResult:
+           same_failure: str | None = None, engine: str | None = None) -> ReplayResult:
     """Re-run the minimal world of an artifacts folder `max_runs` times on fresh seeds, which no probe of the
     reduction used, and measure how often it fails the same way, by the recorded same-failure rule (or
     `same_failure`, a match for every predicate, and `tolerance`); with `recorded`, re-run instead the seeds
-    on which the reduction saw it fail (exact reproduction: each should fail again)."""
+    on which the reduction saw it fail (exact reproduction: each should fail again). `engine`: simulate in
+    this physics engine instead of the one `minimal.yaml` names."""
     from dataclasses import replace
 
     from pytest_ddenv.oracle.verdict import classify, same_failure_match, why_other
@@ -294,6 +295,7 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
 
     folder = Path(directory)
     summary, world = read_artifacts(folder)
+    world = world if engine is None else world.with_engine(engine)
     reference = recorded_signature(summary, folder / "summary.json")
     chosen = tuple(predicates) if predicates else recorded_predicates(summary, reference)
     rule = recorded_rule(summary, folder / "summary.json")

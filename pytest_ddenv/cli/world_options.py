@@ -66,8 +66,8 @@ def dropped_warning(world: World, where: str) -> str | None:
 
 
 def load_world(arguments: argparse.Namespace, path: str, *, warn: bool = True) -> World:
-    """The world file at `path`, read with the command's --model-path and --skip-unsupported; with `warn`, one
-    warning line on stderr naming the models --skip-unsupported dropped."""
+    """The world file at `path`, read with the command's --model-path and --skip-unsupported, in its --engine
+    (run, reduce); with `warn`, one warning line on stderr naming the models --skip-unsupported dropped."""
     file = Path(path)
     kind = file_kind(file)
     if kind == MISSING:
@@ -80,6 +80,9 @@ def load_world(arguments: argparse.Namespace, path: str, *, warn: bool = True) -
         if not Path(folder).is_dir():
             raise UsageError(f"--model-path: no such folder: {folder}")
     world = World.load(file, model_paths=folders, skip_unsupported=getattr(arguments, "skip_unsupported", False))
+    engine = getattr(arguments, "engine", None)  # --engine of run and reduce (checked by argparse)
+    if engine is not None:
+        world = world.with_engine(engine)
     warning = dropped_warning(world, path) if warn else None
     if warning is not None:
         print(f"ddenv: warning: {warning}", file=sys.stderr)

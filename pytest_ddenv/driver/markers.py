@@ -35,6 +35,8 @@ class ReductionSpec:
     """What `@pytest.mark.ddenv(...)` says about a test (defaults when the marker is absent)."""
 
     world: str | None = None
+    engine: str | None = None
+    """The physics engine chosen for the test's world (None: the world's `physics.engine`)."""
     partition: str = defaults.PARTITION
     priority: str = defaults.PRIORITY
     n_partitions: int = defaults.N_PARTITIONS

@@ -9,19 +9,23 @@ import hashlib
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from importlib.metadata import version
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.driver.code_identity import CodeIdentity, digest
 from pytest_ddenv.reduce import events
 from pytest_ddenv.world.formats import FORMATS
+from pytest_ddenv.world.limits import engine_version
+from pytest_ddenv.world.yaml_format import WRITTEN_DEFAULT_ENGINE
 
 if TYPE_CHECKING:
     from pytest_ddenv.world.model import World
 
 PARTS = {"world": "the world", "settings": "the reduction settings", "test": "the test function's source"}
 """The parts of a problem besides the code, and how a note names them."""
+ENGINE_PART = "engine"
+"""The part that names the physics engine and its version ("pybullet 3.2.7"), as text: a run is bit-identical
+only in the same engine of the same version, so a log is never resumed in another."""
 
 
 @dataclass(frozen=True)
@@ -51,6 +55,10 @@ class Problem:
             if changes:
                 said.append("the code under test changed: " + _listing(changes))
         said += [f"{name} changed" for key, name in PARTS.items() if header.parts.get(key) != self.parts.get(key)]
+        earlier_engine = str(header.parts.get(ENGINE_PART, "pybullet"))  # a log from before the engine was named
+        engine = str(self.parts.get(ENGINE_PART, ""))
+        if earlier_engine.split(" ")[0] != engine.split(" ")[0] or (" " in earlier_engine and earlier_engine != engine):
+            said.append(f"the physics engine changed: {earlier_engine} -> {engine}")
         return said
 
 
@@ -58,12 +66,14 @@ def problem_of(world: World, settings: Mapping[str, Any], test_source: str, code
                test_id: str = "", reference: Mapping[str, Any] | None = None) -> Problem:
     """The problem of a reduction (`reference`, the failure reduced, is checked apart from the fingerprint:
     a resumed log must have reduced the same failure, under the same-failure rule, not an identical one)."""
-    parts = {"world": _digest(FORMATS["yaml"].dump(world, None)), "settings": _digest(settings),
+    engine = world.physics.engine
+    unnamed = world.with_engine(WRITTEN_DEFAULT_ENGINE)  # the engine is its own part
+    parts = {"world": _digest(FORMATS["yaml"].dump(unnamed, None)), "settings": _digest(settings),
              "test": _digest(test_source)}
     code = CodeIdentity({**code.files, **{_shown(path): digest(path) for path in world_files(world)}}, code.packages)
-    fingerprint = _digest({**parts, "code": code.to_json(),
-                           "pybullet": version("pybullet")})  # a run is bit-identical only with the same pybullet
-    return Problem(fingerprint, test_id, parts, code, reference)
+    fingerprint = _digest({**parts, "code": code.to_json(), engine: engine_version(engine)})
+    return Problem(fingerprint, test_id, {**parts, ENGINE_PART: f"{engine} {engine_version(engine)}"}, code,
+                   reference)
 
 
 def _digest(value: Any) -> str:

@@ -100,6 +100,8 @@ class ReductionReport:
     """The other failures the reduction's probes met, grouped, largest first (`pytest_ddenv.driver.other_failures`)."""
     same_failure: SameFailureRule | None = None
     """The rule that decided which failures are the reference failure (None: the default rule, `tolerance`)."""
+    engine: str = ""
+    """The physics engine that ran every probe and its version ("pybullet 3.2.7"; empty: not known)."""
     reproduction: Reproduction | None = None
     """Set when the original world's fresh runs rarely failed the same way: how often, and the reason seen most
     (`other_failures.original_reproduction`)."""
@@ -152,6 +154,7 @@ class ReductionReport:
             "schemas": {"partition": reduction.partition, "priority": reduction.priority,
                         "granularity": reduction.granularity, "deflake": reduction.deflake},
             "seed": reduction.seed,
+            "engine": _engine_json(self.engine),
             "reference_failure": dict(self.reference_failure),
             "replay": self.replay,
             "fingerprint": self.fingerprint,
@@ -174,6 +177,12 @@ class ReductionReport:
         if self.media is not None:
             summary["media"] = dict(self.media)
         return summary
+
+
+def _engine_json(engine: str) -> dict[str, str] | None:
+    """{"name": "pybullet", "version": "3.2.7"} (None: not known)."""
+    name, _, version = engine.partition(" ")
+    return {"name": name, "version": version} if name else None
 
 
 def identity_json(test: str, world: str, original: Sequence[str], minimal: Sequence[str]) -> dict[str, Any]:

@@ -48,6 +48,7 @@ def result_lines(report: ReductionReport) -> list[str]:
         (f"simulations run: {report.cost.simulations} (confirmation, fresh-run, "
          f"speculative and picture runs included; {report.cost.cpu_seconds:.1f} s of worker CPU)"),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
+        *([f"physics engine: {report.engine}"] if report.engine else []),
         *same_failure_lines(report),
         failure_rate_line(reduction),
         *stage_lines(report),

@@ -15,7 +15,7 @@ import threading
 import time
 import warnings
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -25,7 +25,7 @@ from pytest_ddenv.driver.code_identity import CodeIdentity
 from pytest_ddenv.driver.confirm import Confirmation, ConfirmationRun, confirm
 from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.driver.other_failures import original_reproduction, other_failures
-from pytest_ddenv.driver.problem import Problem, problem_of
+from pytest_ddenv.driver.problem import ENGINE_PART, Problem, problem_of
 from pytest_ddenv.driver.report import (
     Cost,
     ReductionReport,
@@ -167,6 +167,8 @@ def run_reduction(plan: ReductionPlan, pool: Pool[ProbeResult], *, note: Note = 
     The phases, each a call that returns what the next needs: `confirm` (is the failure there?), the
     folder (`artifacts.prepare`, the log), `_Locked.reduce_models`, `_Locked.runs_to_show`, `_run_stages`,
     `_Locked.write` (the files, the report, the pictures and the media)."""
+    if plan.spec.engine is not None and plan.world.physics.engine != plan.spec.engine:
+        plan = replace(plan, world=plan.world.with_engine(plan.spec.engine))  # every probe's world carries it
     spec, world = plan.spec, plan.world
     make_policy(spec.deflake, 0.95)  # an invalid deflake fails now, before any simulation
     deadline = None if spec.max_seconds is None else time.monotonic() + spec.max_seconds
@@ -186,7 +188,8 @@ def run_reduction(plan: ReductionPlan, pool: Pool[ProbeResult], *, note: Note = 
             partition, priority, notes = _schemas(spec, plan.reference_run, plan.no_run_reason)
             for text in notes:
                 note(text)
-            settings = {key: value for key, value in plan.fingerprint.items() if key not in BUDGETS}
+            settings = {key: value for key, value in plan.fingerprint.items()
+                        if key not in BUDGETS and key != "engine"}  # the engine is a part of its own (problem.py)
             problem = problem_of(world, {**settings, "partition": partition, "priority": priority},
                                  plan.test_source, plan.code, test_id=plan.test_id,
                                  reference=plan.reference.to_dict())
@@ -381,7 +384,7 @@ class _Locked:
                 reference_failure=plan.reference.to_dict(), replay=plan.replay_command,
                 fingerprint=self.problem.fingerprint,
                 files=files, cost=self.cost(reduction.probes), tolerance=plan.spec.tolerance, minimal_sdf=how,
-                same_failure=plan.rule,
+                same_failure=plan.rule, engine=self.problem.parts.get(ENGINE_PART, ""),
                 reproduction=original_reproduction(self.log.events, plan.world.names, plan.reference, plan.rule),
                 notes=tuple(dict.fromkeys([*self.notes, *self.pool.notes])),
                 world_notes=tuple(plan.world.notes), stages=staged,

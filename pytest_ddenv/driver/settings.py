@@ -203,6 +203,16 @@ def same_failure(value: Any, where: str, text: bool) -> str:
         raise SettingError(str(error)) from None
 
 
+def engine(value: Any, where: str, text: bool) -> str:
+    """A physics engine that is installed here: 'pybullet' or 'mujoco'."""
+    from pytest_ddenv.world.limits import engine_problem
+
+    problem = engine_problem(value)
+    if problem is not None:
+        raise SettingError(f"{where}: {problem}")
+    return str(value)
+
+
 def names(value: Any, where: str, text: bool) -> tuple[str, ...]:
     """Model names: one, or a list of them."""
     given = (value,) if isinstance(value, str) else value
@@ -286,6 +296,9 @@ SETTINGS: tuple[Setting, ...] = (
             non_empty, "DIR", option="artifacts"),
     Setting("world", "run every robot test against this world file instead of its own (e.g. a minimal.yaml)",
             non_empty, "PATH", option="world", marker="world"),
+    Setting("engine", "the physics engine that simulates the world: pybullet or mujoco (default: the world file's "
+            "physics.engine, else pybullet where it is installed, otherwise mujoco)", engine, "ENGINE",
+            option="engine", marker="engine", flag="engine"),
     Setting("model_paths", "extra folders (separated by ':') searched for SDF <include>s of model://NAME",
             folders, "DIRS", option="model-path", flag="model-path"),
     Setting("partition", "partition schema (default model2model)", choice("partition", _partitions,

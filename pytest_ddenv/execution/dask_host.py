@@ -266,7 +266,10 @@ def worker_versions() -> dict[str, str]:
     """Runs on each dask worker at connection time: what the pool checks for bit-identical runs."""
     from importlib.metadata import version
 
-    return {"pytest-ddenv": version("pytest-ddenv"), "pybullet": version("pybullet"), "numpy": version("numpy")}
+    from pytest_ddenv.world.limits import ENGINE_PACKAGES, engine_version
+
+    return {"pytest-ddenv": version("pytest-ddenv"), **{engine: engine_version(engine) for engine in ENGINE_PACKAGES},
+            "numpy": version("numpy")}
 
 
 __all__ = ["JOBS_KEPT", "HostedJob", "TaskReply", "WorkerStartError", "close_hosted_jobs", "run_probe_task",

@@ -19,13 +19,24 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.media.palette import GROUND_RGBA, ROBOT_RGBA, model_rgba
 from pytest_ddenv.scenario.reported import REPORTED
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.quiet import silenced
 from pytest_ddenv.sim.robot import make_robot
 from pytest_ddenv.sim.run import Run
+from pytest_ddenv.sim.urdf_geometry import pybullet_installed
 from pytest_ddenv.world.model import World
+
+NO_RENDERER = ("the animations are drawn by pybullet's TinyRenderer (whatever engine simulated the run), and "
+               "pybullet is not installed: pip install pybullet (it has wheels for Python <= 3.11 only), or ask for "
+               "the pictures alone (--ddenv-media pictures, ddenv reduce --media pictures)")
+"""Why no animation can be drawn here (`AnimationUnavailable`)."""
+
+
+class AnimationUnavailable(DdenvError):
+    """pybullet, whose renderer draws the animations, is not installed."""
 
 Frame = NDArray[np.uint8]
 
@@ -84,6 +95,8 @@ class _Scene:
     """A render-only pybullet client holding the world and the robot."""
 
     def __init__(self, world: World, run: Run) -> None:
+        if not pybullet_installed():
+            raise AnimationUnavailable(NO_RENDERER)
         with silenced():
             import pybullet as p
         self.p = p

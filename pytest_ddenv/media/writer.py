@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import concurrent.futures.process
+import importlib.util
 import os
 import time
 import warnings
@@ -87,13 +88,20 @@ class PendingMedia:
         self.items = [item for item in shown if item.run is not None]
         self.elsewhere: tuple[Shown, concurrent.futures.ProcessPoolExecutor, concurrent.futures.Future[Any]] | None
         self.elsewhere = None
-        if helper and len(self.items) >= 2:
+        if helper and len(self.items) >= 2 and _renderer_installed():
             self.elsewhere = _render_elsewhere(directory, self.items[0], failure_text)
 
     def finish(self) -> MediaWritten:
+        from pytest_ddenv.media.animate import NO_RENDERER
+
         written = MediaWritten()
         made: dict[str, AnimationInfo | None] = {}
-        for item in self.items[1:] if self.elsewhere is not None else self.items:
+        animated = self.items[1:] if self.elsewhere is not None else self.items
+        if animated and not _renderer_installed():  # one warning, not one per animation
+            names = ", ".join(f"{item.label}.gif" for item in animated)
+            warnings.warn(f"ddenv: {names} not written: {NO_RENDERER}", stacklevel=1)
+            animated = []
+        for item in animated:
             made[item.label] = _animation(self.directory, item, self.failure_text)
         if self.elsewhere is not None:
             item, executor, future = self.elsewhere
@@ -117,6 +125,11 @@ class PendingMedia:
                              written)
         written.seconds = time.perf_counter() - self.started
         return written
+
+
+def _renderer_installed() -> bool:
+    """Whether pybullet, whose TinyRenderer draws the animations, is installed."""
+    return importlib.util.find_spec("pybullet") is not None
 
 
 def _render_elsewhere(directory: Path, item: Shown, failure_text: str

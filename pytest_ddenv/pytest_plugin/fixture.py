@@ -1,5 +1,6 @@
 """The world a test's `robot_world` fixture runs in: `--ddenv-world`, else an indirect parameter (a path or a
-`World`), else `@pytest.mark.ddenv(world=...)`, loaded and checked against the test's markers."""
+`World`), else `@pytest.mark.ddenv(world=...)`, loaded and checked against the test's markers, in the engine
+`--ddenv-engine`, else `ddenv(engine=...)`, else the world names."""
 
 from __future__ import annotations
 
@@ -68,6 +69,9 @@ def load_test_world(request: pytest.FixtureRequest, spec: ReductionSpec,
             "robot_world needs a world: @pytest.mark.ddenv(world='worlds/x.yaml'), an indirect parameter, or "
             "--ddenv-world PATH"
         )
+    engine = options_of(request.config).engine or spec.engine  # --ddenv-engine, else engine=, else the world's
+    if engine is not None:
+        world = world.with_engine(engine)
     where = world.source or world.name or "the world"
     if world.source is not None and Path(world.source).is_relative_to(request.config.invocation_params.dir):
         where = str(Path(world.source).relative_to(request.config.invocation_params.dir))

@@ -26,7 +26,8 @@ if TYPE_CHECKING:
 __all__ = ["DroppedModelsWarning", "robot_world"]
 
 MARKERS = (
-    ("ddenv(world=PATH, partition=..., priority=..., n_partitions=2, granularity='ddmin', deflake='auto', "
+    ("ddenv(world=PATH, engine='pybullet'|'mujoco', partition=..., priority=..., n_partitions=2, "
+    "granularity='ddmin', deflake='auto', "
     "tolerance=0.5, same_failure='all'|'place'|'touched'|function, keep=(...), seed=0, budget=N, "
     "skip_unsupported=False, stages='models,explain,passing'): "
     "the world of a robot scenario test and how to reduce it when the test fails under --ddenv-reduce."),
@@ -117,11 +118,12 @@ def header_line(config: pytest.Config) -> str | None:
     if hasattr(config, "workerinput") or not (options.reduce or options.world or config.get_verbosity() > 0):
         return None
     seed_text = "per marker (default 0)" if options.seed is None else str(options.seed)
+    engine = f", engine {options.engine}" if options.engine else ""
     if not options.reduce:
         world = f", world {options.world}" if options.world else ""
-        return f"ddenv: reduction off (--ddenv-reduce to reduce failing robot tests), seed {seed_text}{world}"
+        return f"ddenv: reduction off (--ddenv-reduce to reduce failing robot tests), seed {seed_text}{world}{engine}"
     workers = options.workers or "auto"
     if workers == "auto":
         workers = f"auto ({os.cpu_count() or 1} cores)"
     return (f"ddenv: reduction on, seed {seed_text}, workers {workers}, executor {options.executor or 'local'}, "
-            f"media {options.media}, artifacts {options.artifacts}")
+            f"media {options.media}, artifacts {options.artifacts}{engine}")

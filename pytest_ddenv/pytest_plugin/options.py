@@ -34,6 +34,8 @@ class DdenvOptions:
     workers: int | str | None
     executor: str | None
     world: str | None
+    engine: str | None
+    """--ddenv-engine (None: the marker's engine=, else the world's)."""
     model_paths: tuple[str, ...]
     watchdog: Any
     """The pools' `watchdog` argument: seconds, "auto", None (off), or DEFAULT ($DDENV_PROBE_TIMEOUT)."""
@@ -154,7 +156,8 @@ def _read_options(config: pytest.Config) -> DdenvOptions:
         reduce=reduce, artifacts=root, artifacts_given=given, deflake=_checked(config, "deflake"),
         max_probes=_checked(config, "max_probes"), max_seconds=_checked(config, "max_seconds"),
         seed=_checked(config, "seed"), workers=_checked(config, "workers"), executor=_checked(config, "executor"),
-        world=world or None, model_paths=model_paths, watchdog=_watchdog_setting(config),
+        world=world or None, engine=_checked(config, "engine"), model_paths=model_paths,
+        watchdog=_watchdog_setting(config),
         stages_command_line=_checked(config, "stages", config.getoption("ddenv_stages")),
         stages_ini=_checked(config, "stages", config.getini("ddenv_stages") or None),
         stage_probes=_checked(config, "stage_probes"), run_timeout=_checked(config, "run_timeout"),

@@ -146,6 +146,7 @@ def _reduce_failed_test(plugin: ReductionPlugin, item: pytest.Function, error: B
         max_seconds=options.max_seconds or spec.max_seconds,
         stages=options.stages_for(spec.stages),
         stage_probes=options.stage_probes,
+        engine=options.engine or spec.engine,
     )
     progress = PytestProgress(item.config, item.nodeid)
     session = ReductionSession(

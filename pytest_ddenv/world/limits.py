@@ -42,6 +42,23 @@ def engine_problem(engine: Any) -> str | None:
     return None
 
 
+def default_engine() -> str:
+    """The engine of a world that names none: pybullet where it is installed, otherwise mujoco."""
+    import importlib.util
+
+    return "pybullet" if importlib.util.find_spec("pybullet") is not None else "mujoco"
+
+
+def engine_version(engine: str) -> str:
+    """The installed version of an engine's package ("not installed" when it is absent)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(ENGINE_PACKAGES[engine][0])
+    except (KeyError, PackageNotFoundError):
+        return "not installed"
+
+
 def magnitude_problem(value: float, limit: float = MAX_MAGNITUDE) -> str | None:
     """Why the finite number `value` is beyond what the simulator takes, or None."""
     if abs(value) <= limit:

@@ -21,7 +21,7 @@ from pytest_ddenv.validation import expected
 from pytest_ddenv.world import geometry
 from pytest_ddenv.world.files import resolve_mesh_path
 from pytest_ddenv.world.geometry import FloatArray
-from pytest_ddenv.world.limits import ENGINE_PACKAGES
+from pytest_ddenv.world.limits import ENGINE_PACKAGES, default_engine
 from pytest_ddenv.world.meshes import heightmap_mesh, load_heightmap, load_mesh, polyline_mesh, polyline_polygon
 
 ShapeKind = Literal["box", "cylinder", "sphere", "mesh", "capsule", "polyline", "heightmap", "cone"]
@@ -176,8 +176,9 @@ class Physics:
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     timestep: float = 1.0 / 240.0
     solver_iterations: int = 50
-    engine: str = "pybullet"
-    """The physics engine that simulates the world: one of `ENGINES` (docs/simulation.md, "The engine seam")."""
+    engine: str = field(default_factory=default_engine)
+    """The physics engine that simulates the world: one of `ENGINES` (docs/simulation.md, "The engine seam");
+    unnamed, pybullet where it is installed, otherwise mujoco (`limits.default_engine`)."""
 
 
 @dataclass(frozen=True)
@@ -312,6 +313,10 @@ class World:
         """The sub-world with only the named models, in this world's order. Unknown names are an error."""
         wanted = self._checked(names)
         return dataclasses.replace(self, models=tuple(m for m in self.models if m.name in wanted))
+
+    def with_engine(self, engine: str) -> World:
+        """This world simulated by `engine` (one of `ENGINES`): `physics.engine` replaced."""
+        return dataclasses.replace(self, physics=dataclasses.replace(self.physics, engine=engine))
 
     def without(self, names: Iterable[str]) -> World:
         """The sub-world without the named models, in this world's order. Unknown names are an error."""

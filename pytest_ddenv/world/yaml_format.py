@@ -56,6 +56,9 @@ MODEL_KEYS = (
 )
 SHAPE_KEYS = (*SHAPE_KINDS, "pose")
 SCENARIO_KEYS = ("robot", "start", "goal", "goal_tolerance", "timeout")
+WRITTEN_DEFAULT_ENGINE = "pybullet"
+"""The engine a written world leaves unnamed (files without `physics.engine` have always meant pybullet; a
+file read where pybullet is not installed gets mujoco, `limits.default_engine`)."""
 PHYSICS_KEYS = ("gravity", "timestep", "solver_iterations", "engine")
 GROUND_KEYS = ("z", "mu", "mu2", "restitution")
 MAX_FILE_BYTES = 50 * 1024 * 1024
@@ -491,13 +494,13 @@ def dump_yaml(world: World, relative_to: Path | None = None) -> str:
     document: dict[str, Any] = {"format": FORMAT_VERSION}
     if world.name:
         document["name"] = world.name
-    if world.physics != Physics():
+    if world.physics != Physics(engine=WRITTEN_DEFAULT_ENGINE):
         document["physics"] = {
             "gravity": list(world.physics.gravity),
             "timestep": world.physics.timestep,
             "solver_iterations": world.physics.solver_iterations,
         }
-        if world.physics.engine != Physics().engine:
+        if world.physics.engine != WRITTEN_DEFAULT_ENGINE:
             document["physics"]["engine"] = world.physics.engine
     document["ground"] = None if world.ground is None else _ground_dict(world.ground)
     if world.scenario is not None:
