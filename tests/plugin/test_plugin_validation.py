@@ -13,7 +13,7 @@ import pytest
     [
         ("ddenv(world='wall.yaml', partition='kmeans')", "*unknown partition 'kmeans'; valid choices: *model2model*"),
         ("ddenv(world='wall.yaml', priority='nearest')", "*unknown priority 'nearest'; valid choices:*failure-proximal*"),
-        ("ddenv(world='wall.yaml', colour=3)", "*unknown argument 'colour'; valid arguments: world, partition*"),
+        ("ddenv(world='wall.yaml', colour=3)", "*unknown argument 'colour'; valid arguments: world, engine, partition*"),
         ("ddenv(world='wall.yaml', deflake=-1)", "*deflake=...*expected an integer >= 0 and <= 100 or one of*adaptive*"),
         ("ddenv(world='wall.yaml', budget='lots')", "*budget=...*expected a probe count*"),
         ("robot_failure('wobbly')", "*robot_failure('wobbly', ...)*wobbly*stuck*"),
