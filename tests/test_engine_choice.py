@@ -84,6 +84,27 @@ def test_the_option_or_its_ini_key_chooses_the_engine_over_the_marker(pytester: 
     assert _engines_ran(result) == dict.fromkeys(["unnamed", "world-file", "marker", "marker-over-file"], chosen)
 
 
+GIVEN_TEST = textwrap.dedent(
+    """\
+    from hypothesis import HealthCheck, given, settings
+
+    from pytest_ddenv.strategies import worlds
+
+    @settings(max_examples=2, deadline=None, database=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+    @given(world=worlds(count=(1, 2)))
+    def test_drawn(robot_world, world):
+        print("ENGINE drawn", robot_world.rebound(world).run(timeout=0.2).engine)
+    """
+)
+
+
+def test_the_worlds_a_given_test_draws_run_in_the_chosen_engine(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_given=GIVEN_TEST)
+    result = pytester.runpytest_subprocess("-s", "-p", "no:cacheprovider", "--ddenv-engine", "mujoco")
+    result.assert_outcomes(passed=1)
+    assert set(re.findall(r"ENGINE drawn (\S+)", result.stdout.str())) == {"mujoco"}
+
+
 def test_an_unknown_engine_is_one_usage_error_naming_the_option(pytester: pytest.Pytester) -> None:
     result = _engines_project(pytester).runpytest_subprocess("--ddenv-engine", "bullet", "-p", "no:cacheprovider")
     assert result.ret == pytest.ExitCode.USAGE_ERROR

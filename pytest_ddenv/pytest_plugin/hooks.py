@@ -94,10 +94,11 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
     options = options_of(request.config)
     seed = spec.seed if options.seed is None else options.seed
     timeout = options.run_timeout or DEFAULT_MAX_WALL_TIME
+    engine = options.engine or spec.engine  # also for the worlds a @given test draws (robot_world.rebound)
     binding = request.config.stash.get(PROBE_BINDING, None)
     if binding is not None:
         binding.robot_world = RobotWorld(binding.world, predicates=predicates, seed=seed, attempt=binding.attempt,
-                                         max_wall_time=timeout)
+                                         max_wall_time=timeout, engine=engine)
         return binding.robot_world
     problem: str | None = None
     try:
@@ -108,7 +109,7 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
         from pytest_ddenv.driver.report_text import clip_lines
 
         pytest.fail(clip_lines(f"{item.nodeid}: {problem}"), pytrace=False)
-    return RobotWorld(world, predicates=predicates, seed=seed, max_wall_time=timeout)
+    return RobotWorld(world, predicates=predicates, seed=seed, max_wall_time=timeout, engine=engine)
 
 
 def header_line(config: pytest.Config) -> str | None:

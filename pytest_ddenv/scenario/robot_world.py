@@ -105,8 +105,12 @@ class RobotWorld:
         seed: int = 0,
         attempt: int = 0,
         max_wall_time: float | None = DEFAULT_MAX_WALL_TIME,
+        engine: str | None = None,
     ) -> None:
         self.world = checked_world(world, "RobotWorld(world=...)")
+        self.engine = engine
+        """The physics engine the worlds it is rebound to run in (`--ddenv-engine`, the marker's `engine=`);
+        None: each world's own `physics.engine`."""
         self.predicates = failure_predicates(predicates)
         for name, value in (("seed", seed), ("attempt", attempt)):
             if not is_integral(value) or value < 0:
@@ -130,12 +134,15 @@ class RobotWorld:
                 f"seed={self.seed})")
 
     def rebound(self, world: World, *, attempt: int | None = None) -> RobotWorld:
-        """The same test setup (predicates, seed, time limits) on another world: a world the test generates
-        (``@given(world=strategies.worlds())``: ``robot_world.rebound(world).run()``), or a reduction
-        probe's candidate world and attempt. `attempt` defaults to this one's."""
+        """The same test setup (predicates, seed, time limits, chosen engine) on another world: a world the
+        test generates (``@given(world=strategies.worlds())``: ``robot_world.rebound(world).run()``), or a
+        reduction probe's candidate world and attempt. `attempt` defaults to this one's."""
         world = checked_world(world, "robot_world.rebound(world=...)")
+        if self.engine is not None and world.physics.engine != self.engine:
+            world = world.with_engine(self.engine)
         bound = RobotWorld(world, predicates=self.predicates, seed=self.seed,
-                           attempt=self.attempt if attempt is None else attempt, max_wall_time=self.max_wall_time)
+                           attempt=self.attempt if attempt is None else attempt, max_wall_time=self.max_wall_time,
+                           engine=self.engine)
         self.rebound_to = bound
         return bound
 
