@@ -225,6 +225,7 @@ def test_switching_the_engine_never_resumes_the_other_engines_verdicts(pytester:
     assert "the world changed" not in again.stdout.str() and "settings changed" not in again.stdout.str()
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["engine"]["name"] == "mujoco" and summary["resumed_probes"] == 0
+    assert summary["replay"].endswith("minimal.yaml --ddenv-engine mujoco")
     assert summary["minimal_models"] == ["wall"]
     assert World.load(folder / "minimal.yaml").physics.engine == "mujoco"
     header = json.loads((folder / "runs.jsonl").read_text().splitlines()[0])
@@ -235,3 +236,23 @@ def test_switching_the_engine_never_resumes_the_other_engines_verdicts(pytester:
                               cwd=pytester.path, capture_output=True, text=True, timeout=600)
     assert replayed.returncode == 0, replayed.stdout + replayed.stderr
     assert "minimal world of 1 models in pybullet" in replayed.stdout
+
+
+def test_the_problem_names_the_engine_and_a_log_from_before_engines_were_named_is_pybullets() -> None:
+    from dataclasses import replace
+
+    from pytest_ddenv.driver.code_identity import CodeIdentity
+    from pytest_ddenv.driver.problem import ENGINE_PART, problem_of
+
+    world = World.load(WALL_PATH)
+    in_pybullet = problem_of(world, {}, "", CodeIdentity())
+    in_mujoco = problem_of(world.with_engine("mujoco"), {}, "", CodeIdentity())
+    assert in_pybullet.fingerprint != in_mujoco.fingerprint
+    assert {key: value for key, value in in_pybullet.parts.items() if key != ENGINE_PART} == \
+        {key: value for key, value in in_mujoco.parts.items() if key != ENGINE_PART}  # only the engine differs
+    assert in_mujoco.differences(in_pybullet.header()) == [
+        f"the physics engine changed: {in_pybullet.parts[ENGINE_PART]} -> {in_mujoco.parts[ENGINE_PART]}"]
+    older = in_pybullet.header()
+    older = replace(older, parts={key: value for key, value in older.parts.items() if key != ENGINE_PART})
+    assert in_pybullet.differences(older) == []
+    assert in_mujoco.differences(older) == [f"the physics engine changed: pybullet -> {in_mujoco.parts[ENGINE_PART]}"]

@@ -55,10 +55,10 @@ class Problem:
             if changes:
                 said.append("the code under test changed: " + _listing(changes))
         said += [f"{name} changed" for key, name in PARTS.items() if header.parts.get(key) != self.parts.get(key)]
-        earlier_engine = str(header.parts.get(ENGINE_PART, "pybullet"))  # a log from before the engine was named
+        logged = str(header.parts.get(ENGINE_PART, "pybullet"))  # a log from before engines were named: pybullet
         engine = str(self.parts.get(ENGINE_PART, ""))
-        if earlier_engine.split(" ")[0] != engine.split(" ")[0] or (" " in earlier_engine and earlier_engine != engine):
-            said.append(f"the physics engine changed: {earlier_engine} -> {engine}")
+        if logged not in (engine, engine.partition(" ")[0]):
+            said.append(f"the physics engine changed: {logged} -> {engine}")
         return said
 
 

@@ -284,9 +284,12 @@ def _terminal_summary(terminalreporter: Any) -> None:
 
 
 def replay_command(item: pytest.Item, minimal_yaml: Path) -> str:
-    """The command that re-runs the test on its minimal world (run from the rootdir)."""
+    """The command that re-runs the test on its minimal world (run from the rootdir), in the engine
+    `--ddenv-engine` chose (over the marker's, as in the reduction)."""
     try:
         shown = minimal_yaml.relative_to(item.config.rootpath)
     except ValueError:
         shown = minimal_yaml
-    return f"pytest {shlex.quote(item.nodeid)} --ddenv-world {shlex.quote(str(shown))}"
+    engine = options_of(item.config).engine
+    return (f"pytest {shlex.quote(item.nodeid)} --ddenv-world {shlex.quote(str(shown))}"
+            + (f" --ddenv-engine {engine}" if engine else ""))
