@@ -25,7 +25,8 @@ MAX_GRAVITY = 100.0
 """The largest absolute value of each axis of gravity (m/s^2; about 10 g)."""
 
 
-ENGINE_PACKAGES = {"pybullet": ("pybullet", "pip install pybullet"),
+ENGINE_PACKAGES = {"pybullet": ("pybullet", ("pip install pybullet (it has wheels for Python <= 3.11 only: on a "
+                                             "later Python it compiles from source, or choose mujoco)")),
                    "mujoco": ("mujoco", 'pip install "pytest-ddenv[mujoco]"')}
 """Each physics engine's Python module and how to install it."""
 
