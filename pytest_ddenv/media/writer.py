@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import concurrent.futures
 import concurrent.futures.process
-import importlib.util
 import os
 import time
 import warnings
@@ -21,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.sim.run import Run
+from pytest_ddenv.sim.urdf_geometry import pybullet_installed
 from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:
@@ -88,7 +88,7 @@ class PendingMedia:
         self.items = [item for item in shown if item.run is not None]
         self.elsewhere: tuple[Shown, concurrent.futures.ProcessPoolExecutor, concurrent.futures.Future[Any]] | None
         self.elsewhere = None
-        if helper and len(self.items) >= 2 and _renderer_installed():
+        if helper and len(self.items) >= 2 and pybullet_installed():  # pybullet's TinyRenderer draws them
             self.elsewhere = _render_elsewhere(directory, self.items[0], failure_text)
 
     def finish(self) -> MediaWritten:
@@ -97,7 +97,7 @@ class PendingMedia:
         written = MediaWritten()
         made: dict[str, AnimationInfo | None] = {}
         animated = self.items[1:] if self.elsewhere is not None else self.items
-        if animated and not _renderer_installed():  # one warning, not one per animation
+        if animated and not pybullet_installed():  # one warning, not one per animation
             names = ", ".join(f"{item.label}.gif" for item in animated)
             warnings.warn(f"ddenv: {names} not written: {NO_RENDERER}", stacklevel=1)
             animated = []
@@ -125,11 +125,6 @@ class PendingMedia:
                              written)
         written.seconds = time.perf_counter() - self.started
         return written
-
-
-def _renderer_installed() -> bool:
-    """Whether pybullet, whose TinyRenderer draws the animations, is installed."""
-    return importlib.util.find_spec("pybullet") is not None
 
 
 def _render_elsewhere(directory: Path, item: Shown, failure_text: str
