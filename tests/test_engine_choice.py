@@ -210,7 +210,8 @@ def test_without_pybullet_a_reductions_media_skip_the_animations_with_one_warnin
             run = sim.run(world, timeout=1.0)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            written = write_media(Path("."), [Shown("original", world, run, False), Shown("minimal", world, run, False)])
+            shown = [Shown("original", world, run, False), Shown("minimal", world, run, False)]
+            written = write_media(Path("."), shown)
         print("RAN", run.engine, "WRITTEN", [path.name for path in written.paths])
         print("WARNINGS", [str(warning.message) for warning in caught])
         """)
@@ -247,8 +248,9 @@ def test_switching_the_engine_never_resumes_the_other_engines_verdicts(pytester:
 
     again = pytester.runpytest_subprocess(*arguments, "--ddenv-engine", "mujoco")
     again.assert_outcomes(failed=1)
-    again.stdout.fnmatch_lines(["*the run log of another problem (the physics engine changed: pybullet 3.* -> "
-                                "mujoco *) was kept as runs.previous-1.jsonl*", "*physics engine: mujoco *"])
+    moved = ("*the run log of another problem (the physics engine changed: pybullet 3.* -> mujoco *) was kept as "
+             "runs.previous-1.jsonl*")
+    again.stdout.fnmatch_lines([moved, "*physics engine: mujoco *"])
     assert "the world changed" not in again.stdout.str() and "settings changed" not in again.stdout.str()
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["engine"]["name"] == "mujoco" and summary["resumed_probes"] == 0
