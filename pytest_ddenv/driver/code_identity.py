@@ -26,8 +26,9 @@ from typing import Any
 DIGEST_LENGTH = 16
 """Hex digits of a file's SHA-256 kept (64 bits: an accidental clash is out of reach)."""
 ALWAYS_VERSIONED = ("pytest-ddenv", "pybullet")
-"""Distributions whose version is part of every identity: the plugin and the simulator (a run is bit-identical
-only with the same pybullet)."""
+"""Distributions whose version is part of every identity (each when installed): the plugin and pybullet. The
+engine that runs the world, with its version, is a part of the problem of its own (`problem.ENGINE_PART`): a
+run is bit-identical only in the same engine of the same version."""
 _OWN_PACKAGE = Path(__file__).resolve().parents[1]
 """The folder of pytest_ddenv (this module is in its `driver/`)."""
 
