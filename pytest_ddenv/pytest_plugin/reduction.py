@@ -29,7 +29,9 @@ from pytest_ddenv.pytest_plugin.progress import PytestProgress, close_log, open_
 from pytest_ddenv.scenario.robot_world import FIXTURE
 
 if TYPE_CHECKING:
+    from pytest_ddenv.execution import Pool
     from pytest_ddenv.pytest_plugin.given_example import GivenExample
+    from pytest_ddenv.scenario.probe import ProbeResult
 
 REPORT_KEY = "ddenv"
 SECTION = "ddenv reduction"
@@ -110,7 +112,7 @@ def _given_example(item: pytest.Function, call: dict[str, Any] | None) -> GivenE
 
 
 def _probe_pool(plugin: ReductionPlugin, item: pytest.Function, example: GivenExample | None = None,
-                warn: Callable[[str], None] | None = None) -> Any:
+                warn: Callable[[str], None] | None = None) -> Pool[ProbeResult]:
     """A pool serving this test's probes: worker processes that run the test (or this process, with one
     worker), or the session's dask cluster."""
     from pytest_ddenv.execution import DaskCluster, check_executor, make_pool
