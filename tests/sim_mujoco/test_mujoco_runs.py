@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import subprocess
 import sys
 import textwrap
@@ -44,9 +45,15 @@ def test_the_rubble_high_centres_the_husky_on_the_cinder_block(sim: Simulator) -
 
 
 def test_the_friction_world_leaves_the_husky_stuck_at_a_barrel(sim: Simulator) -> None:
-    run = sim.run(shipped("friction"), seed=0, predicates=[STUCK])
+    world = shipped("friction")
+    run = sim.run(world, seed=0, predicates=[STUCK])
     assert run.failure is not None and run.failure.predicate == "stuck"
-    assert any(name.startswith("Construction Barrel") for name in run.failure.touched)
+    # beside a barrel (0.87 m from Construction Barrel_3's axis to the robot's centre): where it stops, not what
+    # it touches at that instant, since MuJoCo lists only touching contacts, not PyBullet's near ones, and the
+    # barrel was in the list with the newest dependencies but not with the oldest allowed (.ci/lowest)
+    x, y = run.failure.pose[:2]
+    barrels = [model.pose for model in world.models if model.name.startswith("Construction Barrel")]
+    assert min(math.hypot(pose.x - x, pose.y - y) for pose in barrels) < 1.0
 
 
 def test_same_seed_same_process_is_bit_identical(sim: Simulator) -> None:

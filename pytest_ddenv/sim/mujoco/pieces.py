@@ -88,6 +88,7 @@ def _convex_polygons(polygon: Any) -> list[NDArray[np.float64]]:
     """Ear-clipping triangles merged greedily while the union stays convex (Hertel-Mehlhorn): exact."""
     import mapbox_earcut
     import shapely
+    from shapely.geometry.polygon import orient  # shapely.orient_polygons is 2.1+; the lowest allowed is 2.0
 
     if polygon.equals(polygon.convex_hull):
         return [np.asarray(polygon.exterior.coords)[:-1]]
@@ -109,7 +110,7 @@ def _convex_polygons(polygon: Any) -> list[NDArray[np.float64]]:
                     break
             if merged:
                 break
-    return [np.asarray(shapely.orient_polygons(piece).exterior.coords)[:-1] for piece in pieces]
+    return [np.asarray(orient(piece, sign=1.0).exterior.coords)[:-1] for piece in pieces]  # counter-clockwise
 
 
 def _prism(outline: NDArray[np.float64], height: float) -> Piece:
