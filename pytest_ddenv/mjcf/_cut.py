@@ -29,6 +29,7 @@ from pytest_ddenv.world.model import Scenario, World
 
 REFERRING = ("actuator", "sensor", "contact", "equality", "tendon")
 """The sections whose elements name bodies, joints, geoms, sites or tendons elsewhere in the scene."""
+FILE_ATTRIBUTES = ("file", "meshdir", "texturedir", "assetdir")
 COMPARED = ("models", "scenario", "physics", "ground", "name")
 
 
@@ -57,6 +58,8 @@ class _Layout:
     scenario: _Element | None = None
     root_end: int = -1
     """Offset of the root's closing tag."""
+    relative_files: list[str] = field(default_factory=list)
+    """The relative paths its elements name (`file=`, `meshdir=`, `assetdir=`, ...)."""
 
 
 def _layout(data: bytes, source: Path) -> _Layout:
@@ -75,6 +78,8 @@ def _layout(data: bytes, source: Path) -> _Layout:
             layout.referring.append(element)
         elif path == ["mujoco", "custom"] and tag == "text" and attributes.get("name") == SCENARIO_TEXT:
             layout.scenario = element
+        layout.relative_files.extend(value for key, value in attributes.items()
+                                     if key in FILE_ATTRIBUTES and value and not Path(value).is_absolute())
         for entry in stack:
             entry.names.update([attributes["name"]] if "name" in attributes else [])
             entry.values.update(value for key, value in attributes.items() if key != "name")
@@ -139,9 +144,10 @@ class Cut:
     scenario_written: bool
 
 
-def cut_bodies(path: str | Path, removed: Collection[str], *, scenario: Scenario | None | bool = False) -> Cut:
-    """The scene at `path` with the top-level bodies `removed` cut out of its text; `scenario`: False to keep the
-    file's `ddenv:scenario`, else the scenario to write there. MjcfSurgeryError when it cannot be cut."""
+def cut_bodies(path: str | Path, removed: Collection[str], *, write_scenario: bool = False,
+               scenario: Scenario | None = None) -> Cut:
+    """The scene at `path` with the top-level bodies `removed` cut out of its text; with `write_scenario`, its
+    `ddenv:scenario` replaced by `scenario` (None: removed). MjcfSurgeryError when it cannot be cut."""
     source = Path(path)
     scene = SceneFiles.read(source)
     removed = set(removed)
@@ -164,16 +170,14 @@ def cut_bodies(path: str | Path, removed: Collection[str], *, scenario: Scenario
                 element.values & gone for element in _layout(scene.files[file], file).referring):
             raise MjcfSurgeryError(f"the included file {file} names something inside a removed body", source=source)
     edits: list[tuple[int, int, bytes]] = [(*_extent(data, e.start, e.end), b"") for e in (*cuts, *also)]
-    written = False
-    if scenario is not False:
-        edits.append(_scenario_edit(data, layout, scenario, source))  # type: ignore[arg-type]
-        written = True
+    if write_scenario:
+        edits.append(_scenario_edit(data, layout, scenario, source))
     pieces, position = [], 0
     for start, end, insert in sorted(edits):
         pieces.append(data[position:max(position, start)] + insert)
         position = max(position, end)
     pieces.append(data[position:])
-    return Cut(b"".join(pieces), also_cut, written)
+    return Cut(b"".join(pieces), also_cut, write_scenario)
 
 
 def _scenario_edit(data: bytes, layout: _Layout, scenario: Scenario | None, source: Path) -> tuple[int, int, bytes]:
@@ -196,12 +200,12 @@ def minimal_xml(source: Path, minimal: World, removed: Collection[str]) -> tuple
     "cut from FILE[; ...]" or "regenerated: why not cut". WorldError when neither gives the minimal world."""
     dropped = any(note.startswith("dropped ") for note in minimal.notes)
     in_file = read_scene(source, None, skip_unsupported=dropped).scenario
-    scenario: Scenario | None | bool = False if minimal.scenario == in_file else minimal.scenario
+    write_scenario = minimal.scenario != in_file
     try:
-        cut = cut_bodies(source, removed, scenario=scenario)
+        cut = cut_bodies(source, removed, write_scenario=write_scenario, scenario=minimal.scenario)
         _check(cut.data, source, minimal, dropped)
     except MjcfSurgeryError as error:
-        data = _regenerated(source, removed, scenario)
+        data = _regenerated(source, removed, minimal.scenario if write_scenario else in_file)
         try:
             _check(data, source, minimal, dropped)
         except MjcfSurgeryError as second:
@@ -213,8 +217,11 @@ def minimal_xml(source: Path, minimal: World, removed: Collection[str]) -> tuple
         how += f"; also cut, as they name something in a removed body: {listing(cut.also_cut)}"
     if cut.scenario_written:
         how += "; its ddenv:scenario written from the reduction's scenario (not the file's)"
-    return cut.data, how + (f"; its relative paths are relative to the original's folder {source.resolve().parent}: "
-                            "copy minimal.xml beside the original to open it")
+    relative = _layout(cut.data, source).relative_files
+    if relative:
+        how += (f"; its relative paths ({listing(relative)}) are relative to the original's folder "
+                f"{source.resolve().parent}: copy minimal.xml beside the original to open it")
+    return cut.data, how
 
 
 def _check(data: bytes, source: Path, minimal: World, dropped: bool) -> None:
@@ -229,19 +236,18 @@ def _check(data: bytes, source: Path, minimal: World, dropped: bool) -> None:
                                source=source)
 
 
-def _regenerated(source: Path, removed: Collection[str], scenario: Scenario | None | bool) -> bytes:
-    """The scene as MuJoCo writes it (`MjSpec.to_xml`) without the removed bodies and what names them."""
+def _regenerated(source: Path, removed: Collection[str], scenario: Scenario | None) -> bytes:
+    """The scene as MuJoCo writes it (`MjSpec.to_xml`) without the removed bodies, with `scenario`."""
     mujoco = mujoco_module(source)
     spec: Any = mujoco.MjSpec.from_file(str(source))
     try:
         for name in removed:
             spec.delete(spec.body(name))
-        if scenario is not False:
-            for text in [text for text in spec.texts if text.name == SCENARIO_TEXT]:
-                spec.delete(text)
-            data = None if scenario is None else scenario_text(scenario)  # type: ignore[arg-type]
-            if data is not None:
-                spec.add_text(name=SCENARIO_TEXT, data=data)
+        for text in [text for text in spec.texts if text.name == SCENARIO_TEXT]:
+            spec.delete(text)
+        data = None if scenario is None else scenario_text(scenario)
+        if data is not None:
+            spec.add_text(name=SCENARIO_TEXT, data=data)
         return str(spec.to_xml()).encode("utf-8")
     except (ValueError, TypeError) as error:
         raise MjcfSurgeryError(f"MuJoCo cannot write the scene without the bodies: {error}", source=source) from None

@@ -65,6 +65,11 @@ class SceneFiles:
         found = self.elements.get((tag, line or 0), [])
         return found[0] if len(found) == 1 else self.main
 
+    def first(self, tag: str) -> tuple[Path, int | None]:
+        """The file and line of the first `<tag>` element (the main file, no line, when there is none)."""
+        places = [(files[0], line) for (known, line), files in self.elements.items() if known == tag]
+        return places[0] if places else (self.main, None)
+
     def add(self, path: Path, data: bytes, depth: int) -> None:
         source = str(path)
         root = parse_xml(data, source, self.lines)

@@ -20,7 +20,8 @@ def mujoco_module(source: Path) -> ModuleType:
         import mujoco
     except ImportError:
         raise WorldError(f"reading an MJCF scene needs MuJoCo: {INSTALL}", source=source) from None
-    return mujoco
+    module: ModuleType = mujoco
+    return module
 
 
 def mujoco_error(error: Exception, scene: SceneFiles, what: str) -> WorldError:

@@ -118,7 +118,11 @@ class _SceneReader:
         models: list[Model] = []
         if world_geoms:
             models.append(Model(WORLD_GEOMS, tuple(self.geoms.shape(g, self.origin(0)) for g in world_geoms),
-                                keep=True, **self.surface(world_geoms[0])))  # type: ignore[arg-type]
+                                keep=True, **self.surface(world_geoms[0])))
+        if not self.spec.worldbody.bodies:
+            file, line = self.scene.first("worldbody")
+            raise WorldError("the scene has no body in <worldbody>: nothing to reduce (each direct child body of "
+                             "<worldbody> is a model)", source=file, line=line, field="worldbody")
         for body in self.spec.worldbody.bodies:
             model = self.guarded(body, lambda body=body: self.body_model(body))  # type: ignore[misc]
             if model is not None:

@@ -87,7 +87,7 @@ class GeomReader:
         if kind == "sphere":
             return Shape("sphere", radius=size[0], pose=pose)
         if kind in ("cylinder", "capsule"):  # MuJoCo's size: radius, half-length (of the cylinder part)
-            return Shape(kind, radius=size[0], length=2 * size[1], pose=pose)
+            return Shape("cylinder" if kind == "cylinder" else "capsule", radius=size[0], length=2 * size[1], pose=pose)
         if kind == "mesh":
             return self.mesh(geom, pose)
         return self.hfield(geom, pose)
