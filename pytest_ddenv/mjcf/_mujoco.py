@@ -34,5 +34,12 @@ def mujoco_error(error: Exception, scene: SceneFiles, what: str) -> WorldError:
     first = text.splitlines()[0] if text else type(error).__name__
     first = re.sub(r"^(XML Error|Error|XML parse error \d+):\s*", "", first)
     source = scene.where(tag, line) if tag else scene.main
+    if not line and scene.included_as:  # MuJoCo numbers no line in an included file: read each one alone
+        for file, data in list(scene.files.items())[1:]:
+            try:
+                mujoco_module(file).MjSpec.from_string(data.decode("utf-8", errors="replace"))
+            except ValueError as alone:
+                if str(alone).splitlines()[:1] == text.splitlines()[:1]:
+                    return mujoco_error(alone, SceneFiles(file, {file: data}), what)
     return WorldError(f"{what}: MuJoCo says: {first}", source=source, line=line, field=tag,
                       model=name or None)

@@ -12,6 +12,7 @@ import numpy as np
 
 from pytest_ddenv.world import geometry
 from pytest_ddenv.world.geometry import FloatArray
+from pytest_ddenv.world.meshes import load_heightmap
 from pytest_ddenv.world.model import Pose, Shape
 
 PLANE_THICKNESS = 0.1
@@ -110,7 +111,13 @@ class GeomReader:
                             "read)", geom, "hfield/@file")
         radius_x, radius_y, top, _ = (float(v) for v in field.size)
         path = self.asset_file(field.file, self.spec.meshdir, self.folder)
-        return Shape("heightmap", mesh=str(path), size=(2 * radius_x, 2 * radius_y, top), pose=pose)
+        # MuJoCo stretches the image's grey levels from its darkest (0) to its brightest (top); the world model
+        # from black (0) to white: the same surface is a taller heightmap moved down by its darkest level
+        heights = load_heightmap(path)
+        low, high = float(heights.min()), float(heights.max())
+        full = top / (high - low) if high > low else top
+        lowered = pose.compose(Pose(z=-low * full))
+        return Shape("heightmap", mesh=str(path), size=(2 * radius_x, 2 * radius_y, full), pose=lowered)
 
     @staticmethod
     def asset_file(file: str, meshdir: str, folder: Path) -> Path:
