@@ -30,6 +30,8 @@ from pytest_ddenv.world.model import Scenario, World
 REFERRING = ("actuator", "sensor", "contact", "equality", "tendon")
 """The sections whose elements name bodies, joints, geoms, sites or tendons elsewhere in the scene."""
 FILE_ATTRIBUTES = ("file", "meshdir", "texturedir", "assetdir")
+REGENERATED_TOLERANCE = 1e-5
+"""How far a regenerated scene's numbers may be from the minimal world's (MuJoCo writes 6 significant digits)."""
 COMPARED = ("models", "scenario", "physics", "ground", "name")
 
 
@@ -207,11 +209,12 @@ def minimal_xml(source: Path, minimal: World, removed: Collection[str]) -> tuple
     except MjcfSurgeryError as error:
         data = _regenerated(source, removed, minimal.scenario if write_scenario else in_file)
         try:
-            _check(data, source, minimal, dropped)
+            _check(data, source, minimal, dropped, tolerance=REGENERATED_TOLERANCE)
         except MjcfSurgeryError as second:
             raise MjcfSurgeryError(f"{error.reason}; the regenerated scene neither: {second.reason}",
                                    source=source) from None
-        return data, f"regenerated: {error.reason}"
+        return data, (f"regenerated: {error.reason} (written by MuJoCo, which rounds numbers to 6 significant "
+                      f"digits: equal to the minimal world within {REGENERATED_TOLERANCE:g})")
     how = f"cut from {source}"
     if cut.also_cut:
         how += f"; also cut, as they name something in a removed body: {listing(cut.also_cut)}"
@@ -224,16 +227,30 @@ def minimal_xml(source: Path, minimal: World, removed: Collection[str]) -> tuple
     return cut.data, how
 
 
-def _check(data: bytes, source: Path, minimal: World, dropped: bool) -> None:
+def _check(data: bytes, source: Path, minimal: World, dropped: bool, *, tolerance: float = 0.0) -> None:
     try:
         reread = read_scene(source, data, skip_unsupported=dropped)
     except WorldError as error:
         raise MjcfSurgeryError(f"the cut file does not load: {error}", source=source) from None
     reread = dataclasses.replace(reread, physics=dataclasses.replace(reread.physics, engine=minimal.physics.engine))
-    differ = [part for part in COMPARED if getattr(reread, part) != getattr(minimal, part)]
+    differ = [part for part in COMPARED if not _close(getattr(reread, part), getattr(minimal, part), tolerance)]
     if differ:
         raise MjcfSurgeryError(f"the cut file does not give the minimal world (its {', '.join(differ)} differ)",
                                source=source)
+
+
+def _close(first: object, second: object, tolerance: float) -> bool:
+    """Equal, numbers within `tolerance` (absolute, or relative to the larger), in dataclasses and tuples too."""
+    if first == second:
+        return True
+    if isinstance(first, float | int) and isinstance(second, float | int) and tolerance:
+        return abs(first - second) <= tolerance * max(1.0, abs(first), abs(second))
+    if dataclasses.is_dataclass(first) and type(first) is type(second):
+        return all(_close(getattr(first, f.name), getattr(second, f.name), tolerance)
+                   for f in dataclasses.fields(first) if f.compare)
+    if isinstance(first, tuple) and isinstance(second, tuple) and len(first) == len(second):
+        return all(_close(a, b, tolerance) for a, b in zip(first, second, strict=True))
+    return False
 
 
 def _regenerated(source: Path, removed: Collection[str], scenario: Scenario | None) -> bytes:

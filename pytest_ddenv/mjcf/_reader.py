@@ -58,13 +58,11 @@ def read_scene(path: Path, data: bytes | None, *, skip_unsupported: bool = False
     (its includes and assets resolved from `path`'s folder)."""
     scene = SceneFiles.read(path, data)
     mujoco = mujoco_module(path)
-    try:
-        if data is None:
-            spec = mujoco.MjSpec.from_file(str(path))
-        else:
-            include = {name: scene.files[file] for file, name in scene.included_as.items()}
-            spec = mujoco.MjSpec.from_string(data.decode("utf-8", errors="replace"), include=include)
-            spec.modelfiledir = str(path.parent)
+    text = next(iter(scene.files.values())).decode("utf-8", errors="replace")
+    include = {name: scene.files[file] for file, name in scene.included_as.items()}
+    try:  # from the text read here (MuJoCo's from_file reads .xml files only), the folder as the file's
+        spec = mujoco.MjSpec.from_string(text, include=include)
+        spec.modelfiledir = str(path.parent)
     except ValueError as error:
         raise mujoco_error(error, scene, "cannot read the scene") from None
     _check_asset_files(spec, scene, path)
