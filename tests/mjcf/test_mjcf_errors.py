@@ -92,3 +92,14 @@ def test_without_mujoco_the_error_says_what_to_install(monkeypatch: pytest.Monke
     monkeypatch.setitem(__import__("sys").modules, "mujoco", None)  # import mujoco raises ImportError
     with pytest.raises(WorldError, match=r'needs MuJoCo: pip install "pytest-ddenv\[mujoco\]"'):
         World.load(CORPUS / "wall_in_the_way.xml")
+
+
+@pytest.mark.parametrize("command", ["run", "reduce"])
+def test_ddenv_run_and_reduce_exit_with_2_on_a_bad_scene(command: str, tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([command, str(CORPUS / "bad_missing_mesh.xml"), "--start", "0,0", "--goal", "1,0",
+                 *(["-p", "stuck", "--out", str(tmp_path)] if command == "reduce" else [])]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"ddenv: error: {CORPUS / 'bad_missing_mesh.xml'}:4, field 'mesh/@file': mesh file not found: "
+                   f"'boulder.stl' (looked for {CORPUS / 'assets' / 'boulder.stl'}; MuJoCo reads it from the "
+                   "compiler's meshdir or assetdir, relative to the main file's folder)"]

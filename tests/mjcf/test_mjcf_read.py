@@ -141,3 +141,13 @@ def test_saving_a_world_as_mjcf_is_refused_with_what_to_do(tmp_path: Path) -> No
     world = World.load(CORPUS / "wall_in_the_way.xml")
     with pytest.raises(WorldError, match="save it as .yaml or .sdf"):
         world.save(tmp_path / "copy.xml")
+
+
+def test_the_documented_scenario_text_loads(tmp_path: Path) -> None:
+    import re
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "mjcf.md").read_text()
+    (block,) = re.findall(r"```xml\n(.*?)```", text, flags=re.DOTALL)
+    scene = tmp_path / "scene.xml"
+    scene.write_text(f'<mujoco><worldbody><body name="crate"><geom size="0.2"/></body></worldbody>{block}</mujoco>')
+    assert World.load(scene).scenario == World.load(CORPUS / "wall_in_the_way.xml").scenario
