@@ -153,7 +153,7 @@ def cut_bodies(path: str | Path, removed: Collection[str], *, write_scenario: bo
     source = Path(path)
     scene = SceneFiles.read(source)
     removed = set(removed)
-    data = scene.files[source.resolve()] if source.resolve() in scene.files else scene.files[source]
+    data = scene.files[source.resolve()]
     for body in scene.bodies:
         if body.name in removed and body.file.resolve() != source.resolve():
             raise MjcfSurgeryError(f"body {body.name} is in the included file {body.file}, which is not copied",
@@ -167,9 +167,8 @@ def cut_bodies(path: str | Path, removed: Collection[str], *, write_scenario: bo
     gone = set().union(*(element.names for element in cuts)) if cuts else set()
     also = [element for element in layout.referring if element.values & gone]
     also_cut = tuple(f"<{e.tag} {e.attributes.get('name') or ''}>".replace(" >", ">") for e in also)
-    for file in scene.files:  # an element naming a removed body in an included file: not cut here
-        if file != source.resolve() and _layout(scene.files[file], file).referring and any(
-                element.values & gone for element in _layout(scene.files[file], file).referring):
+    for file, text in list(scene.files.items())[1:]:  # included files are not edited
+        if any(element.values & gone for element in _layout(text, file).referring):
             raise MjcfSurgeryError(f"the included file {file} names something inside a removed body", source=source)
     edits: list[tuple[int, int, bytes]] = [(*_extent(data, e.start, e.end), b"") for e in (*cuts, *also)]
     if write_scenario:

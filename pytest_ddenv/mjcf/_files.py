@@ -76,7 +76,7 @@ class SceneFiles:
         if local_name(root.tag) != "mujoco":
             raise WorldError(f"expected an MJCF file (its root element <mujoco>), got <{shown(root.tag)}>",
                              source=source, line=self.lines.of(root)[1], field=local_name(root.tag))
-        self.files[path] = data
+        self.files[path.resolve()] = data
         self.walk(root, path, depth)
 
     def walk(self, root: ET.Element, path: Path, depth: int) -> None:
