@@ -3,6 +3,7 @@ units and mesh centring all resolved by MuJoCo) at the scene's initial configura
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -122,6 +123,5 @@ class GeomReader:
     @staticmethod
     def asset_file(file: str, meshdir: str, folder: Path) -> Path:
         """Where MuJoCo reads a mesh or height-field file: as given when absolute, else in the compiler's
-        `meshdir` (which `assetdir` sets), itself relative to the main file's folder `folder`."""
-        path = Path(file)
-        return path if path.is_absolute() else folder / meshdir / path
+        `meshdir` (which `assetdir` sets), itself relative to the main file's folder `folder`; made absolute."""
+        return Path(os.path.abspath(folder / meshdir / file))  # an absolute file stays itself

@@ -151,3 +151,23 @@ def test_the_documented_scenario_text_loads(tmp_path: Path) -> None:
     scene = tmp_path / "scene.xml"
     scene.write_text(f'<mujoco><worldbody><body name="crate"><geom size="0.2"/></body></worldbody>{block}</mujoco>')
     assert World.load(scene).scenario == World.load(CORPUS / "wall_in_the_way.xml").scenario
+
+
+@pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
+def test_the_scene_of_every_geom_simulates_in_each_engine(engine: str, monkeypatch: pytest.MonkeyPatch,
+                                                          tmp_path: Path) -> None:
+    """Read from another folder, its mesh and image files are still found (absolute paths), and the Husky drives
+    to a goal among every kind of shape in both engines."""
+    import dataclasses
+    import importlib.util
+
+    if importlib.util.find_spec(engine) is None:
+        pytest.skip(f"{engine} is not installed")
+    from pytest_ddenv.sim import simulate
+    from pytest_ddenv.world import Scenario
+
+    monkeypatch.chdir(tmp_path)
+    world = World.load(CORPUS / "every_geom.xml").with_engine(engine)
+    assert all(Path(shape.mesh).is_absolute() for model in world.models for shape in model.shapes if shape.mesh)
+    run = simulate(dataclasses.replace(world, scenario=Scenario(goal=(2.0, 0.0, None), timeout=6.0)))
+    assert run.reached_goal and run.engine == engine
