@@ -103,3 +103,12 @@ def test_ddenv_run_and_reduce_exit_with_2_on_a_bad_scene(command: str, tmp_path:
     assert err == [f"ddenv: error: {CORPUS / 'bad_missing_mesh.xml'}:4, field 'mesh/@file': mesh file not found: "
                    f"'boulder.stl' (looked for {CORPUS / 'assets' / 'boulder.stl'}; MuJoCo reads it from the "
                    "compiler's meshdir or assetdir, relative to the main file's folder)"]
+
+
+def test_ddenv_convert_reads_a_scene_and_refuses_to_write_mjcf(tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    scene = CORPUS / "wall_in_the_way.xml"
+    assert main(["convert", str(scene), str(tmp_path / "scene.yaml")]) == 0
+    assert World.load(tmp_path / "scene.yaml").names == World.load(scene).names
+    assert main(["convert", str(tmp_path / "scene.yaml"), str(tmp_path / "back.xml")]) == 2
+    assert "unknown output format '.xml'" in capsys.readouterr().err
