@@ -112,3 +112,12 @@ def test_ddenv_convert_reads_a_scene_and_refuses_to_write_mjcf(tmp_path: Path,
     assert World.load(tmp_path / "scene.yaml").names == World.load(scene).names
     assert main(["convert", str(tmp_path / "scene.yaml"), str(tmp_path / "back.xml")]) == 2
     assert "unknown output format '.xml'" in capsys.readouterr().err
+
+
+def test_a_file_over_the_size_limit_is_refused_unread(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("pytest_ddenv.sdf._xml.MAX_FILE_BYTES", 100)
+    scene = tmp_path / "big.xml"
+    scene.write_text("<mujoco><worldbody>" + "<!-- padding -->" * 10 + "</worldbody></mujoco>")
+    with pytest.raises(WorldError) as raised:
+        World.load(scene)
+    assert "100" in str(raised.value) and raised.value.source == str(scene)
