@@ -13,7 +13,6 @@ named once per world in `World.notes`.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -122,19 +121,20 @@ class _SceneReader:
             raise WorldError("the scene has no body in <worldbody>: nothing to reduce (each direct child body of "
                              "<worldbody> is a model)", source=file, line=line, field="worldbody")
         for body in self.spec.worldbody.bodies:
-            model = self.guarded(body, lambda body=body: self.body_model(body))  # type: ignore[misc]
+            model = self.guarded(body)
             if model is not None:
                 if model.name in (m.name for m in models):
                     raise self.body_error(f"a second top-level body named {shown(model.name)}", body, "body/@name")
                 models.append(model)
-        gravity = tuple(float(v) for v in self.model.opt.gravity)
+        gx, gy, gz = (float(v) for v in self.model.opt.gravity)
         return World(models=tuple(models), scenario=self.scenario(), name=self.spec.modelname or path.stem,
-                     physics=Physics(gravity=gravity, engine="mujoco"), ground=ground,  # type: ignore[arg-type]
+                     physics=Physics(gravity=(gx, gy, gz), engine="mujoco"), ground=ground,
                      source=str(path), notes=(*self.dropped, *self.notes()))
 
-    def guarded(self, body: Any, read: Callable[[], Model]) -> Model | None:
+    def guarded(self, body: Any) -> Model | None:
+        """The body's model, or None when it cannot be simulated and such bodies are dropped (with a note)."""
         try:
-            return read()
+            return self.body_model(body)
         except UnsupportedMjcfError as error:
             if not self.skip_unsupported:
                 raise

@@ -103,7 +103,8 @@ class GeomReader:
             raise self.fail(f"mesh {mesh.name!r} has no file (vertices written in the scene are not read)", geom,
                             "mesh/@file")
         path = self.asset_file(mesh.file, self.spec.meshdir, self.folder)
-        return Shape("mesh", mesh=str(path), scale=tuple(float(v) for v in mesh.scale), pose=pose)  # type: ignore[arg-type]
+        sx, sy, sz = (float(v) for v in mesh.scale)
+        return Shape("mesh", mesh=str(path), scale=(sx, sy, sz), pose=pose)
 
     def hfield(self, geom: int, pose: Pose) -> Shape:
         field = self.spec.hfields[int(self.model.geom_dataid[geom])]
