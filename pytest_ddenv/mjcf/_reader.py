@@ -123,8 +123,9 @@ class _SceneReader:
         for body in self.spec.worldbody.bodies:
             model = self.guarded(body)
             if model is not None:
-                if model.name in (m.name for m in models):
-                    raise self.body_error(f"a second top-level body named {shown(model.name)}", body, "body/@name")
+                if model.name == WORLD_GEOMS and world_geoms:  # MuJoCo refuses two bodies of one name itself
+                    raise self.body_error(f"the name {WORLD_GEOMS} is taken by the geoms directly in <worldbody>: "
+                                          "rename the body", body, "body/@name")
                 models.append(model)
         gx, gy, gz = (float(v) for v in self.model.opt.gravity)
         return World(models=tuple(models), scenario=self.scenario(), name=self.spec.modelname or path.stem,
