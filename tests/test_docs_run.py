@@ -142,6 +142,14 @@ PAGES: dict[str, Page] = {
         )},
         slow=True,
     ),
+    "mjcf.md": Page(
+        files={"scene.xml": (ROOT / "tests/data/mjcf/wall_in_the_way.xml").read_text(),
+               "not_simulated.xml": (ROOT / "tests/data/mjcf/not_simulated.xml").read_text()},
+        checks={"load_mjcf(": (
+            "world.names == ('crate_left', 'wall', 'crate_right', 'post')",
+            "world.physics.engine == 'mujoco'",
+        )},
+    ),
     "oracle.md": Page(checks={
         "class TooFast": (
             "simulate(World.load('worlds/tiny.yaml'), predicates=[TooFast()], timeout=1.0).failure is None",

@@ -28,6 +28,7 @@ UNIT_MODULES = (
     "test_worlds.py", "test_world_errors.py", "test_world_properties.py", "test_value_checks.py",
     "test_shapes.py", "test_sdf.py", "test_sdf_gazebo_rules.py", "test_sdf_hostile.py", "test_sdf_shipped.py",
     "test_sdf_surgical.py", "reliability/test_yaml_nesting.py",
+    "mjcf/test_mjcf_read.py", "mjcf/test_mjcf_errors.py", "mjcf/test_mjcf_cut.py",
     # the oracle and the test's view of a run
     "test_oracle.py", "test_same_failure_rule.py", "test_custom_predicates.py", "test_reported_runs.py",
     "test_user_line.py", "test_code_identity.py",

@@ -69,6 +69,8 @@ DEFAULT_RUN_TIMEOUT = 300.0
 """`ddenv run --run-timeout`: as `robot_world.run()`'s limit in a test (`robot_world.DEFAULT_MAX_WALL_TIME`)."""
 YAML_SUFFIXES = (".yaml", ".yml")
 SDF_SUFFIXES = (".sdf", ".world")
+MJCF_SUFFIXES = (".xml", ".mjcf")
+"""Read only: a world is not written as MJCF (a reduction cuts `minimal.xml` from the scene)."""
 
 
 class _ArgumentError(Exception):
@@ -205,7 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_check(commands: Any, common: argparse.ArgumentParser) -> None:
     check = commands.add_parser("check", parents=[common],
                                 help="load a world file and report its models, or the first error")
-    check.add_argument("world", help="world file (.yaml, .sdf)")
+    check.add_argument("world", help="world file (.yaml, .sdf, .xml)")
     add_world_options(check)
 
 
@@ -230,7 +232,7 @@ def _add_user_code_options(parser: argparse.ArgumentParser, *, controller: bool 
 
 def _add_run(commands: Any, common: argparse.ArgumentParser) -> None:
     run = commands.add_parser("run", parents=[common], help="simulate a world's scenario once and picture it")
-    run.add_argument("world", help="world file (.yaml, .sdf)")
+    run.add_argument("world", help="world file (.yaml, .sdf, .xml)")
     run.add_argument("--seed", type=_type(integer(0), "--seed"), default=0, help="seed of the run's noise (default 0)")
     _add_predicate_option(run, required=False)
     _add_user_code_options(run)
@@ -250,7 +252,7 @@ def _add_run(commands: Any, common: argparse.ArgumentParser) -> None:
 
 def _add_show(commands: Any, common: argparse.ArgumentParser) -> None:
     show = commands.add_parser("show", parents=[common], help="draw a world, optionally with recorded runs")
-    show.add_argument("world", help="world file (.yaml, .sdf)")
+    show.add_argument("world", help="world file (.yaml, .sdf, .xml)")
     show.add_argument("--runs", metavar="FILE", help="runs to draw: a `ddenv run --record` file, or a "
                                                       "reduction's runs.jsonl (failure poses)")
     show.add_argument("-o", "--output", help="picture to write (default: WORLD.png in the current folder)")
@@ -263,7 +265,7 @@ def _add_show(commands: Any, common: argparse.ArgumentParser) -> None:
 def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     reduce = commands.add_parser("reduce", parents=[common],
                                  help="reduce a failing world to the models the failure needs")
-    reduce.add_argument("world", help="world file (.yaml, .sdf)")
+    reduce.add_argument("world", help="world file (.yaml, .sdf, .xml)")
     _add_predicate_option(reduce, required=True)
     _add_user_code_options(reduce)
     reduce.add_argument("--timeout", type=_type(positive(), "--timeout"),
@@ -308,7 +310,7 @@ def _add_replay(commands: Any, common: argparse.ArgumentParser) -> None:
 
 def _add_convert(commands: Any, common: argparse.ArgumentParser) -> None:
     convert = commands.add_parser("convert", parents=[common], help="convert a world between YAML and SDF")
-    convert.add_argument("input", help="world file to read (.yaml, .yml, .sdf, .world)")
+    convert.add_argument("input", help="world file to read (.yaml, .yml, .sdf, .world, .xml, .mjcf)")
     convert.add_argument("output", help="world file to write; the format follows the extension")
     add_world_options(convert)
 
@@ -414,9 +416,10 @@ def _cmd_check(arguments: argparse.Namespace) -> int:
 def _cmd_convert(arguments: argparse.Namespace) -> int:
     source, target = Path(arguments.input), Path(arguments.output)
     for path, role in ((source, "input"), (target, "output")):
-        if path.suffix.lower() not in (*YAML_SUFFIXES, *SDF_SUFFIXES):
+        if path.suffix.lower() not in (*YAML_SUFFIXES, *SDF_SUFFIXES, *(MJCF_SUFFIXES if role == "input" else ())):
+            mjcf = ", .xml/.mjcf (MuJoCo MJCF)" if role == "input" else ""
             raise UsageError(f"{path}: unknown {role} format {path.suffix or '(no extension)'!r}; "
-                             "use .yaml/.yml (ddenv YAML) or .sdf/.world (Gazebo SDF)")
+                             f"use .yaml/.yml (ddenv YAML){mjcf} or .sdf/.world (Gazebo SDF)")
     if same_file(source, target):
         raise UsageError(f"{target}: the output would overwrite the input")
     world = load_world(arguments, arguments.input)

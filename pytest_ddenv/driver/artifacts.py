@@ -27,11 +27,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self
 
 from pytest_ddenv.driver.problem import Problem
-from pytest_ddenv.errors import DdenvError, ReductionError
+from pytest_ddenv.errors import DdenvError, ReductionError, WorldError
 from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.log import sync_directory, write_failure
 from pytest_ddenv.reduce.records import json_value, read_regular
-from pytest_ddenv.world.formats import FORMATS
+from pytest_ddenv.world.formats import FORMATS, format_of
 from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:
@@ -45,7 +45,7 @@ except ImportError:  # pragma: no cover - not POSIX: no folder lock
 
 LOCK_NAME = ".ddenv.lock"
 """The lock file of an artifacts folder (holds the pid of the reduction that has it)."""
-STALE_OUTPUTS = ("minimal.sdf", "reduction.png", "progress.png")
+STALE_OUTPUTS = ("minimal.sdf", "minimal.xml", "reduction.png", "progress.png")
 """Outputs of an earlier problem that a new log makes stale (rewritten at the end of the reduction)."""
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 
@@ -99,6 +99,10 @@ class ArtifactPaths:
     @property
     def minimal_sdf(self) -> Path:
         return self.directory / "minimal.sdf"
+
+    @property
+    def minimal_xml(self) -> Path:
+        return self.directory / "minimal.xml"
 
     @property
     def log(self) -> Path:
@@ -409,6 +413,24 @@ def write_minimal_sdf(target: Path, world: World, minimal: World, removed: Seque
     except Exception:  # noqa: BLE001 - SDF export is optional; the YAML is the reference artifact
         return None
     return "regenerated" + reason
+
+
+def write_minimal_xml(target: Path, world: World, minimal: World, removed: Sequence[str]) -> str | None:
+    """For a world read from an MJCF scene: write `minimal.xml` and say how ("cut from <file>[; ...]", or
+    "regenerated: why not cut", `mjcf.minimal_xml`); "not written: why" when neither gives the minimal world;
+    None (nothing written) for a world from another format."""
+    source = Path(world.source) if world.source else None
+    if source is None or format_of(source) != "mjcf" or not source.is_file():
+        return None
+    from pytest_ddenv.mjcf import minimal_xml
+
+    try:
+        data, how = minimal_xml(source, minimal, removed)
+    except DdenvError as error:
+        target.unlink(missing_ok=True)
+        return f"not written: {error.reason if isinstance(error, WorldError) else error}"
+    write_bytes_atomic(target, data)
+    return how
 
 
 def folder_problem(folder: Path) -> str | None:

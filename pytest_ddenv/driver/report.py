@@ -57,6 +57,8 @@ class ReportFiles:
     minimal_sdf: Path | None = None
     other_worlds: tuple[Path, ...] = ()
     """`other-1.yaml`, `other-2.yaml` ...: the smallest worlds of the other failures kept (`--ddenv-keep-other`)."""
+    minimal_xml: Path | None = None
+    """`minimal.xml`, of a world read from an MJCF scene (None: not written)."""
 
     @property
     def folder(self) -> Path:
@@ -66,6 +68,8 @@ class ReportFiles:
         files = {"minimal_yaml": str(self.minimal_yaml), "log": str(self.log), "summary": str(self.summary)}
         if self.minimal_sdf is not None:
             files["minimal_sdf"] = str(self.minimal_sdf)
+        if self.minimal_xml is not None:
+            files["minimal_xml"] = str(self.minimal_xml)
         for number, path in enumerate(self.other_worlds, start=1):
             files[f"other_{number}_yaml"] = str(path)
         return files
@@ -87,6 +91,9 @@ class ReductionReport:
     tolerance: float
     minimal_sdf: str | None = None
     """How `minimal.sdf` was made ("cut" from the user's file, "generated"), None: not written."""
+    minimal_xml: str | None = None
+    """How `minimal.xml` was made ("cut from ...", "regenerated: ...", "not written: ..."); None: the world is
+    not an MJCF scene."""
     notes: tuple[str, ...] = ()
     world_notes: tuple[str, ...] = ()
     """What the world file holds that is not simulated (joints, plugins, lights ...)."""
@@ -160,6 +167,7 @@ class ReductionReport:
             "fingerprint": self.fingerprint,
             "files": self.files.to_json(),
             "minimal_sdf": self.minimal_sdf,
+            **({} if self.minimal_xml is None else {"minimal_xml": self.minimal_xml}),
             **dict(self.run_settings),
             "tolerance": self.tolerance,
             "same_failure": self.rule.to_json(),

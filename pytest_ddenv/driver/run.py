@@ -374,16 +374,20 @@ class _Locked:
             self.record_usage(final=True)
             how = artifacts.write_minimal_world(paths, plan.world, plan.world.select(reduction.minimal),
                                                 reduction.removed, model_paths=plan.model_paths)
+            how_xml = artifacts.write_minimal_xml(paths.minimal_xml, plan.world, plan.world.select(reduction.minimal),
+                                                  reduction.removed)
             others, other_worlds = artifacts.write_other_worlds(
                 paths, plan.world, other_failures(self.log.events, rule=plan.rule, reference=plan.reference),
                 plan.keep_other, plan.other_replay)
             files = ReportFiles(paths.minimal_yaml, paths.log, paths.summary,
-                                minimal_sdf=paths.minimal_sdf if how is not None else None, other_worlds=other_worlds)
+                                minimal_sdf=paths.minimal_sdf if how is not None else None, other_worlds=other_worlds,
+                                minimal_xml=paths.minimal_xml if paths.minimal_xml.is_file() and how_xml else None)
             report = ReductionReport(
                 test=plan.test_id, world=plan.world.source or plan.world.name, reduction=reduction,
                 reference_failure=plan.reference.to_dict(), replay=plan.replay_command,
                 fingerprint=self.problem.fingerprint,
                 files=files, cost=self.cost(reduction.probes), tolerance=plan.spec.tolerance, minimal_sdf=how,
+                minimal_xml=how_xml,
                 same_failure=plan.rule, engine=self.problem.parts.get(ENGINE_PART, ""),
                 reproduction=original_reproduction(self.log.events, plan.world.names, plan.reference, plan.rule),
                 notes=tuple(dict.fromkeys([*self.notes, *self.pool.notes])),

@@ -1,4 +1,5 @@
-"""World files by format: ddenv YAML (`yaml_format`) and Gazebo SDF (`pytest_ddenv.sdf`), chosen by a file's
+"""World files by format: ddenv YAML (`yaml_format`), Gazebo SDF (`pytest_ddenv.sdf`) and MuJoCo MJCF
+(`pytest_ddenv.mjcf`, read only: a reduction cuts `minimal.xml` from the scene), chosen by a file's
 suffix. The only module that knows the formats: `World.load`, `World.save`, `World.from_*` and `World.to_*`
 reach it through `model.use_world_files`, installed when `pytest_ddenv.world` is imported, and a format's
 module is imported when a world is first read or written in it.
@@ -22,6 +23,7 @@ from pytest_ddenv.world.values import check_world_values
 
 YAML_SUFFIXES = (".yaml", ".yml")
 SDF_SUFFIXES = (".sdf", ".world")
+MJCF_SUFFIXES = (".xml", ".mjcf")
 PathLike = str | os.PathLike[str]
 
 
@@ -74,9 +76,24 @@ def _dump_sdf(world: World, relative_to: Path | None) -> str:
     return dump_sdf(world)
 
 
+def _load_mjcf(path: Path, model_paths: Sequence[PathLike], skip_unsupported: bool) -> World:
+    """As MuJoCo reads it (see docs/mjcf.md); needs mujoco."""
+    from pytest_ddenv.mjcf import load_mjcf
+
+    world = load_mjcf(path, skip_unsupported=skip_unsupported)
+    check_world_values(world)
+    return world
+
+
+def _dump_mjcf(world: World, relative_to: Path | None) -> str:
+    raise WorldError("writing a world as MJCF is not supported (a reduction of an MJCF scene writes minimal.xml, "
+                     "cut from the scene); save it as .yaml or .sdf")
+
+
 FORMATS = {
     "yaml": WorldFormat("ddenv YAML", YAML_SUFFIXES, _load_yaml, _dump_yaml, _parse_yaml),
     "sdf": WorldFormat("Gazebo SDF", SDF_SUFFIXES, _load_sdf, _dump_sdf),
+    "mjcf": WorldFormat("MuJoCo MJCF", MJCF_SUFFIXES, _load_mjcf, _dump_mjcf),
 }
 READ_AS = "yaml"
 """How a file is read whose suffix is none of the formats'."""
