@@ -15,12 +15,12 @@ import pytest
 
 pytest.importorskip("mujoco", reason="the MuJoCo engine is the mujoco extra: pip install 'pytest-ddenv[mujoco]'")
 
-from pytest_ddenv.detail import recording_detail  # noqa: E402
-from pytest_ddenv.media import gl_helper  # noqa: E402
-from pytest_ddenv.media.animate import FPS, HEIGHT, MAX_FRAMES, WIDTH, draw_animation, frame_times  # noqa: E402
-from pytest_ddenv.sim import Run, Simulator  # noqa: E402
-from pytest_ddenv.sim.urdf_geometry import pybullet_installed  # noqa: E402
-from pytest_ddenv.world import World  # noqa: E402
+from pytest_ddenv.detail import recording_detail
+from pytest_ddenv.media import gl_helper
+from pytest_ddenv.media.animate import FPS, HEIGHT, MAX_FRAMES, WIDTH, AnimationInfo, draw_animation, frame_times
+from pytest_ddenv.sim import Run, Simulator
+from pytest_ddenv.sim.urdf_geometry import pybullet_installed
+from pytest_ddenv.world import World
 
 pytestmark = pytest.mark.slow  # each test starts the media helper process
 
@@ -37,7 +37,7 @@ def wall_run() -> tuple[World, Run]:
         return world, sim.run(world, timeout=6.0)
 
 
-def mujoco_animation(path: Path, world: World, run: Run) -> object:
+def mujoco_animation(path: Path, world: World, run: Run) -> AnimationInfo:
     try:
         return gl_helper.in_gl_helper(draw_animation, path, world, run, "wall", FPS, MAX_FRAMES, "", "mujoco")
     except gl_helper.AnimationUnavailable as error:
@@ -67,7 +67,7 @@ def test_mujoco_draws_every_frame_of_the_replay_with_the_robot_in_view(tmp_path:
     info = mujoco_animation(tmp_path / "wall.gif", world, run)
     frames = read_frames(tmp_path / "wall.gif")
     assert frames.shape == (len(frame_times(run)), HEIGHT, WIDTH, 3)
-    assert getattr(info, "frames") == len(frames)
+    assert info.frames == len(frames)
     robot = robot_mask(frames)
     assert robot.sum(axis=(1, 2)).min() > 200  # the chase camera keeps the robot in every frame
     body = frames[:, TITLE_ROWS:, :]
