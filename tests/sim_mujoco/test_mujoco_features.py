@@ -90,9 +90,13 @@ def test_a_mujoco_reduction_with_shapes_and_attributes_writes_its_worlds_picture
         assert len(frames) > 2 and frames[0].shape == (240, 320, 3), animation
     from rerun.chunk import RrdReader
 
-    entities = {chunk.entity_path for chunk in RrdReader(out / "recording.rrd").stream().to_chunks()}
+    chunks = list(RrdReader(out / "recording.rrd").stream().to_chunks())
+    entities = {chunk.entity_path for chunk in chunks}
     for label in ("original", "minimal"):
         assert "/" + rr.escape_entity_path_part(label) + "/robot" in entities, sorted(entities)
+    logged = [text for chunk in chunks if chunk.entity_path == "/minimal/log"
+              for texts in chunk.to_record_batch().column("TextLog:text").to_pylist() for text in texts]
+    assert logged[0].startswith("wall: 1 models, robot husky, seed ") and ", mujoco " in logged[0], logged
     assert set(summary["media"]["files"]) >= {"original.gif", "minimal.gif", "recording.rrd"}
 
 
