@@ -108,6 +108,17 @@ def test_an_opengl_backend_that_does_not_start_is_noted_and_the_next_one_draws(
     assert len(read_frames(tmp_path / "second.gif")) == len(frame_times(run))
 
 
+def test_a_renderer_process_that_dies_is_noted_for_each_backend_and_the_reduction_goes_on(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    if sys.platform != "linux":
+        pytest.skip("the EGL/OSMesa fallback is Linux's")
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    with pytest.raises(gl_helper.AnimationUnavailable) as raised:
+        gl_helper.in_gl_helper(os._exit, 3)  # the helper process ends as a crashing GL driver would end it
+    message = str(raised.value)
+    assert "MUJOCO_GL=egl: the renderer's process died; MUJOCO_GL=osmesa: the renderer's process died" in message
+
+
 def run_without_pybullet(tmp_path: Path, code: str, *arguments: str) -> subprocess.CompletedProcess[str]:
     """`code` in a Python where `import pybullet` fails and MUJOCO_GL is not set, `arguments` in its sys.argv."""
     (tmp_path / "wall.yaml").write_text(WALL_PATH.read_text(encoding="utf-8"))
