@@ -4,6 +4,7 @@ reason when no OpenGL backend starts here."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import sys
@@ -27,6 +28,18 @@ pytestmark = pytest.mark.slow  # each test starts the media helper process
 WALL_PATH = Path(__file__).resolve().parents[1] / "data" / "wall.yaml"
 BLOCK_PYBULLET = 'import sys; sys.modules["pybullet"] = None; sys.modules["pybullet_data"] = None\n'
 """What `import pybullet` sees where it is not installed (Python >= 3.12: no wheel)."""
+PUSHED_CRATE = """\
+format: 1
+name: crate
+physics: {engine: mujoco}
+scenario:
+  start: {x: 0.0, y: 0.0, yaw: 0.0}
+  goal: {x: 8.0, y: 0.0}
+  timeout: 10
+models:
+  - {name: crate, pose: [1.3, 0, 0.2], box: [0.4, 0.8, 0.4], static: false, mass: 2, mu: 0.3, color: [0.8, 0.1, 0.1, 1]}
+"""
+"""The robot drives into a light red crate and pushes it ahead."""
 TITLE_ROWS = 17
 """The white title bar on top of every frame (time and title), left out when frames are compared."""
 
@@ -88,6 +101,29 @@ def test_both_renderers_put_the_robot_at_the_same_place_in_the_frame(tmp_path: P
     for index in (0, len(in_mujoco) // 2, len(in_mujoco) - 1):
         (x1, y1), (x2, y2) = centroid(robot_mask(in_mujoco)[index]), centroid(robot_mask(in_pybullet)[index])
         assert abs(x1 - x2) < 6 and abs(y1 - y2) < 6
+
+
+def test_a_pushed_model_is_drawn_where_the_run_recorded_it(tmp_path: Path) -> None:
+    """A crate in the robot's way is pushed along: drawn from the run's detail it is ahead of the robot (higher
+    in the chase camera's frame); without the detail it stays at its start, left behind between the camera
+    and the robot (lower in the frame)."""
+    world = World.from_yaml(PUSHED_CRATE, source="crate.yaml")
+    with recording_detail(), Simulator() as sim:
+        run = sim.run(world, timeout=4.0)
+    assert run.detail is not None and run.detail.bodies["crate"][-1][0] > 2.5  # pushed 1 m and more
+    mujoco_animation(tmp_path / "detail.gif", world, run)
+    mujoco_animation(tmp_path / "start.gif", world, dataclasses.replace(run, detail=None))
+    with_detail, without = read_frames(tmp_path / "detail.gif"), read_frames(tmp_path / "start.gif")
+    robot_row = centroid(robot_mask(with_detail)[-1])[1]
+    assert centroid(crate_mask(with_detail[-1]))[1] < robot_row - 5  # ahead of the robot
+    assert centroid(crate_mask(without[-1]))[1] > robot_row + 30  # left behind at its start
+    assert np.array_equal(with_detail[0], without[0])  # the same first frame: the crate has not moved yet
+
+
+def crate_mask(frame: np.ndarray) -> np.ndarray:
+    """Pixels of the crate's red (its colour in the world file) below the title bar."""
+    body = frame[TITLE_ROWS:, :, :]
+    return (body[..., 0] > 120) & (body[..., 1] < 60) & (body[..., 2] < 60)
 
 
 def test_an_opengl_backend_that_does_not_start_is_noted_and_the_next_one_draws(
