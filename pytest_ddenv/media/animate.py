@@ -38,6 +38,7 @@ def renderer_name() -> str:
     """The renderer that draws the animations here: "pybullet" where pybullet is installed, else "mujoco"."""
     return "pybullet" if pybullet_installed() else "mujoco"
 
+
 Frame = NDArray[np.uint8]
 
 WIDTH, HEIGHT = 320, 240

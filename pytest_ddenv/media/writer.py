@@ -168,11 +168,14 @@ class MujocoAnimations:
         """Label -> the animation made, or None (with a warning: one for all when no renderer starts)."""
         from pytest_ddenv.media.gl_helper import AnimationUnavailable
 
+        names = ", ".join(f"{item.label}.gif" for item in self.items)
         try:
             drawn = self.future.result() if self.future is not None else self._draw()
-        except AnimationUnavailable as error:
-            names = ", ".join(f"{item.label}.gif" for item in self.items)
+        except AnimationUnavailable as error:  # one warning, not one per animation
             warnings.warn(f"ddenv: {names} not written: {error}", stacklevel=1)
+            return {}
+        except Exception as error:  # noqa: BLE001 - as in _animation
+            warnings.warn(f"ddenv: {names} not written: {type(error).__name__}: {error}", stacklevel=1)
             return {}
         finally:
             self.thread.shutdown(wait=True)
