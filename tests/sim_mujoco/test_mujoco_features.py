@@ -150,3 +150,38 @@ def test_a_hypothesis_drawn_world_simulates_in_mujoco(world: World) -> None:
     assert run.engine == "mujoco" and run.sim_time == pytest.approx(1.0, abs=0.06)
     assert np.all(np.isfinite(run.poses)) and set(run.first_touch) <= set(world.names)
     assert abs(float(run.poses[-1][3])) < 0.5 and abs(float(run.poses[-1][4])) < 0.5  # on its wheels
+
+
+@pytest.mark.slow
+def test_a_hypothesis_test_run_in_mujoco_by_the_option_is_reduced_there(pytester: pytest.Pytester) -> None:
+    """`--ddenv-engine mujoco` runs each drawn world in MuJoCo (`robot_world.rebound` switches its engine), and
+    the falsifying example is still found among the @given arguments and reduced in MuJoCo."""
+    pytester.makepyfile(test_generated=GENERATED_TEST)
+    result = pytester.runpytest_subprocess("--ddenv-reduce", "--ddenv-engine", "mujoco", "--ddenv-media", "none",
+                                           "--ddenv-workers", "1", "-p", "no:cacheprovider")
+    result.assert_outcomes(failed=1)
+    assert "no reduction" not in result.stdout.str()
+    (folder,) = (pytester.path / "ddenv-artifacts").iterdir()
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["engine"]["name"] == "mujoco" and summary["hypothesis"]["world_argument"] == "world"
+    minimal = World.load(folder / "minimal.yaml")
+    assert minimal.physics.engine == "mujoco" and 1 <= len(minimal) == summary["minimal_size"] < summary["original_size"]
+
+
+GENERATED_TEST = """\
+import pytest
+from hypothesis import HealthCheck, Phase, given, settings
+
+from pytest_ddenv.strategies import worlds
+
+
+@pytest.mark.ddenv(partition="model2model", priority="avg-trajectory")
+@pytest.mark.robot_failure("collided")
+@settings(max_examples=30, deadline=None, derandomize=True, database=None, report_multiple_bugs=False,
+          phases=[Phase.explicit, Phase.generate], suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(world=worlds(count=(6, 16), size=(0.4, 1.0), static=True))
+def test_husky_crosses_a_cluttered_yard_without_collision(robot_world, world):
+    run = robot_world.rebound(world).run()
+    assert run.engine == "mujoco"
+"""
+"""examples/test_generated_worlds.py, checking the engine its runs simulate in."""
