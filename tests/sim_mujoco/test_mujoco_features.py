@@ -165,7 +165,8 @@ def test_a_hypothesis_test_run_in_mujoco_by_the_option_is_reduced_there(pytester
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["engine"]["name"] == "mujoco" and summary["hypothesis"]["world_argument"] == "world"
     minimal = World.load(folder / "minimal.yaml")
-    assert minimal.physics.engine == "mujoco" and 1 <= len(minimal) == summary["minimal_size"] < summary["original_size"]
+    assert minimal.physics.engine == "mujoco"
+    assert 1 <= len(minimal) == summary["minimal_size"] < summary["original_size"]
 
 
 GENERATED_TEST = """\

@@ -215,3 +215,14 @@ def test_without_pybullet_ddenv_show_animates_a_run_with_mujoco(tmp_path: Path) 
     assert done.returncode == 0, done.stdout + done.stderr
     frames = read_frames(tmp_path / "wall.gif")
     assert frames.shape[1:] == (HEIGHT, WIDTH, 3) and robot_mask(frames).sum(axis=(1, 2)).min() > 200
+
+
+def test_without_pybullet_or_an_opengl_backend_ddenv_show_animate_is_one_error(tmp_path: Path) -> None:
+    done = run_without_pybullet(tmp_path, 'from pytest_ddenv.media import gl_helper\n'
+                                          'gl_helper.LINUX_BACKENDS = ("no-such-backend",)\n'
+                                          'from pytest_ddenv.cli.main import main\n'
+                                          'sys.exit(main(["show", "wall.yaml", "--animate", "wall.gif"]))')
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "ddenv: error: no renderer can draw the animations here: pybullet is not installed" in done.stderr
+    assert "tried MUJOCO_GL=no-such-backend" in done.stderr and "Traceback" not in done.stderr
+    assert not (tmp_path / "wall.gif").exists()
