@@ -175,14 +175,16 @@ REDUCTION_MEDIA = """\
     world = World.load("wall.yaml")
     with recording_detail(), Simulator() as sim:
         run = sim.run(world, timeout=2.0)
-    os.environ.update(argument.split("=", 1) for argument in sys.argv[1:])  # the user's MUJOCO_GL, after the run
+    os.environ.update(argument.split("=", 1) for argument in sys.argv[1:] if "=" in argument)  # after the run
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         shown = [Shown("original", world, run, False), Shown("minimal", world.without(["ball"]), run, False)]
-        written = PendingMedia(Path("."), shown, helper=True).finish()
+        written = PendingMedia(Path("."), shown, helper="--in-finish" not in sys.argv).finish()
     print("RAN", run.engine, "WRITTEN", sorted(path.name for path in written.paths))
     print("WARNINGS", [str(warning.message) for warning in caught])
     """
+"""A reduction's media of a MuJoCo run: `NAME=VALUE` arguments set after the run (the user's MUJOCO_GL);
+`--in-finish`: the animations start in `finish()` (a reduction in one process), else at once (`helper=True`)."""
 
 
 def test_without_pybullet_a_reductions_animations_are_drawn_by_mujoco(tmp_path: Path) -> None:
@@ -198,7 +200,7 @@ def test_without_pybullet_a_reductions_animations_are_drawn_by_mujoco(tmp_path: 
 
 
 def test_without_pybullet_a_gl_backend_that_does_not_start_is_one_warning_naming_it(tmp_path: Path) -> None:
-    done = run_without_pybullet(tmp_path, REDUCTION_MEDIA, "MUJOCO_GL=no-such-backend")
+    done = run_without_pybullet(tmp_path, REDUCTION_MEDIA, "MUJOCO_GL=no-such-backend", "--in-finish")
     assert done.returncode == 0, done.stderr
     assert "RAN mujoco WRITTEN" in done.stdout and ".gif" not in done.stdout.partition("WARNINGS")[0]
     (warnings_line,) = [line for line in done.stdout.splitlines() if line.startswith("WARNINGS")]
