@@ -1,5 +1,7 @@
 """What a reduction shows besides its files (layer 9, beside `pytest_ddenv.render`, the pictures).
 
 `writer` (`--ddenv-media`: which media to make, and `write_media`), `animate` (GIFs of runs, drawn by
-pybullet's TinyRenderer), `recording` (a Rerun `.rrd` of runs), `palette` (the colours both share).
+pybullet's TinyRenderer where it is installed, else by MuJoCo's renderer: `mujoco_scene`, in a helper process
+with an OpenGL backend that starts: `gl_helper`), `recording` (a Rerun `.rrd` of runs), `palette` (the
+colours they share).
 """

@@ -1,10 +1,14 @@
-"""Animations of a run: frames from PyBullet's software renderer (TinyRenderer, headless), written as a GIF.
+"""Animations of a run: frames drawn headless and written as a GIF.
 
-A replay, not a re-simulation: the world is built once in a render-only pybullet client and every frame
-puts the robot (base pose and joints) and the moving models where the run recorded them (`Run.detail`;
-without it, the moving models stay at their start poses). A chase camera follows the robot from behind and
-above, its heading smoothed so that the picture does not swing with every wobble. Each frame carries the
-simulated time; from the failure moment on the frame has a red border and the failure's words.
+Two renderers draw the same replay: PyBullet's software renderer (TinyRenderer, no OpenGL) in a render-only
+pybullet client wherever pybullet is installed, whatever engine simulated the run (so existing GIFs stay
+the same), and otherwise MuJoCo's OpenGL renderer (media/mujoco_scene.py) in a helper process that tries
+EGL and OSMesa (media/gl_helper.py). A replay, not a re-simulation: the world is built once and every
+frame puts the robot (base pose and joints) and the moving models where the run recorded them
+(`Run.detail`; without it, the moving models stay at their start poses). A chase camera follows the robot
+from behind and above, its heading smoothed so that the picture does not swing with every wobble. Each
+frame carries the simulated time; from the failure moment on the frame has a red border and the failure's
+words.
 """
 
 from __future__ import annotations
@@ -14,12 +18,12 @@ import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pytest_ddenv.errors import DdenvError
+from pytest_ddenv.media.gl_helper import in_gl_helper
 from pytest_ddenv.media.palette import GROUND_RGBA, ROBOT_RGBA, model_rgba
 from pytest_ddenv.scenario.reported import REPORTED
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
@@ -29,14 +33,11 @@ from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.urdf_geometry import pybullet_installed
 from pytest_ddenv.world.model import World
 
-NO_RENDERER = ("the animations are drawn by pybullet's TinyRenderer (whatever engine simulated the run), and "
-               "pybullet is not installed: pip install pybullet (it has wheels for Python <= 3.11 only), or ask for "
-               "the pictures alone (--ddenv-media pictures, ddenv reduce --media pictures)")
-"""Why no animation can be drawn here (`AnimationUnavailable`)."""
 
+def renderer_name() -> str:
+    """The renderer that draws the animations here: "pybullet" where pybullet is installed, else "mujoco"."""
+    return "pybullet" if pybullet_installed() else "mujoco"
 
-class AnimationUnavailable(DdenvError):
-    """pybullet, whose renderer draws the animations, is not installed."""
 
 Frame = NDArray[np.uint8]
 
@@ -91,12 +92,16 @@ def frame_times(run: Run, *, max_frames: int = MAX_FRAMES, min_step: float = MIN
     return sorted(i for i in indices if i < len(times))
 
 
-class _Scene:
+class _Scene(Protocol):
+    def place(self, run: Run, index: int) -> None: ...
+    def image(self, eye: Sequence[float], target: Sequence[float], width: int, height: int) -> Frame: ...
+    def close(self) -> None: ...
+
+
+class _PybulletScene:
     """A render-only pybullet client holding the world and the robot."""
 
     def __init__(self, world: World, run: Run) -> None:
-        if not pybullet_installed():
-            raise AnimationUnavailable(NO_RENDERER)
         with silenced():
             import pybullet as p
         self.p = p
@@ -178,15 +183,25 @@ def chase_headings(run: Run, indices: Sequence[int], smoothing: float = 1.5) -> 
     return [result[i] for i in indices]
 
 
+def _scene(renderer: str, world: World, run: Run, width: int, height: int) -> _Scene:
+    if renderer == "pybullet":
+        return _PybulletScene(world, run)
+    from pytest_ddenv.media.mujoco_scene import MujocoScene
+
+    return MujocoScene(world, run, width, height)
+
+
 def render_frames(world: World, run: Run, *, title: str = "", width: int = WIDTH, height: int = HEIGHT,
-                  max_frames: int = MAX_FRAMES, failure_text: str = "") -> Iterator[tuple[float, Frame]]:
+                  max_frames: int = MAX_FRAMES, failure_text: str = "", renderer: str = "pybullet"
+                  ) -> Iterator[tuple[float, Frame]]:
     """(simulated time, RGB frame) of the run, chase camera, with the time and the failure marked: from
     the time a failure predicate fired, else (`failure_text`: the test failed after the run, e.g. in an
-    `assert`) on the last frame."""
+    `assert`) on the last frame. `renderer`: "pybullet" or "mujoco", drawn in this process (MuJoCo's only in a
+    process whose `MUJOCO_GL` is chosen: `write_animation` does that)."""
     indices = frame_times(run, max_frames=max_frames)
     headings = chase_headings(run, indices)
     failure_time = None if run.failure is None else float(run.failure.time)
-    scene = _Scene(world, run)
+    scene = _scene(renderer, world, run, width, height)
     scale = min(2.0, max(0.5, run.footprint[0] / HUSKY_LENGTH))  # a small robot is followed closer
     try:
         for index, heading in zip(indices, headings, strict=True):
@@ -228,11 +243,21 @@ def _annotate(frame: Frame, title: str, now: float, failure_words: str) -> Frame
 def write_animation(path: Path, world: World, run: Run, *, title: str = "", fps: int = FPS,
                     max_frames: int = MAX_FRAMES, failure_text: str = "") -> AnimationInfo:
     """Render `run` in `world` and write it as a looping GIF at `path` (atomically: a temporary file, then
-    renamed). `failure_text`: see `render_frames`."""
+    renamed), with the renderer of `renderer_name()`: pybullet's here, MuJoCo's in a helper process
+    (AnimationUnavailable when no OpenGL backend starts). `failure_text`: see `render_frames`."""
+    if renderer_name() == "pybullet":
+        return draw_animation(path, world, run, title, fps, max_frames, failure_text, "pybullet")
+    return in_gl_helper(draw_animation, path, world, run, title, fps, max_frames, failure_text, "mujoco")
+
+
+def draw_animation(path: Path, world: World, run: Run, title: str, fps: int, max_frames: int, failure_text: str,
+                   renderer: str) -> AnimationInfo:
+    """`write_animation` with `renderer`, in this process."""
     import imageio.v3 as iio
 
     started = time.perf_counter()
-    shown = list(render_frames(world, run, title=title, max_frames=max_frames, failure_text=failure_text))
+    shown = list(render_frames(world, run, title=title, max_frames=max_frames, failure_text=failure_text,
+                               renderer=renderer))
     frames = [frame for _, frame in shown] or [np.zeros((HEIGHT, WIDTH, 3), np.uint8)]
     durations = [1000.0 / fps] * (len(frames) - 1) + [1000.0 * HOLD_SECONDS]
     path = Path(path)

@@ -13,7 +13,10 @@ DEFAULT_COLOR = (0.6, 0.6, 0.6, 1.0)
 
 GROUND_RGBA = (0.78, 0.78, 0.74, 1.0)
 ROBOT_RGBA = (0.95, 0.75, 0.1, 1.0)
-"""The ground, and a robot drawn as its footprint box, in the animations and the recording."""
+"""The ground, and a robot drawn as its footprint box, in the animations and the recording (MuJoCo's
+renderer draws a URDF robot's chassis in it too: the MuJoCo engine compiles no visual meshes)."""
+WHEEL_RGBA = (0.15, 0.15, 0.15, 1.0)
+"""A URDF robot's wheels in MuJoCo's renderer."""
 
 
 def model_rgba(model: Model) -> tuple[float, float, float, float]:

@@ -376,7 +376,8 @@ def _log_events(writer: _Writer, root: str, world: World, run: Run) -> None:
     """The text log (the run at its first time; the failure, or the end) and the failure marker."""
     rr = writer.rr
     first = float(run.times[0]) if len(run.times) else 0.0
-    texts = [f"{world.name or run.world_name}: {len(world.models)} models, robot {run.robot}, seed {run.seed}"]
+    texts = [f"{world.name or run.world_name}: {len(world.models)} models, robot {run.robot}, seed {run.seed}"
+             + (f", {run.engine} {run.engine_version}" if run.engine_version else "")]  # not for a reported run
     levels, times = ["INFO"], [first]
     failure = run.failure
     if failure is not None:

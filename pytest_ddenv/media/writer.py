@@ -79,7 +79,9 @@ class PendingMedia:
     """`write_media` started now and finished by `finish()`. With `helper=True` (a reduction that ran its
     probes in worker processes: more than one core is the user's) the first animation renders in a helper
     process, started like the probe workers, while this process makes the pictures, the other animations
-    and the recording; without, everything is made in this process by `finish()`."""
+    and the recording; without, everything is made in this process by `finish()`. Without pybullet,
+    MuJoCo's renderer draws every animation in one helper process (media/gl_helper.py), started now with
+    `helper=True`, else by `finish()`."""
 
     def __init__(self, directory: Path, shown: Sequence[Shown], *, failure_text: str = "",
                  helper: bool = False) -> None:
@@ -88,18 +90,18 @@ class PendingMedia:
         self.items = [item for item in shown if item.run is not None]
         self.elsewhere: tuple[Shown, concurrent.futures.ProcessPoolExecutor, concurrent.futures.Future[Any]] | None
         self.elsewhere = None
-        if helper and len(self.items) >= 2 and pybullet_installed():  # pybullet's TinyRenderer draws them
+        self.in_mujoco: MujocoAnimations | None = None
+        if self.items and not pybullet_installed():  # MuJoCo's renderer draws them, in a helper process
+            self.in_mujoco = MujocoAnimations(directory, self.items, failure_text, start_now=helper)
+        elif helper and len(self.items) >= 2:  # pybullet's TinyRenderer draws them
             self.elsewhere = _render_elsewhere(directory, self.items[0], failure_text)
 
     def finish(self) -> MediaWritten:
-        from pytest_ddenv.media.animate import NO_RENDERER
-
         written = MediaWritten()
         made: dict[str, AnimationInfo | None] = {}
         animated = self.items[1:] if self.elsewhere is not None else self.items
-        if animated and not pybullet_installed():  # one warning, not one per animation
-            names = ", ".join(f"{item.label}.gif" for item in animated)
-            warnings.warn(f"ddenv: {names} not written: {NO_RENDERER}", stacklevel=1)
+        if self.in_mujoco is not None:
+            made.update(self.in_mujoco.result())
             animated = []
         for item in animated:
             made[item.label] = _animation(self.directory, item, self.failure_text)
@@ -144,8 +146,68 @@ def render_animation(directory: Path, item: Shown, failure_text: str) -> Animati
 
     assert item.run is not None
     return write_animation(directory / f"{item.label}.gif", item.world, item.run,
-                           title=f"{item.label} ({_models(item.world)})",
+                           title=_title(item),
                            failure_text=failure_text if item.failed else "")
+
+
+class MujocoAnimations:
+    """The animations drawn by MuJoCo's renderer, all in one helper process (`in_gl_helper`), started in a
+    thread now (`start_now`) or by `result()`."""
+
+    def __init__(self, directory: Path, items: Sequence[Shown], failure_text: str, *, start_now: bool) -> None:
+        self.directory, self.items, self.failure_text = directory, list(items), failure_text
+        self.thread = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="ddenv-media")
+        self.future = self.thread.submit(self._draw) if start_now else None
+
+    def _draw(self) -> list[AnimationInfo | str]:
+        from pytest_ddenv.media.gl_helper import in_gl_helper
+
+        return in_gl_helper(draw_in_mujoco, self.directory, self.items, self.failure_text)
+
+    def result(self) -> dict[str, AnimationInfo | None]:
+        """Label -> the animation made, or None (with a warning: one for all when no renderer starts)."""
+        from pytest_ddenv.media.gl_helper import AnimationUnavailable
+
+        names = ", ".join(f"{item.label}.gif" for item in self.items)
+        try:
+            drawn = self.future.result() if self.future is not None else self._draw()
+        except AnimationUnavailable as error:  # one warning, not one per animation
+            warnings.warn(f"ddenv: {names} not written: {error}", stacklevel=1)
+            return {}
+        except Exception as error:  # noqa: BLE001 - as in _animation
+            warnings.warn(f"ddenv: {names} not written: {type(error).__name__}: {error}", stacklevel=1)
+            return {}
+        finally:
+            self.thread.shutdown(wait=True)
+        made: dict[str, AnimationInfo | None] = {}
+        for item, outcome in zip(self.items, drawn, strict=True):
+            if isinstance(outcome, str):
+                warnings.warn(f"ddenv: {item.label}.gif not written: {outcome}", stacklevel=1)
+            made[item.label] = None if isinstance(outcome, str) else outcome
+        return made
+
+
+def draw_in_mujoco(directory: Path, items: Sequence[Shown], failure_text: str) -> list[AnimationInfo | str]:
+    """Each item's animation drawn by MuJoCo's renderer in this (helper) process, or why it was not; raises
+    `GLUnavailable` when the renderer cannot start (the next OpenGL backend is tried)."""
+    from pytest_ddenv.media.animate import FPS, MAX_FRAMES, draw_animation
+    from pytest_ddenv.media.mujoco_scene import GLUnavailable
+
+    drawn: list[AnimationInfo | str] = []
+    for item in items:
+        assert item.run is not None
+        try:
+            drawn.append(draw_animation(directory / f"{item.label}.gif", item.world, item.run, _title(item), FPS,
+                                        MAX_FRAMES, failure_text if item.failed else "", "mujoco"))
+        except GLUnavailable:
+            raise
+        except Exception as error:  # noqa: BLE001 - as in _animation
+            drawn.append(f"{type(error).__name__}: {error}")
+    return drawn
+
+
+def _title(item: Shown) -> str:
+    return f"{item.label} ({_models(item.world)})"
 
 
 def _animation(directory: Path, item: Shown, failure_text: str) -> AnimationInfo | None:

@@ -72,7 +72,7 @@ class GivenExample:
         `fixtures`: the test's fixture values (not drawn). Raises DdenvError naming the argument when the
         world is not one of the drawn arguments or another drawn argument is not plain data."""
         drawn = {name: value for name, value in call.items() if name not in fixtures}
-        worlds = [name for name, value in drawn.items() if value is world]
+        worlds = [name for name, value in drawn.items() if value is world or _switched_to(value, world)]
         if not worlds:
             raise DdenvError("the world the test ran is not one of its @given arguments: draw the world itself "
                              "(@given(world=strategies.worlds(...))) and run robot_world.rebound(world)")
@@ -94,6 +94,13 @@ class GivenExample:
         if inner is None:
             raise DdenvError(f"{item.nodeid} is no longer a @given test")
         return inner(**fixtures, **self.arguments, **{self.world_argument: world})
+
+
+def _switched_to(drawn: Any, world: World) -> bool:
+    """Whether `world` is the `drawn` world with its physics engine switched (`robot_world.rebound` under
+    `--ddenv-engine` or the marker's `engine=`)."""
+    return isinstance(drawn, World) and drawn.physics.engine != world.physics.engine and \
+        drawn.with_engine(world.physics.engine) == world
 
 
 def reproduction(item: pytest.Item, error: BaseException, example: GivenExample) -> dict[str, Any]:

@@ -280,8 +280,9 @@ def run(context: StageContext, folder: Path) -> StageResult:
 
         reduction = context.reduce_edits(f"{STAGE}-{number + 1}", tuple(by_name), build, stage_begin=begin,
                                          preconditions=(keeps_structure(world, build, width),), rate_runs=RATE_RUNS)
-        if reduction is None:
+        if reduction is None:  # what this pass offers is undecided, not "nothing to simplify"
             incomplete = "budget: no probes left"
+            undecided = [proposal for proposal in offered if proposal.name not in broke.keys() | refused.keys()]
             break
         probes += reduction.probes
         needed = set(reduction.minimal)
