@@ -25,6 +25,7 @@ def test_a_reported_trajectory_becomes_a_run() -> None:
     assert run.poses.shape == (4, 6) and run.poses[2, 5] == 0.3 and run.poses[:, 2].tolist() == [0.0] * 4
     assert run.velocities[2, 5] == pytest.approx(0.4) and run.velocities[1, 0] == pytest.approx(1.0)
     assert run.sim_time == 1.5 and run.seed == 4 and dict(run.first_sensed) == {"wall": 0.5}
+    assert (run.engine, run.engine_version) == ("reported", "")  # your simulator ran it, not pybullet
     trace = trace_of(run)
     assert trace.failure_position is None and len(trace) == 4
     robot_world.check()  # no failure reported: nothing raised

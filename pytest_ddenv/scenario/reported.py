@@ -62,7 +62,7 @@ def reported_run(
         velocities=_velocities(stamps, full), wheel_contacts=np.zeros((count, 0)), first_touch=first_touch,
         last_touch=dict(first_touch), first_sensed=first_sensed, reached_goal=bool(reached_goal),
         goal_time=end if reached_goal else None, failure=failure, sim_time=end, wall_time=0.0, steps=0,
-        pybullet_version="",
+        pybullet_version="", engine=REPORTED,  # your simulator ran it, not one of ours
     )
 
 
