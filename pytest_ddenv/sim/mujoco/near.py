@@ -17,32 +17,42 @@ NEAR_DISTANCE = 0.02
 """pybullet's contact breaking threshold (m): how far apart a listed contact point may be."""
 
 NearPair = tuple[int, int, tuple[float, float, float]]
-"""(robot geom, other geom, the midpoint between their nearest points)."""
+"""(robot link, other body id, the midpoint between the nearest points of their geoms)."""
 
 
 class NearContacts:
-    """The robot's near pairs in one compiled model; `robot_geoms` and `other_geoms` are geom ids."""
+    """The robot's near pairs in one compiled model: `robot_geoms` with the robot link of each, `other_geoms`
+    (geom ids) with the body of each in the model."""
 
-    def __init__(self, model: mujoco.MjModel, robot_geoms: list[int], other_geoms: list[int]) -> None:
+    def __init__(self, model: mujoco.MjModel, robot_geoms: list[int], links: list[int],
+                 other_geoms: list[int]) -> None:
         self.model = model
         self.robot_geoms = np.asarray(robot_geoms, dtype=np.int64)
+        self.links = [int(link) for link in links]
         self.other_geoms = np.asarray(other_geoms, dtype=np.int64)
+        self.bodies = [int(model.geom_bodyid[geom]) for geom in other_geoms]
         self._reach = (model.geom_rbound[self.robot_geoms][:, None] + model.geom_rbound[self.other_geoms][None, :]
                        + NEAR_DISTANCE)
         self._fromto = np.zeros(6)
 
-    def pairs(self, data: mujoco.MjData) -> list[NearPair]:
-        """Every (robot geom, other geom) pair closer than `NEAR_DISTANCE` with no contact between them."""
+    def pairs(self, data: mujoco.MjData, listed: set[tuple[int, int]]) -> list[NearPair]:
+        """One near pair per (robot link, body) closer than `NEAR_DISTANCE`, leaving out the pairs `listed`
+        (MuJoCo's contacts)."""
         if self.other_geoms.size == 0:
             return []
         robot = data.geom_xpos[self.robot_geoms]
         other = data.geom_xpos[self.other_geoms]
         apart = np.linalg.norm(robot[:, None, :] - other[None, :, :], axis=2)
+        seen = set(listed)
         found: list[NearPair] = []
         for i, j in zip(*np.nonzero(apart < self._reach), strict=True):
-            geom1, geom2 = int(self.robot_geoms[i]), int(self.other_geoms[j])
-            distance = mujoco.mj_geomDistance(self.model, data, geom1, geom2, NEAR_DISTANCE, self._fromto)
+            key = (self.links[i], self.bodies[j])
+            if key in seen:
+                continue
+            distance = mujoco.mj_geomDistance(self.model, data, int(self.robot_geoms[i]), int(self.other_geoms[j]),
+                                              NEAR_DISTANCE, self._fromto)
             if 0.0 <= distance < NEAR_DISTANCE:
+                seen.add(key)
                 x, y, z = ((self._fromto[:3] + self._fromto[3:]) / 2.0).tolist()
-                found.append((geom1, geom2, (float(x), float(y), float(z))))
+                found.append((key[0], key[1], (float(x), float(y), float(z))))
         return found

@@ -140,10 +140,8 @@ class MujocoPhysics:
             x, y, z = (float(v) for v in contact.pos)
             found.append((pair[0], pair[1], (x, y, z), float(force[0])))
         assert self._near is not None
-        for geom1, geom2, position in self._near.pairs(data):
-            pair = driven.touching(geom1, geom2)
-            if pair is not None:
-                found.append((pair[0], pair[1], position, 0.0))
+        listed = {(link, other) for link, other, _, _ in found}
+        found.extend((link, other, position, 0.0) for link, other, position in self._near.pairs(data, listed))
         return found
 
     def step(self, count: int) -> None:
