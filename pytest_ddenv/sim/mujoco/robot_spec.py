@@ -1,6 +1,6 @@
 """A wheeled URDF robot in MuJoCo: the URDF compiled by MuJoCo itself, then a free joint, ellipsoid wheels,
-velocity actuators with the robot's torque limit (each wheel joint with its servo's armature), and every robot geom in `ROBOT_GROUP` (the laser and the
-support rays leave it out).
+velocity actuators with the robot's torque limit (each wheel joint with its servo's armature), and every robot
+geom in `ROBOT_GROUP` (the laser and the support rays leave it out).
 
 MuJoCo's URDF reader refuses xacro leftovers such as the Husky's `$(optenv HUSKY_IMU_RPY 0 -1.5708 3.1416)`
 ("bad format in attribute 'xyz'"), so each `$(optenv NAME default)` becomes `default` in a copy of the text,
