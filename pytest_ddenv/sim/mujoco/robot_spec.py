@@ -113,7 +113,7 @@ def servo_armature(gain: float, timestep: float) -> float:
     MuJoCo's velocity actuator is a force outside the contact solver, whose effective mass of a wheel contact
     is the bare wheel's (the Husky's 0.025 kg m^2: 0.8 kg at the rim): it stopped a slipping wheel with a
     fraction of mu N, and the Husky turned 17 degrees in 3 s at 0.8 rad/s on the spot, against 57 in pybullet
-    (90 with this armature; straight driving unchanged; docs/scenarios-tuning.md, "In MuJoCo")."""
+    (88 with this armature; straight driving unchanged; docs/scenarios-tuning.md, "In MuJoCo")."""
     return gain * timestep
 
 
