@@ -49,8 +49,8 @@ def test_the_friction_world_leaves_the_husky_stuck_at_a_barrel(sim: Simulator) -
     run = sim.run(world, seed=0, predicates=[STUCK])
     assert run.failure is not None and run.failure.predicate == "stuck"
     # beside a barrel (0.87 m from Construction Barrel_3's axis to the robot's centre): where it stops, not what
-    # it touches at that instant, since MuJoCo lists only touching contacts, not PyBullet's near ones, and the
-    # barrel was in the list with the newest dependencies but not with the oldest allowed (.ci/lowest)
+    # it touches at that instant, since the barrel was in the list with the newest dependencies but not with the
+    # oldest allowed (.ci/lowest)
     x, y = run.failure.pose[:2]
     barrels = [model.pose for model in world.models if model.name.startswith("Construction Barrel")]
     assert min(math.hypot(pose.x - x, pose.y - y) for pose in barrels) < 1.0

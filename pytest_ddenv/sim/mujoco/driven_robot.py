@@ -85,6 +85,14 @@ class MujocoRobot(Robot):
             return link2, int(self.model.geom_bodyid[geom1])
         return None
 
+    def geoms_near_listed(self) -> tuple[list[int], list[int], list[int]]:
+        """The robot's geoms, the robot link of each, and the geoms of everything else but planes (the ground
+        is never a model)."""
+        robot = [g for g, link in enumerate(self._geom_link) if link != NOT_ROBOT]
+        others = [g for g, link in enumerate(self._geom_link)
+                  if link == NOT_ROBOT and self.model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE]
+        return robot, [self._geom_link[g] for g in robot], others
+
     def base_state(self) -> BaseState:
         """The chassis's centre of mass (pybullet's base position), the root's orientation, and the velocity
         at that point, in the world frame."""

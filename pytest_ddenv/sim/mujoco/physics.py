@@ -24,6 +24,7 @@ from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.mujoco.contacts import RAY_GROUPS
 from pytest_ddenv.sim.mujoco.driven_robot import MujocoRobot
+from pytest_ddenv.sim.mujoco.near import NearContacts
 from pytest_ddenv.sim.mujoco.robot_spec import PREFIX, ROOT_JOINT, robot_spec, tune_wheel_servos
 from pytest_ddenv.sim.mujoco.world_spec import world_spec
 from pytest_ddenv.sim.physics import BaseState, ContactPoint, ContactPosition, RayHit, Vector
@@ -45,6 +46,7 @@ class MujocoPhysics:
         self.data: mujoco.MjData | None = None
         self._bodies: dict[int, str] = {}
         self._robot: MujocoRobot | None = None
+        self._near: NearContacts | None = None
         self._geom_id = np.zeros(1, dtype=np.int32)
 
     @property
@@ -70,6 +72,7 @@ class MujocoPhysics:
         tune_wheel_servos(model, robot)
         self.model, self.data = model, mujoco.MjData(model)
         self._robot = MujocoRobot(robot, model, self.data)
+        self._near = NearContacts(model, *self._robot.geoms_near_listed())
         names = set(world.names)
         self._bodies = {b: model.body(b).name for b in range(1, model.nbody) if model.body(b).name in names}
         if world.ground is not None:
@@ -136,6 +139,9 @@ class MujocoPhysics:
             mujoco.mj_contactForce(model, data, index, force)
             x, y, z = (float(v) for v in contact.pos)
             found.append((pair[0], pair[1], (x, y, z), float(force[0])))
+        assert self._near is not None
+        listed = {(link, other) for link, other, _, _ in found}
+        found.extend((link, other, position, 0.0) for link, other, position in self._near.pairs(data, listed))
         return found
 
     def step(self, count: int) -> None:

@@ -1,6 +1,6 @@
 """A wheeled URDF robot in MuJoCo: the URDF compiled by MuJoCo itself, then a free joint, ellipsoid wheels,
-velocity actuators with the robot's torque limit, and every robot geom in `ROBOT_GROUP` (the laser and the
-support rays leave it out).
+velocity actuators with the robot's torque limit (each wheel joint with its servo's armature), and every robot
+geom in `ROBOT_GROUP` (the laser and the support rays leave it out).
 
 MuJoCo's URDF reader refuses xacro leftovers such as the Husky's `$(optenv HUSKY_IMU_RPY 0 -1.5708 3.1416)`
 ("bad format in attribute 'xyz'"), so each `$(optenv NAME default)` becomes `default` in a copy of the text,
@@ -90,14 +90,31 @@ def robot_spec(robot: WheeledRobot) -> mujoco.MjSpec:
 
 
 def tune_wheel_servos(model: mujoco.MjModel, robot: WheeledRobot) -> None:
-    """Each wheel actuator's gain in the compiled `model`: the Husky's `VELOCITY_GAIN`, else `SERVO_STEPS`
-    times the wheel's inertia about its axis per time step."""
+    """Each wheel actuator's gain in the compiled `model` (the Husky's `VELOCITY_GAIN`, else `SERVO_STEPS`
+    times the wheel's inertia about its axis per time step), and the wheel joint's armature: the servo as the
+    contact solver sees it (`servo_armature`)."""
+    timestep = float(model.opt.timestep)
     for name in robot.wheel_names:
         actuator = model.actuator(PREFIX + name).id
-        inertia = float(model.dof_M0[model.jnt_dofadr[model.joint(PREFIX + name).id]])
-        gain = VELOCITY_GAIN if isinstance(robot, Husky) else SERVO_STEPS * inertia / float(model.opt.timestep)
+        dof = int(model.jnt_dofadr[model.joint(PREFIX + name).id])
+        inertia = float(model.dof_M0[dof])
+        gain = VELOCITY_GAIN if isinstance(robot, Husky) else SERVO_STEPS * inertia / timestep
         model.actuator_gainprm[actuator, 0] = gain
         model.actuator_biasprm[actuator, 2] = -gain
+        model.dof_armature[dof] = servo_armature(gain, timestep)
+
+
+def servo_armature(gain: float, timestep: float) -> float:
+    """The inertia (kg m^2) a velocity servo of `gain` (N m s/rad) adds to its wheel in one implicit step,
+    `gain * timestep`, given to the wheel joint as armature so that the contact solver sees it.
+
+    pybullet's velocity motor is a constraint solved with the contacts: within its torque limit it holds the
+    wheel's speed, so the friction that turns a skid-steered robot pushes against a wheel that does not give.
+    MuJoCo's velocity actuator is a force outside the contact solver, whose effective mass of a wheel contact
+    is the bare wheel's (the Husky's 0.025 kg m^2: 0.8 kg at the rim): it stopped a slipping wheel with a
+    fraction of mu N, and the Husky turned 17 degrees in 3 s at 0.8 rad/s on the spot, against 57 in pybullet
+    (88 with this armature; straight driving unchanged; docs/scenarios-tuning.md, "In MuJoCo")."""
+    return gain * timestep
 
 
 def link_friction(urdf: str) -> dict[str, float]:
