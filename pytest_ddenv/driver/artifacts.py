@@ -285,7 +285,7 @@ def usage_of(logged: Iterable[events.Event]) -> Usage:
             continue
         if isinstance(event, events.Usage):
             runs[-1] = (event, 0)
-        elif isinstance(event, events.Probe):
+        elif isinstance(event, (events.Probe, events.EngineRun)):
             runs[-1] = (runs[-1][0], runs[-1][1] + 1)
     usages = [(usage or events.Usage(), after) for usage, after in runs]
     return Usage(len(runs), sum(usage.simulations + after for usage, after in usages),
