@@ -165,6 +165,17 @@ def test_a_failure_the_other_engine_does_not_reproduce_is_flagged_counted_and_re
     third = _reduce(out)["cross_engine"]
     assert third["simulations"] == len(engine_runs)
 
+    # killed after some of its cross-engine runs: the log ends after them; run again, only the rest are made
+    lines = log.read_text(encoding="utf-8").splitlines(keepends=True)
+    kept_runs = 3
+    cut = [index for index, line in enumerate(lines) if '"event": "engine-run"' in line][-len(engine_runs) + kept_runs]
+    log.write_text("".join(lines[:cut]), encoding="utf-8")
+    resumed = _reduce(out)["cross_engine"]
+    assert resumed["simulations"] == len(engine_runs) - kept_runs
+    assert sum(rate["reused"] for world in ("minimal", "original") for rate in resumed[world]["rates"]) == kept_runs
+    assert [(rate["fails"], rate["runs"]) for world in ("minimal", "original") for rate in resumed[world]["rates"]] \
+        == [(rate["fails"], rate["runs"]) for world in ("minimal", "original") for rate in crossed[world]["rates"]]
+
 
 PYTEST_PROJECT_TEST = textwrap.dedent(
     """\
