@@ -314,11 +314,6 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("engine", "the physics engine that simulates the world: pybullet or mujoco (default: the world file's "
             "physics.engine, else pybullet where it is installed, otherwise mujoco)", engine, "ENGINE",
             option="engine", marker="engine", flag="engine"),
-    Setting("confirm_engines", "after the reduction, run the minimal and the original world in these physics "
-            "engines too, comma-separated (pybullet, mujoco), as often as the reduction's own fresh runs of each, "
-            "and report both failure rates; a failure another engine does not reproduce is flagged as possibly an "
-            "artefact of the reduction's engine (the reduction's own engine named here adds nothing: a note says "
-            "so)", engines, "ENGINES", (), option="confirm-engines", marker="confirm_engines", flag="confirm-engines"),
     Setting("model_paths", "extra folders (separated by ':') searched for SDF <include>s of model://NAME",
             folders, "DIRS", option="model-path", flag="model-path"),
     Setting("partition", "partition schema (default model2model)", choice("partition", _partitions,
@@ -355,6 +350,11 @@ SETTINGS: tuple[Setting, ...] = (
             "attributes, time, explain, passing, or 'all' (default: models,explain,passing; under pytest the "
             "marker's stages= when not given on the command line)", stages, "LIST",
             option="stages", marker="stages", flag="stages"),
+    Setting("confirm_engines", "after the reduction, run the minimal and the original world in these physics "
+            "engines too, comma-separated (pybullet, mujoco), as often as the reduction's own fresh runs of each, "
+            "and report both failure rates; a failure another engine does not reproduce is flagged as possibly an "
+            "artefact of the reduction's engine (the reduction's own engine named here adds nothing: a note says "
+            "so)", engines, "ENGINES", (), option="confirm-engines", marker="confirm_engines", flag="confirm-engines"),
     Setting("stage_probes", "simulations each stage after the models may start (default: all of them together "
             "at most twice the model-level simulations)", integer(1), "N", option="stage-probes",
             flag="stage-probes"),

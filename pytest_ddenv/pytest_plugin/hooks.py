@@ -26,10 +26,10 @@ if TYPE_CHECKING:
 __all__ = ["DroppedModelsWarning", "robot_world"]
 
 MARKERS = (
-    ("ddenv(world=PATH, engine='pybullet'|'mujoco', confirm_engines='mujoco', partition=..., priority=..., "
-    "n_partitions=2, granularity='ddmin', deflake='auto', "
+    ("ddenv(world=PATH, engine='pybullet'|'mujoco', partition=..., priority=..., n_partitions=2, "
+    "granularity='ddmin', deflake='auto', "
     "tolerance=0.5, same_failure='all'|'place'|'touched'|function, keep=(...), seed=0, budget=N, "
-    "skip_unsupported=False, stages='models,explain,passing'): "
+    "skip_unsupported=False, stages='models,explain,passing', confirm_engines='mujoco'): "
     "the world of a robot scenario test and how to reduce it when the test fails under --ddenv-reduce."),
     ("robot_failure(NAME, **params, same_failure=...): a failure predicate checked while the robot runs "
     "(stuck, flipped, high_centered, fell, collided, timeout); stackable."),
