@@ -1,6 +1,7 @@
 """Failure-rate statistics, all of them: the reduction's end-of-run comparison, the stages' "does the rate
-drop", the deflake rule's sizing and `ddenv replay`'s confidence interval. `rate_check.py` runs the worlds
-and logs the comparison; the numbers are decided here.
+drop", the deflake rule's sizing, `ddenv replay`'s confidence interval and the cross-engine confirmation's
+flag (`clearly_below`). `rate_check.py` runs the worlds and logs the comparison; the numbers are decided
+here.
 
 Does a reduced world still fail as often as the original? A group-sequential one-sided test.
 
