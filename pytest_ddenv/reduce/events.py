@@ -224,8 +224,9 @@ class Probe(Event, name="probe"):
 @dataclass(frozen=True, kw_only=True)
 class EngineRun(Event, name="engine-run"):
     """One run of the minimal or the original world in another physics engine than the reduction's (or in its
-    own, for a world it made no fresh runs of), after the reduction (`--ddenv-confirm-engines`). `engine` is its name and version ("mujoco 3.3.0"): a resumed
-    reduction reuses the run only in the same engine of the same version."""
+    own, for a world it made no fresh runs of), after the reduction (`--ddenv-confirm-engines`). `engine` is
+    its name and version ("mujoco 3.3.0"): a resumed reduction reuses the run only in the same engine of the
+    same version."""
 
     NULLS_WRITTEN = frozenset({"seed", "signature"})
     engine: str
