@@ -194,13 +194,19 @@ PYTEST_PROJECT_TEST = textwrap.dedent(
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("workers", ["1", "2"])
-def test_a_pytest_reduction_reports_both_engines_rates(pytester: pytest.Pytester, workers: str) -> None:
+@pytest.mark.parametrize(("workers", "how"), [("1", "option"), ("2", "ini"), ("2", "marker")])
+def test_a_pytest_reduction_reports_both_engines_rates(pytester: pytest.Pytester, workers: str, how: str) -> None:
     pytester.makefile(".yaml", wall=(DATA / "wall.yaml").read_text(encoding="utf-8"))
     engines = pytester.path / "engines.txt"
-    pytester.makepyfile(test_wall=PYTEST_PROJECT_TEST.replace("ENGINES", repr(str(engines))))
+    source = PYTEST_PROJECT_TEST.replace("ENGINES", repr(str(engines)))
+    if how == "marker":
+        source = source.replace("deflake=1)", "deflake=1, confirm_engines='mujoco')")
+    pytester.makepyfile(test_wall=source)
+    if how == "ini":
+        pytester.makeini("[pytest]\nddenv_confirm_engines = mujoco\n")
+    given = ["--ddenv-confirm-engines", "mujoco"] if how == "option" else []
     result = pytester.runpytest_subprocess(
-        "-p", "no:cacheprovider", "--ddenv-reduce", "--ddenv-engine", "pybullet", "--ddenv-confirm-engines", "mujoco",
+        "-p", "no:cacheprovider", "--ddenv-reduce", "--ddenv-engine", "pybullet", *given,
         "--ddenv-workers", workers, "--ddenv-media", "none")
     result.assert_outcomes(failed=1)  # never turned into a pass
     result.stdout.fnmatch_lines([
