@@ -78,8 +78,9 @@ def rate_text(rate: dict[str, Any]) -> str:
 
 
 def rates_table(rows: list[dict[str, Any]]) -> str:
-    lines = ["| scenario | seed | models | minimal: reduction's engine | minimal: other engine | original: reduction's "
-             "engine | original: other engine | flag |", "|---|---|---|---|---|---|---|---|"]
+    header = ("| scenario | seed | models | minimal: reduction's engine | minimal: other engine | original: "
+              "reduction's engine | original: other engine | flag |")
+    lines = [header, "|---|---|---|---|---|---|---|---|"]
     for row in rows:
         if "error" in row:
             lines.append(f"| {row['scenario']} | {row['seed']} | {row.get('size', '')} | error: "
@@ -97,9 +98,9 @@ def cost_table(rows: list[dict[str, Any]]) -> str:
     for row in rows:
         if "error" in row:
             continue
-        lines.append(f"| {row['scenario']} | {row['seed']} | {row['reduction_simulations']}, {row['reduction_cpu']:.1f}, "
-                     f"{row['reduction_wall']:.1f} | {row['confirm_simulations']}, {row['confirm_cpu']:.1f}, "
-                     f"{row['confirm_wall']:.1f} |")
+        lines.append(f"| {row['scenario']} | {row['seed']} | {row['reduction_simulations']}, "
+                     f"{row['reduction_cpu']:.1f}, {row['reduction_wall']:.1f} | {row['confirm_simulations']}, "
+                     f"{row['confirm_cpu']:.1f}, {row['confirm_wall']:.1f} |")
     return "\n".join(lines)
 
 
