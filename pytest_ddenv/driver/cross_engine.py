@@ -16,8 +16,9 @@ the same world, attempt, engine and version (the log itself is resumed only for 
 from __future__ import annotations
 
 import concurrent.futures
+import functools
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -228,25 +229,36 @@ def _reused(log: ProbeLog, plan: list[_Run]) -> dict[_Run, Outcome]:
 
 
 def _run_all(runs: list[_Run], calls: Calls, log: ProbeLog, workers: int) -> dict[_Run, Outcome]:
-    """Make `runs` on the pool, `workers` at a time; each logged (in this thread) as it completes."""
+    """Make `runs` on the pool, `workers` at a time (one: in this thread, as the engine's probes of an
+    in-process pool, whose wall-clock alarm needs the main thread); each logged in this thread as it completes."""
     outcomes: dict[_Run, Outcome] = {}
-    if not runs:
+
+    def finished(run: _Run, result: ProbeResult | None) -> None:
+        outcome = Outcome.ERROR if result is None else classify_result(result.error, calls.reference, calls.rule)
+        outcomes[run] = outcome
+        _log(log, run, result, outcome)
+
+    if workers <= 1:
+        for run in runs:
+            finished(run, _made(functools.partial(calls, run.world, run.attempt)))
         return outcomes
-    threads = concurrent.futures.ThreadPoolExecutor(max(1, workers), thread_name_prefix="ddenv-cross-engine")
+    threads = concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="ddenv-cross-engine")
     try:
         futures = {threads.submit(calls, run.world, run.attempt): run for run in runs}
         for future in concurrent.futures.as_completed(futures):
-            run = futures[future]
-            try:
-                result: ProbeResult | None = future.result()
-            except Exception:  # noqa: BLE001 - a worker that died, a deadline: an error, never a verdict
-                result = None
-            outcome = Outcome.ERROR if result is None else classify_result(result.error, calls.reference, calls.rule)
-            outcomes[run] = outcome
-            _log(log, run, result, outcome)
+            finished(futures[future], _made(future.result))
     finally:
         threads.shutdown(wait=False, cancel_futures=True)
     return outcomes
+
+
+def _made(call: Callable[[], ProbeResult]) -> ProbeResult | None:
+    """What `call` returned; None when it raised (a worker that died, the time budget): an error, never a
+    verdict."""
+    try:
+        return call()
+    except Exception:  # noqa: BLE001
+        return None
 
 
 def _log(log: ProbeLog, run: _Run, result: ProbeResult | None, outcome: Outcome) -> None:
