@@ -206,3 +206,24 @@ def test_bench_stages_parses_the_examples_predicates_and_shortens_findings():
     assert bench_stages.short({"findings": ["a: x 1.2 -> 1 (the failure holds)", "b: the failure needs y"]}) == (
         "1 held; b: the failure needs y")
     assert bench_stages.short({"findings": [], "reverted": True}) == "reverted (rate)"
+
+
+def test_bench_confirm_engines_runs_ddenv_reduce_with_the_other_engine_and_tabulates_its_rows():
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import bench_confirm_engines
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+
+    words = bench_confirm_engines.command("rubble", 2, "mujoco", Path("out"))
+    assert words[words.index("--confirm-engines") + 1] == "pybullet" and words[words.index("--seed") + 1] == "2"
+    assert words.count("-p") == 2
+    rate = {"engine": "pybullet", "fails": 10, "runs": 10, "errors": 0, "interval": [0.7225, 1.0]}
+    other = {**rate, "engine": "mujoco", "fails": 0, "interval": [0.0, 0.2775]}
+    row = {"scenario": "ditch", "seed": 0, "size": "43 -> 2", "minimal": [rate, other], "original": [rate, rate],
+           "flag": "possibly an artefact of the pybullet physics", "confirm_simulations": 20, "confirm_cpu": 3.0,
+           "confirm_wall": 2.5, "reduction_simulations": 40, "reduction_cpu": 9.0, "reduction_wall": 20.0}
+    assert ("| ditch | 0 | 43 -> 2 | pybullet 10/10 [0.72, 1.00] | mujoco 0/10 [0.00, 0.28] | pybullet 10/10 "
+            "[0.72, 1.00] | pybullet 10/10 [0.72, 1.00] | possibly an artefact of the pybullet physics |"
+            ) in bench_confirm_engines.rates_table([row])
+    assert "| ditch | 0 | 40, 9.0, 20.0 | 20, 3.0, 2.5 |" in bench_confirm_engines.cost_table([row])

@@ -758,7 +758,7 @@ def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicat
         granularity=arguments.granularity, deflake=arguments.deflake, tolerance=arguments.tolerance,
         same_failure=arguments.same_failure_match, keep=keep,
         seed=arguments.seed, max_probes=arguments.max_probes, max_seconds=arguments.max_seconds,
-        stages=arguments.stages, stage_probes=arguments.stage_probes,
+        stages=arguments.stages, stage_probes=arguments.stage_probes, confirm_engines=arguments.confirm_engines,
     )
     folder = _artifacts_folder(arguments)
     command = "ddenv " + " ".join(shlex.quote(a) for a in _command_line(arguments))

@@ -277,8 +277,8 @@ class Usage:
 
 def usage_of(logged: Iterable[events.Event]) -> Usage:
     """What the earlier runs in a log cost. Each run starts with a ``session`` event and records its
-    cumulative ``usage`` at every accepted step and at its end; a run stopped in between adds the probes it
-    logged after its last ``usage`` event."""
+    cumulative ``usage`` at every accepted step and at its end; a run stopped in between adds the probes (and
+    cross-engine runs) it logged after its last ``usage`` event."""
     runs: list[tuple[events.Usage | None, int]] = []  # (its last usage, the probes it logged after it)
     for event in logged:
         if isinstance(event, events.Session) or (not runs and isinstance(event, (events.Start, events.Probe))):
@@ -289,7 +289,7 @@ def usage_of(logged: Iterable[events.Event]) -> Usage:
             continue
         if isinstance(event, events.Usage):
             runs[-1] = (event, 0)
-        elif isinstance(event, events.Probe):
+        elif isinstance(event, (events.Probe, events.EngineRun)):
             runs[-1] = (runs[-1][0], runs[-1][1] + 1)
     usages = [(usage or events.Usage(), after) for usage, after in runs]
     return Usage(len(runs), sum(usage.simulations + after for usage, after in usages),

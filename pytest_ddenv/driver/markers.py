@@ -37,6 +37,8 @@ class ReductionSpec:
     world: str | None = None
     engine: str | None = None
     """The physics engine chosen for the test's world (None: the world's `physics.engine`)."""
+    confirm_engines: tuple[str, ...] = ()
+    """The other engines the minimal and original worlds are run in after the reduction (`driver/cross_engine.py`)."""
     partition: str = defaults.PARTITION
     priority: str = defaults.PRIORITY
     n_partitions: int = defaults.N_PARTITIONS

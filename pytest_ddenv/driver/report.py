@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 from pytest_ddenv.reduce import Reduction
 
 if TYPE_CHECKING:
+    from pytest_ddenv.driver.cross_engine import CrossEngine
     from pytest_ddenv.driver.other_failures import OtherFailure, Reproduction
     from pytest_ddenv.oracle.verdict import SameFailureRule
     from pytest_ddenv.stages import StagesOutcome
@@ -109,6 +110,8 @@ class ReductionReport:
     """The rule that decided which failures are the reference failure (None: the default rule, `tolerance`)."""
     engine: str = ""
     """The physics engine that ran every probe and its version ("pybullet 3.2.7"; empty: not known)."""
+    cross_engine: CrossEngine | None = None
+    """The minimal and original worlds' failure rates in other engines (`--ddenv-confirm-engines`), if asked."""
     reproduction: Reproduction | None = None
     """Set when the original world's fresh runs rarely failed the same way: how often, and the reason seen most
     (`other_failures.original_reproduction`)."""
@@ -184,6 +187,8 @@ class ReductionReport:
             summary["stage_files"] = dict(self.stage_files)
         if self.media is not None:
             summary["media"] = dict(self.media)
+        if self.cross_engine is not None:
+            summary["cross_engine"] = self.cross_engine.to_json()
         return summary
 
 

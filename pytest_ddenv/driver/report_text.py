@@ -52,6 +52,7 @@ def result_lines(report: ReductionReport) -> list[str]:
         *same_failure_lines(report),
         failure_rate_line(reduction),
         *stage_lines(report),
+        *([] if report.cross_engine is None else report.cross_engine.lines()),
         *other_failure_lines(report),
         *(f"note: {text}" for text in report.notes),
         *(f"not simulated: {text}" for text in report.world_notes),

@@ -23,6 +23,7 @@ from pytest_ddenv.driver import artifacts
 from pytest_ddenv.driver.calls import Calls
 from pytest_ddenv.driver.code_identity import CodeIdentity
 from pytest_ddenv.driver.confirm import Confirmation, ConfirmationRun, confirm
+from pytest_ddenv.driver.cross_engine import CrossEngine, confirm_in_engines
 from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.driver.other_failures import original_reproduction, other_failures
 from pytest_ddenv.driver.problem import ENGINE_PART, Problem, problem_of
@@ -73,9 +74,9 @@ if TYPE_CHECKING:
 
 TRAJECTORY_PARTITIONS = ("timeseg", "trajectoryseg")
 TRAJECTORY_PRIORITIES = ("failure-proximal", "avg-trajectory-proximal", "min-trajectory-proximal", "timestep")
-BUDGETS = ("max_probes", "max_seconds", "stages", "stage_probes")
-"""Settings that do not change the problem: a run with another budget (or other stages after the models)
-resumes the same log."""
+BUDGETS = ("max_probes", "max_seconds", "stages", "stage_probes", "confirm_engines")
+"""Settings that do not change the problem: a run with another budget (or other stages after the models, or
+other engines to confirm in) resumes the same log."""
 
 
 @dataclass(frozen=True)
@@ -215,8 +216,8 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool[ProbeResult], calls: Calls, p
                    confirmations: tuple[ConfirmationRun, ...],
                    on_progress: Callable[[ProgressEvent], None] | None) -> ReductionOutcome:
     """The reduction once its folder is locked and its log open, in its phases: the model-level reduction,
-    the runs to show, the stages, the files (`_Locked`). Ctrl-C in a phase skips the phases after it but the
-    files."""
+    the runs to show, the stages, the other engines (`cross_engine.py`), the files (`_Locked`). Ctrl-C in a
+    phase skips the phases after it but the files."""
     locked = _Locked(plan, pool, calls, paths, log, problem, notes, on_progress)
     for attempt, result, verdict in confirmations:
         _log_run(log, "confirmation", plan.world.names, attempt, result, verdict)
@@ -227,16 +228,20 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool[ProbeResult], calls: Calls, p
     minimal_run: Run | None = None
     shown: list[Shown] = []
     staged: StagesOutcome | None = None
+    crossed: CrossEngine | None = None
     try:
         if interrupted is None:
             minimal_run, shown = locked.runs_to_show(reduction, confirmations)
         if interrupted is None and len(plan.spec.stages or DEFAULT_STAGES) > 1 and reduction.minimal:
             staged = _run_stages(plan, pool, reduction, calls, log, paths, minimal_run)
+        if interrupted is None and plan.spec.confirm_engines:
+            crossed = confirm_in_engines(plan.spec.confirm_engines, plan.world, reduction, calls, log, pool,
+                                         max_probes=plan.spec.max_probes)
     except KeyboardInterrupt as stop:  # the models are reduced: the summary says so, no pictures
         pool.close()
         interrupted = ReductionInterrupted(reduction)
         interrupted.__cause__ = stop
-    outcome = locked.write(reduction, staged, interrupted, minimal_run, shown)
+    outcome = locked.write(reduction, staged, interrupted, minimal_run, shown, crossed)
     if outcome.interrupted is not None:
         outcome.interrupted.outcome = outcome
         raise outcome.interrupted
@@ -365,7 +370,7 @@ class _Locked:
         return minimal_run, shown
 
     def write(self, reduction: Reduction, staged: StagesOutcome | None, interrupted: ReductionInterrupted | None,
-              minimal_run: Run | None, shown: list[Shown]) -> ReductionOutcome:
+              minimal_run: Run | None, shown: list[Shown], crossed: CrossEngine | None = None) -> ReductionOutcome:
         """The minimal world, the summary, the stage worlds, the pictures and the media. Ctrl-C (or SIGTERM)
         while the files are written waits until the summary is (the reduction's result is never left "in
         progress"), and stops the pictures and media; the outcome's `interrupted` is then set."""
@@ -393,7 +398,7 @@ class _Locked:
                 notes=tuple(dict.fromkeys([*self.notes, *self.pool.notes])),
                 world_notes=tuple(plan.world.notes), stages=staged,
                 stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
-                run_settings=plan.run_settings, other_failures=others)
+                run_settings=plan.run_settings, other_failures=others, cross_engine=crossed)
             artifacts.write_json(paths.summary, report.to_json())
         if deferred and interrupted is None:
             interrupted = ReductionInterrupted(reduction)

@@ -213,6 +213,21 @@ def engine(value: Any, where: str, text: bool) -> str:
     return str(value)
 
 
+MAX_CONFIRM_ENGINES = 8
+"""Names a list of engines to confirm in may hold as given (there are two engines): what is beyond is refused
+unread."""
+
+
+def engines(value: Any, where: str, text: bool) -> tuple[str, ...]:
+    """Physics engines installed here, comma-separated ('mujoco', 'pybullet,mujoco') or a list; each once."""
+    if not isinstance(value, (str, list, tuple)):
+        raise SettingError(expected("a comma-separated string or a list of engine names", value, where))
+    items = [item.strip() for item in value.split(",")] if isinstance(value, str) else list(value)
+    if not items or len(items) > MAX_CONFIRM_ENGINES:
+        raise SettingError(expected(f"1 to {MAX_CONFIRM_ENGINES} engine names", value, where))
+    return tuple(dict.fromkeys(engine(item, where, text) for item in items))
+
+
 def names(value: Any, where: str, text: bool) -> tuple[str, ...]:
     """Model names: one, or a list of them."""
     given = (value,) if isinstance(value, str) else value
@@ -335,6 +350,11 @@ SETTINGS: tuple[Setting, ...] = (
             "attributes, time, explain, passing, or 'all' (default: models,explain,passing; under pytest the "
             "marker's stages= when not given on the command line)", stages, "LIST",
             option="stages", marker="stages", flag="stages"),
+    Setting("confirm_engines", "after the reduction, run the minimal and the original world in these physics "
+            "engines too, comma-separated (pybullet, mujoco), as often as the reduction's own fresh runs of each, "
+            "and report both failure rates; a failure another engine does not reproduce is flagged as possibly an "
+            "artefact of the reduction's engine (the reduction's own engine named here adds nothing: a note says "
+            "so)", engines, "ENGINES", (), option="confirm-engines", marker="confirm_engines", flag="confirm-engines"),
     Setting("stage_probes", "simulations each stage after the models may start (default: all of them together "
             "at most twice the model-level simulations)", integer(1), "N", option="stage-probes",
             flag="stage-probes"),

@@ -29,7 +29,7 @@ MARKERS = (
     ("ddenv(world=PATH, engine='pybullet'|'mujoco', partition=..., priority=..., n_partitions=2, "
     "granularity='ddmin', deflake='auto', "
     "tolerance=0.5, same_failure='all'|'place'|'touched'|function, keep=(...), seed=0, budget=N, "
-    "skip_unsupported=False, stages='models,explain,passing'): "
+    "skip_unsupported=False, stages='models,explain,passing', confirm_engines='mujoco'): "
     "the world of a robot scenario test and how to reduce it when the test fails under --ddenv-reduce."),
     ("robot_failure(NAME, **params, same_failure=...): a failure predicate checked while the robot runs "
     "(stuck, flipped, high_centered, fell, collided, timeout); stackable."),
@@ -98,7 +98,7 @@ def robot_world(request: pytest.FixtureRequest) -> RobotWorld:
     binding = request.config.stash.get(PROBE_BINDING, None)
     if binding is not None:
         binding.robot_world = RobotWorld(binding.world, predicates=predicates, seed=seed, attempt=binding.attempt,
-                                         max_wall_time=timeout, engine=engine)
+                                         max_wall_time=timeout, engine=binding.world.physics.engine)  # the probe's
         return binding.robot_world
     problem: str | None = None
     try:

@@ -46,6 +46,8 @@ class DdenvOptions:
     media: str
     keep_other: int = 0
     """Write the smallest worlds of this many other failures a reduction met (`other-<k>.yaml`)."""
+    confirm_engines: tuple[str, ...] | None = None
+    """--ddenv-confirm-engines (None: the marker's confirm_engines=, else none)."""
 
     def stages_for(self, marker: tuple[str, ...] | None) -> tuple[str, ...] | None:
         """--ddenv-stages, else the marker's stages=, else the ini value (None: the default stages)."""
@@ -162,6 +164,7 @@ def _read_options(config: pytest.Config) -> DdenvOptions:
         stages_ini=_checked(config, "stages", config.getini("ddenv_stages") or None),
         stage_probes=_checked(config, "stage_probes"), run_timeout=_checked(config, "run_timeout"),
         media=_checked(config, "media"), keep_other=_checked(config, "keep_other") or 0,
+        confirm_engines=_checked(config, "confirm_engines"),
     )
 
 

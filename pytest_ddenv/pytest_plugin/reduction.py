@@ -149,6 +149,7 @@ def _reduce_failed_test(plugin: ReductionPlugin, item: pytest.Function, error: B
         stages=options.stages_for(spec.stages),
         stage_probes=options.stage_probes,
         engine=options.engine or spec.engine,
+        confirm_engines=spec.confirm_engines if options.confirm_engines is None else options.confirm_engines,
     )
     progress = PytestProgress(item.config, item.nodeid)
     session = ReductionSession(

@@ -147,11 +147,12 @@ def describe_reduction(test_id: str, report: ReductionReport, attachments: Seque
         f"artifacts: {folder}",
         f"replay: {report.replay}",
     ]
+    rates = f"fails {fails}/{runs}" if report.cross_engine is None else report.cross_engine.terminal()
     line = (
         f"{test_id}: {reduction.original_size} -> {reduction.minimal_size} models "
         f"({report.reduction_percent:.0f}%), {reduction.probes} probes, {report.cost.simulations} simulations, "
         f"{reduction.wall_time if seconds is None else seconds:.0f} s, "
-        f"fails {fails}/{runs}{'' if reduction.one_minimal else ', ' + status} -> {folder}"
+        f"{rates}{'' if reduction.one_minimal else ', ' + status} -> {folder}"
     )
     return {"text": "\n".join(lines) + "\n", "line": line, "attachments": [str(p) for p in attachments],
             "summary": report.to_json(), "reproducible": True, "status": "reduced"}

@@ -223,7 +223,7 @@ def bind_probe(item: pytest.Function, binding: ProbeBinding) -> None:
     if not isinstance(given, RobotWorld):
         return
     if given.world is not binding.world or given.attempt != binding.attempt:
-        given = given.rebound(binding.world, attempt=binding.attempt)
+        given = given.rebound(binding.world, attempt=binding.attempt, engine=binding.world.physics.engine)
         item.funcargs[FIXTURE] = given
     binding.robot_world = given
 
@@ -247,7 +247,7 @@ class ItemHandler:
         self.original = original
 
     def __call__(self, world: World, attempt: int) -> ProbeResult:
-        rebound = self.original.rebound(world, attempt=attempt)
+        rebound = self.original.rebound(world, attempt=attempt, engine=world.physics.engine)  # the probe's
         arguments = {**self.arguments, FIXTURE: rebound}
         error = None
         try:

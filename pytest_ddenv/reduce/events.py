@@ -222,6 +222,31 @@ class Probe(Event, name="probe"):
 
 
 @dataclass(frozen=True, kw_only=True)
+class EngineRun(Event, name="engine-run"):
+    """One run of the minimal or the original world in another physics engine than the reduction's (or in its
+    own, for a world it made no fresh runs of), after the reduction (`--ddenv-confirm-engines`). `engine` is
+    its name and version ("mujoco 3.3.0"): a resumed reduction reuses the run only in the same engine of the
+    same version."""
+
+    NULLS_WRITTEN = frozenset({"seed", "signature"})
+    engine: str
+    world: str
+    """"minimal" or "original"."""
+    candidate: Names
+    attempt: Count
+    seed: Count | None = None
+    outcome: OutcomeName
+    signature: JsonObject | None = None
+    sim_time: float | None = None
+    wall_time: float | None = None
+
+    @property
+    def result(self) -> Outcome:
+        """`outcome` as an `Outcome`."""
+        return Outcome(self.outcome)
+
+
+@dataclass(frozen=True, kw_only=True)
 class OfCandidate(Event):
     """An event about one candidate world: its elements in original order, their number, and the kind of trial
     that made it (the engine's)."""
@@ -352,7 +377,7 @@ class End(Event, name="end"):
 
 KINDS: Mapping[str, type[Event]] = {kind.NAME: kind for kind in (
     Problem, Session, Usage, Start, Round, Probe, Accept, Reject, Errored, CacheHit, RateBelow, Skip, Step,
-    BackOff, Calibration, FailureRate, PreconditionCheck, RateCheck, FailurePath, End)}
+    BackOff, Calibration, FailureRate, PreconditionCheck, RateCheck, FailurePath, EngineRun, End)}
 """Every kind of event, by the name a line spells it with."""
 VERDICTS: tuple[type[Decided], ...] = (Accept, Reject, CacheHit, RateBelow)
 """The decisions a resumed reduction reuses (unless `errored`)."""

@@ -1,6 +1,7 @@
 """Failure-rate statistics, all of them: the reduction's end-of-run comparison, the stages' "does the rate
-drop", the deflake rule's sizing and `ddenv replay`'s confidence interval. `rate_check.py` runs the worlds
-and logs the comparison; the numbers are decided here.
+drop", the deflake rule's sizing, `ddenv replay`'s confidence interval and the cross-engine confirmation's
+flag (`clearly_below`). `rate_check.py` runs the worlds and logs the comparison; the numbers are decided
+here.
 
 Does a reduced world still fail as often as the original? A group-sequential one-sided test.
 
@@ -116,6 +117,13 @@ def p_below(rate: Rate, reference: Rate) -> float:
 
     table = [[rate.fails, rate.runs - rate.fails], [reference.fails, reference.runs - reference.fails]]
     return float(fisher_exact(table, alternative="less").pvalue)
+
+
+def clearly_below(rate: Rate, reference: Rate, level: float = LEVEL) -> bool:
+    """`rate` is significantly below `reference`: the end-of-run comparison's test (`p_below`, one-sided Fisher
+    exact) at `level` (5 %) on a single look. Used for another physics engine's rate of a world against the
+    reduction's engine's (`driver/cross_engine.py`); False when either has no runs."""
+    return rate.runs > 0 and reference.runs > 0 and p_below(rate, reference) < level
 
 
 def estimated(rate: Rate) -> float:

@@ -133,16 +133,19 @@ class RobotWorld:
         return (f"RobotWorld({self.world.name or self.world.source!r}, {count} model{'s' if count != 1 else ''}, "
                 f"seed={self.seed})")
 
-    def rebound(self, world: World, *, attempt: int | None = None) -> RobotWorld:
+    def rebound(self, world: World, *, attempt: int | None = None, engine: str | None = None) -> RobotWorld:
         """The same test setup (predicates, seed, time limits, chosen engine) on another world: a world the
         test generates (``@given(world=strategies.worlds())``: ``robot_world.rebound(world).run()``), or a
-        reduction probe's candidate world and attempt. `attempt` defaults to this one's."""
+        reduction probe's candidate world and attempt. `attempt` defaults to this one's; `engine` (default:
+        this one's) is the engine the new one runs its worlds in (a probe's: its world's, which may be another
+        engine than the test's when a reduction confirms the failure in it)."""
         world = checked_world(world, "robot_world.rebound(world=...)")
-        if self.engine is not None and world.physics.engine != self.engine:
-            world = world.with_engine(self.engine)
+        engine = self.engine if engine is None else engine
+        if engine is not None and world.physics.engine != engine:
+            world = world.with_engine(engine)
         bound = RobotWorld(world, predicates=self.predicates, seed=self.seed,
                            attempt=self.attempt if attempt is None else attempt, max_wall_time=self.max_wall_time,
-                           engine=self.engine)
+                           engine=engine)
         self.rebound_to = bound
         return bound
 
