@@ -33,6 +33,16 @@ FILE_ATTRIBUTES = ("file", "meshdir", "texturedir", "assetdir")
 REGENERATED_TOLERANCE = 1e-5
 """How far a regenerated scene's numbers may be from the minimal world's (MuJoCo writes 6 significant digits)."""
 COMPARED = ("models", "scenario", "physics", "ground", "name")
+NAMESPACE_OF_TAG = {"freejoint": "joint", "xbody": "body"}
+"""The namespace of a named element inside a body, when it is not the tag itself (MuJoCo keeps one per kind)."""
+NAMESPACE_OF_ATTRIBUTE = {"body": "body", "body1": "body", "body2": "body", "joint": "joint", "joint1": "joint",
+                          "joint2": "joint", "jointinparent": "joint", "geom": "geom", "geom1": "geom",
+                          "geom2": "geom", "site": "site", "site1": "site", "site2": "site", "cranksite": "site",
+                          "slidersite": "site", "camera": "camera", "light": "light", "tendon": "tendon",
+                          "actuator": "actuator", "class": "default", "childclass": "default"}
+"""What the attributes of `<actuator>`, `<sensor>`, ... refer to; any other attribute value may name anything."""
+Named = tuple[str, str]
+"""(namespace, name); a namespace of "" is any (an attribute whose kind is not known: cut when in doubt)."""
 
 
 class MjcfSurgeryError(WorldError):
@@ -45,10 +55,10 @@ class _Element:
     attributes: dict[str, str]
     start: int
     end: int = -1
-    names: set[str] = field(default_factory=set)
-    """Every `name` inside it (itself included)."""
-    values: set[str] = field(default_factory=set)
-    """Every attribute value inside it other than names (what it refers to)."""
+    names: set[Named] = field(default_factory=set)
+    """Every `name` inside it (itself included), with its namespace."""
+    values: set[Named] = field(default_factory=set)
+    """Every attribute value inside it other than names (what it refers to), with the namespace it names in."""
 
 
 @dataclass
@@ -82,11 +92,11 @@ def _layout(data: bytes, source: Path) -> _Layout:
             layout.scenario = element
         layout.relative_files.extend(value for key, value in attributes.items()
                                      if key in FILE_ATTRIBUTES and value and not Path(value).is_absolute())
-        for entry in stack:
-            entry.names.update([attributes["name"]] if "name" in attributes else [])
-            entry.values.update(value for key, value in attributes.items() if key != "name")
-        element.names.update([attributes["name"]] if "name" in attributes else [])
-        element.values.update(value for key, value in attributes.items() if key != "name")
+        named = {(NAMESPACE_OF_TAG.get(tag, tag), attributes["name"])} if "name" in attributes else set()
+        refers = _references(tag, attributes)
+        for entry in (*stack, element):
+            entry.names.update(named)
+            entry.values.update(refers)
         stack.append(element)
 
     def end(tag: str) -> None:
@@ -102,6 +112,25 @@ def _layout(data: bytes, source: Path) -> _Layout:
     except xml.parsers.expat.ExpatError as error:
         raise MjcfSurgeryError(f"cannot locate the elements: {error}", source=source) from None
     return layout
+
+
+def _references(tag: str, attributes: dict[str, str]) -> set[Named]:
+    """What an element's attributes may name: (namespace, name), namespace "" when the attribute's is not known
+    (`objname` names in its `objtype`, `refname` in its `reftype`)."""
+    refers: set[Named] = set()
+    for key, value in attributes.items():
+        if key == "name":
+            continue
+        namespace = (attributes.get("objtype", "") if key == "objname" else attributes.get("reftype", "")
+                     if key == "refname" else NAMESPACE_OF_ATTRIBUTE.get(key, ""))
+        refers.add((NAMESPACE_OF_TAG.get(namespace, namespace), value))
+    return refers
+
+
+def _names_any(values: set[Named], gone: set[Named]) -> bool:
+    """Whether a reference in `values` names one of `gone` (in its namespace, or in any for an unknown one)."""
+    names = {name for _, name in gone}
+    return any((namespace, name) in gone if namespace else name in names for namespace, name in values)
 
 
 def _tag_end(data: bytes, at: int) -> int:
@@ -164,11 +193,11 @@ def cut_bodies(path: str | Path, removed: Collection[str], *, write_scenario: bo
     if found != removed:
         raise MjcfSurgeryError(f"cannot find the bodies {', '.join(sorted(removed - found))} in the file's "
                                "<worldbody>", source=source)
-    gone = set().union(*(element.names for element in cuts)) if cuts else set()
-    also = [element for element in layout.referring if element.values & gone]
+    gone: set[Named] = set().union(*(element.names for element in cuts)) if cuts else set()
+    also = [element for element in layout.referring if _names_any(element.values, gone)]
     also_cut = tuple(f"<{e.tag} {e.attributes.get('name') or ''}>".replace(" >", ">") for e in also)
     for file, text in list(scene.files.items())[1:]:  # included files are not edited
-        if any(element.values & gone for element in _layout(text, file).referring):
+        if any(_names_any(element.values, gone) for element in _layout(text, file).referring):
             raise MjcfSurgeryError(f"the included file {file} names something inside a removed body", source=source)
     edits: list[tuple[int, int, bytes]] = [(*_extent(data, e.start, e.end), b"") for e in (*cuts, *also)]
     if write_scenario:

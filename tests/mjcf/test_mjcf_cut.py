@@ -77,6 +77,34 @@ def test_elements_naming_a_removed_body_are_cut_too_and_said() -> None:
         "actuators: rail_drive; the scene's actuators are not driven (the robot comes from the scenario)"]
 
 
+NAMESAKES = """<mujoco>
+  <worldbody>
+    <geom type="plane" size="10 10 0.1"/>
+    <body name="wall" pos="2 0 0.5">
+      <geom name="probe" type="box" size="0.1 1 0.5"/>
+    </body>
+    <body name="crate" pos="-2 0 0.25">
+      <freejoint name="probe"/>
+      <geom type="box" size="0.25 0.25 0.25"/>
+    </body>
+  </worldbody>
+  <sensor>
+    <framepos name="wall_place" objtype="geom" objname="probe"/>
+    <jointpos name="crate_slide" joint="probe"/>
+  </sensor>
+</mujoco>
+"""
+
+
+def test_only_the_elements_naming_a_removed_body_in_their_own_namespace_are_cut(tmp_path: Path) -> None:
+    source = tmp_path / "namesakes.xml"  # a geom of the kept wall and the removed crate's joint share a name
+    source.write_text(NAMESAKES, encoding="utf-8")
+    cut = cut_bodies(source, ["crate"])
+    assert cut.also_cut == ("<jointpos crate_slide>",)
+    assert b'<framepos name="wall_place" objtype="geom" objname="probe"/>' in cut.data
+    assert top_level_bodies(cut.data, source) == ["wall"]
+
+
 def test_a_scenario_given_for_the_reduction_is_written_into_the_file() -> None:
     source = CORPUS / "wall_in_the_way.xml"
     world = load_mjcf(source)
