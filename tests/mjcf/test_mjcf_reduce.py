@@ -70,3 +70,25 @@ def test_a_scenario_from_the_command_line_is_written_into_minimal_xml(tmp_path: 
     assert minimal.names == ("wall",)
     assert minimal.scenario is not None and minimal.scenario.goal == (5.0, 0.0, None)
     assert minimal.scenario.timeout == 12.0
+
+
+def test_a_pytest_scenario_test_on_an_mjcf_scene_is_reduced_to_a_cut_minimal_xml(pytester: pytest.Pytester) -> None:
+    pytester.makefile(".xml", scene=SCENE.read_text())
+    pytester.makepyfile(
+        """
+        import pytest
+
+        @pytest.mark.ddenv(world="scene.xml")
+        @pytest.mark.robot_failure("stuck", window=2.0)
+        def test_reaches_the_goal(robot_world):
+            robot_world.run()
+        """
+    )
+    result = pytester.runpytest_subprocess("--ddenv-reduce", "--ddenv-workers", "1", "--ddenv-media", "none")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*test_reaches_the_goal: 4 -> 1 models*"])
+    artifacts = next((pytester.path / "ddenv-artifacts").iterdir())
+    summary = json.loads((artifacts / "summary.json").read_text())
+    assert summary["engine"]["name"] == "mujoco"  # an MJCF scene runs in MuJoCo unless told otherwise
+    assert summary["minimal_models"] == ["wall"] and summary["minimal_xml"].startswith("cut from ")
+    assert load_mjcf(artifacts / "minimal.xml").names == ("wall",)
