@@ -10,6 +10,7 @@ import joblib
 import pytest
 import scipy.stats  # noqa: F401
 import yaml  # noqa: F401  # likewise: its C parser (yaml._yaml) outlives a re-import of the yaml package
+from engines import ENGINE_PARAMS, known_gap, skip_reason
 from sdformat_build import build_sdformat_tool
 from unit_tier import in_unit_tier, no_process_started
 
@@ -36,6 +37,12 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if in_unit_tier(item):
             item.add_marker(pytest.mark.unit)
+        reason = skip_reason(item)  # tests/engines.py: the `pybullet` and `mujoco` markers
+        if reason is not None:
+            item.add_marker(pytest.mark.skip(reason=reason))
+        gap = known_gap(item)
+        if gap is not None:
+            item.add_marker(gap)
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -45,6 +52,13 @@ def pytest_runtest_protocol(item: pytest.Item) -> Iterator[None]:
         return
     with no_process_started(item.nodeid):
         yield
+
+
+# -- the physics engines (tests/engines.py) ----------------------------------------------------------------------
+@pytest.fixture(params=ENGINE_PARAMS)
+def physics_engine(request: pytest.FixtureRequest) -> str:
+    """Each physics engine in turn ("pybullet", "mujoco"); the one not installed is skipped with a reason."""
+    return str(request.param)
 
 
 # -- the libsdformat programs, built once and kept by content (tests/sdformat_build.py) ----------------------

@@ -39,7 +39,8 @@ GREEN = (0.1, 1.0, 0.1, 1.0)
 BARREL = (1.0, 0.45, 0.0, 1.0)
 
 GAZEBO_GROUND = Ground(z=0.0, mu=100.0, mu2=50.0)  # ground_plane: plane 100x100, mu 100 / mu2 50
-PAPER_PHYSICS = Physics(gravity=(0.0, 0.0, -9.8))  # the worlds use gravity -9.8 (ODE, 1 ms steps)
+PAPER_PHYSICS = Physics(gravity=(0.0, 0.0, -9.8), engine="pybullet")  # the worlds use gravity -9.8 (ODE, 1 ms steps);
+# they name no engine (pybullet where it is installed), whichever engines are installed where they are generated
 TIMEOUT = 60.0
 
 

@@ -4,11 +4,12 @@ and a Hypothesis example shows a short `World`. Real simulations, no reduction."
 
 from __future__ import annotations
 
-import os
 import re
 import textwrap
 
 import pytest
+
+from pytest_ddenv.sim.robot import husky_urdf
 
 HUSKY_WHEELS = ("left_wheels: [front_left_wheel, rear_left_wheel], "
                 "right_wheels: [front_right_wheel, rear_right_wheel], drive: skid-steer")
@@ -17,12 +18,6 @@ HUSKY_WHEELS = ("left_wheels: [front_left_wheel, rear_left_wheel], "
 def plugin_frames(output: str) -> list[str]:
     """The traceback lines that point into the package ("pytest_ddenv/...py:LINE")."""
     return re.findall(r"^\S*pytest_ddenv/\S+\.py:\d+.*$", output, flags=re.MULTILINE)
-
-
-def husky_urdf() -> str:
-    import pybullet_data
-
-    return os.path.join(pybullet_data.getDataPath(), "husky", "husky.urdf")
 
 
 def test_a_robot_failure_ends_at_the_test_line(wall_project: pytest.Pytester) -> None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -15,7 +14,7 @@ from helpers import flat_world
 
 from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.sim import Run, Simulator, WheelCommand, WheeledRobot
-from pytest_ddenv.sim.robot import make_robot
+from pytest_ddenv.sim.robot import husky_urdf, make_robot
 from pytest_ddenv.world import LaserMount, RobotDescription, Scenario, World
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "robots"
@@ -30,10 +29,8 @@ def with_robot(world: World, robot: str | RobotDescription) -> World:
 
 
 def husky_description() -> RobotDescription:
-    import pybullet_data
-
     return RobotDescription(
-        urdf=os.path.join(pybullet_data.getDataPath(), "husky", "husky.urdf"),
+        urdf=husky_urdf(),  # pybullet_data's, or without pybullet the package's copy
         left_wheels=("front_left_wheel", "rear_left_wheel"), right_wheels=("front_right_wheel", "rear_right_wheel"),
         drive="skid-steer", wheel_radius=0.17775, track=0.5708, max_wheel_torque=100.0,
         laser=LaserMount(height=0.35, min_range=0.62),
