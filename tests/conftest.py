@@ -10,7 +10,7 @@ import joblib
 import pytest
 import scipy.stats  # noqa: F401
 import yaml  # noqa: F401  # likewise: its C parser (yaml._yaml) outlives a re-import of the yaml package
-from engines import ENGINE_PARAMS, known_gap, skip_reason
+from engines import ENGINE_PARAMS, installed, known_gap, skip_reason
 from sdformat_build import build_sdformat_tool
 from unit_tier import in_unit_tier, no_process_started
 
@@ -23,6 +23,12 @@ pytest_plugins = ["pytester"]
 # recording of the default `--ddenv-media all` (seconds each). tests/test_media.py asks for them explicitly.
 # Set here, before any test starts, so that pytester subprocesses and `ddenv` subprocesses inherit it.
 os.environ.setdefault("DDENV_MEDIA", "pictures")
+
+# `import mujoco` loads its GLFW bindings, which start a Python process to check the GLFW library's version the
+# first time in a process; and mujoco is a C extension too. Imported here once, before any test (no unit-tier test
+# starts that process, and no pytester run imports it a second time).
+if installed("mujoco"):
+    import mujoco  # noqa: F401
 
 # scikit-learn's k-means asks joblib for the number of physical cores, which runs `lscpu` the first time in a
 # process. Asked here once, before any test: no unit-tier test starts that process (tests/unit_tier.py).

@@ -5,7 +5,8 @@ A test that asserts what only one engine does (pybullet's API, bit-identical tra
 the exact minimal world of a pybullet run) carries that engine's marker: `@pytest.mark.pybullet`, or
 `pytestmark = pytest.mark.pybullet` for a module. An engine-neutral test where the engine matters asks for
 `physics_engine` and runs once per engine ("pybullet", "mujoco"), the one not installed skipped with a reason;
-it puts the engine into its world with `in_engine`, or into a pytest run with `engine_option`.
+it puts the engine into its world with `in_engine`, into a pytest run with `engine_option`, or into a `ddenv`
+command with `engine_flag`.
 
 An engine-neutral test that fails in MuJoCo because of a known weakness of the MuJoCo engine carries
 `@pytest.mark.mujoco_gap("what MuJoCo does differently")`: where it runs in MuJoCo (its `physics_engine` is
@@ -37,6 +38,12 @@ MISSES_THE_GOAL = ("the Husky does not get within the goal tolerance where pybul
                    "after turning: its skid-steer turns and dead reckoning differ)")
 DRIVE_NOT_CALLED = ("a Robot subclass's drive() is never called (sim/mujoco/driven_robot.py drives the described "
                     "robot's side_speeds), so a registered robot that overrides it drives as a plain Husky")
+
+NO_WHEEL_GEOMETRY = ("the gym environment's wheel-action bound: MuJoCo's robot (sim/mujoco/driven_robot.py "
+                     "MujocoRobot) does not expose the described robot's wheel_radius, track and track_factor, so "
+                     "scenario/gym_env.py falls back to max_speed / 0.1 m (10 rad/s, the Husky's is 7.55 rad/s)")
+POLYLINE_BODY_FRAME = ("a moving polyline's recorded pose: MuJoCo's body_pose gives the model's frame where pybullet's "
+                       "(and the recording's outline) is the centre of mass, so the outline is drawn 0.22 m off")
 
 
 def installed(engine: str) -> bool:
@@ -80,3 +87,8 @@ def in_engine(world: World, engine: str) -> World:
 def engine_option(engine: str) -> list[str]:
     """The pytest arguments that run a pytester project's tests in `engine`."""
     return ["--ddenv-engine", engine]
+
+
+def engine_flag(engine: str) -> list[str]:
+    """The `ddenv run|reduce|replay` arguments that simulate in `engine`."""
+    return ["--engine", engine]
