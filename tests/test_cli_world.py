@@ -8,6 +8,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from engines import installed
 
 from pytest_ddenv.cli import main as cli
 from pytest_ddenv.sim.robot import husky_urdf
@@ -182,6 +183,8 @@ def test_everything_not_simulated_is_said_by_check(capsys: pytest.CaptureFixture
     assert code == 0 and json.loads(out)["names"] == ["door"] and len(json.loads(out)["notes"]) == 4
 
 
+UNLOADABLE_URDF = "pybullet cannot load the URDF" if installed("pybullet") else "cannot read the URDF"
+"""Where pybullet is not installed, the URDF's XML is read for its joints (and MuJoCo measures it)."""
 HUSKY_SIDES = "right_wheels: [front_right_wheel, rear_right_wheel], drive: skid-steer"
 
 
@@ -189,7 +192,7 @@ HUSKY_SIDES = "right_wheels: [front_right_wheel, rear_right_wheel], drive: skid-
     ("{urdf: HUSKY, left_wheels: [front_left_wheel, rear_left_whel], " + HUSKY_SIDES + "}", None,
      "scenario.robot.left_wheels", "the robot's URDF HUSKY has no joint named 'rear_left_whel'; its joints: "),
     ("{urdf: broken.urdf, left_wheels: [front_left_wheel], " + HUSKY_SIDES + "}", "<robot name='x'><link",
-     "scenario.robot.urdf", "pybullet cannot load the URDF broken.urdf"),
+     "scenario.robot.urdf", f"{UNLOADABLE_URDF} broken.urdf"),
     ("{urdf: gone.urdf, left_wheels: [front_left_wheel], " + HUSKY_SIDES + "}", None,
      "scenario.robot.urdf", "URDF file not found: gone.urdf"),
 ], ids=["wrong-wheel-joint", "unloadable-urdf", "missing-urdf"])
