@@ -10,7 +10,7 @@ import joblib
 import pytest
 import scipy.stats  # noqa: F401
 import yaml  # noqa: F401  # likewise: its C parser (yaml._yaml) outlives a re-import of the yaml package
-from engines import ENGINE_PARAMS, installed, known_gap, skip_reason
+from engines import ENGINE_PARAMS, PYBULLET_MODULES, installed, known_gap, skip_reason
 from sdformat_build import build_sdformat_tool
 from unit_tier import in_unit_tier, no_process_started
 
@@ -43,6 +43,8 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if in_unit_tier(item):
             item.add_marker(pytest.mark.unit)
+        if item.path.name in PYBULLET_MODULES:
+            item.add_marker(pytest.mark.pybullet)
         reason = skip_reason(item)  # tests/engines.py: the `pybullet` and `mujoco` markers
         if reason is not None:
             item.add_marker(pytest.mark.skip(reason=reason))

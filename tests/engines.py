@@ -51,6 +51,10 @@ def installed(engine: str) -> bool:
     return importlib.util.find_spec(engine) is not None
 
 
+PYBULLET_MODULES = ("test_paper_regression.py",)
+"""Modules that are pybullet's as a whole and are marked `pybullet` by place (tests/conftest.py): the paper
+regression's recorded minimal worlds are pybullet runs, and the file stays unchanged."""
+
 ENGINE_PARAMS = [pytest.param(engine, marks=getattr(pytest.mark, engine), id=engine) for engine in ENGINES]
 """`physics_engine`'s parameters: each engine with its marker."""
 
