@@ -69,7 +69,6 @@ def test_a_probe_asked_to_record_brings_back_the_detail_from_a_worker_process() 
 
 
 # -- animations ---------------------------------------------------------------------------------------------
-@pytest.mark.pybullet  # the animations are drawn by pybullet's TinyRenderer
 @pytest.mark.parametrize("name", WORLDS)
 def test_animation_frames_size_and_the_failure_moment(name: str, tmp_path: Path) -> None:
     world, run = failing_run(name)
@@ -98,7 +97,6 @@ def test_frames_are_spread_over_the_run_and_include_the_failure() -> None:
     assert any(abs(run.times[i] - run.failure.time) < 0.06 for i in indices)
 
 
-@pytest.mark.pybullet  # the animations are drawn by pybullet's TinyRenderer
 def test_a_failure_found_after_the_run_is_marked_on_the_last_frame_only(tmp_path: Path) -> None:
     world = World.load(ROOT / "worlds" / "ditch.yaml")
     with recording_detail():
@@ -109,14 +107,12 @@ def test_a_failure_found_after_the_run_is_marked_on_the_last_frame_only(tmp_path
     assert border_is_red(frames[-1]) and not any(border_is_red(frame) for frame in frames[:-1])
 
 
-@pytest.mark.pybullet  # the animations are drawn by pybullet's TinyRenderer
 def test_a_run_without_detail_is_animated_with_the_models_where_they_started(tmp_path: Path) -> None:
     world, run = failing_run("ditch", detail=False)
     info = write_animation(tmp_path / "plain.gif", world, run)
     assert len(read_gif(info.path)) == info.frames
 
 
-@pytest.mark.pybullet  # the animations are drawn by pybullet's TinyRenderer
 @pytest.mark.slow  # a media helper process: the full tier only
 def test_an_animation_rendered_in_a_helper_process_is_the_same_file(tmp_path: Path) -> None:
     world, run = failing_run("ditch")
@@ -133,7 +129,6 @@ def test_an_animation_rendered_in_a_helper_process_is_the_same_file(tmp_path: Pa
     assert beside.info["original.gif"]["frames"] == here.info["original.gif"]["frames"]
 
 
-@pytest.mark.pybullet  # the animations are drawn by pybullet's TinyRenderer
 @pytest.mark.slow  # a media helper process: the full tier only
 def test_an_animation_whose_helper_dies_is_rendered_here(tmp_path: Path) -> None:
     world, run = failing_run("ditch")
@@ -176,7 +171,6 @@ def test_ditch(robot_world):
 '''
 
 
-@pytest.mark.pybullet  # the animations are drawn by pybullet's TinyRenderer
 @pytest.mark.slow
 def test_a_reduction_leaves_animations_counted_runs_and_an_inline_html_animation(pytester: pytest.Pytester) -> None:
     shutil.copytree(ROOT / "worlds", pytester.path / "worlds")
