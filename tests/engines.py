@@ -30,7 +30,11 @@ NOT_INSTALLED = {
 }
 """The skip reason of a test of each engine where that engine is not installed."""
 
+PYBULLET_MODULES = ("test_paper_regression.py",)
+"""Modules that are pybullet's as a whole and are marked `pybullet` by place (tests/conftest.py): the paper
+regression's recorded minimal worlds are pybullet runs, and the file stays unchanged."""
 
+# -- the MuJoCo engine's known gaps: the reasons of `mujoco_gap` markers ------------------------------------------
 LOST_CONTACTS = ("the robot's lasting contacts are not reported: a Husky pushing against a wall, or resting on a ridge "
                  "with its wheels in the air, touches it once (first_touch) and then touches nothing, so the "
                  "failure's `touched` is empty and high_centered never fires")
@@ -38,7 +42,6 @@ MISSES_THE_GOAL = ("the Husky does not get within the goal tolerance where pybul
                    "after turning: its skid-steer turns and dead reckoning differ)")
 DRIVE_NOT_CALLED = ("a Robot subclass's drive() is never called (sim/mujoco/driven_robot.py drives the described "
                     "robot's side_speeds), so a registered robot that overrides it drives as a plain Husky")
-
 NO_WHEEL_GEOMETRY = ("the gym environment's wheel-action bound: MuJoCo's robot (sim/mujoco/driven_robot.py "
                      "MujocoRobot) does not expose the described robot's wheel_radius, track and track_factor, so "
                      "scenario/gym_env.py falls back to max_speed / 0.1 m (10 rad/s, the Husky's is 7.55 rad/s)")
@@ -50,10 +53,6 @@ def installed(engine: str) -> bool:
     """Whether `engine`'s Python package can be imported here."""
     return importlib.util.find_spec(engine) is not None
 
-
-PYBULLET_MODULES = ("test_paper_regression.py",)
-"""Modules that are pybullet's as a whole and are marked `pybullet` by place (tests/conftest.py): the paper
-regression's recorded minimal worlds are pybullet runs, and the file stays unchanged."""
 
 ENGINE_PARAMS = [pytest.param(engine, marks=getattr(pytest.mark, engine), id=engine) for engine in ENGINES]
 """`physics_engine`'s parameters: each engine with its marker."""
