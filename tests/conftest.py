@@ -10,6 +10,7 @@ import joblib
 import pytest
 import scipy.stats  # noqa: F401
 import yaml  # noqa: F401  # likewise: its C parser (yaml._yaml) outlives a re-import of the yaml package
+from engines import ENGINE_PARAMS, PYBULLET_MODULES, installed, known_gap, skip_reason
 from sdformat_build import build_sdformat_tool
 from unit_tier import in_unit_tier, no_process_started
 
@@ -22,6 +23,12 @@ pytest_plugins = ["pytester"]
 # recording of the default `--ddenv-media all` (seconds each). tests/test_media.py asks for them explicitly.
 # Set here, before any test starts, so that pytester subprocesses and `ddenv` subprocesses inherit it.
 os.environ.setdefault("DDENV_MEDIA", "pictures")
+
+# `import mujoco` loads its GLFW bindings, which start a Python process to check the GLFW library's version the
+# first time in a process; and mujoco is a C extension too. Imported here once, before any test (no unit-tier test
+# starts that process, and no pytester run imports it a second time).
+if installed("mujoco"):
+    import mujoco  # noqa: F401
 
 # scikit-learn's k-means asks joblib for the number of physical cores, which runs `lscpu` the first time in a
 # process. Asked here once, before any test: no unit-tier test starts that process (tests/unit_tier.py).
@@ -36,6 +43,14 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if in_unit_tier(item):
             item.add_marker(pytest.mark.unit)
+        if item.path.name in PYBULLET_MODULES:
+            item.add_marker(pytest.mark.pybullet)
+        reason = skip_reason(item)  # tests/engines.py: the `pybullet` and `mujoco` markers
+        if reason is not None:
+            item.add_marker(pytest.mark.skip(reason=reason))
+        gap = known_gap(item)
+        if gap is not None:
+            item.add_marker(gap)
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -45,6 +60,13 @@ def pytest_runtest_protocol(item: pytest.Item) -> Iterator[None]:
         return
     with no_process_started(item.nodeid):
         yield
+
+
+# -- the physics engines (tests/engines.py) ----------------------------------------------------------------------
+@pytest.fixture(params=ENGINE_PARAMS)
+def physics_engine(request: pytest.FixtureRequest) -> str:
+    """Each physics engine in turn ("pybullet", "mujoco"); the one not installed is skipped with a reason."""
+    return str(request.param)
 
 
 # -- the libsdformat programs, built once and kept by content (tests/sdformat_build.py) ----------------------

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from engines import LOST_CONTACTS, engine_flag
 
 from pytest_ddenv import __version__
 from pytest_ddenv.cli import main as cli
@@ -177,10 +178,12 @@ def test_bad_predicates_exit_2(capsys: pytest.CaptureFixture[str], worlds: dict[
 
 
 # -- run, show -------------------------------------------------------------------------------------------
+@pytest.mark.mujoco_gap(LOST_CONTACTS)
 def test_run_a_failing_scenario(capsys: pytest.CaptureFixture[str], worlds: dict[str, Path],
-                                tmp_path: Path) -> None:
+                                tmp_path: Path, physics_engine: str) -> None:
     picture, record = tmp_path / "wall.png", tmp_path / "runs.jsonl"
-    code, out, _ = run(capsys, "run", str(worlds["wall"]), "-p", STUCK, "-o", str(picture), "--record", str(record))
+    code, out, _ = run(capsys, "run", str(worlds["wall"]), "-p", STUCK, "-o", str(picture), "--record", str(record),
+                       *engine_flag(physics_engine))
     assert code == 1
     assert "FAILED (stuck at t = " in out and "touching wall" in out
     assert picture.stat().st_size > 10_000
@@ -190,12 +193,14 @@ def test_run_a_failing_scenario(capsys: pytest.CaptureFixture[str], worlds: dict
     assert (tmp_path / "s.png").stat().st_size > 10_000
 
 
-def test_run_json_and_a_passing_scenario(capsys: pytest.CaptureFixture[str], worlds: dict[str, Path]) -> None:
-    code, out, _ = run(capsys, "run", str(worlds["wall"]), "-p", STUCK, "--no-picture", "--json", "--seed", "3")
+def test_run_json_and_a_passing_scenario(capsys: pytest.CaptureFixture[str], worlds: dict[str, Path],
+                                         physics_engine: str) -> None:
+    engine = engine_flag(physics_engine)
+    code, out, _ = run(capsys, "run", str(worlds["wall"]), "-p", STUCK, "--no-picture", "--json", "--seed", "3", *engine)
     data = json.loads(out)
     assert code == 1 and data["outcome"] == "failed" and data["seed"] == 3
     assert data["failure"]["predicate"] == "stuck" and "wall" in data["touched"]
-    code, out, _ = run(capsys, "run", str(worlds["open"]), "-p", STUCK, "--no-picture", "--json")
+    code, out, _ = run(capsys, "run", str(worlds["open"]), "-p", STUCK, "--no-picture", "--json", *engine)
     data = json.loads(out)
     assert code == 0 and data["outcome"] == "reached_goal" and data["ok"] is True
 

@@ -8,8 +8,10 @@ import shutil
 from pathlib import Path
 
 import pytest
+from engines import installed
 
 from pytest_ddenv.cli import main as cli
+from pytest_ddenv.sim.robot import husky_urdf
 
 DATA = Path(__file__).resolve().parent / "data" / "sdf"
 SCENARIO = "format: 1\nscenario: {robot: husky, start: {x: 0, y: 0, yaw: 0}, goal: {x: 5, y: 0}, timeout: 4}\n"
@@ -181,6 +183,8 @@ def test_everything_not_simulated_is_said_by_check(capsys: pytest.CaptureFixture
     assert code == 0 and json.loads(out)["names"] == ["door"] and len(json.loads(out)["notes"]) == 4
 
 
+UNLOADABLE_URDF = "pybullet cannot load the URDF" if installed("pybullet") else "cannot read the URDF"
+"""Where pybullet is not installed, the URDF's XML is read for its joints (and MuJoCo measures it)."""
 HUSKY_SIDES = "right_wheels: [front_right_wheel, rear_right_wheel], drive: skid-steer"
 
 
@@ -188,16 +192,14 @@ HUSKY_SIDES = "right_wheels: [front_right_wheel, rear_right_wheel], drive: skid-
     ("{urdf: HUSKY, left_wheels: [front_left_wheel, rear_left_whel], " + HUSKY_SIDES + "}", None,
      "scenario.robot.left_wheels", "the robot's URDF HUSKY has no joint named 'rear_left_whel'; its joints: "),
     ("{urdf: broken.urdf, left_wheels: [front_left_wheel], " + HUSKY_SIDES + "}", "<robot name='x'><link",
-     "scenario.robot.urdf", "pybullet cannot load the URDF broken.urdf"),
+     "scenario.robot.urdf", f"{UNLOADABLE_URDF} broken.urdf"),
     ("{urdf: gone.urdf, left_wheels: [front_left_wheel], " + HUSKY_SIDES + "}", None,
      "scenario.robot.urdf", "URDF file not found: gone.urdf"),
 ], ids=["wrong-wheel-joint", "unloadable-urdf", "missing-urdf"])
 def test_check_loads_the_robot_and_names_the_file_and_field_of_what_does_not_fit(
         capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, robot: str,
         urdf_text: str | None, field: str, words: str) -> None:
-    import pybullet_data
-
-    husky = str(Path(pybullet_data.getDataPath()) / "husky" / "husky.urdf")
+    husky = husky_urdf()  # pybullet_data's, or without pybullet the package's copy
     monkeypatch.chdir(tmp_path)
     if urdf_text is not None:
         Path("broken.urdf").write_text(urdf_text)
@@ -210,9 +212,7 @@ def test_check_loads_the_robot_and_names_the_file_and_field_of_what_does_not_fit
 
 def test_check_accepts_a_robot_that_fits_its_urdf(capsys: pytest.CaptureFixture[str], tmp_path: Path,
                                                  monkeypatch: pytest.MonkeyPatch) -> None:
-    import pybullet_data
-
-    husky = Path(pybullet_data.getDataPath()) / "husky" / "husky.urdf"
+    husky = husky_urdf()
     monkeypatch.chdir(tmp_path)
     Path("robot.yaml").write_text(f"format: 1\nscenario: {{robot: {{urdf: {husky}, left_wheels: [front_left_wheel], "
                                   f"{HUSKY_SIDES}}}, start: {{x: 0, y: 0}}, goal: {{x: 3, y: 0}}, timeout: 5}}\n"

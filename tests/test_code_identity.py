@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from engines import installed
+
 from pytest_ddenv import World
 from pytest_ddenv.driver import artifacts
 from pytest_ddenv.driver.code_identity import CodeIdentity, collected_elsewhere, identify
@@ -46,7 +48,8 @@ def test_the_project_files_loaded_are_identified_by_content_and_installed_packag
     load(project, {"ctl_a.py": "import numpy\nGAIN = 1.0\n"}, "ctl_a")
     identity = identify([project])
     assert set(identity.files) == {"ctl_a.py"}, "installed code (pytest, numpy, pytest_ddenv) is not a project file"
-    assert {"numpy", "pybullet", "pytest-ddenv", "python"} <= set(identity.packages)
+    assert {"numpy", "pytest-ddenv", "python"} <= set(identity.packages)
+    assert ("pybullet" in identity.packages) == installed("pybullet"), "pybullet's version, where it is installed"
     (project / "ctl_a.py").write_text("import numpy\nGAIN = 2.0\n")
     edited = identify([project])
     assert edited.files["ctl_a.py"] != identity.files["ctl_a.py"]

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from engines import LOST_CONTACTS
 
 from pytest_ddenv.driver import ReductionPlan, run_reduction
 from pytest_ddenv.execution import LocalPool
@@ -32,6 +33,7 @@ def reduce_with(job: ScenarioJob, world: World, folder: Path) -> tuple[object, l
 
 
 @pytest.mark.slow
+@pytest.mark.mujoco_gap(LOST_CONTACTS)
 def test_the_example_controller_and_go_to_goal_fail_differently_in_the_cul_de_sac(tmp_path: Path) -> None:
     example = import_user_code(str(ROOT / "examples" / "test_my_controller.py"))
     world = World.load(ROOT / "worlds" / "cul_de_sac.yaml")

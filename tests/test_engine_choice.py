@@ -13,12 +13,11 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("mujoco", reason="needs mujoco: pip install \"pytest-ddenv[mujoco]\"")
-pytest.importorskip("pybullet", reason="compares pybullet with mujoco: needs pybullet")
-
 from pytest_ddenv.cli import main as cli
 from pytest_ddenv.driver.markers import MarkerError, parse_ddenv_marker
 from pytest_ddenv.world import World
+
+pytestmark = [pytest.mark.pybullet, pytest.mark.mujoco]  # compares the two engines (tests/engines.py)
 
 WALL_PATH = Path(__file__).resolve().parent / "data" / "wall.yaml"
 WALL = WALL_PATH.read_text(encoding="utf-8")

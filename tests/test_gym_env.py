@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from engines import NO_WHEEL_GEOMETRY, in_engine
 from plugin.conftest import WALL_WORLD  # the same small world as the plugin tests
 
 gymnasium = pytest.importorskip("gymnasium")
@@ -62,6 +63,12 @@ def stuck_world(wall_world: World) -> RobotWorld:
 
 
 @pytest.fixture
+def stuck_in_engine(wall_world: World, physics_engine: str) -> RobotWorld:
+    """`stuck_world` in each physics engine."""
+    return RobotWorld(in_engine(wall_world, physics_engine), predicates=STUCK)
+
+
+@pytest.fixture
 def env(stuck_world: RobotWorld) -> Iterator[RobotEnv]:
     made = stuck_world.make_env()
     yield made
@@ -101,7 +108,8 @@ def check_quietly(env: gymnasium.Env) -> None:
 
 
 # -- the gymnasium contract ------------------------------------------------------------------------
-def test_check_env_passes(env: RobotEnv) -> None:
+def test_check_env_passes(stuck_in_engine: RobotWorld) -> None:
+    env = stuck_in_engine.make_env()
     check_quietly(env)
     check_quietly(env.unwrapped)
 
@@ -155,8 +163,9 @@ def test_same_seed_gives_bit_identical_observations(env: RobotEnv) -> None:
 
 
 # -- episodes, failures and runs ---------------------------------------------------------------------
-def test_driving_into_the_wall_terminates_stuck_and_lands_in_runs(env: RobotEnv, stuck_world: RobotWorld) -> None:
-    start_info, steps = roll_out(env, straight)
+def test_driving_into_the_wall_terminates_stuck_and_lands_in_runs(stuck_in_engine: RobotWorld) -> None:
+    stuck_world = stuck_in_engine
+    start_info, steps = roll_out(stuck_world.make_env(), straight)
     _, reward, terminated, truncated, info = steps[-1]
     assert terminated and not truncated
     assert info["failure"]["predicate"] == "stuck"
@@ -199,8 +208,8 @@ def test_time_limit_truncates(wall_world: World) -> None:
     robot_world.check()  # nothing failed
 
 
-def test_reaching_the_goal_terminates_with_the_bonus(open_world: World) -> None:
-    robot_world = RobotWorld(open_world, predicates=STUCK)
+def test_reaching_the_goal_terminates_with_the_bonus(open_world: World, physics_engine: str) -> None:
+    robot_world = RobotWorld(in_engine(open_world, physics_engine), predicates=STUCK)
     env = robot_world.make_env()
     _, steps = roll_out(env, go_to_goal)
     _, reward, terminated, truncated, info = steps[-1]
@@ -211,8 +220,9 @@ def test_reaching_the_goal_terminates_with_the_bonus(open_world: World) -> None:
     robot_world.check()
 
 
-def test_policy_stepping_go_to_goal_gives_the_same_run_as_run(wall_world: World) -> None:
+def test_policy_stepping_go_to_goal_gives_the_same_run_as_run(wall_world: World, physics_engine: str) -> None:
     """The env is the same simulation: GoToGoal's actions through make_env() give robot_world.run()'s Run."""
+    wall_world = in_engine(wall_world, physics_engine)
     by_run = RobotWorld(wall_world, predicates=STUCK, seed=3).run(raise_on_failure=False)
     robot_world = RobotWorld(wall_world, predicates=STUCK, seed=3)
     _, steps = roll_out(robot_world.make_env(), go_to_goal)
@@ -250,8 +260,9 @@ def test_unfinished_episodes_are_recorded_when_dropped(stuck_world: RobotWorld) 
 
 
 # -- wheel actions --------------------------------------------------------------------------------
-def test_wheel_actions_drive_the_wheels(wall_world: World) -> None:
-    robot_world = RobotWorld(wall_world, predicates=STUCK)
+@pytest.mark.mujoco_gap(NO_WHEEL_GEOMETRY)
+def test_wheel_actions_drive_the_wheels(wall_world: World, physics_engine: str) -> None:
+    robot_world = RobotWorld(in_engine(wall_world, physics_engine), predicates=STUCK)
     env = robot_world.make_env(wheel_actions=True)
     bound = (1.0 + 0.8 * 0.5708 * 1.5 / 2.0) / 0.17775  # the Husky's fastest wheel within the Command box
     assert env.action_space.high.tolist() == pytest.approx([bound, bound], rel=1e-6)

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from engines import POLYLINE_BODY_FRAME, in_engine
 
 rr = pytest.importorskip("rerun")
 pa = pytest.importorskip("pyarrow")
@@ -234,8 +235,9 @@ def shapes_world() -> World:
     return World(models, Scenario(start=Pose(), goal=(0.0, 8.0, None), timeout=1.0), name="shapes")
 
 
-def test_every_shape_kind_is_drawn_where_the_world_puts_it(tmp_path: Path) -> None:
-    world = shapes_world()
+@pytest.mark.mujoco_gap(POLYLINE_BODY_FRAME)
+def test_every_shape_kind_is_drawn_where_the_world_puts_it(tmp_path: Path, physics_engine: str) -> None:
+    world = in_engine(shapes_world(), physics_engine)
     with recording_detail():
         run = simulate(world, seed=0)
     info = write_recording(tmp_path / "shapes.rrd", [("shapes", world, run)])

@@ -10,6 +10,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from engines import ENGINE_PARAMS, engine_flag
 
 from pytest_ddenv.cli import main as cli
 from pytest_ddenv.cli.replay import FRESH_FIRST_ATTEMPT, replay
@@ -18,15 +19,17 @@ from pytest_ddenv.scenario.robot_world import ATTEMPT_SEED_STRIDE
 WORLD = (Path(__file__).resolve().parent / "data" / "wall_and_crate.yaml").read_text(encoding="utf-8")
 
 
-@pytest.fixture(scope="module")
-def reduced(tmp_path_factory: pytest.TempPathFactory) -> Path:
+@pytest.fixture(scope="module", params=ENGINE_PARAMS)
+def reduced(tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest) -> Path:
+    """The wall world reduced in each physics engine (minimal.yaml keeps the engine; the replay reads it)."""
     folder = tmp_path_factory.mktemp("replay")
     (folder / "wall.yaml").write_text(WORLD)
     out = folder / "artifacts"
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         code = cli.main(["reduce", str(folder / "wall.yaml"), "-p", "stuck:window=2", "--workers", "1", "--out",
-                         str(out), "--quiet"])
+                         str(out), "--quiet", *engine_flag(request.param)])
     assert code == 0
+    assert json.loads((out / "summary.json").read_text())["engine"]["name"] == request.param
     return out
 
 

@@ -218,6 +218,7 @@ def built(world: World, seconds: float = 0.0) -> tuple[int, dict[str, int]]:
     return client, {name: body for body, name in bodies.items()}
 
 
+@pytest.mark.pybullet
 def test_a_cone_is_simulated_as_a_cone_not_a_cylinder() -> None:
     """A ray straight down at 0.4 m from the axis meets the cone's slanted side low (a cylinder of the same size
     would be met at its top, 1.2 m up); its bounds and distances are the cone's."""
@@ -239,6 +240,7 @@ def test_a_cone_is_simulated_as_a_cone_not_a_cylinder() -> None:
     assert loaded.distances(inside)[0, 0] == 0.0
 
 
+@pytest.mark.pybullet
 def test_a_dynamic_cone_falls_and_stands_on_its_base() -> None:
     import pybullet
 

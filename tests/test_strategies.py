@@ -120,6 +120,7 @@ def settled_displacements(world: World, seconds: float = 1.0) -> dict[str, float
 
 
 # -- the property ---------------------------------------------------------------------------------------------
+@pytest.mark.pybullet  # settled_displacements steps pybullet
 @given(world=worlds(scenarios(start=REGION, goal=REGION), count=(5, 30), region=REGION, stacked=0.3))
 @settings(max_examples=25, deadline=None)
 def test_drawn_worlds_round_trip_do_not_overlap_and_simulate(world: World) -> None:
@@ -185,6 +186,7 @@ def test_overlap_true_lets_models_overlap_and_holds_more_than_the_cells() -> Non
     assert len(crowded) == 10
 
 
+@pytest.mark.pybullet  # settled_displacements steps pybullet
 def test_stacked_puts_small_models_on_boxes_and_cylinders() -> None:
     world = find(worlds(count=(0, 10), stacked=1.0),
                  lambda world: any(bottom(world, name) > 0.0 for name in world.names))

@@ -1,7 +1,8 @@
 """What a wheeled robot's URDF says about its geometry: wheel radius, track, footprint, mass, a laser mount.
 
 Measured once per process and URDF in a scratch pybullet client, never in the simulation's own client (a
-body loaded and removed there would shift the body ids and, with them, the contact order of later runs).
+body loaded and removed there would shift the body ids and, with them, the contact order of later runs); where
+pybullet is not installed, compiled and measured by MuJoCo (`urdf_mujoco`).
 """
 
 from __future__ import annotations
@@ -122,9 +123,7 @@ def measure_urdf(urdf: str, flags: int, left: Sequence[str], right: Sequence[str
 
 def _measure(urdf: str, flags: int, left: tuple[str, ...], right: tuple[str, ...], source: str | None) -> UrdfGeometry:
     if not pybullet_installed():
-        raise ScenarioError(f"the wheel radius, track, footprint, base height and laser mount of {urdf} are measured "
-                            "with pybullet, which is not installed: give them in the robot's description, or pip "
-                            "install pybullet", source=source, field="scenario.robot")
+        return _measure_in_mujoco(urdf, flags, left, right, source)
     with silenced():
         import pybullet as p
 
@@ -148,25 +147,50 @@ def _measure(urdf: str, flags: int, left: tuple[str, ...], right: tuple[str, ...
                                     for n in names]
             return sum(centres) / len(centres)
 
-        left_y, right_y = mean_y(left), mean_y(right)
-        if left_y < right_y - 1e-6:
-            raise ScenarioError(f"{urdf}: the left wheels are on the robot's right (y = {left_y:.3f} m, the right "
-                                f"wheels at y = {right_y:.3f} m; x is forward and y left); swap left_wheels and "
-                                "right_wheels", source=source, field="scenario.robot.left_wheels")
         mass = sum(p.getDynamicsInfo(body, link, physicsClientId=client)[0] for link in links)
-        (base_x, base_y, base_z), _ = p.getBasePositionAndOrientation(body, physicsClientId=client)
-        reach = math.hypot(max(abs(low[0] - base_x), abs(high[0] - base_x)),
-                           max(abs(low[1] - base_y), abs(high[1] - base_y)))
-        return UrdfGeometry(
-            wheel_radius=sum(radii) / len(radii),
-            track=left_y - right_y if left_y - right_y > 1e-6 else None,
-            footprint=(high[0] - low[0], high[1] - low[1]),
-            base_height=-low[2],
-            mass=mass,
-            laser=LaserMount(height=high[2] - base_z + LASER_CLEARANCE, min_range=reach + LASER_CLEARANCE),
-        )
+        base, _ = p.getBasePositionAndOrientation(body, physicsClientId=client)
+        return _geometry(urdf, low, high, radii, mean_y(left), mean_y(right), mass, base, source)
     finally:
         p.disconnect(physicsClientId=client)
+
+
+def _measure_in_mujoco(urdf: str, flags: int, left: tuple[str, ...], right: tuple[str, ...],
+                       source: str | None) -> UrdfGeometry:
+    """Without pybullet: the URDF compiled and measured by MuJoCo (`urdf_mujoco`), its joints checked first."""
+    import importlib.util
+
+    if importlib.util.find_spec("mujoco") is None:
+        raise ScenarioError(f"the wheel radius, track, footprint, base height and laser mount of {urdf} are measured "
+                            "with pybullet or mujoco, and neither is installed: give them in the robot's "
+                            'description, or pip install "pytest-ddenv[mujoco]"', source=source,
+                            field="scenario.robot")
+    from pytest_ddenv.sim.urdf_mujoco import measure_in_mujoco
+
+    check_wheel_joints(urdf, urdf_joint_names(urdf, flags, source=source), left, right, source=source)
+    bounds = measure_in_mujoco(urdf, left, right, source=source)
+    return _geometry(urdf, list(bounds.low), list(bounds.high), list(bounds.wheel_radii), bounds.left_y,
+                     bounds.right_y, bounds.mass, bounds.base, source)
+
+
+def _geometry(urdf: str, low: Sequence[float], high: Sequence[float], radii: Sequence[float], left_y: float,
+              right_y: float, mass: float, base: Sequence[float], source: str | None) -> UrdfGeometry:
+    """The robot's geometry from its collision bounds (`low`, `high`), wheel radii, the left and right wheels'
+    mean lateral positions, its mass and its base's position, measured at the origin by either engine."""
+    if left_y < right_y - 1e-6:
+        raise ScenarioError(f"{urdf}: the left wheels are on the robot's right (y = {left_y:.3f} m, the right "
+                            f"wheels at y = {right_y:.3f} m; x is forward and y left); swap left_wheels and "
+                            "right_wheels", source=source, field="scenario.robot.left_wheels")
+    base_x, base_y, base_z = base
+    reach = math.hypot(max(abs(low[0] - base_x), abs(high[0] - base_x)),
+                       max(abs(low[1] - base_y), abs(high[1] - base_y)))
+    return UrdfGeometry(
+        wheel_radius=sum(radii) / len(radii),
+        track=left_y - right_y if left_y - right_y > 1e-6 else None,
+        footprint=(high[0] - low[0], high[1] - low[1]),
+        base_height=-low[2],
+        mass=mass,
+        laser=LaserMount(height=high[2] - base_z + LASER_CLEARANCE, min_range=reach + LASER_CLEARANCE),
+    )
 
 
 def _wheel_radius(p: object, client: int, body: int, joint: int, side: str, urdf: str, source: str | None) -> float:

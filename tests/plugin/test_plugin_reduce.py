@@ -9,6 +9,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+from engines import LOST_CONTACTS, engine_option
 
 from pytest_ddenv import World
 
@@ -29,14 +30,15 @@ def test_failing_robot_test_fails_normally_without_the_option(wall_project: pyte
     assert not Path(wall_project.path, "ddenv-artifacts").exists()
 
 
-def test_failing_robot_test_is_reduced_to_the_wall(wall_project: pytest.Pytester) -> None:
-    result = wall_project.runpytest_subprocess("--ddenv-reduce", "-o", "junit_logging=system-out", "--junitxml=junit.xml")
+def test_failing_robot_test_is_reduced_to_the_wall(wall_project: pytest.Pytester, physics_engine: str) -> None:
+    result = wall_project.runpytest_subprocess("--ddenv-reduce", "-o", "junit_logging=system-out", "--junitxml=junit.xml",
+                                               *engine_option(physics_engine))
     result.assert_outcomes(failed=1)
     # the reported failure is still the original one
     result.stdout.fnmatch_lines(["*RobotFailure*stuck*", "*ddenv reduction*", "*reduced 6 -> 1 models*"])
     result.stdout.fnmatch_lines(["*ddenv reductions*", "*test_reaches_goal: 6 -> 1 models (83%)*probes*fails*"])
     summary = summary_of(wall_project)
-    assert summary["minimal_models"] == ["wall"]
+    assert summary["minimal_models"] == ["wall"] and summary["engine"]["name"] == physics_engine
     assert summary["one_minimal"] is True and summary["complete"] is True
     assert summary["original_size"] == 6 and summary["probes"] > 0
     assert summary["failure_rate"]["fails"] >= 1
@@ -169,6 +171,7 @@ def test_a_crash_inside_the_reduction_never_replaces_the_tests_own_failure(wall_
     ])
 
 
+@pytest.mark.mujoco_gap(LOST_CONTACTS)
 def test_a_robot_test_runs_in_a_gazebo_world_with_includes_from_the_model_path(
     wall_project: pytest.Pytester,
 ) -> None:

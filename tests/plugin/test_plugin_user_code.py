@@ -15,14 +15,11 @@ from .conftest import WALL_WORLD
 
 MY_ROBOT_CONFTEST = textwrap.dedent(
     """\
-    import os
-
-    import pybullet_data
-
     from pytest_ddenv import RobotDescription, register_robot
+    from pytest_ddenv.sim.robot import husky_urdf
 
     register_robot("my_husky", RobotDescription(
-        urdf=os.path.join(pybullet_data.getDataPath(), "husky", "husky.urdf"), drive="skid-steer",
+        urdf=husky_urdf(), drive="skid-steer",
         left_wheels=("front_left_wheel", "rear_left_wheel"), right_wheels=("front_right_wheel", "rear_right_wheel"),
         max_wheel_torque=100.0,
     ))

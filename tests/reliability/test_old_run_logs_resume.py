@@ -16,7 +16,8 @@ import pytest
 
 from .conftest import Project, decided, kill_group, records, simulated, wait_for
 
-pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
+pytestmark = [pytest.mark.slow,  # real reductions (subprocesses, simulations): the full tier only
+              pytest.mark.pybullet]  # the committed logs are pybullet runs: another engine is another problem
 
 RUNLOGS = Path(__file__).resolve().parents[1] / "data" / "runlogs"
 MAKER = runpy.run_path(str(RUNLOGS / "make_runlogs.py"))

@@ -18,7 +18,6 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
-import pybullet
 import pytest
 from PIL import Image
 
@@ -82,6 +81,7 @@ def _halves(path: Path, width: int, height: int) -> None:
     Image.fromarray(pixels).save(path)
 
 
+@pytest.mark.pybullet
 def test_the_largest_heightmap_allowed_is_simulated_at_its_own_heights(tmp_path: Path) -> None:
     """pybullet reads garbage heights past 2 097 152 samples (1449 x 1449: its 8 MiB stream buffer of float32);
     the limit leaves it half of that, and a heightmap at the limit is the surface the image says."""
@@ -90,6 +90,8 @@ def test_the_largest_heightmap_allowed_is_simulated_at_its_own_heights(tmp_path:
     (tmp_path / "hill.yaml").write_text("format: 1\nmodels:\n  - {name: hill, heightmap: {file: hill.png, "
                                         "size: [10, 10, 1]}}\n")
     world = World.load(tmp_path / "hill.yaml")
+    import pybullet
+
     client = pybullet.connect(pybullet.DIRECT)
     try:
         build_world(pybullet, client, world)

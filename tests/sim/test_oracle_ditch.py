@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from engines import in_engine
 from helpers import ditch_world
 
 from pytest_ddenv.oracle import classify, make_predicate
@@ -9,10 +10,11 @@ from pytest_ddenv.reduce.types import Outcome
 from pytest_ddenv.sim import simulate
 
 
-def test_trapped_in_gap_vs_fell_off_edge_vs_blocked_by_wall() -> None:
-    """Real simulations of a small ditch: only the two-plateau world reproduces f."""
+def test_trapped_in_gap_vs_fell_off_edge_vs_blocked_by_wall(physics_engine: str) -> None:
+    """Real simulations of a small ditch, in each engine: only the two-plateau world reproduces f."""
     def run(world):
-        return simulate(world, seed=0, predicates=[make_predicate("flipped"), make_predicate("stuck")])
+        return simulate(in_engine(world, physics_engine), seed=0,
+                        predicates=[make_predicate("flipped"), make_predicate("stuck")])
 
     reference = run(ditch_world())
     assert reference.failure is not None and reference.failure.predicate == "stuck"

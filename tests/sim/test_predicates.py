@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from engines import LOST_CONTACTS, in_engine
 from helpers import box, ditch_world, flat_world
 
 from pytest_ddenv.oracle import PREDICATES, make_predicate
@@ -21,6 +22,7 @@ def test_clean_run_fires_nothing(sim: Simulator) -> None:
     assert run.reached_goal and run.failure is None
 
 
+@pytest.mark.mujoco_gap(LOST_CONTACTS)
 def test_stuck_and_collided_at_a_wall(sim: Simulator) -> None:
     world = flat_world(box("wall", (0.3, 6.0, 1.0), (3.0, 0.0, 0.5)), timeout=20.0)
     stuck = sim.run(world, seed=0, predicates=[make_predicate("stuck")])
@@ -33,15 +35,16 @@ def test_stuck_and_collided_at_a_wall(sim: Simulator) -> None:
     assert named.failure is None
 
 
-def test_flipped_and_fell_off_a_high_ledge(sim: Simulator) -> None:
-    world = flat_world(box("ledge", (6.0, 8.0, 2.0), (-1.0, 0.0, 1.0)), start=Pose(-2.0, 0.0), goal=(6.0, 0.0),
-                       timeout=15.0)
+def test_flipped_and_fell_off_a_high_ledge(sim: Simulator, physics_engine: str) -> None:
+    world = in_engine(flat_world(box("ledge", (6.0, 8.0, 2.0), (-1.0, 0.0, 1.0)), start=Pose(-2.0, 0.0),
+                                 goal=(6.0, 0.0), timeout=15.0), physics_engine)
     fell = sim.run(world, seed=0, predicates=[make_predicate("fell")])
     assert fell.failure is not None and fell.failure.predicate == "fell"
     flipped = sim.run(world, seed=0, predicates=[make_predicate("flipped")])
     assert flipped.failure is not None and flipped.failure.predicate == "flipped"
 
 
+@pytest.mark.mujoco_gap(LOST_CONTACTS)
 def test_high_centered_on_a_ridge(sim: Simulator) -> None:
     ridge = box("ridge", (3.0, 0.2, 0.35), (0.0, 0.0, 0.175))
     world = flat_world(ridge, start=Pose(0.0, 0.0, 0.35 - 0.13), start_z_given=True, goal=(8.0, 0.0),
@@ -51,11 +54,12 @@ def test_high_centered_on_a_ridge(sim: Simulator) -> None:
     assert run.failure.touched == ("ridge",)
 
 
-def test_timeout(sim: Simulator) -> None:
-    run = sim.run(flat_world(goal=(10.0, 0.0), timeout=3.0), seed=0, predicates=[make_predicate("timeout")])
+def test_timeout(sim: Simulator, physics_engine: str) -> None:
+    world = in_engine(flat_world(goal=(10.0, 0.0), timeout=3.0), physics_engine)
+    run = sim.run(world, seed=0, predicates=[make_predicate("timeout")])
     assert run.failure is not None and run.failure.predicate == "timeout"
     assert abs(run.failure.time - 3.0) < 0.06
-    assert not sim.run(flat_world(goal=(10.0, 0.0), timeout=3.0), seed=0).failed  # no predicate: no failure
+    assert not sim.run(world, seed=0).failed  # no predicate: no failure
 
 
 def test_ditch_traps_the_robot(sim: Simulator) -> None:

@@ -1,12 +1,14 @@
-"""Capsules, polylines and heightmaps in pybullet: the Husky meets them as the world model describes them."""
+"""Capsules, polylines and heightmaps in pybullet: the Husky meets them as the world model describes them (MuJoCo's:
+tests/sim_mujoco/test_mujoco_shapes.py)."""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
+from typing import Any
+
 import numpy as np
-import pybullet
 import pytest
 from helpers import box, digest, flat_world
 from PIL import Image
@@ -21,6 +23,8 @@ from pytest_ddenv.world.meshes import load_heightmap
 U_OUTLINE = ((0.0, 0.0), (2.6, 0.0), (2.6, 2.4), (2.2, 2.4), (2.2, 0.4), (0.4, 0.4), (0.4, 2.4), (0.0, 2.4))
 """A U opening towards +y: arms 0.4 m thick, the notch 1.8 m wide and 2 m deep (the Husky is 0.67 m wide)."""
 HULL_OUTLINE = ((0.0, 0.0), (2.6, 0.0), (2.6, 2.4), (0.0, 2.4))
+
+pytestmark = pytest.mark.pybullet
 
 
 def stuck() -> list:
@@ -112,7 +116,9 @@ def test_pybullet_heightfield_is_the_world_models_surface(tmp_path: Path) -> Non
     assert np.all(world.distances(on_surface - [0, 0, 2e-3]) == 0.0)  # under the surface: inside
 
 
-def settle(world: World, seconds: float) -> tuple[pybullet, int, dict[int, str]]:
+def settle(world: World, seconds: float) -> tuple[Any, int, dict[int, str]]:
+    import pybullet
+
     client = pybullet.connect(pybullet.DIRECT)
     pybullet.setGravity(0, 0, -9.81, physicsClientId=client)
     pybullet.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=client)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -14,8 +13,8 @@ import pytest
 from helpers import flat_world
 
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.sim import Run, Simulator, WheelCommand, WheeledRobot
-from pytest_ddenv.sim.robot import make_robot
+from pytest_ddenv.sim import Run, Simulator, WheelCommand, WheeledRobot, urdf_geometry
+from pytest_ddenv.sim.robot import husky_urdf, make_robot
 from pytest_ddenv.world import LaserMount, RobotDescription, Scenario, World
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "robots"
@@ -30,10 +29,8 @@ def with_robot(world: World, robot: str | RobotDescription) -> World:
 
 
 def husky_description() -> RobotDescription:
-    import pybullet_data
-
     return RobotDescription(
-        urdf=os.path.join(pybullet_data.getDataPath(), "husky", "husky.urdf"),
+        urdf=husky_urdf(),  # pybullet_data's, or without pybullet the package's copy
         left_wheels=("front_left_wheel", "rear_left_wheel"), right_wheels=("front_right_wheel", "rear_right_wheel"),
         drive="skid-steer", wheel_radius=0.17775, track=0.5708, max_wheel_torque=100.0,
         laser=LaserMount(height=0.35, min_range=0.62),
@@ -70,6 +67,26 @@ def test_example_diffbot_loads_from_yaml_and_its_geometry_matches_the_urdf() -> 
     assert robot.base_height == pytest.approx(0.08, abs=0.005)  # the base frame is at the wheel axles
     laser = robot.laser
     assert laser is not None and 0.09 < laser.height < 0.2 and 0.3 < laser.min_range < 0.45  # just above/outside
+
+
+@pytest.mark.pybullet
+@pytest.mark.mujoco
+def test_without_pybullet_mujoco_measures_the_urdf_as_pybullet_does(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where pybullet is not installed, MuJoCo compiles the URDF and measures it (sim/urdf_mujoco.py): the same
+    wheels and track, the footprint and base height but for pybullet's 1 mm collision margin, the laser within
+    3 cm, the same mass."""
+    left, right = DIFFBOT.left_wheels, DIFFBOT.right_wheels
+    by_pybullet = urdf_geometry.measure_urdf(str(DIFFBOT_URDF), make_robot(DIFFBOT)._flags(), left, right)
+    monkeypatch.setattr(urdf_geometry, "_cache", {})
+    monkeypatch.setattr(urdf_geometry, "pybullet_installed", lambda: False)
+    by_mujoco = urdf_geometry.measure_urdf(str(DIFFBOT_URDF), 0, left, right)
+    assert (by_mujoco.wheel_radius, by_mujoco.track, by_mujoco.mass) == pytest.approx(
+        (by_pybullet.wheel_radius, by_pybullet.track, by_pybullet.mass), abs=1e-6)
+    assert by_mujoco.footprint == pytest.approx(by_pybullet.footprint, abs=0.0025)
+    assert by_mujoco.base_height == pytest.approx(by_pybullet.base_height, abs=0.0015)
+    assert by_mujoco.laser.height == pytest.approx(by_pybullet.laser.height, abs=0.035)
+    assert by_mujoco.laser.min_range == pytest.approx(by_pybullet.laser.min_range, abs=0.005)
+    assert by_mujoco.footprint != by_pybullet.footprint  # measured by MuJoCo: no collision margin
 
 
 def test_diffbot_drives_to_a_goal_on_flat_ground(sim: Simulator) -> None:

@@ -52,6 +52,7 @@ def test_each_wheel_has_a_velocity_actuator_at_the_robots_torque_limit_and_an_el
         assert shapes == {int(mujoco.mjtGeom.mjGEOM_ELLIPSOID)}
 
 
+@pytest.mark.pybullet  # compares with pybullet
 def test_the_husky_drives_straight_as_commanded(sim: Simulator) -> None:
     run = sim.run(flat_world(goal=(20.0, 0.0), timeout=5.0), seed=0, controller=lambda _: Command(1.0, 0.0))
     x, y = run.positions[-1, :2]
@@ -84,6 +85,7 @@ def test_a_wheel_command_drives_the_urdf_robot_forward(sim: Simulator) -> None:
     assert 0.5 < x < 0.85 and abs(y) < 0.05 and abs(run.poses[-1, 5]) < 0.05  # 0.4 m/s (pybullet: same bounds)
 
 
+@pytest.mark.pybullet  # compares with pybullet_data's file
 def test_without_pybullet_the_husky_urdf_is_the_copy_in_the_package(monkeypatch: pytest.MonkeyPatch) -> None:
     installed = Path(husky_urdf())
     for module in ("pybullet", "pybullet_data"):  # what `import` sees where pybullet is not installed

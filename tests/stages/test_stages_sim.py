@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+from engines import engine_flag
 
 from pytest_ddenv.cli.main import main
 from pytest_ddenv.oracle import PredicateSpec
@@ -26,8 +27,9 @@ def reduce_wall(tmp_path: Path, *options: str) -> dict[str, object]:
     return json.loads((tmp_path / "out" / "summary.json").read_text())
 
 
-def test_the_start_moves_3_m_closer_and_the_time_limit_shrinks(tmp_path: Path) -> None:
-    summary = reduce_wall(tmp_path, "--stages", "models,time")
+def test_the_start_moves_3_m_closer_and_the_time_limit_shrinks(tmp_path: Path, physics_engine: str) -> None:
+    summary = reduce_wall(tmp_path, "--stages", "models,time", *engine_flag(physics_engine))
+    assert summary["engine"]["name"] == physics_engine
     assert summary["minimal_models"] == ["wall"]
     staged = summary["stages"]
     time = next(result for result in staged["results"] if result["stage"] == "time")
@@ -35,6 +37,7 @@ def test_the_start_moves_3_m_closer_and_the_time_limit_shrinks(tmp_path: Path) -
     assert time["timeout"] < 40 and time["saved_sim_seconds_passing"] > 30
     simplified = World.load(tmp_path / "out" / "simplified.yaml")
     assert simplified.scenario is not None and simplified.scenario.start.x >= 3.0
+    assert simplified.physics.engine == physics_engine
     with pytest.raises(RobotFailure):  # the shortened scenario still fails the same way
         RobotWorld(simplified, predicates=(PredicateSpec("stuck", {"window": 3.0, "min_progress": 0.2}),)).run()
     fails, runs = staged["final_failure_rate"]
