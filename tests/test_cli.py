@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from engines import LOST_CONTACTS, engine_flag
+from engines import engine_flag
 
 from pytest_ddenv import __version__
 from pytest_ddenv.cli import main as cli
@@ -178,7 +178,6 @@ def test_bad_predicates_exit_2(capsys: pytest.CaptureFixture[str], worlds: dict[
 
 
 # -- run, show -------------------------------------------------------------------------------------------
-@pytest.mark.mujoco_gap(LOST_CONTACTS)
 def test_run_a_failing_scenario(capsys: pytest.CaptureFixture[str], worlds: dict[str, Path],
                                 tmp_path: Path, physics_engine: str) -> None:
     picture, record = tmp_path / "wall.png", tmp_path / "runs.jsonl"

@@ -184,44 +184,6 @@ def test_without_pybullet_the_plugin_imports_and_runs_a_world_in_mujoco(tmp_path
     assert "1 passed" in done.stdout and "LOADED []" in done.stdout
 
 
-def test_without_pybullet_an_animation_says_pybullet_draws_it(tmp_path: Path) -> None:
-    (tmp_path / "wall.yaml").write_text(WALL)
-    code = BLOCK_PYBULLET + ('from pytest_ddenv.cli.main import main\n'
-                             'sys.exit(main(["show", "wall.yaml", "--animate", "wall.gif"]))')
-    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 2, done.stderr
-    assert "pybullet's TinyRenderer" in done.stderr and "--ddenv-media pictures" in done.stderr
-    assert "internal error" not in done.stderr and not (tmp_path / "wall.gif").exists()
-
-
-def test_without_pybullet_a_reductions_media_skip_the_animations_with_one_warning(tmp_path: Path) -> None:
-    (tmp_path / "wall.yaml").write_text(WALL)
-    code = BLOCK_PYBULLET + textwrap.dedent(
-        """\
-        import warnings
-        from pathlib import Path
-        from pytest_ddenv.media.writer import Shown, write_media
-        from pytest_ddenv.sim import Simulator
-        from pytest_ddenv.world import World
-
-        world = World.load("wall.yaml")
-        with Simulator() as sim:
-            run = sim.run(world, timeout=1.0)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            shown = [Shown("original", world, run, False), Shown("minimal", world, run, False)]
-            written = write_media(Path("."), shown)
-        print("RAN", run.engine, "WRITTEN", [path.name for path in written.paths])
-        print("WARNINGS", [str(warning.message) for warning in caught])
-        """)
-    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
-    assert "RAN mujoco WRITTEN" in done.stdout and ".gif" not in done.stdout.partition("WARNINGS")[0]
-    (warnings_line,) = [line for line in done.stdout.splitlines() if line.startswith("WARNINGS")]
-    assert warnings_line.count("not written") == 1 and "original.gif, minimal.gif not written" in warnings_line
-    assert "pybullet's TinyRenderer" in warnings_line and not list(tmp_path.glob("*.gif"))
-
-
 SCENARIO_TEST = textwrap.dedent(
     """\
     import pytest
