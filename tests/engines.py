@@ -35,11 +35,8 @@ PYBULLET_MODULES = ("test_paper_regression.py",)
 regression's recorded minimal worlds are pybullet runs, and the file stays unchanged."""
 
 # -- the MuJoCo engine's known gaps: the reasons of `mujoco_gap` markers ------------------------------------------
-LOST_CONTACTS = ("the robot's lasting contacts are not reported: a Husky pushing against a wall, or resting on a ridge "
-                 "with its wheels in the air, touches it once (first_touch) and then touches nothing, so the "
-                 "failure's `touched` is empty and high_centered never fires")
-MISSES_THE_GOAL = ("the Husky does not get within the goal tolerance where pybullet's does (it ends 0.5-0.7 m away "
-                   "after turning: its skid-steer turns and dead reckoning differ)")
+WHEELS_HOP_AT_A_WALL = ("a Husky pushing its nose against a wall hops: in MuJoCo its wheels lose the ground on some "
+                        "samples (wheel_contacts 0) where pybullet's rest on it throughout")
 DRIVE_NOT_CALLED = ("a Robot subclass's drive() is never called (sim/mujoco/driven_robot.py drives the described "
                     "robot's side_speeds), so a registered robot that overrides it drives as a plain Husky")
 NO_WHEEL_GEOMETRY = ("the gym environment's wheel-action bound: MuJoCo's robot (sim/mujoco/driven_robot.py "

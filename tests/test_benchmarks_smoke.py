@@ -9,7 +9,6 @@ import sys
 from pathlib import Path
 
 import pytest
-from engines import LOST_CONTACTS
 
 BENCHMARKS = Path(__file__).resolve().parent.parent / "benchmarks"
 
@@ -92,7 +91,6 @@ def test_short_world_for_warm_up(bench):
     assert common.short_world(world).names == world.names
 
 
-@pytest.mark.mujoco_gap(LOST_CONTACTS)  # the yard's stuck at its back wall touches nothing in some seeds
 def test_our_engine_finds_the_culprit(bench, problem):
     common, make_yard = bench
     row = common.ddenv_reduce(problem, partition="even", priority="sequential", deflake=0,
@@ -115,7 +113,6 @@ def test_picire_adapter_finds_the_culprit(bench, problem):
     assert row.extra["retests"] >= 1
 
 
-@pytest.mark.mujoco_gap(LOST_CONTACTS)  # the yard's stuck at its back wall touches nothing in some seeds
 @pytest.mark.parametrize("rule", [0, "auto"])
 def test_failure_rates_of_a_minimal_world_on_fresh_seeds(bench, failure_rates, problem, rule):
     _, make_yard = bench

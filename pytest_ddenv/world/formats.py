@@ -41,6 +41,8 @@ class WorldFormat:
     """A world as text, its relative file paths from the folder given."""
     parse: Callable[[str, PathLike | None], World] | None = None
     """The world in a text (what names it in errors); None: the format reads files only."""
+    writes: bool = True
+    """Whether `World.save` writes it (MJCF is read only: its `dump` says why)."""
 
 
 def _load_yaml(path: Path, model_paths: Sequence[PathLike], skip_unsupported: bool) -> World:
@@ -93,7 +95,7 @@ def _dump_mjcf(world: World, relative_to: Path | None) -> str:
 FORMATS = {
     "yaml": WorldFormat("ddenv YAML", YAML_SUFFIXES, _load_yaml, _dump_yaml, _parse_yaml),
     "sdf": WorldFormat("Gazebo SDF", SDF_SUFFIXES, _load_sdf, _dump_sdf),
-    "mjcf": WorldFormat("MuJoCo MJCF", MJCF_SUFFIXES, _load_mjcf, _dump_mjcf),
+    "mjcf": WorldFormat("MuJoCo MJCF", MJCF_SUFFIXES, _load_mjcf, _dump_mjcf, writes=False),
 }
 READ_AS = "yaml"
 """How a file is read whose suffix is none of the formats'."""
@@ -124,7 +126,8 @@ class WorldFiles:
         """Atomically (write then rename); nothing is left behind when it fails."""
         format_name = format_of(path)
         if format_name is None:
-            named = ", or ".join(f"{' or '.join(known.suffixes)} ({known.title})" for known in FORMATS.values())
+            named = ", or ".join(f"{' or '.join(known.suffixes)} ({known.title})" for known in FORMATS.values()
+                                 if known.writes)
             raise WorldError(f"unknown world file extension {path.suffix.lower() or '(none)'!r}; name it {named}",
                              source=path)
         check_world_values(world)

@@ -9,7 +9,6 @@ import textwrap
 from pathlib import Path
 
 import pytest
-from engines import LOST_CONTACTS
 
 pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
 
@@ -83,7 +82,6 @@ def reduce(project: pytest.Pytester) -> tuple[pytest.RunResult, dict]:
 
 
 @pytest.mark.parametrize("where", sorted(LEFT_THEN_RIGHT))
-@pytest.mark.mujoco_gap(LOST_CONTACTS)
 def test_an_edit_of_the_code_under_test_gives_the_new_answer_not_the_earlier_verdicts(
         pytester: pytest.Pytester, where: str) -> None:
     files, (edited, old, new) = LEFT_THEN_RIGHT[where]

@@ -9,7 +9,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
-from engines import LOST_CONTACTS, engine_option
+from engines import engine_option
 
 from pytest_ddenv import World
 
@@ -171,7 +171,6 @@ def test_a_crash_inside_the_reduction_never_replaces_the_tests_own_failure(wall_
     ])
 
 
-@pytest.mark.mujoco_gap(LOST_CONTACTS)
 def test_a_robot_test_runs_in_a_gazebo_world_with_includes_from_the_model_path(
     wall_project: pytest.Pytester,
 ) -> None:

@@ -9,13 +9,12 @@ import traceback
 
 import numpy as np
 import pytest
-from engines import LOST_CONTACTS
 from helpers import box, flat_world
 
 from pytest_ddenv import Command, ControllerError, ControllerTimeout, Observation, WheelCommand
-from pytest_ddenv.sim.controllers import AvoidObstacles, GoToGoal, default_controller
 from pytest_ddenv.oracle import make_predicate
 from pytest_ddenv.sim import RunSettings, Simulator
+from pytest_ddenv.sim.controllers import AvoidObstacles, GoToGoal, default_controller
 
 WALL = box("wall", (0.3, 4.0, 1.0), (3.0, 0.0, 0.5))
 
@@ -24,7 +23,6 @@ def same(a: object, b: object) -> bool:
     return a.same_trajectory(b) and a.failure == b.failure  # type: ignore[attr-defined]
 
 
-@pytest.mark.mujoco_gap(LOST_CONTACTS)
 def test_the_default_controller_is_go_to_goal(sim: Simulator) -> None:
     world = flat_world(WALL, goal=(6.0, 0.0), timeout=8.0)
     stuck = [make_predicate("stuck", window=2.0, min_progress=0.2)]

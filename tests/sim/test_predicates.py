@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from engines import LOST_CONTACTS, in_engine
+from engines import in_engine
 from helpers import box, ditch_world, flat_world
 
 from pytest_ddenv.oracle import PREDICATES, make_predicate
@@ -22,7 +22,6 @@ def test_clean_run_fires_nothing(sim: Simulator) -> None:
     assert run.reached_goal and run.failure is None
 
 
-@pytest.mark.mujoco_gap(LOST_CONTACTS)
 def test_stuck_and_collided_at_a_wall(sim: Simulator) -> None:
     world = flat_world(box("wall", (0.3, 6.0, 1.0), (3.0, 0.0, 0.5)), timeout=20.0)
     stuck = sim.run(world, seed=0, predicates=[make_predicate("stuck")])
@@ -44,7 +43,6 @@ def test_flipped_and_fell_off_a_high_ledge(sim: Simulator, physics_engine: str) 
     assert flipped.failure is not None and flipped.failure.predicate == "flipped"
 
 
-@pytest.mark.mujoco_gap(LOST_CONTACTS)
 def test_high_centered_on_a_ridge(sim: Simulator) -> None:
     ridge = box("ridge", (3.0, 0.2, 0.35), (0.0, 0.0, 0.175))
     world = flat_world(ridge, start=Pose(0.0, 0.0, 0.35 - 0.13), start_z_given=True, goal=(8.0, 0.0),
