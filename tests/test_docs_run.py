@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
+from engines import NOT_INSTALLED, installed
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -64,6 +65,8 @@ class Page:
     """A snippet of a python block -> expressions that must be true in that block's namespace afterwards."""
     slow: bool = False
     """Real simulations of the shipped (not tiny) worlds."""
+    engine: str = ""
+    """The physics engine whose outputs the page shows (its worlds name none): skipped where it is not installed."""
 
 
 MODEL_SDF = """\
@@ -122,6 +125,7 @@ PAGES: dict[str, Page] = {
         slow=True,
     ),
     "cli.md": Page(
+        engine="pybullet",
         files={
             "docs/images/": "",
             # the user module the page shows (its block is marked "not executed": `ddenv --import` imports it)
@@ -458,7 +462,10 @@ def _page_params() -> list:
 @pytest.mark.parametrize("page", _page_params())
 def test_page_examples_run(page: str, workdir: Path, request: pytest.FixtureRequest,
                            capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
-    run_page(page, PAGES.get(page, Page()), workdir, request, capsys, monkeypatch)
+    spec = PAGES.get(page, Page())
+    if spec.engine and not installed(spec.engine):
+        pytest.skip(f"docs/{page} shows what {spec.engine} simulates: {NOT_INSTALLED[spec.engine]}")
+    run_page(page, spec, workdir, request, capsys, monkeypatch)
 
 
 def run_page(page: str, spec: Page, workdir: Path, request: pytest.FixtureRequest,

@@ -114,6 +114,7 @@ def test_a_run_without_detail_is_animated_with_the_models_where_they_started(tmp
 
 
 @pytest.mark.slow  # a media helper process: the full tier only
+@pytest.mark.pybullet  # pybullet's renderer; MuJoCo's helper: tests/sim_mujoco/test_mujoco_media.py
 def test_an_animation_rendered_in_a_helper_process_is_the_same_file(tmp_path: Path) -> None:
     world, run = failing_run("ditch")
     shown = [Shown("original", world, run, True), Shown("minimal", world.select(world.names[:5]), run, True)]
@@ -130,6 +131,7 @@ def test_an_animation_rendered_in_a_helper_process_is_the_same_file(tmp_path: Pa
 
 
 @pytest.mark.slow  # a media helper process: the full tier only
+@pytest.mark.pybullet  # pybullet's renderer; MuJoCo's helper: tests/sim_mujoco/test_mujoco_media.py
 def test_an_animation_whose_helper_dies_is_rendered_here(tmp_path: Path) -> None:
     world, run = failing_run("ditch")
     shown = [Shown("original", world, run, True), Shown("minimal", world, run, True)]

@@ -94,7 +94,7 @@ def check_wheel_joints(urdf: str, joints: Collection[str], left: Sequence[str], 
         missing = [name for name in names if name not in joints]
         if missing:
             raise ScenarioError(f"the robot's URDF {urdf} has no joint named {', '.join(map(repr, missing))}; its "
-                                f"joints: {', '.join(joints) or '(none)'}", source=source,
+                                f"joints: {', '.join(sorted(joints)) or '(none)'}", source=source,
                                 field=f"scenario.robot.{side}")
 
 
