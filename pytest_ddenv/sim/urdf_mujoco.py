@@ -40,7 +40,7 @@ def measure_in_mujoco(urdf: str, left: tuple[str, ...], right: tuple[str, ...], 
     import mujoco
 
     try:
-        model = mujoco.MjModel.from_xml_string(_readable(urdf))
+        model = mujoco.MjModel.from_xml_string(mujoco_readable_urdf(urdf))
     except (ValueError, OSError) as error:
         raise ScenarioError(f"MuJoCo cannot load the URDF {urdf}: {error}", source=source,
                             field="scenario.robot.urdf") from None
@@ -80,8 +80,11 @@ def _base_centre_of_mass(model: object, data: object) -> tuple[float, float, flo
     return float(centre[0]), float(centre[1]), float(centre[2])
 
 
-def _readable(urdf: str) -> str:
-    """The URDF's text as MuJoCo reads it (see the module docstring)."""
+def mujoco_readable_urdf(urdf: str) -> str:
+    """The URDF's text as MuJoCo can read it: each xacro leftover `$(optenv NAME default)` (the Husky's IMU pose)
+    becomes `default`, and a `<mujoco><compiler .../></mujoco>` element keeps MuJoCo from welding the root to the
+    world (`fusestatic` off), drops the visual meshes (`discardvisual`) and finds meshes beside the URDF. Also
+    what `sim/mujoco/robot_spec.py` compiles."""
     text = Path(urdf).read_text(encoding="utf-8")
     text = re.sub(r"\$\(optenv\s+\S+\s+([^)]*)\)", r"\1", text)
     folder = str(Path(urdf).resolve().parent).replace('"', "&quot;")

@@ -10,7 +10,6 @@ and a `<mujoco><compiler .../></mujoco>` element keeps MuJoCo from welding the r
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import mujoco
@@ -18,6 +17,7 @@ import mujoco
 from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.sim.mujoco.contacts import ROBOT_GROUP, ROLLING, TORSION, friction_priority
 from pytest_ddenv.sim.robot import Husky, WheeledRobot
+from pytest_ddenv.sim.urdf_mujoco import mujoco_readable_urdf
 
 PREFIX = "robot/"
 """Every name of the robot in the compiled model starts with this."""
@@ -38,20 +38,10 @@ HUSKY_CHASSIS = (39.455, (0.006893929793435562, 0.0, 0.1568947699911291 - 0.1449
                  (1.317943838358333, 3.588822229795833, 4.429161649195833))
 
 
-def sanitised_urdf(path: str) -> str:
-    """The URDF's text as MuJoCo can read it (see the module docstring)."""
-    text = Path(path).read_text(encoding="utf-8")
-    text = re.sub(r"\$\(optenv\s+\S+\s+([^)]*)\)", r"\1", text)
-    folder = str(Path(path).resolve().parent).replace('"', "&quot;")
-    compiler = (f'<mujoco><compiler discardvisual="true" fusestatic="false" strippath="false" '
-                f'meshdir="{folder}"/></mujoco>')
-    return re.sub(r"(<robot\b[^>]*>)", lambda match: match.group(1) + compiler, text, count=1)
-
-
 def robot_spec(robot: WheeledRobot) -> mujoco.MjSpec:
     """The robot alone, as a spec to attach to a world: its root body free, its wheels driven."""
     try:
-        spec = mujoco.MjSpec.from_string(sanitised_urdf(robot.urdf))
+        spec = mujoco.MjSpec.from_string(mujoco_readable_urdf(robot.urdf))
     except (ValueError, OSError) as error:
         raise ScenarioError(f"MuJoCo cannot read the URDF {robot.urdf}: {error}", source=robot.source,
                             field="scenario.robot.urdf") from None
