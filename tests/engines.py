@@ -39,9 +39,6 @@ WHEELS_HOP_AT_A_WALL = ("a Husky pushing its nose against a wall hops: in MuJoCo
                         "samples (wheel_contacts 0) where pybullet's rest on it throughout")
 DRIVE_NOT_CALLED = ("a Robot subclass's drive() is never called (sim/mujoco/driven_robot.py drives the described "
                     "robot's side_speeds), so a registered robot that overrides it drives as a plain Husky")
-NO_WHEEL_GEOMETRY = ("the gym environment's wheel-action bound: MuJoCo's robot (sim/mujoco/driven_robot.py "
-                     "MujocoRobot) does not expose the described robot's wheel_radius, track and track_factor, so "
-                     "scenario/gym_env.py falls back to max_speed / 0.1 m (10 rad/s, the Husky's is 7.55 rad/s)")
 POLYLINE_BODY_FRAME = ("a moving polyline's recorded pose: MuJoCo's body_pose gives the model's frame where pybullet's "
                        "(and the recording's outline) is the centre of mass, so the outline is drawn 0.22 m off")
 

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from engines import NO_WHEEL_GEOMETRY, in_engine
+from engines import in_engine
 from plugin.conftest import WALL_WORLD  # the same small world as the plugin tests
 
 gymnasium = pytest.importorskip("gymnasium")
@@ -260,7 +260,6 @@ def test_unfinished_episodes_are_recorded_when_dropped(stuck_world: RobotWorld) 
 
 
 # -- wheel actions --------------------------------------------------------------------------------
-@pytest.mark.mujoco_gap(NO_WHEEL_GEOMETRY)
 def test_wheel_actions_drive_the_wheels(wall_world: World, physics_engine: str) -> None:
     robot_world = RobotWorld(in_engine(wall_world, physics_engine), predicates=STUCK)
     env = robot_world.make_env(wheel_actions=True)

@@ -26,6 +26,7 @@ class MujocoRobot(Robot):
         self.has_laser = robot.has_laser
         self.laser_height, self.laser_min_range = robot.laser_height, robot.laser_min_range
         self.laser_x, self.laser_y, self.laser_yaw = robot.laser_x, robot.laser_y, robot.laser_yaw
+        self.wheel_radius, self.track, self.track_factor = robot.wheel_radius, robot.track, robot.track_factor
         self.root = int(model.jnt_bodyid[model.joint(PREFIX + ROOT_JOINT).id])
         joints = [model.joint(PREFIX + name).id for name in robot.wheel_names]
         self._actuators = [model.actuator(PREFIX + name).id for name in robot.wheel_names]
