@@ -173,6 +173,9 @@ class WheeledRobot(Robot):
             self.laser_height, self.laser_min_range = mount.height, mount.min_range
             self.laser_x, self.laser_y, self.laser_yaw = mount.x, mount.y, mount.yaw
         self._known_mass = mass
+        self.wheel_motors: Callable[[float, float], None] | None = None
+        """Where the (left, right) wheel speeds go when not to pybullet's motors: another engine's (MuJoCo's
+        robot sets it, so that a subclass's `drive` and `drive_wheels` are its commands in every engine)."""
         self._client = -1
         self._body = -1
         self._wheels: tuple[int, ...] = ()
@@ -253,6 +256,9 @@ class WheeledRobot(Robot):
         self._set_wheel_speeds(float(left) * scale_left, float(right) * scale_right)
 
     def _set_wheel_speeds(self, left: float, right: float) -> None:
+        if self.wheel_motors is not None:
+            self.wheel_motors(left, right)
+            return
         import pybullet as p
 
         targets = [left if is_left else right for is_left in self._sides]

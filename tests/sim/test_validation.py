@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 
 import pytest
-from engines import DRIVE_NOT_CALLED
 from helpers import box, flat_world
 
 from pytest_ddenv.errors import ScenarioError
@@ -77,7 +76,6 @@ def test_bad_predicate_object(sim: Simulator) -> None:
         sim.run(flat_world(), predicates=["stuck"])  # type: ignore[list-item]
 
 
-@pytest.mark.mujoco_gap(DRIVE_NOT_CALLED)
 def test_register_a_robot(sim: Simulator) -> None:
     class SlowHusky(Husky):
         name = "slow_husky"

@@ -27,6 +27,7 @@ class MujocoRobot(Robot):
         self.laser_height, self.laser_min_range = robot.laser_height, robot.laser_min_range
         self.laser_x, self.laser_y, self.laser_yaw = robot.laser_x, robot.laser_y, robot.laser_yaw
         self.wheel_radius, self.track, self.track_factor = robot.wheel_radius, robot.track, robot.track_factor
+        robot.wheel_motors = self._set_wheel_speeds  # the described robot's commands drive MuJoCo's motors
         self.root = int(model.jnt_bodyid[model.joint(PREFIX + ROOT_JOINT).id])
         joints = [model.joint(PREFIX + name).id for name in robot.wheel_names]
         self._actuators = [model.actuator(PREFIX + name).id for name in robot.wheel_names]
@@ -61,10 +62,10 @@ class MujocoRobot(Robot):
         return self._mass
 
     def drive(self, linear: float, angular: float, scale_left: float = 1.0, scale_right: float = 1.0) -> None:
-        self._set_wheel_speeds(*self.described.side_speeds(linear, angular, scale_left, scale_right))
+        self.described.drive(linear, angular, scale_left, scale_right)  # a subclass's own drive() too
 
     def drive_wheels(self, left: float, right: float, scale_left: float = 1.0, scale_right: float = 1.0) -> None:
-        self._set_wheel_speeds(float(left) * scale_left, float(right) * scale_right)
+        self.described.drive_wheels(left, right, scale_left, scale_right)
 
     def _set_wheel_speeds(self, left: float, right: float) -> None:
         self.data.ctrl[self._actuators] = [left if is_left else right for is_left in self._sides]
