@@ -37,8 +37,6 @@ regression's recorded minimal worlds are pybullet runs, and the file stays uncha
 # -- the MuJoCo engine's known gaps: the reasons of `mujoco_gap` markers ------------------------------------------
 WHEELS_HOP_AT_A_WALL = ("a Husky pushing its nose against a wall hops: in MuJoCo its wheels lose the ground on some "
                         "samples (wheel_contacts 0) where pybullet's rest on it throughout")
-POLYLINE_BODY_FRAME = ("a moving polyline's recorded pose: MuJoCo's body_pose gives the model's frame where pybullet's "
-                       "(and the recording's outline) is the centre of mass, so the outline is drawn 0.22 m off")
 
 
 def installed(engine: str) -> bool:

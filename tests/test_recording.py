@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from engines import POLYLINE_BODY_FRAME, in_engine
+from engines import in_engine
 
 rr = pytest.importorskip("rerun")
 pa = pytest.importorskip("pyarrow")
@@ -238,7 +238,6 @@ def shapes_world() -> World:
     return World(models, Scenario(start=Pose(), goal=(0.0, 8.0, None), timeout=1.0), name="shapes")
 
 
-@pytest.mark.mujoco_gap(POLYLINE_BODY_FRAME)
 def test_every_shape_kind_is_drawn_where_the_world_puts_it(tmp_path: Path, physics_engine: str) -> None:
     world = in_engine(shapes_world(), physics_engine)
     with recording_detail():

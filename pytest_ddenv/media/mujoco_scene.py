@@ -76,8 +76,9 @@ class MujocoScene:
         in_robot = [int(model.body_rootid[b]) == self.root for b in range(model.nbody)]
         self.hinges = [int(model.jnt_qposadr[j]) for j in range(model.njnt)
                        if in_robot[int(model.jnt_bodyid[j])] and model.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE]
-        self.moving = {model.body(b).name: int(model.jnt_qposadr[model.body_jntadr[b]])
+        self.moving = {model.body(b).name: (int(model.jnt_qposadr[model.body_jntadr[b]]), b)
                        for b in range(1, model.nbody) if not in_robot[b] and model.body_jntnum[b] > 0}
+        """A moving model's name -> (its free joint's qpos address, its body)."""
         self.centre = self._chassis_centre()
         self.camera = mujoco.MjvCamera()
         self.camera.type = mujoco.mjtCamera.mjCAMERA_FREE
@@ -115,10 +116,14 @@ class MujocoScene:
             if run.engine == "mujoco" and detail.joints.shape[1] == len(self.hinges):
                 data.qpos[self.hinges] = detail.joints[index]
             for name, poses in detail.bodies.items():
-                address = self.moving.get(name)
-                if address is not None and index < len(poses):
+                moving = self.moving.get(name)
+                if moving is not None and index < len(poses):
+                    address, body = moving
                     px, py, pz, qx, qy, qz, qw = (float(v) for v in poses[index])
-                    data.qpos[address:address + 7] = [px, py, pz, qw, qx, qy, qz]
+                    turn = np.zeros(9)  # the pose recorded is the centre of mass's (both engines): the body's origin
+                    self.mujoco.mju_quat2Mat(turn, np.array([qw, qx, qy, qz]))
+                    origin = np.array([px, py, pz]) - turn.reshape(3, 3) @ self.model.body_ipos[body]
+                    data.qpos[address:address + 7] = [*origin, qw, qx, qy, qz]
         self.mujoco.mj_kinematics(self.model, data)
 
     def image(self, eye: Sequence[float], target: Sequence[float], width: int, height: int) -> NDArray[np.uint8]:

@@ -48,7 +48,8 @@ def settled(world: World, seconds: float = 2.0) -> tuple[MujocoPhysics, dict[str
     physics.load(world, robot, "min")
     physics.spawn(robot, (-30.0, -30.0, 0.2), 0.0)
     physics.step(round(seconds / world.physics.timestep))
-    positions = {name: tuple(physics.body_pose(body)[0]) for body, name in physics.bodies.items()}
+    data = physics._loaded()[1]  # each model's origin (body_pose gives its centre of mass, as pybullet's does)
+    positions = {name: tuple(float(v) for v in data.xpos[body]) for body, name in physics.bodies.items()}
     return physics, positions
 
 

@@ -149,9 +149,10 @@ class MujocoPhysics:
         mujoco.mj_step(model, data, nstep=count)
 
     def body_pose(self, body: int) -> tuple[Sequence[float], Sequence[float]]:
+        """As pybullet gives a base: its centre of mass (`xipos`), with the body's orientation."""
         _, data, _ = self._loaded()
         w, x, y, z = (float(v) for v in data.xquat[body])
-        return [float(v) for v in data.xpos[body]], (x, y, z, w)
+        return [float(v) for v in data.xipos[body]], (x, y, z, w)
 
     def joint_positions(self) -> list[float]:
         return self._loaded()[2].joint_positions()
