@@ -156,7 +156,7 @@ def test_a_hypothesis_drawn_world_simulates_in_mujoco(world: World) -> None:
 def test_a_hypothesis_test_run_in_mujoco_by_the_option_is_reduced_there(pytester: pytest.Pytester) -> None:
     """`--ddenv-engine mujoco` runs each drawn world in MuJoCo (`robot_world.rebound` switches its engine), and
     the falsifying example is still found among the @given arguments and reduced in MuJoCo."""
-    pytester.makepyfile(test_generated=GENERATED_TEST)
+    pytester.makepyfile(test_generated=generated_test())
     result = pytester.runpytest_subprocess("--ddenv-reduce", "--ddenv-engine", "mujoco", "--ddenv-media", "none",
                                            "--ddenv-workers", "1", "-p", "no:cacheprovider")
     result.assert_outcomes(failed=1)
@@ -169,20 +169,12 @@ def test_a_hypothesis_test_run_in_mujoco_by_the_option_is_reduced_there(pytester
     assert 1 <= len(minimal) == summary["minimal_size"] < summary["original_size"]
 
 
-GENERATED_TEST = """\
-import pytest
-from hypothesis import HealthCheck, Phase, given, settings
-
-from pytest_ddenv.strategies import worlds
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "test_generated_worlds.py"
+RUN_LINE = "    robot_world.rebound(world).run()\n"
 
 
-@pytest.mark.ddenv(partition="model2model", priority="avg-trajectory")
-@pytest.mark.robot_failure("collided")
-@settings(max_examples=30, deadline=None, derandomize=True, database=None, report_multiple_bugs=False,
-          phases=[Phase.explicit, Phase.generate], suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(world=worlds(count=(6, 16), size=(0.4, 1.0), static=True))
-def test_husky_crosses_a_cluttered_yard_without_collision(robot_world, world):
-    run = robot_world.rebound(world).run()
-    assert run.engine == "mujoco"
-"""
-"""examples/test_generated_worlds.py, checking the engine its runs simulate in."""
+def generated_test() -> str:
+    """examples/test_generated_worlds.py, checking the engine its runs simulate in."""
+    text = EXAMPLE.read_text(encoding="utf-8")
+    assert text.count(RUN_LINE) == 1, f"{EXAMPLE} no longer runs its drawn world with {RUN_LINE.strip()!r}"
+    return text.replace(RUN_LINE, '    run = robot_world.rebound(world).run()\n    assert run.engine == "mujoco"\n')
