@@ -10,7 +10,18 @@ from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv._version import __version__
 from pytest_ddenv.errors import DdenvError, ReductionError, ScenarioError, WorldError
-from pytest_ddenv.world.model import Ground, LaserMount, Model, Physics, Pose, RobotDescription, Scenario, Shape, World
+from pytest_ddenv.world.model import (
+    ArmDescription,
+    Ground,
+    LaserMount,
+    Model,
+    Physics,
+    Pose,
+    RobotDescription,
+    Scenario,
+    Shape,
+    World,
+)
 
 if TYPE_CHECKING:
     from pytest_ddenv.oracle.predicates import FailureSignature, Predicate, RobotState, predicate, register_predicate
@@ -58,6 +69,7 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = [
+    "ArmDescription",
     "Command",
     "ControllerError",
     "ControllerTimeout",

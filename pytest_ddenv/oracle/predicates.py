@@ -56,13 +56,15 @@ class Contact:
     """One contact of the robot with something, summed over the contact points of one (link, body) pair.
 
     `model` is the model name, or `GROUND` for the ground plane. `link` is the robot link's name, `wheel`
-    whether that link is a wheel, `normal_force` the summed normal force in newtons.
+    whether that link is a wheel, `normal_force` the summed normal force in newtons; `finger` whether the
+    link is one of an arm's gripper fingers.
     """
 
     model: str
     link: str
     wheel: bool
     normal_force: float
+    finger: bool = False
 
 
 class History:

@@ -31,7 +31,7 @@ from pytest_ddenv.sim.urdf_geometry import (
 )
 from pytest_ddenv.validation import expected
 from pytest_ddenv.world.files import regular_file_problem, resolve_relative
-from pytest_ddenv.world.model import DRIVE_KINDS, LaserMount, RobotDescription
+from pytest_ddenv.world.model import DRIVE_KINDS, ArmDescription, LaserMount, RobotDescription
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
@@ -357,7 +357,7 @@ def _described(name: str, where: str, description: RobotDescription) -> WheeledR
         raise ScenarioError(f"robot {name!r} (registered at {where}): {error.reason}", field=error.field) from None
 
 
-def check_robot(robot: str | RobotDescription, source: str | None = None) -> None:
+def check_robot(robot: str | RobotDescription | ArmDescription, source: str | None = None) -> None:
     """Build a scenario's robot as a run does, without a simulation, when it is described by its URDF (a world
     file's `scenario.robot` mapping, or a name registered with a `RobotDescription`): a URDF pybullet cannot
     load, a wheel joint it does not have, a wheel without a collision shape raise `ScenarioError` naming the
@@ -368,8 +368,10 @@ def check_robot(robot: str | RobotDescription, source: str | None = None) -> Non
         make_robot(robot, source)
 
 
-def make_robot(robot: str | RobotDescription, source: str | None = None) -> Robot:
+def make_robot(robot: str | RobotDescription | ArmDescription, source: str | None = None) -> Robot:
     """The robot of a scenario: a registered name or a description (`source`: the world file)."""
+    if isinstance(robot, ArmDescription):
+        raise ScenarioError("arms are not simulated yet", source=source, field="scenario.robot")
     if isinstance(robot, RobotDescription):
         return WheeledRobot.from_description(robot, source)
     try:

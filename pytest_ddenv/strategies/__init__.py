@@ -127,7 +127,7 @@ def models(
 
 
 def scenarios(
-    robot: str | RobotDescription = Scenario.robot,
+    robot: str | RobotDescription = "husky",
     *,
     start: Pose | Region | st.SearchStrategy[Pose] = DEFAULT_SCENARIO.start,
     goal: Point | Region | st.SearchStrategy[Point] = DEFAULT_SCENARIO.goal[:2],

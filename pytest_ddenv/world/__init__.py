@@ -11,6 +11,7 @@ layer.
 
 from pytest_ddenv.world import formats  # noqa: F401 - installs the file formats of every World
 from pytest_ddenv.world.model import (
+    ArmDescription,
     Ground,
     LaserMount,
     Model,
@@ -22,4 +23,7 @@ from pytest_ddenv.world.model import (
     World,
 )
 
-__all__ = ["Ground", "LaserMount", "Model", "Physics", "Pose", "RobotDescription", "Scenario", "Shape", "World"]
+__all__ = [
+    "ArmDescription", "Ground", "LaserMount", "Model", "Physics", "Pose", "RobotDescription", "Scenario", "Shape",
+    "World",
+]

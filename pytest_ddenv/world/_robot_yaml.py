@@ -13,7 +13,7 @@ from typing import Any, Protocol
 
 from pytest_ddenv.validation import is_flag
 from pytest_ddenv.world.files import regular_file_problem, resolve_relative
-from pytest_ddenv.world.model import DRIVE_KINDS, LaserMount, RobotDescription
+from pytest_ddenv.world.model import DRIVE_KINDS, ArmDescription, LaserMount, RobotDescription
 
 ROBOT_KEYS = (
     "urdf", "drive", "left_wheels", "right_wheels", "wheel_radius", "track", "track_factor", "max_wheel_torque",
@@ -103,10 +103,12 @@ def _laser(reader: FieldReader, value: Any) -> bool | LaserMount:
     )
 
 
-def robot_dict(robot: str | RobotDescription, source: str | None, relative_to: Path | None) -> Any:
+def robot_dict(robot: str | RobotDescription | ArmDescription, source: str | None, relative_to: Path | None) -> Any:
     """`scenario.robot` as written to a world file (paths rebased onto `relative_to` when given)."""
     if isinstance(robot, str):
         return robot
+    if isinstance(robot, ArmDescription):
+        raise NotImplementedError("writing an arm is not implemented yet")
     data: dict[str, Any] = {"urdf": rebased(robot.urdf, source, relative_to), "drive": robot.drive,
                             "left_wheels": list(robot.left_wheels), "right_wheels": list(robot.right_wheels)}
     for key in ("wheel_radius", "track", "track_factor"):

@@ -155,18 +155,53 @@ class RobotDescription:
 
 
 @dataclass(frozen=True)
+class ArmDescription:
+    """A fixed-base arm with a parallel gripper given as data: the `arm:` mapping form of a world file's
+    `scenario.robot` (docs/world-format.md, "An arm on a table").
+
+    `urdf` is a path, absolute or relative to the world file (`mjcf`, optional, the same arm as an MJCF for
+    the MuJoCo engine). `arm_joints` name the position-controlled joints from the base outwards,
+    `finger_joints` the gripper's prismatic joints (one command moves them together), `end_effector` the
+    link whose pose is the tool's (between the fingertips). `home`: the arm joints' positions at the start
+    (None: zero, clipped to the limits). `name` defaults to the URDF's file name without extension.
+    """
+
+    urdf: str
+    arm_joints: tuple[str, ...]
+    finger_joints: tuple[str, ...]
+    end_effector: str
+    home: tuple[float, ...] | None = None
+    mjcf: str | None = None
+    name: str = ""
+
+    @property
+    def label(self) -> str:
+        """The robot's name in runs and reports."""
+        return self.name or Path(self.urdf).stem
+
+
+@dataclass(frozen=True)
 class Scenario:
     """What the robot does in the world: start pose, goal, time limit (simulated seconds).
 
-    `robot` is the name of a registered robot ("husky" by default) or a `RobotDescription`.
+    `robot` is the name of a registered robot ("husky" by default; "panda" is the built-in arm), a
+    `RobotDescription` (a wheeled robot) or an `ArmDescription` (an arm).
+
+    For an arm (docs/writing-tests.md, "Arms"): `start` is the pose of the arm's base (z given: on or beside
+    the table), `target` the model to pick, `goal` the centre of the place region and `goal_tolerance` its
+    radius (m, planar), `table` the model the objects stand on, `watch` further models whose poses the
+    controller observes and the predicates see. The reduction never removes the table or the target.
     """
 
-    robot: str | RobotDescription = "husky"
+    robot: str | RobotDescription | ArmDescription = "husky"
     start: Pose = Pose()
     start_z_given: bool = False
     goal: tuple[float, float, float | None] = (0.0, 0.0, None)
     goal_tolerance: float = 0.3
     timeout: float = 60.0
+    target: str | None = None
+    table: str | None = None
+    watch: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

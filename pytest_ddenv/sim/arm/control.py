@@ -1,0 +1,88 @@
+"""An arm's controller interface: what it sees each control tick (`ArmObservation`) and what it returns.
+
+A controller is any callable `controller(observation) -> command`, as for mobile robots (sim/control.py),
+with an optional `reset(observation)`. The commands: `JointTargets` (a position for every arm joint),
+`EndEffectorTarget` (a tool position and yaw, pointing down; inverse kinematics turns it into joint targets)
+and `GripperCommand` (open or close, alone). The first two also carry an optional gripper command.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_ddenv.oracle.arm_state import GRIPPER_CLOSE, GRIPPER_OPEN, Pose6
+from pytest_ddenv.oracle.predicates import Contact
+
+GRIPPER_ACTIONS = (GRIPPER_OPEN, GRIPPER_CLOSE)
+
+
+@dataclass(frozen=True, eq=False)
+class ArmObservation:
+    """What an arm's controller knows at one control tick (world frame, SI units).
+
+    - `time`: simulated seconds since the start.
+    - `joint_positions`, `joint_velocities`: the arm joints' (with the seeded sensing noise), in `joint_names`
+      order.
+    - `end_effector`: the tool's pose (x, y, z, roll, pitch, yaw), from forward kinematics of the measured
+      joints.
+    - `gripper_opening`: the distance between the fingers (m); `gripper_force`: the summed normal force the
+      fingers feel (N).
+    - `contacts`: what the arm touches now (model names, links, normal forces; `finger` marks the fingers).
+    - `objects`: the poses of the target, the table and the scenario's `watch` models (as a perception system
+      would report them); `target`: the target's name (None: none).
+    - `place`: the centre of the place region (z None: on the table), `place_tolerance`: its radius.
+    - `image`: the declared camera's picture ((H, W, 3) uint8 RGB, or (H, W) float32 depth in m), or None.
+    """
+
+    time: float
+    joint_names: tuple[str, ...]
+    joint_positions: tuple[float, ...]
+    joint_velocities: tuple[float, ...]
+    end_effector: Pose6
+    gripper_opening: float
+    gripper_force: float
+    contacts: tuple[Contact, ...]
+    objects: Mapping[str, Pose6]
+    target: str | None
+    place: tuple[float, float, float | None]
+    place_tolerance: float
+    image: NDArray[np.generic] | None = None
+
+    @property
+    def target_pose(self) -> Pose6 | None:
+        """The target's pose (None: no target)."""
+        return None if self.target is None else self.objects.get(self.target)
+
+
+@dataclass(frozen=True)
+class JointTargets:
+    """A position target for every arm joint (rad or m, clipped to the URDF's limits), reached by the
+    joints' position controllers within their velocity and effort limits; `gripper`: "open", "close" or None
+    (unchanged)."""
+
+    positions: tuple[float, ...]
+    gripper: str | None = None
+
+
+@dataclass(frozen=True)
+class EndEffectorTarget:
+    """A tool position (x, y, z, m) with the gripper pointing down, turned by `yaw` (rad) about the vertical;
+    inverse kinematics turns it into joint targets. `gripper`: "open", "close" or None (unchanged)."""
+
+    position: tuple[float, float, float]
+    yaw: float = 0.0
+    gripper: str | None = None
+
+
+@dataclass(frozen=True)
+class GripperCommand:
+    """Open or close the gripper ("open" / "close"), the arm holding its joint targets."""
+
+    action: str
+
+
+ArmCommand = JointTargets | EndEffectorTarget | GripperCommand
