@@ -1,15 +1,30 @@
 """The oracle (layer 4): what a failure is and whether two are the same.
 
 `predicates` (the failure predicates the simulation checks every control tick, `FailureSignature`,
-`RobotState`, `PredicateSpec`, `register_predicate` and `@predicate`), `verdict` (`classify`, `same_failure`,
+`RobotState`, `PredicateSpec`, `register_predicate` and `@predicate`, which robots a predicate is for),
+`arm_state` and `arm_predicates` (what an arm's predicates see, and the arm's built-in predicates, registered
+here), `verdict` (`classify`, `same_failure`,
 `SameFailureRule` the user's choice of what "same" means, `why_other`). Both know nothing of the simulation:
 a run is anything with a `failure`. See docs/oracle.md.
 """
 
+from pytest_ddenv.oracle.arm_predicates import (
+    ARM_DEFAULTS,
+    ARM_PREDICATES,
+    ArmCollision,
+    GraspFailed,
+    JointLimit,
+    KnockedOver,
+    NotPlaced,
+    ObjectDropped,
+    SelfCollision,
+)
+from pytest_ddenv.oracle.arm_state import ArmState
 from pytest_ddenv.oracle.predicates import (
     BUILT_IN,
     GROUND,
     PREDICATES,
+    ROBOT_KINDS,
     Collided,
     Contact,
     FailureSignature,
@@ -25,10 +40,13 @@ from pytest_ddenv.oracle.predicates import (
     Timeout,
     check_predicate,
     check_predicate_models,
+    check_predicates_for_robot,
     make_predicate,
     predicate,
     predicate_spec,
+    predicates_for,
     register_predicate,
+    robots_of,
     signature,
 )
 from pytest_ddenv.oracle.verdict import (
@@ -44,34 +62,48 @@ from pytest_ddenv.oracle.verdict import (
 )
 
 __all__ = [
+    "ARM_DEFAULTS",
+    "ARM_PREDICATES",
     "BUILT_IN",
     "GROUND",
     "MATCHES",
     "PREDICATES",
+    "ROBOT_KINDS",
+    "ArmCollision",
+    "ArmState",
     "Collided",
     "Contact",
     "FailureSignature",
     "Fell",
     "Flipped",
     "FunctionPredicate",
+    "GraspFailed",
     "HighCentered",
     "History",
+    "JointLimit",
+    "KnockedOver",
+    "NotPlaced",
+    "ObjectDropped",
     "OtherReason",
     "Predicate",
     "PredicateSpec",
     "RobotState",
     "SameFailureError",
     "SameFailureRule",
+    "SelfCollision",
     "Stuck",
     "Timeout",
     "check_predicate",
     "check_predicate_models",
+    "check_predicates_for_robot",
     "classify",
     "make_predicate",
     "most_common_reason",
     "predicate",
     "predicate_spec",
+    "predicates_for",
     "register_predicate",
+    "robots_of",
     "same_failure",
     "same_failure_match",
     "signature",
