@@ -22,12 +22,15 @@ from pytest_ddenv.oracle import (
     FailureSignature,
     History,
     PredicateSpec,
+    SameFailureRule,
     check_predicate_models,
     check_predicates_for_robot,
     make_predicate,
     predicate,
     predicate_spec,
     robots_of,
+    same_failure,
+    why_other,
 )
 from pytest_ddenv.oracle.arm_state import GRIPPER_CLOSE, GRIPPER_OPEN, Pose6
 from pytest_ddenv.oracle.predicates import Predicate, RobotState
@@ -368,3 +371,44 @@ def test_predicates_of_a_user_are_for_any_robot_unless_they_say_so() -> None:
     always.robots = "arms"
     with pytest.raises(ScenarioError, match=r"robots attribute of predicate 'always'.*one of mobile, arm, any"):
         check_predicates_for_robot([always], "arm", "panda")
+
+
+# -- "same failure" for arms -----------------------------------------------------------------------------
+def grasp_signature(x: float, *touched: str) -> FailureSignature:
+    return FailureSignature("grasp_failed", 2.6, (x, 0.0, 0.5, math.pi, 0.0, 0.0), touched)
+
+
+def test_an_arm_failure_is_at_the_same_place_within_a_tenth_of_a_metre_by_default() -> None:
+    reference = grasp_signature(0.50, "box")
+    assert same_failure(grasp_signature(0.58, "box"), reference)
+    assert not same_failure(grasp_signature(0.65, "box"), reference)  # 0.15 m: another place on a table
+    assert SameFailureRule().same(grasp_signature(0.58, "box"), reference)
+    assert not SameFailureRule().same(grasp_signature(0.65, "box"), reference)
+    reason = why_other(grasp_signature(0.65, "box"), reference)
+    assert reason is not None
+    assert reason.text == "the same predicate fired 0.15 m from the reference failure (more than 0.1 m)"
+    assert SameFailureRule().describe(reference).startswith("grasp_failed within 0.1 m, touching one of")
+    # a tolerance the user chose applies as given; mobile failures keep the default 0.5 m
+    assert SameFailureRule(tolerance=0.3).same(grasp_signature(0.65, "box"), reference)
+    stuck = FailureSignature("stuck", 9.0, (1.0, 0.0, 0.2, 0.0, 0.0, 0.0), ("wall",))
+    assert same_failure(replace(stuck, pose=(1.4, 0.0, 0.2, 0.0, 0.0, 0.0)), stuck)
+    timeout = FailureSignature("timeout", 20.0, (0.5, 0.0, 0.5, 0.0, 0.0, 0.0))  # any robot's: as given
+    assert same_failure(replace(timeout, pose=(0.9, 0.0, 0.5, 0.0, 0.0, 0.0)), timeout)
+
+
+def test_grasp_failures_touching_different_neighbours_follow_the_users_rule() -> None:
+    reference = grasp_signature(0.50, "box")
+    other_neighbour = grasp_signature(0.52, "vase")
+    assert not SameFailureRule().same(other_neighbour, reference)  # "all": one of the reference's models
+    assert SameFailureRule("place").same(other_neighbour, reference)
+    assert not SameFailureRule("touched").same(other_neighbour, reference)
+    assert SameFailureRule("touched").same(grasp_signature(0.9, "box", "vase"), reference)
+    reason = why_other(other_neighbour, reference)
+    assert reason is not None and reason.advice == "consider same_failure='place'"
+
+
+def test_an_arm_signature_leaves_the_target_and_the_table_out_of_what_was_touched() -> None:
+    state = arm_state(contacts=(*both_fingers(), link("table", "panda_link0"), link("box", force=0.5)))
+    failure = make_predicate("grasp_failed", settle=0.0).check(replace(state, gripper_command=GRIPPER_CLOSE,
+                                                                       gripper_opening=0.001))
+    assert failure is not None and failure.touched == ("box",)

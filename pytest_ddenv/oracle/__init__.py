@@ -50,6 +50,7 @@ from pytest_ddenv.oracle.predicates import (
     signature,
 )
 from pytest_ddenv.oracle.verdict import (
+    ARM_TOLERANCE,
     MATCHES,
     OtherReason,
     SameFailureError,
@@ -58,12 +59,14 @@ from pytest_ddenv.oracle.verdict import (
     most_common_reason,
     same_failure,
     same_failure_match,
+    tolerance_for,
     why_other,
 )
 
 __all__ = [
     "ARM_DEFAULTS",
     "ARM_PREDICATES",
+    "ARM_TOLERANCE",
     "BUILT_IN",
     "GROUND",
     "MATCHES",
@@ -107,5 +110,6 @@ __all__ = [
     "same_failure",
     "same_failure_match",
     "signature",
+    "tolerance_for",
     "why_other",
 ]
