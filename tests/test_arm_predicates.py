@@ -25,6 +25,7 @@ from pytest_ddenv.oracle import (
     SameFailureRule,
     check_predicate_models,
     check_predicates_for_robot,
+    default_predicates,
     make_predicate,
     predicate,
     predicate_spec,
@@ -319,6 +320,16 @@ def test_every_arm_predicate_is_built_in_and_for_arms() -> None:
         "mobile"}
     assert robots_of(PREDICATES["timeout"]) == "any"
     assert set(ARM_DEFAULTS) <= names
+
+
+def test_the_default_predicates_are_the_arms_for_an_arm_and_none_for_a_mobile_robot() -> None:
+    specs = default_predicates("arm")
+    assert [spec.name for spec in specs] == list(ARM_DEFAULTS)
+    assert [spec.build().name for spec in specs] == list(ARM_DEFAULTS)
+    check_predicates_for_robot(specs, "arm", "panda")
+    assert default_predicates("mobile") == ()
+    with pytest.raises(ValueError, match="kind must be"):
+        default_predicates("boat")
 
 
 @pytest.mark.parametrize(("name", "params", "message"), [

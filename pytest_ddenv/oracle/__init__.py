@@ -18,6 +18,7 @@ from pytest_ddenv.oracle.arm_predicates import (
     NotPlaced,
     ObjectDropped,
     SelfCollision,
+    default_predicates,
 )
 from pytest_ddenv.oracle.arm_state import ArmState
 from pytest_ddenv.oracle.predicates import (
@@ -100,6 +101,7 @@ __all__ = [
     "check_predicate_models",
     "check_predicates_for_robot",
     "classify",
+    "default_predicates",
     "make_predicate",
     "most_common_reason",
     "predicate",

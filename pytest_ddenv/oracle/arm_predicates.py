@@ -24,6 +24,7 @@ from pytest_ddenv.oracle.predicates import (
     TIME_LIMIT_CHECKS,
     FailureSignature,
     Predicate,
+    PredicateSpec,
     add_built_in,
     signature,
 )
@@ -39,6 +40,7 @@ __all__ = [
     "ObjectDropped",
     "SelfCollision",
     "arm_signature",
+    "default_predicates",
     "placement_problem",
 ]
 
@@ -348,6 +350,16 @@ ARM_DEFAULTS: tuple[str, ...] = ("arm_collision", "grasp_failed", "object_droppe
 arm hit, a grasp that did not close on the target, a target lost on the way, an object knocked over), the
 outcome last (the target not placed at the time limit). `joint_limit` and `self_collision` are left out:
 they are the controller's own doing, not the table's, and a scripted controller may graze its limits."""
+
+
+
+def default_predicates(kind: str) -> tuple[PredicateSpec, ...]:
+    """The predicates a run of a robot of `kind` checks when the test names none: `ARM_DEFAULTS` for an arm,
+    none for a mobile robot (its run ends at the goal or the time limit, and the test asserts on it)."""
+    if kind not in ("mobile", "arm"):
+        raise ValueError(f"kind must be 'mobile' or 'arm', not {kind!r}")
+    return tuple(PredicateSpec(name) for name in ARM_DEFAULTS) if kind == "arm" else ()
+
 
 add_built_in(ARM_PREDICATES)
 TIME_LIMIT_CHECKS[ArmState] = _timeout_at_limit
