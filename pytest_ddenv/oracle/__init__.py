@@ -18,6 +18,7 @@ from pytest_ddenv.oracle.arm_predicates import (
     NotPlaced,
     ObjectDropped,
     SelfCollision,
+    arm_signature,
     default_predicates,
 )
 from pytest_ddenv.oracle.arm_state import ArmState
@@ -97,6 +98,7 @@ __all__ = [
     "SelfCollision",
     "Stuck",
     "Timeout",
+    "arm_signature",
     "check_predicate",
     "check_predicate_models",
     "check_predicates_for_robot",

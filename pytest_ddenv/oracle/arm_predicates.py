@@ -229,10 +229,11 @@ class NotPlaced:
         return arm_signature(self.name, state, f"At t = {state.time:.2f} s {problem}.")
 
 
-def _up_axis(pose: Pose6) -> np.ndarray:
+def _up_axes(poses: Sequence[Pose6]) -> np.ndarray:
+    """The up axes (unit vectors, world frame) of bodies at `poses`, one row each."""
     from scipy.spatial.transform import Rotation
 
-    return np.asarray(Rotation.from_euler("xyz", pose[3:6]).apply((0.0, 0.0, 1.0)))
+    return np.asarray(Rotation.from_euler("xyz", [pose[3:6] for pose in poses]).apply((0.0, 0.0, 1.0)))
 
 
 @dataclass
@@ -246,33 +247,45 @@ class KnockedOver:
     max_drop: float = 0.05
     robots: ClassVar[str] = "arm"
     name: str = field(default="knocked_over", init=False)
+    _start_up: dict[str, tuple[Pose6, np.ndarray]] = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.models is not None:
             self.models = tuple(self.models)
 
     def reset(self) -> None:
-        pass
+        self._start_up = {}
 
     def check(self, state: ArmState) -> FailureSignature | None:
         names = self.models if self.models is not None else sorted(
             set(state.objects) - {state.target, state.table})
-        for model in names:
-            pose, start = state.objects.get(model), state.start_objects.get(model)
-            if pose is None or start is None:  # not in this world (a reduction removed it)
-                continue
-            floor = start[2] - self.max_drop if state.table_top is None else state.table_top - self.max_drop
-            if pose[2] < floor:
+        # a model not in this world (a reduction removed it) is not there to knock over
+        present = [model for model in names if model in state.objects and model in state.start_objects]
+        if not present:
+            return None
+        for model in present:
+            height, start = state.objects[model][2], state.start_objects[model][2]
+            reference = start if state.table_top is None else state.table_top
+            if height < reference - self.max_drop:
                 below = "its start height" if state.table_top is None else "the table top"
-                reference = start[2] if state.table_top is None else state.table_top
                 return arm_signature(self.name, state, f"'{model}' fell off the table "
-                                     f"({reference - pose[2]:.2f} m below {below}).", also=(model,))
-            tilt = math.acos(float(np.clip(np.dot(_up_axis(pose), _up_axis(start)), -1.0, 1.0)))
+                                     f"({reference - height:.2f} m below {below}).", also=(model,))
+        now = _up_axes([state.objects[model] for model in present])
+        then = np.array([self._start_axis(model, state.start_objects[model]) for model in present])
+        tilts = np.arccos(np.clip(np.einsum("ij,ij->i", now, then), -1.0, 1.0))
+        for model, tilt in zip(present, tilts, strict=True):
             if tilt > self.max_tilt:
                 return arm_signature(self.name, state, f"'{model}' was knocked over (tilted "
                                      f"{math.degrees(tilt):.0f} deg, limit {math.degrees(self.max_tilt):.0f} deg).",
                                      also=(model,))
         return None
+
+    def _start_axis(self, model: str, start: Pose6) -> np.ndarray:
+        """`model`'s up axis at the start (computed once a run)."""
+        cached = self._start_up.get(model)
+        if cached is None or cached[0] != start:
+            cached = self._start_up[model] = (start, _up_axes([start])[0])
+        return cached[1]
 
 
 @dataclass
