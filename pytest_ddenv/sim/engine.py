@@ -10,7 +10,7 @@ from typing import Any, Self
 
 from pytest_ddenv.alarm import Alarm
 from pytest_ddenv.errors import ControllerTimeout, ScenarioError
-from pytest_ddenv.oracle.predicates import GROUND, Predicate
+from pytest_ddenv.oracle.predicates import GROUND, Predicate, check_predicates_for_robot
 from pytest_ddenv.sim.arm.control import ArmController, ArmObservation, check_arm_command
 from pytest_ddenv.sim.arm.episode import ArmEpisode
 from pytest_ddenv.sim.arm.robot import ArmRobot
@@ -41,9 +41,6 @@ START_CLEARANCE = 0.01
 """Spawn height above the support surface (m); the robot settles from there."""
 MAX_START_PENETRATION = 0.02
 """A start pose whose robot overlaps a model by more than this (m) is 'inside an object'."""
-MOBILE_ONLY_PREDICATES = ("stuck", "flipped", "high_centered", "fell")
-"""Built-in predicates about a wheeled base: refused on an arm's world (a predicate's `robots`, when it has
-one, says the kinds of robot it is for)."""
 
 
 class Simulator:
@@ -161,8 +158,10 @@ class Simulator:
         noise = settings.noise
         robot = make_robot(scenario.robot, world.source)
         arm = isinstance(robot, ArmRobot)
-        if arm or any("arm" in getattr(predicate, "robots", ()) for predicate in predicates):
-            _check_predicates_fit(predicates, "arm" if arm else "mobile", world.source)
+        try:
+            check_predicates_for_robot(predicates, "arm" if arm else "mobile", robot.name)
+        except ScenarioError as error:
+            raise ScenarioError(error.reason, source=world.source, field="predicates") from None
         physics.load(world, robot, settings.friction)
         jitter = streams[0].standard_normal(3)
         if arm:  # an arm is bolted where the world puts it (the draws are made all the same)
@@ -303,21 +302,6 @@ def _drive_arm(episode: ArmEpisode, controller: Any, max_wall_time: float | None
                                           joints))
             if max_wall_time is not None and time.perf_counter() - episode.started > max_wall_time:
                 raise _too_slow(episode, controller, max_wall_time)
-
-
-def _check_predicates_fit(predicates: Sequence[Predicate], kind: str, source: str | None) -> None:
-    """ScenarioError when a predicate is not for this kind of robot ("arm" or "mobile")."""
-    for predicate in predicates:
-        robots = getattr(predicate, "robots", None)
-        if robots is not None:
-            fits = kind in robots
-        else:
-            fits = not (kind == "arm" and predicate.name in MOBILE_ONLY_PREDICATES)
-        if not fits:
-            other = "a wheeled robot" if kind == "arm" else "an arm"
-            raise ScenarioError(f"the predicate {predicate.name!r} is for {other}, and this world's robot is "
-                                f"{'an arm' if kind == 'arm' else 'a wheeled robot'}", source=source,
-                                field="predicates")
 
 
 def _too_slow(episode: Episode | ArmEpisode, controller: object, max_wall_time: float | None) -> ControllerTimeout:

@@ -151,7 +151,7 @@ class ArmEpisode:
                 self.reached, self.goal_time = True, now
             else:
                 for predicate in self.predicates:
-                    self.failure = _checked(predicate, predicate.check(state), now)  # type: ignore[arg-type]
+                    self.failure = _checked(predicate, predicate.check(state), now)
                     if self.failure is not None:
                         break
         decided = self.reached or self.failure is not None

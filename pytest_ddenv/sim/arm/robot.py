@@ -16,10 +16,10 @@ from pathlib import Path
 from pytest_ddenv.errors import ControllerError, ScenarioError
 from pytest_ddenv.sim.arm.driven import DrivenArm
 from pytest_ddenv.sim.quiet import silenced
-from pytest_ddenv.sim.robot import ROBOTS, Robot, register_arm_factory
+from pytest_ddenv.sim.robot import ROBOTS, Robot, make_robot, register_arm_factory
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.world.files import regular_file_problem, resolve_relative
-from pytest_ddenv.world.model import ArmDescription
+from pytest_ddenv.world.model import ArmDescription, RobotDescription
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
@@ -214,6 +214,16 @@ def panda() -> ArmRobot:
     """The built-in Franka Panda (registered as "panda")."""
     return ArmRobot(PANDA)
 
+
+
+def robot_kind(robot: str | RobotDescription | ArmDescription, source: str | None = None) -> str:
+    """"arm" or "mobile": the kind of a scenario's robot (a name of a registered factory is made to be told;
+    a name not registered is "mobile", and its run says it is unknown)."""
+    if isinstance(robot, ArmDescription):
+        return "arm"
+    if isinstance(robot, RobotDescription) or robot not in ROBOTS:
+        return "mobile"
+    return "arm" if robot == "panda" or isinstance(make_robot(robot, source), ArmRobot) else "mobile"
 
 
 register_arm_factory(ArmRobot)
