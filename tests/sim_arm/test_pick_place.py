@@ -81,7 +81,7 @@ def test_robot_world_runs_an_arm_world(smoke: World) -> None:
 
 
 def test_a_mobile_robot_predicate_is_refused_on_an_arm(smoke: World) -> None:
-    with pytest.raises(ScenarioError, match="'stuck' is for a wheeled robot") as caught:
+    with pytest.raises(ScenarioError, match="predicate 'stuck' is for mobile robots; the world's robot 'panda' is an arm") as caught:
         RobotWorld(smoke, predicates=["stuck"]).run()
     assert caught.value.field == "predicates"
 
