@@ -17,9 +17,11 @@ import time
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from pytest_ddenv.detail import detail_requested
+from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.oracle.arm_state import GRIPPER_OPEN, ArmState, Pose6
 from pytest_ddenv.oracle.predicates import GROUND, Contact, FailureSignature, History, Predicate
 from pytest_ddenv.sim.arm.control import ArmCommand, ArmObservation, GripperCommand, JointTargets
@@ -79,6 +81,7 @@ class ArmEpisode:
         self._ticks = math.ceil(limit / self.tick_dt - 1e-9)
         self._record_every = max(1, round(settings.control_rate / settings.record_rate))
         self._body_of = {name: key for key, name in self.bodies.items()}
+        self._models = frozenset(world.names)
         named = [scenario.target, scenario.table, *scenario.watch]
         self.watched = tuple(dict.fromkeys(n for n in named if n is not None and n in self._body_of))
         self.table_top = float(world.bounds(scenario.table)[1][2]) if scenario.table in self._body_of else None
@@ -246,7 +249,22 @@ class ArmEpisode:
             joint_velocities=state.joint_velocities, end_effector=state.pose, gripper_opening=state.gripper_opening,
             gripper_force=sum(c.normal_force for c in state.contacts if c.finger), contacts=state.contacts,
             objects=objects, target=state.target, place=state.place, place_tolerance=state.place_tolerance,
+            image=self._image(),
         )
+
+    def _image(self) -> NDArray[np.generic] | None:
+        """The scenario's camera's picture now (None: no camera)."""
+        camera = self.scenario.camera
+        if camera is None:
+            return None
+        render = getattr(self.arm, "camera_image", None)
+        if render is None:
+            raise ScenarioError(f"the {self.physics.name} engine's arm has no camera; remove scenario.camera",
+                                source=self.world.source, field="scenario.camera")
+        colors = {key: self.world.model(name).color for key, name in self.bodies.items() if name in self._models}
+        image: NDArray[np.generic] = render(camera, colors)
+        image.flags.writeable = False
+        return image
 
     def act(self, command: ArmCommand) -> None:
         """Apply `command`, step the physics to the next tick, sense."""
