@@ -82,6 +82,7 @@ class ArmEpisode:
         self._record_every = max(1, round(settings.control_rate / settings.record_rate))
         self._body_of = {name: key for key, name in self.bodies.items()}
         self._models = frozenset(world.names)
+        self._colors: dict[int, tuple[float, float, float, float]] | None = None
         named = [scenario.target, scenario.table, *scenario.watch]
         self.watched = tuple(dict.fromkeys(n for n in named if n is not None and n in self._body_of))
         self.table_top = float(world.bounds(scenario.table)[1][2]) if scenario.table in self._body_of else None
@@ -261,8 +262,10 @@ class ArmEpisode:
         if render is None:
             raise ScenarioError(f"the {self.physics.name} engine's arm has no camera; remove scenario.camera",
                                 source=self.world.source, field="scenario.camera")
-        colors = {key: self.world.model(name).color for key, name in self.bodies.items() if name in self._models}
-        image: NDArray[np.generic] = render(camera, colors)
+        if self._colors is None:
+            self._colors = {key: self.world.model(name).color for key, name in self.bodies.items()
+                            if name in self._models}
+        image: NDArray[np.generic] = render(camera, self._colors)
         image.flags.writeable = False
         return image
 
