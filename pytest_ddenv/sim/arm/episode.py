@@ -18,7 +18,6 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from pytest_ddenv.detail import detail_requested
 from pytest_ddenv.errors import ScenarioError
@@ -47,12 +46,16 @@ PLACED_SPEED = 0.02
 
 def pose6(position: Sequence[float], quaternion: Sequence[float]) -> Pose6:
     """(x, y, z, roll, pitch, yaw) of a position and an (x, y, z, w) quaternion (pybullet's Euler convention)."""
+    from scipy.spatial.transform import Rotation  # here: importing scipy.spatial takes 0.2-0.5 s
+
     roll, pitch, yaw = Rotation.from_quat(list(quaternion)).as_euler("xyz")
     return (float(position[0]), float(position[1]), float(position[2]), float(roll), float(pitch), float(yaw))
 
 
 def pointing_down(yaw: float) -> tuple[float, float, float, float]:
     """The (x, y, z, w) quaternion of a tool pointing down, turned by `yaw` about the vertical."""
+    from scipy.spatial.transform import Rotation
+
     x, y, z, w = Rotation.from_euler("xyz", [math.pi, 0.0, yaw]).as_quat()
     return float(x), float(y), float(z), float(w)
 
