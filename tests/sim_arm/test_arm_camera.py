@@ -78,3 +78,11 @@ def test_a_bad_camera_says_which_field(smoke: World, camera: str, field: str, me
     with pytest.raises(ScenarioError, match=message) as caught:
         World.from_yaml(text)
     assert caught.value.field == field
+
+
+def test_a_bad_camera_made_in_python_is_refused_before_a_run(smoke: World) -> None:
+    from pytest_ddenv.scenario.robot_world import RobotWorld
+
+    with pytest.raises(ScenarioError, match="from 1 to 1024") as caught:
+        RobotWorld(with_camera(smoke, dataclasses.replace(OVERHEAD, width=4096)))
+    assert caught.value.field == "scenario.camera.width"
