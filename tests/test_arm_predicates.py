@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import pytest
@@ -376,12 +376,40 @@ def test_predicates_of_a_user_are_for_any_robot_unless_they_say_so() -> None:
 
     check_predicates_for_robot([always, predicate_spec(always)], "arm", "panda")
     check_predicates_for_robot([always], "mobile", "husky")
-    always.robots = "arm"
-    with pytest.raises(ScenarioError, match="predicate 'always' is for arms"):
-        check_predicates_for_robot([always], "mobile", "husky")
-    always.robots = "arms"
-    with pytest.raises(ScenarioError, match=r"robots attribute of predicate 'always'.*one of mobile, arm, any"):
-        check_predicates_for_robot([always], "arm", "panda")
+
+    def never(state: Any) -> bool:
+        return False
+
+    lifted = predicate(never, name="lifted", robots="arm")
+    check_predicates_for_robot([lifted], "arm", "panda")
+    with pytest.raises(ScenarioError, match="predicate 'lifted' is for arms"):
+        check_predicates_for_robot([predicate_spec(lifted)], "mobile", "husky")
+    with pytest.raises(ScenarioError, match=r"predicate 'lifted': robots.*one of mobile, arm, any"):
+        predicate(never, name="lifted", robots="arms")
+
+
+@dataclass
+class Grazed:
+    """A predicate object of a user's, for arms only."""
+
+    robots = "arm"
+    name: str = "grazed"
+
+    def reset(self) -> None:
+        pass
+
+    def check(self, state: ArmState) -> FailureSignature | None:
+        return None
+
+
+def test_a_users_predicate_object_says_its_robots_by_an_attribute() -> None:
+    check_predicates_for_robot([Grazed()], "arm", "panda")
+    with pytest.raises(ScenarioError, match="predicate 'grazed' is for arms; the world's robot 'husky'"):
+        check_predicates_for_robot([Grazed()], "mobile", "husky")
+    wrong = Grazed()
+    wrong.robots = "arms"
+    with pytest.raises(ScenarioError, match=r"robots attribute of predicate 'grazed'.*one of mobile, arm, any"):
+        check_predicates_for_robot([wrong], "arm", "panda")
 
 
 # -- "same failure" for arms -----------------------------------------------------------------------------
