@@ -451,3 +451,9 @@ def test_an_arm_signature_leaves_the_target_and_the_table_out_of_what_was_touche
     failure = make_predicate("grasp_failed", settle=0.0).check(replace(state, gripper_command=GRIPPER_CLOSE,
                                                                        gripper_opening=0.001))
     assert failure is not None and failure.touched == ("box",)
+    assert failure.explain() == (
+        "The 'grasp_failed' predicate fired at t = 1.00 s with the end effector at (0.50, 0.00, 0.60) m, roll 180 "
+        "deg, pitch 0 deg, yaw 0 deg, touching box besides the target and the table. The fingers closed to 0.001 m "
+        "without the target 'mug'.")
+    alone = make_predicate("self_collision").check(arm_state(self_contacts=(("panda_link1", "panda_link5"),)))
+    assert alone is not None and "touching no model besides the target and the table." in alone.explain()

@@ -189,9 +189,15 @@ class FailureSignature:
     def explain(self) -> str:
         x, y, z = (round(v, 2) + 0.0 for v in self.position)  # + 0.0: never "-0.00"
         roll, pitch, yaw = (round(math.degrees(v)) for v in self.pose[3:6])  # whole degrees, never "-0"
-        touching = ", ".join(self.touched) if self.touched else "no model (only the ground, or nothing)"
+        factory = PREDICATES.get(self.predicate)
+        if factory is not None and getattr(factory, "robots", "any") == "arm":  # oracle/arm_predicates.py
+            where = "the end effector"
+            touching = (", ".join(self.touched) if self.touched else "no model") + " besides the target and the table"
+        else:
+            where = "the robot"
+            touching = ", ".join(self.touched) if self.touched else "no model (only the ground, or nothing)"
         text = (
-            f"The '{self.predicate}' predicate fired at t = {self.time:.2f} s with the robot at "
+            f"The '{self.predicate}' predicate fired at t = {self.time:.2f} s with {where} at "
             f"({x:.2f}, {y:.2f}, {z:.2f}) m, roll {roll} deg, pitch {pitch} deg, yaw {yaw} deg, "
             f"touching {touching}."
         )
