@@ -38,6 +38,7 @@ from pytest_ddenv.world.limits import (
 from pytest_ddenv.world.meshes import check_mesh_file
 from pytest_ddenv.world.model import (
     SHAPE_KINDS,
+    Camera,
     Ground,
     Model,
     Physics,
@@ -55,7 +56,8 @@ MODEL_KEYS = (
     "name", "pose", "shapes", *SHAPE_KINDS, "static", "mass", "mu", "mu2", "restitution", "color", "keep", "tags",
 )
 SHAPE_KEYS = (*SHAPE_KINDS, "pose")
-SCENARIO_KEYS = ("robot", "start", "goal", "goal_tolerance", "timeout")
+SCENARIO_KEYS = ("robot", "start", "goal", "goal_tolerance", "timeout", "target", "table", "watch", "camera")
+CAMERA_KEYS = ("position", "look_at", "width", "height", "kind", "fov")
 WRITTEN_DEFAULT_ENGINE = "pybullet"
 """The engine a written world leaves unnamed (files without `physics.engine` have always meant pybullet; a
 file read where pybullet is not installed gets mujoco, `limits.default_engine`)."""
@@ -213,7 +215,7 @@ def parse_yaml(text: str, *, source: str | os.PathLike[str] | None = None) -> Wo
     reader.model = None
     return World(
         models=tuple(models),
-        scenario=_parse_scenario(reader, root["scenario"]) if root.get("scenario") is not None else None,
+        scenario=_parse_scenario(reader, root["scenario"], seen) if root.get("scenario") is not None else None,
         physics=_parse_physics(reader, root.get("physics")),
         ground=_parse_ground(reader, root.get("ground", {})),
         name=name,
@@ -410,7 +412,7 @@ def _parse_tags(reader: _Reader, value: Any) -> dict[str, TagValue]:
     return tags
 
 
-def _parse_scenario(reader: _Reader, value: Any) -> Scenario:
+def _parse_scenario(reader: _Reader, value: Any, models: Mapping[str, int]) -> Scenario:
     reader.error_type = ScenarioError
     try:
         data = reader.mapping(value, "scenario", SCENARIO_KEYS)
@@ -445,9 +447,53 @@ def _parse_scenario(reader: _Reader, value: Any) -> Scenario:
             ),
             goal_tolerance=reader.number(data.get("goal_tolerance", 0.3), "scenario.goal_tolerance", positive=True),
             timeout=reader.number(data["timeout"], "scenario.timeout", positive=True),
+            target=_model_name(reader, data.get("target"), "scenario.target", models),
+            table=_model_name(reader, data.get("table"), "scenario.table", models),
+            watch=_watched(reader, data.get("watch"), models),
+            camera=_camera(reader, data["camera"]) if data.get("camera") is not None else None,
         )
     finally:
         reader.error_type = WorldError
+
+
+def _model_name(reader: _Reader, value: Any, field: str, models: Mapping[str, int]) -> str | None:
+    """A scenario field naming one of the world's models (None: not given)."""
+    if value is None:
+        return None
+    name = reader.text(value, field)
+    if name not in models:
+        raise reader.fail(field, f"{shown(name)} is not a model of this world")
+    return name
+
+
+def _watched(reader: _Reader, value: Any, models: Mapping[str, int]) -> tuple[str, ...]:
+    if value is None:
+        return ()
+    if not isinstance(value, list):
+        raise reader.wrong("scenario.watch", "a list of model names", value)
+    names = tuple(_model_name(reader, item, f"scenario.watch[{i}]", models) or "" for i, item in enumerate(value))
+    return tuple(dict.fromkeys(names))
+
+
+def _camera(reader: _Reader, value: Any) -> Camera:
+    data = reader.mapping(value, "scenario.camera", CAMERA_KEYS)
+    for key in ("position", "look_at"):
+        if key not in data:
+            raise reader.fail(f"scenario.camera.{key}", "missing; a camera needs a position and a point to look at")
+    position, look_at = (reader.numbers(data[key], f"scenario.camera.{key}", (3,)) for key in ("position", "look_at"))
+    camera = Camera(position=(position[0], position[1], position[2]), look_at=(look_at[0], look_at[1], look_at[2]),
+                    width=data.get("width", 64), height=data.get("height", 64), kind=data.get("kind", "rgb"),
+                    fov=reader.number(data.get("fov", 60.0), "scenario.camera.fov"))
+    problem = camera.problem()
+    if problem is not None:
+        raise reader.fail(f"scenario.camera.{problem[0]}", problem[1])
+    return camera
+
+
+def camera_dict(camera: Camera) -> dict[str, Any]:
+    """`scenario.camera` as written."""
+    return {"position": list(camera.position), "look_at": list(camera.look_at), "width": camera.width,
+            "height": camera.height, "kind": camera.kind, "fov": camera.fov}
 
 
 def _parse_physics(reader: _Reader, value: Any) -> Physics:
@@ -504,7 +550,7 @@ def dump_yaml(world: World, relative_to: Path | None = None) -> str:
             document["physics"]["engine"] = world.physics.engine
     document["ground"] = None if world.ground is None else _ground_dict(world.ground)
     if world.scenario is not None:
-        document["scenario"] = _scenario_dict(world.scenario, world.source, relative_to)
+        document["scenario"] = _scenario_dict(world.scenario, world.source, relative_to, world.names)
     document["models"] = [_model_dict(model, world.source, relative_to) for model in world.models]
     return yaml.dump(document, Dumper=Dumper, sort_keys=False, default_flow_style=None, width=120)
 
@@ -513,7 +559,10 @@ def _ground_dict(ground: Ground) -> dict[str, float]:
     return {"z": ground.z, "mu": ground.mu, "mu2": ground.mu2, "restitution": ground.restitution}
 
 
-def _scenario_dict(scenario: Scenario, source: str | None, relative_to: Path | None) -> dict[str, Any]:
+def _scenario_dict(scenario: Scenario, source: str | None, relative_to: Path | None,
+                   names: tuple[str, ...]) -> dict[str, Any]:
+    """`scenario` as written; of its `watch` models, those still in the world (`names`: a reduced world's)."""
+    watch = [name for name in scenario.watch if name in names]
     start: dict[str, float] = {"x": scenario.start.x, "y": scenario.start.y}
     if scenario.start_z_given:
         start["z"] = scenario.start.z
@@ -527,6 +576,10 @@ def _scenario_dict(scenario: Scenario, source: str | None, relative_to: Path | N
         "goal": goal,
         "goal_tolerance": scenario.goal_tolerance,
         "timeout": scenario.timeout,
+        **({"target": scenario.target} if scenario.target is not None else {}),
+        **({"table": scenario.table} if scenario.table is not None else {}),
+        **({"watch": watch} if watch else {}),
+        **({"camera": camera_dict(scenario.camera)} if scenario.camera is not None else {}),
     }
 
 
