@@ -41,6 +41,7 @@ from pytest_ddenv.sim.mujoco.driven_robot import NOT_ROBOT
 from pytest_ddenv.sim.mujoco.robot_spec import DEFAULT_MU, PREFIX, link_friction
 from pytest_ddenv.sim.mujoco.world_spec import world_spec
 from pytest_ddenv.sim.physics import BaseState
+from pytest_ddenv.sim.robot import Robot
 from pytest_ddenv.sim.urdf_mujoco import mujoco_readable_urdf
 from pytest_ddenv.world.files import resolve_relative
 from pytest_ddenv.world.model import ArmDescription, World
@@ -265,6 +266,18 @@ class MujocoArm:
         w, qx, qy, qz = (float(v) for v in scratch.xquat[self._ee])
         return (x, y, z), (qx, qy, qz, w)
 
+    def end_effector_velocity(self) -> tuple[Vector, Vector]:
+        """The end effector's linear and angular velocity now (world frame), from the joints' state now."""
+        scratch = self._scratch
+        scratch.qpos[:], scratch.qvel[:] = self.data.qpos, self.data.qvel
+        mujoco.mj_kinematics(self.model, scratch)
+        mujoco.mj_comPos(self.model, scratch)
+        mujoco.mj_comVel(self.model, scratch)
+        velocity = np.zeros(6)
+        mujoco.mj_objectVelocity(self.model, scratch, mujoco.mjtObj.mjOBJ_BODY, self._ee, velocity, 0)
+        (wx, wy, wz), (vx, vy, vz) = velocity[:3].tolist(), velocity[3:].tolist()
+        return (vx, vy, vz), (wx, wy, wz)
+
     def gripper_opening(self) -> float:
         return float(self.data.qpos[self._finger_qpos].sum())
 
@@ -324,13 +337,6 @@ class MujocoArm:
             return link2, int(self.model.geom_bodyid[geom1])
         return None
 
-    def geoms_near_listed(self) -> tuple[list[int], list[int], list[int]]:
-        """The arm's geoms, the link of each, and the geoms of everything else but planes."""
-        arm = [g for g, link in enumerate(self._geom_link) if link != NOT_ROBOT]
-        others = [g for g, link in enumerate(self._geom_link)
-                  if link == NOT_ROBOT and self.model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE]
-        return arm, [self._geom_link[g] for g in arm], others
-
     def base_state(self) -> BaseState:
         """The base's pose (its body origin), at rest."""
         x, y, z = (float(v) for v in self.data.xpos[self.root])
@@ -360,3 +366,34 @@ def tune_arm_servos(model: mujoco.MjModel, arm: MujocoArm) -> None:
         model.actuator_biasprm[actuator, 1] = -stiffness
         model.actuator_biasprm[actuator, 2] = -2.0 * math.sqrt(stiffness * inertia)
 
+
+
+class MujocoArmRobot(Robot):
+    """The robot `MujocoPhysics.spawn` returns for an `ArmRobot`: its `arm` is the `MujocoArm`
+    (sim/arm/driven.py says what the episode reads)."""
+
+    def __init__(self, described: Robot, arm: MujocoArm) -> None:
+        self.described, self.arm = described, arm
+        self.name, self.footprint, self.base_height = described.name, described.footprint, described.base_height
+        self.has_laser = False
+
+    def spawn(self, client: int, position: tuple[float, float, float], yaw: float) -> int:
+        raise NotImplementedError("MujocoPhysics.spawn places a MuJoCo arm")
+
+    @property
+    def wheel_links(self) -> tuple[int, ...]:
+        return ()
+
+    @property
+    def link_names(self) -> Mapping[int, str]:
+        return self.arm.link_names
+
+    @property
+    def mass(self) -> float:
+        return float(self.arm.model.body_subtreemass[self.arm.root])
+
+    def drive(self, linear: float, angular: float, scale_left: float = 1.0, scale_right: float = 1.0) -> None:
+        self.described.drive(linear, angular, scale_left, scale_right)  # an arm refuses a mobile robot's command
+
+    def measured_velocity(self) -> tuple[float, float]:
+        return 0.0, 0.0
