@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
 import math
 from pathlib import Path
 
@@ -13,7 +14,10 @@ import pytest
 
 mujoco = pytest.importorskip("mujoco", reason="needs mujoco: pip install \"pytest-ddenv[mujoco]\"")
 
+from mujoco_worlds import digest, in_mujoco  # noqa: E402
+
 from pytest_ddenv.errors import ScenarioError  # noqa: E402
+from pytest_ddenv.scenario.robot_world import RobotFailure, RobotWorld  # noqa: E402
 from pytest_ddenv.sim.mujoco.arm import MujocoArm, arm_world  # noqa: E402
 from pytest_ddenv.sim.urdf_mujoco import mujoco_readable_urdf  # noqa: E402
 from pytest_ddenv.world import Ground, Model, Physics, Pose, Scenario, Shape, World  # noqa: E402
@@ -219,3 +223,61 @@ def test_a_wrong_arm_is_one_error_naming_the_field(change: dict[str, object], fi
     with pytest.raises(ScenarioError) as raised:
         arm_world(tabletop(arm=described), described, "min", velocities=VELOCITIES, home=PANDA.home or ())
     assert raised.value.field == field
+
+
+# -- an arm world run by the engine (MujocoPhysics) -------------------------------------------------------------
+ARM_DATA = Path(__file__).resolve().parents[1] / "data"
+"""w31core's arm worlds: arm_smoke.yaml (the default controller places the cube), arm_blocked.yaml (a tall box
+beside the cube, which the hand hits)."""
+
+
+def arm_file_in_mujoco(name: str) -> World:
+    return in_mujoco(World.load(ARM_DATA / f"{name}.yaml"))
+
+
+def test_robot_world_picks_and_places_the_smoke_worlds_cube_in_mujoco() -> None:
+    run = RobotWorld(arm_file_in_mujoco("arm_smoke"), seed=0).run()
+    assert run.engine == "mujoco" and run.robot_kind == "arm"
+    assert run.reached_goal and run.failure is None
+    assert run.touched == {"cube"}  # neither the table under the base nor a distractor
+    assert run.target_path is not None
+    start, end = run.target_path[0], run.target_path[-1]
+    assert math.dist(end[:2], (0.45, 0.3)) <= 0.08
+    assert run.target_path[:, 2].max() > start[2] + 0.1  # carried, not pushed
+    assert (run.wheel_contacts.max(axis=0) > 0).all()  # both fingers held it
+    assert np.allclose(run.poses[0, :3], (0.307, 0.0, 0.885), atol=0.01)  # the Panda's home, as in pybullet
+
+
+def test_the_hand_hits_the_tall_box_in_mujoco() -> None:
+    with pytest.raises(RobotFailure) as failed:
+        RobotWorld(arm_file_in_mujoco("arm_blocked"), seed=0).run()
+    assert failed.value.signature.predicate == "arm_collision"
+    assert failed.value.run.touched == {"tall_box"}
+
+
+def test_an_arm_run_repeats_bit_for_bit_in_mujoco() -> None:
+    world = arm_file_in_mujoco("arm_smoke")
+    first, second = (RobotWorld(world, seed=3).run() for _ in range(2))
+    assert digest(first) == digest(second)
+    assert first.target_path is not None and second.target_path is not None
+    assert np.array_equal(first.target_path, second.target_path)
+
+
+@pytest.mark.slow
+def test_the_reduction_keeps_the_box_the_hand_hits_in_mujoco(pytester: pytest.Pytester) -> None:
+    blocked = (ARM_DATA / "arm_blocked.yaml").read_text(encoding="utf-8") + "physics: {engine: mujoco}\n"
+    pytester.makefile(".yaml", arm_blocked=blocked)
+    pytester.makepyfile(test_arm="""
+        import pytest
+
+        @pytest.mark.ddenv(world="arm_blocked.yaml", deflake=1)
+        def test_places_the_cube(robot_world):
+            assert robot_world.run().reached_goal
+    """)
+    result = pytester.runpytest_subprocess("--ddenv-reduce")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*RobotFailure*arm_collision*tall_box*", "*reduced 6 -> 3 models*"])
+    (summary_file,) = Path(pytester.path, "ddenv-artifacts").glob("*/summary.json")
+    summary = json.loads(summary_file.read_text())
+    assert sorted(summary["minimal_models"]) == ["cube", "table", "tall_box"]
+    assert summary["one_minimal"] is True
