@@ -308,9 +308,10 @@ class MujocoArm:
                 break
             mujoco.mj_jacBody(model, scratch, self._jacp, self._jacr, self._ee)
             jacobian = np.vstack([self._jacp[:, self._dofs], self._jacr[:, self._dofs]])
-            inverse = jacobian.T @ np.linalg.inv(jacobian @ jacobian.T + IK_DAMPING**2 * np.eye(6))
+            damped = jacobian.T @ np.linalg.solve(jacobian @ jacobian.T + IK_DAMPING**2 * np.eye(6), error)
             joints = scratch.qpos[self._qpos]
-            step = inverse @ error + (identity - inverse @ jacobian) @ (IK_REST * (self._home - joints))
+            null_space = identity - np.linalg.pinv(jacobian) @ jacobian
+            step = damped + null_space @ (IK_REST * (self._home - joints))
             scratch.qpos[self._qpos] = np.clip(joints + step, self.lower, self.upper)
         return [float(v) for v in scratch.qpos[self._qpos]]
 
