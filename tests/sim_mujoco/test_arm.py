@@ -18,6 +18,7 @@ from mujoco_worlds import digest, in_mujoco  # noqa: E402
 
 from pytest_ddenv.errors import ScenarioError  # noqa: E402
 from pytest_ddenv.scenario.robot_world import RobotFailure, RobotWorld  # noqa: E402
+from pytest_ddenv.sim import Simulator  # noqa: E402
 from pytest_ddenv.sim.mujoco.arm import MujocoArm, arm_world  # noqa: E402
 from pytest_ddenv.sim.urdf_mujoco import mujoco_readable_urdf  # noqa: E402
 from pytest_ddenv.world import Ground, Model, Physics, Pose, Scenario, Shape, World  # noqa: E402
@@ -281,3 +282,16 @@ def test_the_reduction_keeps_the_box_the_hand_hits_in_mujoco(pytester: pytest.Py
     summary = json.loads(summary_file.read_text())
     assert sorted(summary["minimal_models"]) == ["cube", "table", "tall_box"]
     assert summary["one_minimal"] is True
+
+
+@pytest.mark.pybullet
+def test_the_panda_is_the_same_arm_in_both_engines() -> None:
+    smoke = World.load(ARM_DATA / "arm_smoke.yaml")
+    with Simulator() as sim:
+        in_pybullet, in_mujoco_engine = (sim.start(world, seed=0).arm for world in (smoke, in_mujoco(smoke)))
+        assert dict(in_mujoco_engine.link_names) == dict(in_pybullet.link_names)
+        assert in_mujoco_engine.finger_links == in_pybullet.finger_links
+        assert (in_mujoco_engine.lower, in_mujoco_engine.upper) == (in_pybullet.lower, in_pybullet.upper)
+        assert in_mujoco_engine.max_opening == in_pybullet.max_opening
+        (position, orientation), (expected, turned) = in_mujoco_engine.end_effector(), in_pybullet.end_effector()
+        assert position == pytest.approx(expected, abs=1e-6) and orientation == pytest.approx(turned, abs=1e-6)
