@@ -18,7 +18,7 @@ import numpy as np
 from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.oracle.arm_state import GRIPPER_OPEN
 from pytest_ddenv.sim.arm.driven import Quaternion, Vector
-from pytest_ddenv.sim.mujoco.arm_spec import GRIPPER, IMPRATIO, NOSLIP_ITERATIONS, SATURATION, SERVO_STEP, arm_spec
+from pytest_ddenv.sim.mujoco.arm_spec import GRIPPER, IMPRATIO, SATURATION, SERVO_STEP, arm_spec
 from pytest_ddenv.sim.mujoco.driven_robot import NOT_ROBOT
 from pytest_ddenv.sim.mujoco.robot_spec import PREFIX
 from pytest_ddenv.sim.mujoco.world_spec import world_spec
@@ -39,7 +39,6 @@ def arm_world(world: World, description: ArmDescription, friction: str, *, veloc
               home: Sequence[float]) -> MujocoArm:
     """`world` with the arm in it, compiled, its servos tuned (`tune_arm_servos`), the arm not yet placed."""
     spec = world_spec(world, arm_spec(description, world.source, float(world.physics.timestep)), PREFIX, friction)
-    spec.option.noslip_iterations = NOSLIP_ITERATIONS
     spec.option.impratio = IMPRATIO
     try:
         model = spec.compile()

@@ -17,8 +17,8 @@ does by default.
   (0.003 kg m^2 about its axis) and the shoulder and upper-arm joints, coaxial when the arm is stretched out,
   turned against each other at 37 rad/s. (A velocity servo, as pybullet's motor is, pressed a stalled finger
   with a fraction of its effort limit or, stiffer, went bang-bang at its force limit.)
-- Contacts: the fingers' have torsional friction and are stiffer (`_contacts`), and a world with an arm runs
-  MuJoCo's no-slip solver (`NOSLIP_ITERATIONS`, `IMPRATIO`; set by `arm.arm_world`).
+- Contacts: the fingers' have torsional friction and are stiffer (`_contacts`), and a world with an arm has
+  stiffer friction (`IMPRATIO`, set by `arm.arm_world`).
 """
 
 from __future__ import annotations
@@ -43,11 +43,11 @@ SERVO_STEP = 0.5
 """The most a servo may turn in one time step (its natural frequency times the step), on its armature alone."""
 FINGER_SOLREF = (0.01, 1.0)
 """The fingers' contacts: stiffer than MuJoCo's default (0.02 s), as stiff as a 240 Hz step allows."""
-NOSLIP_ITERATIONS = 3
 IMPRATIO = 10.0
-"""A world with an arm: MuJoCo's no-slip solver passes and the ratio of frictional to normal impedance. With
-MuJoCo's defaults (soft friction) a held cube crept along the finger pads while the arm swung it and fell out
-within three moves that pybullet's held it through (tests/sim_mujoco/test_arm.py)."""
+"""A world with an arm: the ratio of frictional to normal impedance (MuJoCo's default 1: soft friction, which let
+a held cube creep along the finger pads while the arm swung it; tests/sim_mujoco/test_arm.py). MuJoCo's no-slip
+solver would hold it too, but it solves the whole model at once: removing an untouched block from the table
+then changed the arm's run."""
 
 
 def arm_spec(description: ArmDescription, source: str | None, timestep: float) -> mujoco.MjSpec:
