@@ -14,17 +14,19 @@ from collections.abc import Mapping, Sequence
 
 import mujoco
 import numpy as np
+from numpy.typing import NDArray
 
 from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.oracle.arm_state import GRIPPER_OPEN
 from pytest_ddenv.sim.arm.driven import Quaternion, Vector
+from pytest_ddenv.sim.mujoco.arm_camera import ray_picture
 from pytest_ddenv.sim.mujoco.arm_spec import GRIPPER, IMPRATIO, SATURATION, SERVO_STEP, arm_spec
 from pytest_ddenv.sim.mujoco.driven_robot import NOT_ROBOT
 from pytest_ddenv.sim.mujoco.robot_spec import PREFIX
 from pytest_ddenv.sim.mujoco.world_spec import world_spec
 from pytest_ddenv.sim.physics import BaseState
 from pytest_ddenv.sim.robot import Robot
-from pytest_ddenv.world.model import ArmDescription, World
+from pytest_ddenv.world.model import ArmDescription, Camera, World
 
 IK_ITERATIONS = 100
 IK_RESIDUAL = 1e-4
@@ -136,6 +138,10 @@ class MujocoArm:
         mujoco.mj_objectVelocity(self.model, scratch, mujoco.mjtObj.mjOBJ_BODY, self._ee, velocity, 0)
         (wx, wy, wz), (vx, vy, vz) = velocity[:3].tolist(), velocity[3:].tolist()
         return (vx, vy, vz), (wx, wy, wz)
+
+    def camera_image(self, camera: Camera, colors: Mapping[int, Sequence[float]]) -> NDArray[np.generic]:
+        """The picture of `camera` now, ray cast (sim/mujoco/arm_camera.py)."""
+        return ray_picture(self.model, self.data, camera, colors)
 
     def gripper_opening(self) -> float:
         return float(self.data.qpos[self._finger_qpos].sum())
