@@ -1,5 +1,7 @@
-"""The Franka Panda in MuJoCo (sim/mujoco/arm.py): compiled from its URDF (or an MJCF), its servos, inverse
-kinematics, the gripper closing on a cube and lifting it, its contacts, and runs that repeat bit for bit."""
+"""The Franka Panda in MuJoCo (sim/mujoco/arm_spec.py, arm.py, arm_camera.py): compiled from its URDF (or an
+MJCF), its servos, inverse kinematics, the gripper closing on a cube, lifting it and holding it, its contacts
+and camera; an arm world run by the engine (w31core's smoke and blocked worlds, the default controller), runs
+that repeat bit for bit, and the same arm as pybullet's."""
 
 from __future__ import annotations
 
@@ -7,6 +9,9 @@ import dataclasses
 import hashlib
 import json
 import math
+import subprocess
+import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -275,6 +280,18 @@ def test_an_arm_run_repeats_bit_for_bit_in_mujoco() -> None:
     assert digest(first) == digest(second)
     assert first.target_path is not None and second.target_path is not None
     assert np.array_equal(first.target_path, second.target_path)
+    code = textwrap.dedent(
+        f"""
+        import sys
+        sys.path.insert(0, {json.dumps(str(Path(__file__).parent))})
+        from mujoco_worlds import digest, in_mujoco
+        from pytest_ddenv import World
+        from pytest_ddenv.scenario.robot_world import RobotWorld
+        print(digest(RobotWorld(in_mujoco(World.load({json.dumps(str(ARM_DATA / "arm_smoke.yaml"))})), seed=3).run()))
+        """
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert result.stdout.strip().splitlines()[-1] == digest(first)  # and in a fresh process
 
 
 @pytest.mark.slow
