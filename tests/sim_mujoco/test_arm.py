@@ -254,7 +254,8 @@ def test_robot_world_picks_and_places_the_smoke_worlds_cube_in_mujoco() -> None:
     start, end = run.target_path[0], run.target_path[-1]
     assert math.dist(end[:2], (0.45, 0.3)) <= 0.08
     assert run.target_path[:, 2].max() > start[2] + 0.1  # carried, not pushed
-    assert (run.wheel_contacts.max(axis=0) > 0).all()  # both fingers held it
+    held = run.wheel_contacts[(run.wheel_contacts > 1.0).all(axis=1)]  # both fingers on the cube
+    assert len(held) > 20 and np.median(held, axis=0) == pytest.approx((20.0, 20.0), abs=1.0)  # each its effort
     assert np.allclose(run.poses[0, :3], (0.307, 0.0, 0.885), atol=0.01)  # the Panda's home, as in pybullet
 
 

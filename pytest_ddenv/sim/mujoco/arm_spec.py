@@ -130,6 +130,7 @@ def _drive(spec: mujoco.MjSpec, name: str, joint: mujoco.MjsJoint, effort: float
     if effort > 0:
         actuator.forcelimited = True
         actuator.forcerange = [-effort, effort]
+        joint.actfrcrange = [-effort, effort]  # the joint's limit clamps the gripper's too: both fingers' effort
         joint.armature = max(float(joint.armature), effort / SATURATION * (timestep / SERVO_STEP) ** 2)
 
 
