@@ -227,6 +227,7 @@ def test_an_mjcf_arm_picks_as_its_urdf_does(tmp_path: Path) -> None:
     ({"finger_joints": ("panda_finger_joint1", "thumb")}, "scenario.robot.finger_joints"),
     ({"end_effector": "tool0"}, "scenario.robot.end_effector"),
     ({"mjcf": "missing.xml"}, "scenario.robot.mjcf"),
+    ({"urdf": str(PANDA_URDF.parent / "meshes" / "finger.obj")}, "scenario.robot.urdf"),
 ])
 def test_a_wrong_arm_is_one_error_naming_the_field(change: dict[str, object], field: str) -> None:
     described = dataclasses.replace(PANDA, **change)  # type: ignore[arg-type]

@@ -68,7 +68,10 @@ def arm_spec(description: ArmDescription, source: str | None, timestep: float) -
                             "without inertia is merged into its parent unless it is the end effector)",
                             source=source, field=f"{FIELD}.end_effector")
     if not description.mjcf:
-        _inertia_from_geoms(spec)
+        try:
+            _inertia_from_geoms(spec)
+        except ValueError as error:
+            raise ScenarioError(f"MuJoCo cannot compile the arm {path}: {error}", source=source, field=field) from None
     _contacts(spec, {joint.parent.name for joint in fingers}, None if description.mjcf else link_friction(path))
     for body in spec.bodies:
         body.gravcomp = 1.0
@@ -104,13 +107,12 @@ def _contacts(spec: mujoco.MjSpec, finger_bodies: set[str], friction: dict[str, 
     contacts (`FINGER_SOLREF`)."""
     for geom in spec.geoms:
         geom.group = ROBOT_GROUP
-        mu = float(geom.friction[0]) if friction is None else friction.get(geom.parent.name, DEFAULT_MU)
-        finger = geom.parent.name in finger_bodies
         if friction is not None:
+            mu = friction.get(geom.parent.name, DEFAULT_MU)
             geom.friction = [mu, TORSION, ROLLING]
             geom.priority = friction_priority(mu)
             geom.condim = 3
-        if finger:
+        if geom.parent.name in finger_bodies:
             geom.condim = 4
             geom.solref = list(FINGER_SOLREF)
 
