@@ -39,7 +39,7 @@ IK_REST = 0.05
 
 def arm_world(world: World, description: ArmDescription, friction: str, *, velocities: Sequence[float],
               home: Sequence[float]) -> MujocoArm:
-    """`world` with the arm in it, compiled, its servos tuned (`tune_arm_servos`), the arm not yet placed."""
+    """`world` with the arm in it, compiled, its servos tuned (`MujocoArm.tune_servos`), not yet placed."""
     spec = world_spec(world, arm_spec(description, world.source, float(world.physics.timestep)), PREFIX, friction)
     spec.option.impratio = IMPRATIO
     try:
@@ -47,7 +47,7 @@ def arm_world(world: World, description: ArmDescription, friction: str, *, veloc
     except ValueError as error:
         raise ScenarioError(f"MuJoCo cannot compile the world: {error}", source=world.source) from None
     arm = MujocoArm(description, model, mujoco.MjData(model), velocities=velocities, home=home)
-    tune_arm_servos(model, arm)
+    arm.tune_servos()
     return arm
 
 
@@ -94,6 +94,25 @@ class MujocoArm:
         self._scratch = mujoco.MjData(model)
         self._jacp = np.zeros((3, model.nv))
         self._jacr = np.zeros((3, model.nv))
+
+    def tune_servos(self) -> None:
+        """Each servo's stiffness and damping in the compiled model (sim/mujoco/arm_spec.py), critically damped
+        with the joint-space inertia at the home pose."""
+        model = self.model
+        scratch = mujoco.MjData(model)
+        scratch.qpos[self._qpos] = self._home
+        mujoco.mj_forward(model, scratch)
+        inertias = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, scratch, inertias)
+        timestep = float(model.opt.timestep)
+        for actuator in self._actuators:
+            dof = int(model.jnt_dofadr[model.actuator_trnid[actuator, 0]])
+            inertia = float(inertias[dof, dof])
+            effort = float(model.actuator_forcerange[actuator, 1]) if model.actuator_forcelimited[actuator] else 0.0
+            stiffness = effort / SATURATION if effort > 0 else inertia * (SERVO_STEP / timestep) ** 2
+            model.actuator_gainprm[actuator, 0] = stiffness
+            model.actuator_biasprm[actuator, 1] = -stiffness
+            model.actuator_biasprm[actuator, 2] = -2.0 * math.sqrt(stiffness * inertia)
 
     # -- placing and stepping (the engine's) -----------------------------------------------------------
     def place(self, position: Vector, yaw: float) -> None:
@@ -212,26 +231,6 @@ class MujocoArm:
 
     def joint_positions(self) -> list[float]:
         return [float(v) for v in self.data.qpos[self._all_qpos]]
-
-
-def tune_arm_servos(model: mujoco.MjModel, arm: MujocoArm) -> None:
-    """Each servo's stiffness and damping in the compiled `model` (see the module docstring), from the
-    joint-space inertia at the home pose."""
-    scratch = mujoco.MjData(model)
-    scratch.qpos[arm._qpos] = arm._home
-    mujoco.mj_forward(model, scratch)
-    inertias = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, scratch, inertias)
-    timestep = float(model.opt.timestep)
-    for actuator in arm._actuators:
-        dof = int(model.jnt_dofadr[model.actuator_trnid[actuator, 0]])
-        inertia = float(inertias[dof, dof])
-        effort = float(model.actuator_forcerange[actuator, 1]) if model.actuator_forcelimited[actuator] else 0.0
-        stiffness = effort / SATURATION if effort > 0 else inertia * (SERVO_STEP / timestep) ** 2
-        model.actuator_gainprm[actuator, 0] = stiffness
-        model.actuator_biasprm[actuator, 1] = -stiffness
-        model.actuator_biasprm[actuator, 2] = -2.0 * math.sqrt(stiffness * inertia)
-
 
 
 class MujocoArmRobot(Robot):

@@ -11,7 +11,7 @@ does by default.
   finger presses with its own effort limit. The arm's gravity is compensated through the actuators
   (`gravcomp`, `actgravcomp`: within the same limits), as pybullet's motor holds a joint against gravity.
 - Each servo pushes with its effort limit at `SATURATION` from its setpoint (a closing finger presses at its
-  effort limit; a joint holds against a contact), critically damped at the home pose (`arm.tune_arm_servos`).
+  effort limit; a joint holds against a contact), critically damped at the home pose (`MujocoArm.tune_servos`).
   MuJoCo integrates a stiffness explicitly, so each driven joint gets the armature (rotor inertia) that keeps
   every motion of the servos under `SERVO_STEP` radians of oscillation per time step: without it the wrist
   (0.003 kg m^2 about its axis) and the shoulder and upper-arm joints, coaxial when the arm is stretched out,
@@ -124,7 +124,7 @@ def _effort(joint: mujoco.MjsJoint) -> float:
 
 def _drive(spec: mujoco.MjSpec, name: str, joint: mujoco.MjsJoint, effort: float, timestep: float) -> None:
     """A position actuator on `joint` clamped at `effort`, the joint's gravity compensated through it, and the
-    joint's armature (see the module docstring); the gains are set on the compiled model (`tune_arm_servos`)."""
+    joint's armature (see the module docstring); the gains are set on the compiled model (`MujocoArm.tune_servos`)."""
     joint.actgravcomp = True
     actuator = spec.add_actuator(name=name, target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
     actuator.set_to_position(kp=1.0, kv=1.0)
