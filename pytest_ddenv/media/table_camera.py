@@ -1,0 +1,50 @@
+"""The animations' camera for an arm on a table: fixed for the whole run, above the arm's side of the table,
+looking obliquely at the middle of the target's start and the place region (a chase camera behind a fixed
+base would only show the arm's back)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pytest_ddenv.sim.run import Run
+from pytest_ddenv.world.model import World
+
+ELEVATION_DEGREES = 40.0
+"""How far the camera looks down (degrees below the horizon)."""
+SIDE_DEGREES = 30.0
+"""How far the camera is turned about the look-at point from straight behind the arm's base, so that the arm
+does not hide the target."""
+FRAMING = 1.8
+"""Camera distance per metre of the scene shown (the target, the place region and the arm's base), for the
+60 degree field of view of both renderers."""
+CLOSEST = 1.2
+"""The camera is never closer than this (m) to the point it looks at."""
+
+
+def table_camera(world: World, run: Run) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """(eye, look-at point) of the camera over an arm's table: it looks at the middle of the target's first
+    recorded position (else the end effector's) and the place region, from above the arm's base."""
+    scenario = world.scenario
+    base = np.array([scenario.start.x, scenario.start.y, scenario.start.z] if scenario else [0.0, 0.0, 0.0])
+    first = run.target_path[0] if run.target_path is not None and len(run.target_path) else run.poses[0, :3]
+    target = np.asarray(first, dtype=float)
+    place = target.copy()
+    if scenario is not None:
+        place[:2] = scenario.goal[:2]
+        if scenario.goal[2] is not None:
+            place[2] = float(scenario.goal[2])
+    look = (target + place) / 2.0
+    away = base[:2] - look[:2]
+    if float(np.linalg.norm(away)) < 1e-6:  # the base under the look-at point: look along the arm's yaw
+        yaw = scenario.start.yaw if scenario else 0.0
+        away = -np.array([math.cos(yaw), math.sin(yaw)])
+    heading = math.atan2(float(away[1]), float(away[0])) + math.radians(SIDE_DEGREES)
+    span = max(float(np.linalg.norm(target - place)), float(np.linalg.norm(base[:2] - look[:2]))) + 0.3
+    distance = max(CLOSEST, FRAMING * span)
+    elevation = math.radians(ELEVATION_DEGREES)
+    flat = distance * math.cos(elevation)
+    eye = (float(look[0]) + flat * math.cos(heading), float(look[1]) + flat * math.sin(heading),
+           float(look[2]) + distance * math.sin(elevation))
+    return eye, (float(look[0]), float(look[1]), float(look[2]))
