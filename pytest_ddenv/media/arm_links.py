@@ -54,7 +54,7 @@ def arm_links(world: World, run: Run) -> ArmLinks | None:
         if detail.joints.shape[1] != links:
             return None
         infos = [p.getJointInfo(body, joint, physicsClientId=client) for joint in range(links)]
-        base = p.getBasePositionAndOrientation(body, physicsClientId=client)[0]
+        base = (start.x, start.y, start.z)  # where the base's frame was put (pybullet's base pose is its mass's)
         positions = np.empty((len(detail.joints), links + 1, 3))
         for row, angles in enumerate(detail.joints):
             for joint, angle in enumerate(angles):

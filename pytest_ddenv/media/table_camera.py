@@ -13,10 +13,10 @@ from pytest_ddenv.world.model import World
 
 ELEVATION_DEGREES = 40.0
 """How far the camera looks down (degrees below the horizon)."""
-SIDE_DEGREES = 30.0
+SIDE_DEGREES = 50.0
 """How far the camera is turned about the look-at point from straight behind the arm's base, so that the arm
 does not hide the target."""
-FRAMING = 1.8
+FRAMING = 2.0
 """Camera distance per metre of the scene shown (the target, the place region and the arm's base), for the
 60 degree field of view of both renderers."""
 CLOSEST = 1.2
