@@ -25,6 +25,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from pytest_ddenv.media.arm_links import recorded_joints
 from pytest_ddenv.media.gl_helper import in_gl_helper
 from pytest_ddenv.media.palette import FINGER_RGBA, GROUND_RGBA, ROBOT_RGBA, model_rgba
 from pytest_ddenv.media.table_camera import table_camera
@@ -127,6 +128,8 @@ class _PybulletScene:
                 p.changeVisualShape(body, link, rgbaColor=rgba, textureUniqueId=-1, physicsClientId=client)
         start = world.scenario.start if world.scenario is not None else None
         self.robot: int | None = None
+        self.columns: list[int] | None = None
+        """The robot's joint of each column of the run's recorded joints (None: they are not this robot's)."""
         arm = run.robot_kind == "arm"
         if world.scenario is not None and start is not None and run.robot != REPORTED:
             try:
@@ -135,6 +138,8 @@ class _PybulletScene:
                     self.robot = robot.spawn(client, (start.x, start.y, start.z if arm else 0.5), start.yaw)
             except Exception:  # noqa: BLE001 - a robot of the user's that cannot be made here: drawn as a box
                 self.robot = None
+            if self.robot is not None and run.detail is not None:
+                self.columns = recorded_joints(p, client, self.robot, robot, run.detail.joints.shape[1])
         self.fixed_base = arm and self.robot is not None
         """An arm stands at the scenario's start (its recorded poses are the end effector's)."""
         if self.fixed_base:
@@ -163,8 +168,8 @@ class _PybulletScene:
         detail = run.detail
         if detail is None:
             return
-        if detail.joints.shape[1] == self.joints:
-            for joint, angle in enumerate(detail.joints[index]):
+        if self.columns is not None:
+            for joint, angle in zip(self.columns, detail.joints[index], strict=True):
                 p.resetJointState(self.robot, joint, float(angle), physicsClientId=client)
         for name, poses in detail.bodies.items():
             body = self.bodies.get(name)

@@ -1,16 +1,19 @@
 """Where an arm's links were during a run: its recorded joint positions (`Run.detail.joints`) put through
-pybullet's forward kinematics, the arm standing at the scenario's start, for the 3D recording."""
+pybullet's forward kinematics, the arm standing at the scenario's start, for the 3D recording; and which
+pybullet joint each recorded column is (`recorded_joints`, for the animations too)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pytest_ddenv.scenario.reported import REPORTED
+from pytest_ddenv.sim.arm.robot import ArmRobot
 from pytest_ddenv.sim.quiet import silenced
-from pytest_ddenv.sim.robot import make_robot
+from pytest_ddenv.sim.robot import Robot, make_robot
 from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.urdf_geometry import pybullet_installed
 from pytest_ddenv.world.model import World
@@ -32,6 +35,21 @@ class ArmLinks:
         return np.stack([frame[list(self.parents)], frame[1:]], axis=1)
 
 
+def recorded_joints(p: Any, client: int, body: int, robot: Robot, width: int) -> list[int] | None:
+    """The pybullet joint index of each of the `width` columns of a run's recorded joints (`RunDetail.joints`)
+    of `robot` loaded as `body`: every joint in index order (what the PyBullet engine records), or an arm's
+    arm joints then finger joints (what the MuJoCo engine records); None when neither fits."""
+    count = p.getNumJoints(body, physicsClientId=client)
+    if width == count:
+        return list(range(count))
+    if isinstance(robot, ArmRobot):
+        names = (*robot.description.arm_joints, *robot.description.finger_joints)
+        index = {p.getJointInfo(body, joint, physicsClientId=client)[1].decode(): joint for joint in range(count)}
+        if width == len(names) and all(name in index for name in names):
+            return [index[name] for name in names]
+    return None
+
+
 def arm_links(world: World, run: Run) -> ArmLinks | None:
     """Where the arm's links were at every recorded time; None when it cannot be had here (not an arm's run,
     no joints recorded, no pybullet, or a robot that cannot be made here)."""
@@ -47,17 +65,19 @@ def arm_links(world: World, run: Run) -> ArmLinks | None:
         start = scenario.start
         try:
             with silenced():
-                body = make_robot(scenario.robot, world.source).spawn(client, (start.x, start.y, start.z), start.yaw)
+                robot = make_robot(scenario.robot, world.source)
+                body = robot.spawn(client, (start.x, start.y, start.z), start.yaw)
         except Exception:  # noqa: BLE001 - a robot of the user's that cannot be made here: no links recorded
             return None
         links = p.getNumJoints(body, physicsClientId=client)
-        if detail.joints.shape[1] != links:
+        columns = recorded_joints(p, client, body, robot, detail.joints.shape[1])
+        if columns is None:
             return None
         infos = [p.getJointInfo(body, joint, physicsClientId=client) for joint in range(links)]
         base = (start.x, start.y, start.z)  # where the base's frame was put (pybullet's base pose is its mass's)
         positions = np.empty((len(detail.joints), links + 1, 3))
         for row, angles in enumerate(detail.joints):
-            for joint, angle in enumerate(angles):
+            for joint, angle in zip(columns, angles, strict=True):
                 p.resetJointState(body, joint, float(angle), physicsClientId=client)
             states = p.getLinkStates(body, list(range(links)), computeForwardKinematics=True,
                                      physicsClientId=client)
