@@ -21,7 +21,9 @@ import mujoco
 import numpy as np
 
 from pytest_ddenv.errors import ScenarioError
+from pytest_ddenv.sim.arm.robot import ArmRobot
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
+from pytest_ddenv.sim.mujoco.arm import MujocoArm, MujocoArmRobot, arm_world
 from pytest_ddenv.sim.mujoco.contacts import RAY_GROUPS
 from pytest_ddenv.sim.mujoco.driven_robot import MujocoRobot
 from pytest_ddenv.sim.mujoco.near import NearContacts
@@ -45,7 +47,8 @@ class MujocoPhysics:
         self.model: mujoco.MjModel | None = None
         self.data: mujoco.MjData | None = None
         self._bodies: dict[int, str] = {}
-        self._robot: MujocoRobot | None = None
+        self._robot: MujocoRobot | MujocoArm | None = None
+        self._arm_robot: MujocoArmRobot | None = None
         self._near: NearContacts | None = None
         self._geom_id = np.zeros(1, dtype=np.int32)
 
@@ -55,14 +58,20 @@ class MujocoPhysics:
 
     def close(self) -> None:
         self.model = self.data = None
-        self._robot = None
+        self._robot = self._arm_robot = None
 
     # -- the world -------------------------------------------------------------------------------------
     def load(self, world: World, robot: Robot, friction: str) -> None:
+        if isinstance(robot, ArmRobot):
+            speeds = [joint.velocity for joint in (*robot.joints, *robot.fingers)]
+            arm = arm_world(world, robot.description, friction, velocities=speeds, home=robot.home)
+            self._arm_robot = MujocoArmRobot(robot, arm)
+            self._loaded_model(world, arm.model, arm.data, arm)
+            return
         if not isinstance(robot, WheeledRobot):
             raise ScenarioError(f"the robot {robot.name!r} is a pybullet robot (a Robot subclass that spawns "
                                 "itself in pybullet); the mujoco engine runs URDF wheeled robots "
-                                "(WheeledRobot, a world file's robot mapping)", source=world.source,
+                                "(WheeledRobot, a world file's robot mapping) and arms (ArmRobot)", source=world.source,
                                 field="physics.engine")
         spec = world_spec(world, robot_spec(robot), PREFIX, friction)
         try:
@@ -70,16 +79,24 @@ class MujocoPhysics:
         except ValueError as error:
             raise ScenarioError(f"MuJoCo cannot compile the world: {error}", source=world.source) from None
         tune_wheel_servos(model, robot)
-        self.model, self.data = model, mujoco.MjData(model)
-        self._robot = MujocoRobot(robot, model, self.data)
-        self._near = NearContacts(model, *self._robot.geoms_near_listed())
+        data = mujoco.MjData(model)
+        self._arm_robot = None
+        self._loaded_model(world, model, data, MujocoRobot(robot, model, data))
+
+    def _loaded_model(self, world: World, model: mujoco.MjModel, data: mujoco.MjData,
+                      robot: MujocoRobot | MujocoArm) -> None:
+        self.model, self.data, self._robot = model, data, robot
+        # an arm's contacts are MuJoCo's alone: pybullet listed no near contact of the Panda's (its fingertips
+        # 9 mm above the table while closing on a cube), where near.py's would list the table
+        near = robot.geoms_near_listed() if isinstance(robot, MujocoRobot) else ([], [], [])
+        self._near = NearContacts(model, *near)
         names = set(world.names)
         self._bodies = {b: model.body(b).name for b in range(1, model.nbody) if model.body(b).name in names}
         if world.ground is not None:
             self._bodies[0] = GROUND_BODY_NAME
         mujoco.mj_kinematics(model, self.data)
 
-    def _loaded(self) -> tuple[mujoco.MjModel, mujoco.MjData, MujocoRobot]:
+    def _loaded(self) -> tuple[mujoco.MjModel, mujoco.MjData, MujocoRobot | MujocoArm]:
         if self.model is None or self.data is None or self._robot is None:
             raise RuntimeError("no world is loaded in this MuJoCo engine")
         return self.model, self.data, self._robot
@@ -105,6 +122,10 @@ class MujocoPhysics:
     # -- the robot -------------------------------------------------------------------------------------
     def spawn(self, robot: Robot, position: Vector, yaw: float) -> tuple[Robot, int]:
         model, data, driven = self._loaded()
+        if isinstance(driven, MujocoArm):
+            assert self._arm_robot is not None
+            driven.place(position, yaw)
+            return self._arm_robot, driven.root
         address = int(model.jnt_qposadr[model.joint(PREFIX + ROOT_JOINT).id])
         data.qpos[address:address + 3] = position
         data.qpos[address + 3:address + 7] = [math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)]
@@ -145,7 +166,12 @@ class MujocoPhysics:
         return found
 
     def step(self, count: int) -> None:
-        model, data, _ = self._loaded()
+        model, data, driven = self._loaded()
+        if isinstance(driven, MujocoArm):  # the arm's setpoints move at the joints' speed limits, step by step
+            for _ in range(count):
+                driven.advance()
+                mujoco.mj_step(model, data)
+            return
         mujoco.mj_step(model, data, nstep=count)
 
     def body_pose(self, body: int) -> tuple[Sequence[float], Sequence[float]]:
