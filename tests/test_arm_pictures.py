@@ -198,3 +198,65 @@ def test_the_links_replayed_from_the_joints_put_the_gripper_where_the_run_record
     start = world.scenario.start
     assert np.allclose(links.positions[:, 0], (start.x, start.y, start.z))
     assert links.bones(0).shape == (len(links.names), 2, 3)
+
+
+# -- a MuJoCo run, in both renderers -----------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def in_mujoco() -> tuple[World, Run]:
+    pytest.importorskip("mujoco")
+    world = World.load(SMOKE).with_engine("mujoco")
+    with recording_detail():
+        run = simulate(world, seed=0)
+    assert run.engine == "mujoco" and run.robot_kind == "arm" and run.detail is not None
+    return world, run
+
+
+def test_a_mujoco_run_moves_the_arm_in_pybullets_renderer_by_joint_name(in_mujoco: tuple[World, Run]) -> None:
+    """MuJoCo records the arm and finger joints only (9 for the Panda), pybullet every joint (12)."""
+    import pybullet as p
+
+    from pytest_ddenv.media.animate import _PybulletScene
+
+    world, run = in_mujoco
+    assert run.detail is not None and run.detail.joints.shape[1] == 9
+    scene = _PybulletScene(world, run)
+    try:
+        middle = len(run.times) // 2
+        scene.place(run, middle)
+        names = {p.getJointInfo(scene.robot, j, physicsClientId=scene.client)[1].decode(): j
+                 for j in range(scene.joints)}
+        recorded = dict(zip([f"panda_joint{i}" for i in range(1, 8)] + ["panda_finger_joint1", "panda_finger_joint2"],
+                            run.detail.joints[middle], strict=True))
+        for name, angle in recorded.items():
+            assert p.getJointState(scene.robot, names[name], physicsClientId=scene.client)[0] == pytest.approx(angle)
+    finally:
+        scene.close()
+
+
+def arm_centroids(frames: np.ndarray) -> list[tuple[float, float]]:
+    """The centre of the arm's yellow (palette.ROBOT_RGBA: blue under a quarter of red, unlike the brown table)
+    below the title bar, per frame."""
+    body = frames[:, 17:, :, :3].astype(int)
+    mask = (body[..., 0] > 120) & (body[..., 1] > 0.6 * body[..., 0]) & (body[..., 2] < 0.25 * body[..., 0])
+    return [(float(np.nonzero(m)[1].mean()), float(np.nonzero(m)[0].mean())) for m in mask]
+
+
+@pytest.mark.slow  # the media helper process
+@pytest.mark.mujoco
+def test_both_renderers_draw_the_arm_at_the_same_place(in_mujoco: tuple[World, Run], tmp_path: Path) -> None:
+    import imageio.v3 as iio
+
+    from pytest_ddenv.media import gl_helper
+    from pytest_ddenv.media.animate import FPS, MAX_FRAMES, draw_animation
+
+    world, run = in_mujoco
+    try:
+        gl_helper.in_gl_helper(draw_animation, tmp_path / "mujoco.gif", world, run, "", FPS, MAX_FRAMES, "", "mujoco")
+    except gl_helper.AnimationUnavailable as error:
+        pytest.skip(f"MuJoCo's renderer cannot start here: {error}")
+    draw_animation(tmp_path / "pybullet.gif", world, run, "", FPS, MAX_FRAMES, "", "pybullet")
+    mujoco_frames, pybullet_frames = (iio.imread(tmp_path / name, index=None) for name in ("mujoco.gif", "pybullet.gif"))
+    assert mujoco_frames.shape == pybullet_frames.shape
+    centres = list(zip(arm_centroids(mujoco_frames), arm_centroids(pybullet_frames), strict=True))
+    assert all(math.dist(a, b) < 6 for a, b in centres), centres
+    assert math.dist(centres[0][0], centres[len(centres) // 2][0]) > 5, "the arm moved in the picture"

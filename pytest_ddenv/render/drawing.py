@@ -171,7 +171,8 @@ def _run_outcome(run: Run) -> str:
     if run.failure is not None:
         return f"{run.failure.predicate} at t\u00a0=\u00a0{run.failure.time:.1f}\u00a0s"
     if run.reached_goal:
-        return "reached the goal" + (f" at t = {run.goal_time:.1f} s" if run.goal_time is not None else "")
+        done = "placed the target" if run.robot_kind == "arm" else "reached the goal"
+        return done + (f" at t = {run.goal_time:.1f} s" if run.goal_time is not None else "")
     return f"no failure, goal not reached ({run.times[-1]:.1f} s)" if len(run.times) else "no failure"
 
 

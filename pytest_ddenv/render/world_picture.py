@@ -143,7 +143,7 @@ def draw_reduction(world: World, minimal: Sequence[str], *, original_run: Run | 
     draw_models(axes, world, prints, ghosted=removed, highlighted=kept - preconditioned, preconditioned=preconditioned)
     (draw_arm_scenario if arm else draw_scenario)(axes, world)
     points: list[FloatArray] = []
-    path = " (end effector)" if arm else ""
+    path = ", end effector" if arm else ""
     if original_run is not None:
         draw_run(axes, original_run, RUN_COLORS[0], f"original run{path} ({models_text(len(world))})",
                  underlay=True, outcome=failure_text)
