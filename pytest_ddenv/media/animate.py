@@ -51,6 +51,8 @@ MAX_FRAMES = 60
 """Rendered frames per animation at most (a few seconds of rendering); a long run is played faster."""
 MIN_STEP = 0.25
 """Simulated seconds between frames at least (a short run is not rendered at every recorded tick)."""
+ARM_MIN_STEP = 0.1
+"""The same for an arm, whose runs last seconds, not minutes (a grasp is over in a second)."""
 FPS = 8
 """Frames per second of the GIF."""
 HOLD_SECONDS = 1.5
@@ -221,7 +223,7 @@ def render_frames(world: World, run: Run, *, title: str = "", width: int = WIDTH
     the time a failure predicate fired, else (`failure_text`: the test failed after the run, e.g. in an
     `assert`) on the last frame. `renderer`: "pybullet" or "mujoco", drawn in this process (MuJoCo's only in a
     process whose `MUJOCO_GL` is chosen: `write_animation` does that)."""
-    indices = frame_times(run, max_frames=max_frames)
+    indices = frame_times(run, max_frames=max_frames, min_step=ARM_MIN_STEP if run.robot_kind == "arm" else MIN_STEP)
     headings = chase_headings(run, indices)
     failure_time = None if run.failure is None else float(run.failure.time)
     scene = _scene(renderer, world, run, width, height)
