@@ -3,7 +3,10 @@
 Every run compiles the world and its robot into a new model (world_spec.py; a few ms up to 200 models),
 then places the robot. Body keys are MuJoCo body ids; the robot's links are -1 (the chassis: every body
 of the robot that is not a wheel) and its wheels' indices in the robot's wheel order. The base pose is the
-chassis's centre of mass (pybullet's convention), the velocity taken at that point.
+chassis's centre of mass (pybullet's convention), the velocity taken at that point. An arm (`ArmRobot`) is
+compiled with the world by `arm.arm_world`: its link keys are pybullet's (the root -1, then the URDF's
+links), `spawn` places its base and gives a `MujocoArmRobot` whose `arm` is the `MujocoArm`, and each time
+step first moves its servos' setpoints (`MujocoArm.advance`).
 
 What the engine reads after `step` (poses, velocities, contacts and their forces, rays) is the state MuJoCo
 computed at the start of the last time step, all of one instant, 1/240 s behind the integrated state: an
