@@ -2,7 +2,7 @@
 
 The same replay as the pybullet scene (media/animate.py): the world and the robot compiled once into one
 MuJoCo model by the MuJoCo engine's own spec builder (sim/mujoco/world_spec.py, robot_spec.py; an arm's:
-sim/mujoco/arm.py), never stepped; every frame sets the robot's free joint from the recorded base pose (the
+sim/mujoco/arm_spec.py), never stepped; every frame sets the robot's free joint from the recorded base pose (the
 chassis's centre of mass, as both engines record it), its wheel joints and the moving models' free joints
 from `Run.detail`, and runs MuJoCo's kinematics. An arm's base is fixed at the scenario's start and its arm
 and finger joints set from a MuJoCo run's recorded joints. The colours are media/palette.py's, the camera
@@ -163,7 +163,7 @@ def _robot_spec(world: World, run: Run) -> tuple[Any, frozenset[str], ArmDescrip
     import mujoco
 
     from pytest_ddenv.sim.arm.robot import ArmRobot
-    from pytest_ddenv.sim.mujoco.arm import arm_spec
+    from pytest_ddenv.sim.mujoco.arm_spec import arm_spec
     from pytest_ddenv.sim.mujoco.robot_spec import ROOT_JOINT, robot_spec
     from pytest_ddenv.sim.robot import WheeledRobot, make_robot
 
