@@ -133,6 +133,9 @@ def test_the_gif_shows_the_arm_moving_over_a_still_table(world: World, placed: R
     frames = [frame for _, frame in render_frames(world, placed, max_frames=12)]
     assert all(frame.shape == (HEIGHT, WIDTH, 3) for frame in frames)
     assert all(frame[20:-20].std() > 10 for frame in frames), "not an empty picture"
+    rgb = frames[0].astype(int)
+    green = (rgb[..., 1] > rgb[..., 0] + 60) & (rgb[..., 1] > rgb[..., 2] + 60)
+    assert green.sum() > 50, "the place region's green disc is on the table"
     changed = [float((np.abs(a.astype(int) - b.astype(int)).max(axis=2) > 40)[20:-20].mean())
                for a, b in zip(frames, frames[1:])]
     assert max(changed) < 0.25, "the camera stands still: only the arm and the cube change the picture"

@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from pytest_ddenv.media.arm_links import recorded_joints
 from pytest_ddenv.media.gl_helper import in_gl_helper
 from pytest_ddenv.media.palette import FINGER_RGBA, GROUND_RGBA, ROBOT_RGBA, model_rgba
-from pytest_ddenv.media.table_camera import table_camera
+from pytest_ddenv.media.table_camera import PLACE_RGBA, PLACE_THICKNESS, place_disc, table_camera
 from pytest_ddenv.scenario.reported import REPORTED
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.quiet import silenced
@@ -146,6 +146,7 @@ class _PybulletScene:
         """An arm stands at the scenario's start (its recorded poses are the end effector's)."""
         if self.fixed_base:
             self._paint_arm()
+            self._add_place_disc(world)
         if self.robot is None:  # a run reported by a simulator of the user's, or a robot not known here
             length, width = run.footprint
             shape = p.createVisualShape(p.GEOM_BOX, halfExtents=[length / 2, width / 2, 0.15],
@@ -160,6 +161,17 @@ class _PybulletScene:
             name = "" if link < 0 else p.getJointInfo(robot, link, physicsClientId=client)[12].decode()
             rgba = FINGER_RGBA if "finger" in name else ROBOT_RGBA
             p.changeVisualShape(robot, link, rgbaColor=list(rgba), textureUniqueId=-1, physicsClientId=client)
+
+    def _add_place_disc(self, world: World) -> None:
+        """An arm's place region: a thin green disc on the table, drawn only."""
+        disc = place_disc(world)
+        if disc is None:
+            return
+        p, client = self.p, self.client
+        centre, radius = disc
+        shape = p.createVisualShape(p.GEOM_CYLINDER, radius=radius, length=PLACE_THICKNESS,
+                                    rgbaColor=list(PLACE_RGBA), physicsClientId=client)
+        p.createMultiBody(0.0, -1, shape, list(centre), physicsClientId=client)
 
     def place(self, run: Run, index: int) -> None:
         p, client = self.p, self.client

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_ddenv.media.palette import GROUND_RGBA, ROBOT_RGBA, WHEEL_RGBA, model_rgba
+from pytest_ddenv.media.table_camera import PLACE_RGBA, PLACE_THICKNESS, place_disc
 from pytest_ddenv.scenario.reported import REPORTED
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.run import Run
@@ -64,6 +65,11 @@ class MujocoScene:
         light.type = mujoco.mjtLightType.mjLIGHT_DIRECTIONAL
         light.castshadow = False
         light.diffuse = [SUNLIGHT] * 3
+        disc = place_disc(world) if arm is not None else None
+        if disc is not None:  # an arm's place region: a thin green disc on the table, drawn only
+            centre, radius = disc
+            spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[radius, PLACE_THICKNESS / 2.0, 0.0],
+                                    pos=list(centre), rgba=list(PLACE_RGBA), contype=0, conaffinity=0)
         model = spec.compile()
         self.model, self.data = model, mujoco.MjData(model)
         _paint(model, world, PREFIX, wheels)

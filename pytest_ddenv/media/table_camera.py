@@ -1,6 +1,7 @@
 """The animations' camera for an arm on a table: fixed for the whole run, above the arm's side of the table,
 looking obliquely at the middle of the target's start and the place region (a chase camera behind a fixed
-base would only show the arm's back)."""
+base would only show the arm's back); and the place region, drawn as a thin disc on the table
+(`place_disc`)."""
 
 from __future__ import annotations
 
@@ -48,3 +49,23 @@ def table_camera(world: World, run: Run) -> tuple[tuple[float, float, float], tu
     eye = (float(look[0]) + flat * math.cos(heading), float(look[1]) + flat * math.sin(heading),
            float(look[2]) + distance * math.sin(elevation))
     return eye, (float(look[0]), float(look[1]), float(look[2]))
+
+
+PLACE_RGBA = (0.2, 0.7, 0.3, 1.0)
+"""The place region's disc in the animations (green, as the recording's goal; the arm is yellow)."""
+PLACE_THICKNESS = 0.002
+"""The disc's thickness (m); it is drawn only, never simulated."""
+
+
+def place_disc(world: World) -> tuple[tuple[float, float, float], float] | None:
+    """(centre, radius) of the disc that shows an arm's place region: the scenario's goal and tolerance, on
+    the table's top (else at the goal's z, else on the ground); None without a scenario."""
+    scenario = world.scenario
+    if scenario is None:
+        return None
+    x, y, z = scenario.goal
+    if z is None and scenario.table is not None and scenario.table in world.names:
+        z = float(world.bounds(scenario.table)[1, 2])
+    if z is None:
+        z = world.ground.z if world.ground is not None else 0.0
+    return (float(x), float(y), float(z) + PLACE_THICKNESS / 2.0), float(scenario.goal_tolerance)
