@@ -92,6 +92,30 @@ def test_the_picture_of_an_arm_run_is_zoomed_to_its_table(world: World, placed: 
         pyplot().close(figure)
 
 
+def test_a_world_of_an_arm_without_runs_is_drawn_as_an_arm_s() -> None:
+    """No run, no table, no target: the scenario's robot says it is an arm; a Husky's world stays as it was."""
+    arm_world = World.from_yaml("""
+format: 1
+scenario: {robot: panda, start: {x: 0, y: 0, z: 0.4}, goal: {x: 0.4, y: 0.3}, goal_tolerance: 0.05, timeout: 10}
+models:
+  - {name: crate, pose: [0.5, 0, 0.2], box: [0.1, 0.1, 0.4]}
+  - {name: far_shed, pose: [40.0, 30.0, 0.5], box: [2.0, 2.0, 1.0]}
+""")
+    husky_world = World.from_yaml(
+        "format: 1\nscenario: {start: {x: 0, y: 0}, goal: {x: 5, y: 0}, timeout: 10}\nmodels:\n"
+        "  - {name: crate, pose: [2, 0, 0.2], box: [0.4, 0.4, 0.4]}\n")
+    for world, arm in ((arm_world, True), (husky_world, False)):
+        figure = draw_world(world)
+        try:
+            axes = figure.axes[0]
+            labels = [line.get_label() for line in axes.get_lines()]
+            assert ("arm base" in labels) == arm and ("start" in labels) == (not arm)
+            if arm:
+                assert axes.get_xlim()[1] < 2.0, "the shed 40 m away is out of the view"
+        finally:
+            pyplot().close(figure)
+
+
 def test_the_failure_point_of_an_arm_is_marked_at_the_end_effector(world: World, lifted: Run) -> None:
     assert lifted.failure is not None
     figure = draw_reduction(world, ["table", "cube"], original_run=lifted, minimal_run=lifted)

@@ -14,7 +14,7 @@ import numpy as np
 
 from pytest_ddenv.render.footprints import Footprint
 from pytest_ddenv.world.geometry import FloatArray
-from pytest_ddenv.world.model import ArmDescription, World
+from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -31,14 +31,22 @@ TARGET_PATH_COLOR = "#1f77b4"
 
 
 def is_arm_picture(world: World, runs: Sequence[Run | None] = ()) -> bool:
-    """Whether `world` (or one of `runs`) is an arm's: a run recorded as an arm's, or a scenario with an arm
-    described in the world file, a table or a target (only arms have them)."""
+    """Whether `world` (or one of `runs`) is an arm's: a run recorded as an arm's, a scenario with a table or
+    a target (only arms have them), or a scenario whose robot is an arm (`sim.arm.robot.robot_kind`; a robot
+    that cannot be made here is taken for a mobile one)."""
     if any(run is not None and run.robot_kind == "arm" for run in runs):
         return True
     scenario = world.scenario
     if scenario is None:
         return False
-    return isinstance(scenario.robot, ArmDescription) or scenario.table is not None or scenario.target is not None
+    if scenario.table is not None or scenario.target is not None:
+        return True
+    from pytest_ddenv.sim.arm.robot import robot_kind
+
+    try:
+        return robot_kind(scenario.robot, world.source) == "arm"
+    except Exception:  # noqa: BLE001 - a robot of the user's that cannot be made here: drawn as a mobile robot
+        return False
 
 
 def table_view(world: World, prints: Sequence[Footprint], points: Sequence[FloatArray]
