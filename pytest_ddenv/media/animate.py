@@ -230,10 +230,9 @@ def _scene(renderer: str, world: World, run: Run, width: int, height: int) -> _S
 def render_frames(world: World, run: Run, *, title: str = "", width: int = WIDTH, height: int = HEIGHT,
                   max_frames: int = MAX_FRAMES, failure_text: str = "", renderer: str = "pybullet"
                   ) -> Iterator[tuple[float, Frame]]:
-    """(simulated time, RGB frame) of the run, chase camera (an arm's: over its table), with the time and the
-    failure marked: from
-    the time a failure predicate fired, else (`failure_text`: the test failed after the run, e.g. in an
-    `assert`) on the last frame. `renderer`: "pybullet" or "mujoco", drawn in this process (MuJoCo's only in a
+    """(simulated time, RGB frame) of the run, chase camera (an arm's: fixed over its table), with the time and
+    the failure marked: from the time a failure predicate fired, else (`failure_text`: the test failed after
+    the run, e.g. in an `assert`) on the last frame. `renderer`: "pybullet" or "mujoco", drawn in this process (MuJoCo's only in a
     process whose `MUJOCO_GL` is chosen: `write_animation` does that)."""
     indices = frame_times(run, max_frames=max_frames, min_step=ARM_MIN_STEP if run.robot_kind == "arm" else MIN_STEP)
     headings = chase_headings(run, indices)
