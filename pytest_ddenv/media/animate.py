@@ -232,14 +232,15 @@ def render_frames(world: World, run: Run, *, title: str = "", width: int = WIDTH
                   ) -> Iterator[tuple[float, Frame]]:
     """(simulated time, RGB frame) of the run, chase camera (an arm's: fixed over its table), with the time and
     the failure marked: from the time a failure predicate fired, else (`failure_text`: the test failed after
-    the run, e.g. in an `assert`) on the last frame. `renderer`: "pybullet" or "mujoco", drawn in this process (MuJoCo's only in a
-    process whose `MUJOCO_GL` is chosen: `write_animation` does that)."""
-    indices = frame_times(run, max_frames=max_frames, min_step=ARM_MIN_STEP if run.robot_kind == "arm" else MIN_STEP)
+    the run, e.g. in an `assert`) on the last frame. `renderer`: "pybullet" or "mujoco", drawn in this
+    process (MuJoCo's only in a process whose `MUJOCO_GL` is chosen: `write_animation` does that)."""
+    arm = run.robot_kind == "arm"
+    indices = frame_times(run, max_frames=max_frames, min_step=ARM_MIN_STEP if arm else MIN_STEP)
     headings = chase_headings(run, indices)
     failure_time = None if run.failure is None else float(run.failure.time)
     scene = _scene(renderer, world, run, width, height)
     scale = min(2.0, max(0.5, run.footprint[0] / HUSKY_LENGTH))  # a small robot is followed closer
-    fixed = table_camera(world, run) if run.robot_kind == "arm" else None
+    fixed = table_camera(world, run) if arm else None
     try:
         for index, heading in zip(indices, headings, strict=True):
             scene.place(run, index)
