@@ -13,7 +13,7 @@ import pytest
 
 from pytest_ddenv.detail import recording_detail
 from pytest_ddenv.media.animate import HEIGHT, MIN_STEP, WIDTH, render_frames, write_animation
-from pytest_ddenv.media.table_camera import table_camera
+from pytest_ddenv.media.table_camera import LIFT, table_camera
 from pytest_ddenv.oracle.arm_state import ArmState
 from pytest_ddenv.oracle.predicates import FailureSignature, signature
 from pytest_ddenv.render import draw_reduction, draw_world, plot_reduction, plot_world
@@ -147,7 +147,7 @@ def test_the_camera_looks_at_the_table_from_above_the_arm(world: World, placed: 
     assert world.scenario is not None
     table = table_box(world)
     assert table[0, 0] <= look[0] <= table[1, 0] and table[0, 1] <= look[1] <= table[1, 1]
-    assert look[2] == pytest.approx(placed.target_path[0, 2])
+    assert look[2] == pytest.approx(placed.target_path[0, 2] + LIFT)
     assert eye[2] > look[2] + 0.5, "from above"
     base = (world.scenario.start.x, world.scenario.start.y)
     assert math.dist(eye[:2], base) < math.dist(eye[:2], look[:2]), "from the arm's side of the table"

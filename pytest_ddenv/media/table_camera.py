@@ -17,16 +17,20 @@ ELEVATION_DEGREES = 40.0
 SIDE_DEGREES = 50.0
 """How far the camera is turned about the look-at point from straight behind the arm's base, so that the arm
 does not hide the target."""
-FRAMING = 2.0
+FRAMING = 1.8
 """Camera distance per metre of the scene shown (the target, the place region and the arm's base), for the
 60 degree field of view of both renderers."""
-CLOSEST = 1.2
+CLOSEST = 1.4
 """The camera is never closer than this (m) to the point it looks at."""
+LIFT = 0.1
+"""The point looked at is this far (m) above the middle of the target and the place region, so that the arm
+above them stays in the picture."""
 
 
 def table_camera(world: World, run: Run) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-    """(eye, look-at point) of the camera over an arm's table: it looks at the middle of the target's first
-    recorded position (else the end effector's) and the place region, from above the arm's base."""
+    """(eye, look-at point) of the camera over an arm's table: it looks at `LIFT` above the middle of the
+    target's first recorded position (else the end effector's) and the place region, from above the arm's
+    base."""
     scenario = world.scenario
     base = np.array([scenario.start.x, scenario.start.y, scenario.start.z] if scenario else [0.0, 0.0, 0.0])
     first = run.target_path[0] if run.target_path is not None and len(run.target_path) else run.poses[0, :3]
@@ -36,7 +40,7 @@ def table_camera(world: World, run: Run) -> tuple[tuple[float, float, float], tu
         place[:2] = scenario.goal[:2]
         if scenario.goal[2] is not None:
             place[2] = float(scenario.goal[2])
-    look = (target + place) / 2.0
+    look = (target + place) / 2.0 + np.array([0.0, 0.0, LIFT])
     away = base[:2] - look[:2]
     if float(np.linalg.norm(away)) < 1e-6:  # the base under the look-at point: look along the arm's yaw
         yaw = scenario.start.yaw if scenario else 0.0
