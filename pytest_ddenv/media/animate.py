@@ -6,7 +6,9 @@ the same), and otherwise MuJoCo's OpenGL renderer (media/mujoco_scene.py) in a h
 EGL and OSMesa (media/gl_helper.py). A replay, not a re-simulation: the world is built once and every
 frame puts the robot (base pose and joints) and the moving models where the run recorded them
 (`Run.detail`; without it, the moving models stay at their start poses). A chase camera follows the robot
-from behind and above, its heading smoothed so that the picture does not swing with every wobble. Each
+from behind and above, its heading smoothed so that the picture does not swing with every wobble. An arm
+(`Run.robot_kind == "arm"`) stands at the scenario's start with its joints where the run recorded them, and a
+fixed camera looks over its table (media/table_camera.py). Each
 frame carries the simulated time; from the failure moment on the frame has a red border and the failure's
 words.
 """
@@ -23,8 +25,10 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from pytest_ddenv.media.arm_links import recorded_joints
 from pytest_ddenv.media.gl_helper import in_gl_helper
-from pytest_ddenv.media.palette import GROUND_RGBA, ROBOT_RGBA, model_rgba
+from pytest_ddenv.media.palette import FINGER_RGBA, GROUND_RGBA, ROBOT_RGBA, model_rgba
+from pytest_ddenv.media.table_camera import PLACE_RGBA, PLACE_THICKNESS, place_disc, table_camera
 from pytest_ddenv.scenario.reported import REPORTED
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME, build_world
 from pytest_ddenv.sim.quiet import silenced
@@ -47,6 +51,8 @@ MAX_FRAMES = 60
 """Rendered frames per animation at most (a few seconds of rendering); a long run is played faster."""
 MIN_STEP = 0.25
 """Simulated seconds between frames at least (a short run is not rendered at every recorded tick)."""
+ARM_MIN_STEP = 0.1
+"""The same for an arm, whose runs last seconds, not minutes (a grasp is over in a second)."""
 FPS = 8
 """Frames per second of the GIF."""
 HOLD_SECONDS = 1.5
@@ -124,13 +130,23 @@ class _PybulletScene:
                 p.changeVisualShape(body, link, rgbaColor=rgba, textureUniqueId=-1, physicsClientId=client)
         start = world.scenario.start if world.scenario is not None else None
         self.robot: int | None = None
+        self.columns: list[int] | None = None
+        """The robot's joint of each column of the run's recorded joints (None: they are not this robot's)."""
+        arm = run.robot_kind == "arm"
         if world.scenario is not None and start is not None and run.robot != REPORTED:
             try:
                 with silenced():
                     robot = make_robot(world.scenario.robot, world.source)
-                    self.robot = robot.spawn(client, (start.x, start.y, 0.5), start.yaw)
+                    self.robot = robot.spawn(client, (start.x, start.y, start.z if arm else 0.5), start.yaw)
             except Exception:  # noqa: BLE001 - a robot of the user's that cannot be made here: drawn as a box
                 self.robot = None
+            if self.robot is not None and run.detail is not None:
+                self.columns = recorded_joints(p, client, self.robot, robot, run.detail.joints.shape[1])
+        self.fixed_base = arm and self.robot is not None
+        """An arm stands at the scenario's start (its recorded poses are the end effector's)."""
+        if self.fixed_base:
+            self._paint_arm()
+            self._add_place_disc(world)
         if self.robot is None:  # a run reported by a simulator of the user's, or a robot not known here
             length, width = run.footprint
             shape = p.createVisualShape(p.GEOM_BOX, halfExtents=[length / 2, width / 2, 0.15],
@@ -138,16 +154,36 @@ class _PybulletScene:
             self.robot = p.createMultiBody(0.0, -1, shape, [0, 0, 0], physicsClientId=client)
         self.joints = p.getNumJoints(self.robot, physicsClientId=client)
 
+    def _paint_arm(self) -> None:
+        """The arm in the robot's colour, its fingers darker (the Panda's URDF makes it all white)."""
+        p, client, robot = self.p, self.client, self.robot
+        for link in range(-1, p.getNumJoints(robot, physicsClientId=client)):
+            name = "" if link < 0 else p.getJointInfo(robot, link, physicsClientId=client)[12].decode()
+            rgba = FINGER_RGBA if "finger" in name else ROBOT_RGBA
+            p.changeVisualShape(robot, link, rgbaColor=list(rgba), textureUniqueId=-1, physicsClientId=client)
+
+    def _add_place_disc(self, world: World) -> None:
+        """An arm's place region: a thin green disc on the table, drawn only."""
+        disc = place_disc(world)
+        if disc is None:
+            return
+        p, client = self.p, self.client
+        centre, radius = disc
+        shape = p.createVisualShape(p.GEOM_CYLINDER, radius=radius, length=PLACE_THICKNESS,
+                                    rgbaColor=list(PLACE_RGBA), physicsClientId=client)
+        p.createMultiBody(0.0, -1, shape, list(centre), physicsClientId=client)
+
     def place(self, run: Run, index: int) -> None:
         p, client = self.p, self.client
-        x, y, z, roll, pitch, yaw = (float(v) for v in run.poses[index])
-        p.resetBasePositionAndOrientation(self.robot, [x, y, z], p.getQuaternionFromEuler([roll, pitch, yaw]),
-                                          physicsClientId=client)
+        if not self.fixed_base:
+            x, y, z, roll, pitch, yaw = (float(v) for v in run.poses[index])
+            p.resetBasePositionAndOrientation(self.robot, [x, y, z], p.getQuaternionFromEuler([roll, pitch, yaw]),
+                                              physicsClientId=client)
         detail = run.detail
         if detail is None:
             return
-        if detail.joints.shape[1] == self.joints:
-            for joint, angle in enumerate(detail.joints[index]):
+        if self.columns is not None:
+            for joint, angle in zip(self.columns, detail.joints[index], strict=True):
                 p.resetJointState(self.robot, joint, float(angle), physicsClientId=client)
         for name, poses in detail.bodies.items():
             body = self.bodies.get(name)
@@ -194,22 +230,28 @@ def _scene(renderer: str, world: World, run: Run, width: int, height: int) -> _S
 def render_frames(world: World, run: Run, *, title: str = "", width: int = WIDTH, height: int = HEIGHT,
                   max_frames: int = MAX_FRAMES, failure_text: str = "", renderer: str = "pybullet"
                   ) -> Iterator[tuple[float, Frame]]:
-    """(simulated time, RGB frame) of the run, chase camera, with the time and the failure marked: from
-    the time a failure predicate fired, else (`failure_text`: the test failed after the run, e.g. in an
-    `assert`) on the last frame. `renderer`: "pybullet" or "mujoco", drawn in this process (MuJoCo's only in a
-    process whose `MUJOCO_GL` is chosen: `write_animation` does that)."""
-    indices = frame_times(run, max_frames=max_frames)
+    """(simulated time, RGB frame) of the run, chase camera (an arm's: fixed over its table), with the time and
+    the failure marked: from the time a failure predicate fired, else (`failure_text`: the test failed after
+    the run, e.g. in an `assert`) on the last frame. `renderer`: "pybullet" or "mujoco", drawn in this
+    process (MuJoCo's only in a process whose `MUJOCO_GL` is chosen: `write_animation` does that)."""
+    arm = run.robot_kind == "arm"
+    indices = frame_times(run, max_frames=max_frames, min_step=ARM_MIN_STEP if arm else MIN_STEP)
     headings = chase_headings(run, indices)
     failure_time = None if run.failure is None else float(run.failure.time)
     scene = _scene(renderer, world, run, width, height)
     scale = min(2.0, max(0.5, run.footprint[0] / HUSKY_LENGTH))  # a small robot is followed closer
+    fixed = table_camera(world, run) if arm else None
     try:
         for index, heading in zip(indices, headings, strict=True):
             scene.place(run, index)
-            x, y, z = (float(v) for v in run.poses[index][:3])
-            back = CHASE_DISTANCE * scale
-            eye = (x - back * math.cos(heading), y - back * math.sin(heading), z + CHASE_HEIGHT * scale)
-            frame = scene.image(eye, (x, y, z), width, height)
+            if fixed is not None:
+                eye, look = fixed
+            else:
+                x, y, z = (float(v) for v in run.poses[index][:3])
+                back = CHASE_DISTANCE * scale
+                eye = (x - back * math.cos(heading), y - back * math.sin(heading), z + CHASE_HEIGHT * scale)
+                look = (x, y, z)
+            frame = scene.image(eye, look, width, height)
             now = float(run.times[index])
             if failure_time is not None:
                 words = _failure_words(run) if now >= failure_time - 1e-9 else ""

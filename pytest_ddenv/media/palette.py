@@ -17,6 +17,8 @@ ROBOT_RGBA = (0.95, 0.75, 0.1, 1.0)
 renderer draws a URDF robot's chassis in it too: the MuJoCo engine compiles no visual meshes)."""
 WHEEL_RGBA = (0.15, 0.15, 0.15, 1.0)
 """A URDF robot's wheels in MuJoCo's renderer."""
+FINGER_RGBA = WHEEL_RGBA
+"""An arm's fingers in both renderers (the rest of the arm is `ROBOT_RGBA`)."""
 
 
 def model_rgba(model: Model) -> tuple[float, float, float, float]:

@@ -16,6 +16,17 @@ one timeline `sim_time` (simulated seconds), so that the runs scrub together in 
     /<label>/trajectory/position  the robot's position at each time
     /<label>/scan               the laser's hits in the world frame at each time (with `Run.detail`)
     /<label>/contacts           where the robot touches something at each time, radius growing with the force
+
+An arm's run (`Run.robot_kind == "arm"`) has, instead of /<label>/robot's footprint and heading:
+
+    /<label>/robot              the end effector's pose over time; /<label>/robot/gripper a small box in it
+    /<label>/arm/base           the arm's base at the scenario's start (static)
+    /<label>/arm/links          the arm's links as segments from each link's parent, at each time (with
+                                `Run.detail` and pybullet: media/arm_links.py)
+    /<label>/trajectory/...     the end effector's path and position
+    /<label>/target/path        the target's path (static); /<label>/target/position: where it is at each time
+
+and the rest as above (/<label>/goal is the place region).
     /<label>/failure            a red point and label at the failure pose, from the failure time on
     /<label>/log                text log: the run at t = 0, the failure (or the end) later
 
@@ -63,6 +74,9 @@ SCAN_RGBA = (0.17, 0.63, 0.17, 1.0)
 CONTACT_RGBA = (1.0, 0.5, 0.05, 1.0)
 FAILURE_RGBA = (0.84, 0.15, 0.16, 1.0)
 GOAL_RGBA = (0.2, 0.7, 0.3, 1.0)
+TARGET_RGBA = (0.58, 0.25, 0.75, 1.0)
+GRIPPER_HALF_SIZE = (0.02, 0.1, 0.03)
+"""Half sizes (m) of the box drawn for an arm's gripper in the end effector's frame (a Franka hand's)."""
 
 
 class RecordingUnavailable(ImportError):
@@ -181,7 +195,11 @@ def _log_run(writer: _Writer, root: str, world: World, run: Run) -> None:
     _log_goal(writer, root, world)
     for model in world.models:
         _log_model(writer, f"{root}/models/{writer.rr.escape_entity_path_part(model.name)}", model, world, run)
-    _log_robot(writer, root, run)
+    if run.robot_kind == "arm":
+        _log_arm(writer, root, world, run)
+    else:
+        _log_robot(writer, root, run)
+    _log_trajectory(writer, root, run)
     detail = run.detail
     if detail is not None and detail.scan_angles is not None and detail.scan_ranges is not None:
         _log_scan(writer, f"{root}/scan", run, detail)
@@ -209,18 +227,24 @@ def _log_ground(writer: _Writer, root: str, world: World, run: Run) -> None:
 
 
 def _log_goal(writer: _Writer, root: str, world: World) -> None:
-    """The goal point (on the ground unless it has a z) and its tolerance circle."""
+    """The goal point (on the ground unless it has a z; an arm's place region on its table) and its tolerance
+    circle."""
     scenario = world.scenario
     if scenario is None:
         return
     x, y, z = scenario.goal
     height = z if z is not None else (world.ground.z if world.ground is not None else 0.0)
+    arm = scenario.table is not None or scenario.target is not None
+    if z is None and scenario.table in world.names:  # an arm's place region lies on its table
+        height = float(world.bounds(scenario.table)[1, 2])
     rr = writer.rr
-    writer.static(f"{root}/goal", rr.Points3D([[x, y, height]], radii=0.08, colors=[GOAL_RGBA], labels=["goal"]))
+    writer.static(f"{root}/goal", rr.Points3D([[x, y, height]], radii=0.03 if arm else 0.08, colors=[GOAL_RGBA],
+                                              labels=["place region" if arm else "goal"]))
     angles = np.linspace(0.0, 2.0 * math.pi, 65)
     radius = scenario.goal_tolerance
     circle = np.stack([x + radius * np.cos(angles), y + radius * np.sin(angles), np.full(65, height + 0.01)], 1)
-    writer.static(f"{root}/goal/tolerance", rr.LineStrips3D([circle], radii=0.015, colors=[GOAL_RGBA]))
+    writer.static(f"{root}/goal/tolerance", rr.LineStrips3D([circle], radii=0.004 if arm else 0.015,
+                                                            colors=[GOAL_RGBA]))
 
 
 def _log_model(writer: _Writer, entity: str, model: Model, world: World, run: Run) -> None:
@@ -310,7 +334,7 @@ def _mesh(rr: Any, shape: Shape, source: str | None, rgba: Sequence[float]) -> A
 
 # -- the robot and what it sensed ---------------------------------------------------------------------------
 def _log_robot(writer: _Writer, root: str, run: Run) -> None:
-    """The base's pose over time, its footprint and heading (robot frame), and the trajectory."""
+    """The base's pose over time, its footprint and heading (robot frame)."""
     rr = writer.rr
     poses = np.asarray(run.poses, dtype=np.float64)
     writer.columns(f"{root}/robot", run.times, rr.Transform3D.columns(
@@ -322,9 +346,47 @@ def _log_robot(writer: _Writer, root: str, run: Run) -> None:
     writer.static(f"{root}/robot/heading", rr.Arrows3D(
         origins=[[0.0, 0.0, FOOTPRINT_HEIGHT / 2.0]], vectors=[[length * 0.75, 0.0, 0.0]], colors=[HEADING_RGBA],
         radii=0.02))
-    writer.static(f"{root}/trajectory/path", rr.LineStrips3D([poses[:, :3]], radii=0.02, colors=[TRAJECTORY_RGBA]))
-    writer.static(f"{root}/trajectory/position", rr.Points3D.from_fields(radii=0.05, colors=[TRAJECTORY_RGBA]))
-    writer.columns(f"{root}/trajectory/position", run.times, rr.Points3D.columns(positions=poses[:, :3]))
+
+
+def _log_trajectory(writer: _Writer, root: str, run: Run) -> None:
+    """The robot's (an arm's: the end effector's) whole path, and its position at each time."""
+    rr = writer.rr
+    positions = np.asarray(run.poses, dtype=np.float64)[:, :3]
+    thin = run.robot_kind == "arm"
+    writer.static(f"{root}/trajectory/path", rr.LineStrips3D([positions], radii=0.005 if thin else 0.02,
+                                                             colors=[TRAJECTORY_RGBA]))
+    writer.static(f"{root}/trajectory/position", rr.Points3D.from_fields(radii=0.015 if thin else 0.05,
+                                                                         colors=[TRAJECTORY_RGBA]))
+    writer.columns(f"{root}/trajectory/position", run.times, rr.Points3D.columns(positions=positions))
+
+
+def _log_arm(writer: _Writer, root: str, world: World, run: Run) -> None:
+    """An arm: the end effector's pose and a box for its gripper, the base, the links, the target's path."""
+    from pytest_ddenv.media.arm_links import arm_links
+
+    rr = writer.rr
+    poses = np.asarray(run.poses, dtype=np.float64)
+    writer.columns(f"{root}/robot", run.times, rr.Transform3D.columns(
+        translation=poses[:, :3], quaternion=quaternions(poses[:, 3:6])))
+    writer.static(f"{root}/robot/gripper", rr.Boxes3D(half_sizes=[list(GRIPPER_HALF_SIZE)], colors=[ROBOT_RGBA],
+                                                       labels=[run.robot], fill_mode="solid"))
+    if world.scenario is not None:
+        start = world.scenario.start
+        writer.static(f"{root}/arm/base", rr.Points3D([[start.x, start.y, start.z]], radii=0.06,
+                                                      colors=[ROBOT_RGBA], labels=["arm base"]))
+    links = arm_links(world, run)
+    if links is not None:
+        count = len(links.parents)
+        segments = np.concatenate([links.bones(row) for row in range(len(links.positions))])
+        writer.static(f"{root}/arm/links", rr.LineStrips3D.from_fields(radii=0.02, colors=[ROBOT_RGBA]))
+        writer.columns(f"{root}/arm/links", run.times[: len(links.positions)], rr.LineStrips3D.columns(
+            strips=list(segments)).partition([count] * len(links.positions)))
+    path = run.target_path
+    if path is not None and len(path):
+        target = np.asarray(path, dtype=np.float64)
+        writer.static(f"{root}/target/path", rr.LineStrips3D([target], radii=0.005, colors=[TARGET_RGBA]))
+        writer.static(f"{root}/target/position", rr.Points3D.from_fields(radii=0.02, colors=[TARGET_RGBA]))
+        writer.columns(f"{root}/target/position", run.times[: len(target)], rr.Points3D.columns(positions=target))
 
 
 def scan_points(run: Run, detail: RunDetail) -> tuple[FloatArray, NDArray[np.int64]]:

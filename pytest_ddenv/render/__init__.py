@@ -14,8 +14,10 @@ matplotlib is imported lazily with the Agg backend, so importing this package is
 needed.
 
 The modules, one job each: `canvas` (sizes, colours, figures saved as PNG), `footprints` (what each model
-looks like from above), `drawing` (the parts of a top-down picture), `labels` (model names placed without
-overlap), `world_picture` (`plot_world`, `plot_reduction`), `progress_chart` (`plot_progress`).
+looks like from above), `drawing` (the parts of a top-down picture), `tabletop` (the parts that differ for an
+arm on a table: the view zoomed to the table, the arm's base, the place region, the target's path), `labels`
+(model names placed without overlap), `world_picture` (`plot_world`, `plot_reduction`), `progress_chart`
+(`plot_progress`).
 """
 
 from __future__ import annotations

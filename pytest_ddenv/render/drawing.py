@@ -114,13 +114,18 @@ def draw_scenario(axes: Axes, world: World) -> None:
 def draw_run(axes: Axes, run: Run, color: str, label: str, *, underlay: bool = False,
              outcome: str | None = None) -> None:
     """A trajectory; an `underlay` is wide and translucent so a run drawn on top of it stays visible.
-    `outcome` replaces the run's own outcome in the legend (the test's failure, when no predicate found it)."""
+    `outcome` replaces the run's own outcome in the legend (the test's failure, when no predicate found it).
+    An arm's run is its end effector's path, its failure pose a point (`tabletop.draw_gripper_failure`)."""
     positions = np.asarray(run.positions)
     if len(positions):
         axes.plot(positions[:, 0], positions[:, 1], color=color, linewidth=6.0 if underlay else 1.8,
                   alpha=0.35 if underlay else 1.0, solid_capstyle="round", zorder=6.5 if underlay else 7,
                   label=wrap(f"{label}: {outcome or _run_outcome(run)}"))
-    if run.failure is not None:
+    if run.failure is not None and run.robot_kind == "arm":
+        from pytest_ddenv.render.tabletop import draw_gripper_failure
+
+        draw_gripper_failure(axes, run.failure.pose, color, dashed=underlay)
+    elif run.failure is not None:
         draw_failure_pose(axes, run.failure.pose, color, footprint=run.footprint, dashed=underlay)
 
 
@@ -166,7 +171,8 @@ def _run_outcome(run: Run) -> str:
     if run.failure is not None:
         return f"{run.failure.predicate} at t\u00a0=\u00a0{run.failure.time:.1f}\u00a0s"
     if run.reached_goal:
-        return "reached the goal" + (f" at t = {run.goal_time:.1f} s" if run.goal_time is not None else "")
+        done = "placed the target" if run.robot_kind == "arm" else "reached the goal"
+        return done + (f" at t = {run.goal_time:.1f} s" if run.goal_time is not None else "")
     return f"no failure, goal not reached ({run.times[-1]:.1f} s)" if len(run.times) else "no failure"
 
 
@@ -189,7 +195,12 @@ def fit_view(axes: Axes, world: World, prints: Sequence[Footprint], points: Sequ
     stacked = np.vstack(boxes)
     low, high = stacked.min(axis=0), stacked.max(axis=0)
     margin = max(0.5, 0.06 * float(np.max(high - low)))
-    _fit_equal_aspect(axes, low - margin, high + margin)
+    fit_box(axes, low - margin, high + margin)
+
+
+def fit_box(axes: Axes, low: FloatArray, high: FloatArray) -> None:
+    """Limits that show the box from `low` to `high` (x, y) at equal aspect, the axes labelled, a grid."""
+    _fit_equal_aspect(axes, np.asarray(low, dtype=float), np.asarray(high, dtype=float))
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
     axes.grid(True, color="#dddddd", linewidth=0.6, zorder=0)
@@ -211,8 +222,9 @@ def _fit_equal_aspect(axes: Axes, low: FloatArray, high: FloatArray) -> None:
 
 
 def draw_legend(axes: Axes, world: World, prints: Sequence[Footprint], *, ghosted: bool = False,
-                highlighted: bool = False, preconditioned: bool = False) -> None:
-    """The legend, right of the axes: the runs and markers drawn, then one entry per kind of model shown."""
+                highlighted: bool = False, preconditioned: bool = False, arm: bool = False) -> None:
+    """The legend, right of the axes: the runs and markers drawn, then one entry per kind of model shown
+    (`arm`: the failure marks the end effector, not a robot's outline)."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
@@ -241,7 +253,7 @@ def draw_legend(axes: Axes, world: World, prints: Sequence[Footprint], *, ghoste
                              label=f"terrain (wider than {TERRAIN_EXTENT:g} m, faded)"))
     if any(line.get_marker() == "X" for line in axes.get_lines()):
         handles.append(Line2D([], [], marker="X", color="#555555", linestyle="none", markersize=10,
-                              label="failure pose (robot outline)"))
+                              label="failure point (end effector)" if arm else "failure pose (robot outline)"))
     axes.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=9,
                 frameon=False)
 

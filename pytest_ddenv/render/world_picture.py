@@ -18,15 +18,25 @@ from pytest_ddenv.render.drawing import (
     draw_run,
     draw_scenario,
     failure_legend_entries,
+    fit_box,
     fit_view,
     title_of,
 )
-from pytest_ddenv.render.footprints import footprints
+from pytest_ddenv.render.footprints import Footprint, footprints
 from pytest_ddenv.render.labels import label_models
+from pytest_ddenv.render.tabletop import (
+    draw_arm_scenario,
+    draw_gripper_failure,
+    draw_target_path,
+    in_view,
+    is_arm_picture,
+    table_view,
+)
 from pytest_ddenv.world.geometry import FloatArray
 from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
     from pytest_ddenv.sim import Run
@@ -52,29 +62,50 @@ def plot_world(world: World, runs: Sequence[Run] = (), *, path: str | Path, titl
 def draw_world(world: World, runs: Sequence[Run] = (), *, title: str | None = None,
                failure_poses: Sequence[Sequence[float]] = (), failure_outcomes: Sequence[str] = (),
                robot_footprint: tuple[float, float] | None = None, run_colors: Sequence[str] = ()) -> Figure:
-    """The figure of `plot_world` (close it with `matplotlib.pyplot.close` when done)."""
+    """The figure of `plot_world` (close it with `matplotlib.pyplot.close` when done). An arm's world
+    (`tabletop.is_arm_picture`) is shown zoomed to its table, with the arm's base, the place region, the end
+    effector's and the target's paths."""
+    arm = is_arm_picture(world, runs)
     figure, axes = new_figure(WORLD_SIZE)
     prints = footprints(world)
     draw_models(axes, world, prints)
-    draw_scenario(axes, world)
+    (draw_arm_scenario if arm else draw_scenario)(axes, world)
     colors = tuple(run_colors) or RUN_COLORS
+    points: list[FloatArray] = []
     for index, run in enumerate(runs):
-        draw_run(axes, run, colors[index % len(colors)], f"seed {run.seed}")
+        draw_run(axes, run, colors[index % len(colors)], f"seed {run.seed}" + (": end effector" if arm else ""))
+        if arm:
+            points.append(draw_target_path(axes, run, f"seed {run.seed}: target"))
     footprint = runs[0].footprint if runs else robot_footprint or ROBOT_FOOTPRINT  # the poses' robot
     outcomes = list(failure_outcomes) or ["fail"] * len(failure_poses)
     if len(outcomes) != len(failure_poses):
         raise ValueError(f"failure_outcomes has {len(outcomes)} entries for {len(failure_poses)} failure poses")
     for pose, outcome in zip(failure_poses, outcomes, strict=True):
-        draw_failure_pose(axes, pose, OUTCOME_COLORS.get(outcome, OUTCOME_COLORS["fail"]), footprint=footprint)
+        color = OUTCOME_COLORS.get(outcome, OUTCOME_COLORS["fail"])
+        if arm:
+            draw_gripper_failure(axes, pose, color)
+        else:
+            draw_failure_pose(axes, pose, color, footprint=footprint)
     if failure_outcomes:
         failure_legend_entries(axes, outcomes)
-    points = [np.asarray(run.positions)[:, :2] for run in runs] + [np.asarray(p)[:2] for p in failure_poses]
-    fit_view(axes, world, prints, points)
-    touched = [name for name in world.names if any(run.failure and name in run.failure.touched for run in runs)]
+    points += [np.asarray(run.positions)[:, :2] for run in runs] + [np.asarray(p)[:2] for p in failure_poses]
+    shown = _fit(axes, world, prints, points, arm)
+    touched = [name for name in shown if any(run.failure and name in run.failure.touched for run in runs)]
     axes.set_title(title_of(world, title), fontsize=12)
-    draw_legend(axes, world, prints)
+    draw_legend(axes, world, prints, arm=arm)
     label_models(axes, figure, prints, touched)
     return figure
+
+
+def _fit(axes: Axes, world: World, prints: Sequence[Footprint], points: Sequence[FloatArray], arm: bool
+         ) -> list[str]:
+    """Set the view (an arm's: zoomed to its table) and return the names of the models in it."""
+    if not arm:
+        fit_view(axes, world, prints, points)
+        return list(world.names)
+    low, high = table_view(world, prints, points)
+    fit_box(axes, low, high)
+    return [fp.name for fp in prints if in_view(fp, low, high)]
 
 
 def plot_reduction(world: World, minimal: Sequence[str], *, path: str | Path, original_run: Run | None = None,
@@ -106,27 +137,36 @@ def draw_reduction(world: World, minimal: Sequence[str], *, original_run: Run | 
     kept = frozenset(minimal)
     preconditioned = kept & frozenset(precondition_kept)
     removed = frozenset(world.names) - kept
+    arm = is_arm_picture(world, (original_run, minimal_run))
     figure, axes = new_figure(WORLD_SIZE)
     prints = footprints(world)
     draw_models(axes, world, prints, ghosted=removed, highlighted=kept - preconditioned, preconditioned=preconditioned)
-    draw_scenario(axes, world)
+    (draw_arm_scenario if arm else draw_scenario)(axes, world)
     points: list[FloatArray] = []
+    path = ", end effector" if arm else ""
     if original_run is not None:
-        draw_run(axes, original_run, RUN_COLORS[0], f"original run ({models_text(len(world))})", underlay=True,
-                 outcome=failure_text)
+        draw_run(axes, original_run, RUN_COLORS[0], f"original run{path} ({models_text(len(world))})",
+                 underlay=True, outcome=failure_text)
         points.append(np.asarray(original_run.positions)[:, :2])
+        if arm:
+            points.append(draw_target_path(axes, original_run, "target in the original run", underlay=True))
     elif failure_pose is not None:
-        footprint = minimal_run.footprint if minimal_run is not None else ROBOT_FOOTPRINT
-        draw_failure_pose(axes, failure_pose, RUN_COLORS[0], footprint=footprint)
+        if arm:
+            draw_gripper_failure(axes, failure_pose, RUN_COLORS[0])
+        else:
+            footprint = minimal_run.footprint if minimal_run is not None else ROBOT_FOOTPRINT
+            draw_failure_pose(axes, failure_pose, RUN_COLORS[0], footprint=footprint)
         points.append(np.asarray(failure_pose, dtype=float)[:2])
     if minimal_run is not None:
-        draw_run(axes, minimal_run, RUN_COLORS[1], f"minimal world run ({models_text(len(kept))})",
+        draw_run(axes, minimal_run, RUN_COLORS[1], f"minimal world run{path} ({models_text(len(kept))})",
                  outcome=failure_text)
         points.append(np.asarray(minimal_run.positions)[:, :2])
-    fit_view(axes, world, prints, points)
+        if arm:
+            points.append(draw_target_path(axes, minimal_run, "target in the minimal world run"))
+    shown = _fit(axes, world, prints, points, arm)
     default = f"{title_of(world, None).split(':')[0]}: {len(world)} → {models_text(len(kept))}"
     axes.set_title(title or default, fontsize=12)
     draw_legend(axes, world, prints, ghosted=bool(removed), highlighted=bool(kept - preconditioned),
-                preconditioned=bool(preconditioned))
-    label_models(axes, figure, prints, [name for name in world.names if name in kept])
+                preconditioned=bool(preconditioned), arm=arm)
+    label_models(axes, figure, prints, [name for name in shown if name in kept])
     return figure
