@@ -41,13 +41,14 @@ from numpy.typing import ArrayLike
 
 from pytest_ddenv.errors import ControllerError, ScenarioError
 from pytest_ddenv.oracle.arm_state import GRIPPER_CLOSE, GRIPPER_OPEN
-from pytest_ddenv.scenario.gym_env import ObsDict, RobotWorldLike, TickEnv, _box
+from pytest_ddenv.scenario.gym_env import ObsDict, RobotEnv, RobotWorldLike, TickEnv, _box
 from pytest_ddenv.sim.arm.control import ArmCommand, ArmObservation, EndEffectorTarget, JointTargets
 from pytest_ddenv.sim.arm.episode import ArmEpisode
+from pytest_ddenv.sim.arm.robot import robot_kind
 from pytest_ddenv.sim.settings import RunSettings
 from pytest_ddenv.validation import expected, is_real
 
-__all__ = ["ACTIONS", "DEFAULT_JOINT_STEP", "DEFAULT_TOOL_STEP", "TOOL_TURN_STEP", "ArmEnv"]
+__all__ = ["ACTIONS", "DEFAULT_JOINT_STEP", "DEFAULT_TOOL_STEP", "TOOL_TURN_STEP", "ArmEnv", "environment_for"]
 
 ACTIONS = ("joints", "end_effector")
 DEFAULT_JOINT_STEP = 0.05
@@ -180,3 +181,12 @@ def _place_distance(episode: ArmEpisode) -> float:
     if state is None or state.target is None or state.target not in state.objects:
         return 0.0
     return float(state.place_distance(state.target))
+
+
+def environment_for(robot_world: RobotWorldLike, **options: Any) -> RobotEnv | ArmEnv:
+    """`robot_world.make_env(**options)`: an `ArmEnv` when the world's robot is an arm, else a `RobotEnv`."""
+    world = robot_world.world
+    robot = world.scenario.robot if world.scenario is not None else "husky"
+    if robot_kind(robot, world.source) == "arm":
+        return ArmEnv(robot_world, **options)
+    return RobotEnv(robot_world, **options)
