@@ -11,6 +11,7 @@ cell that reaches the arm's base, the target or the place region (unless `overla
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -62,6 +63,8 @@ class _TabletopPlan(_Plan):
     target: _Primitives
     place_tolerance: float
     clutter: _WorldPlan
+    height: tuple[int, int] | None
+    """The clutter's heights (boxes, cylinders) in mm; None: as drawn in `size`."""
     """The clutter, drawn and placed as `worlds()` does, on a grid over the table top."""
     base_keep_out: Rectangle
     timeout: float
@@ -82,6 +85,7 @@ def tabletop_worlds(
     place_tolerance: float = 0.08,
     kinds: Sequence[PrimitiveKind] = PRIMITIVE_KINDS,
     size: Range = (0.03, 0.12),
+    height: Range | None = None,
     mass: Range = (0.05, 1.0),
     friction: Range = (0.5, 1.0),
     static: bool | None = False,
@@ -97,17 +101,18 @@ def tabletop_worlds(
 
     `arm` (a registered arm's name, "panda" by default, or an `ArmDescription`) stands at the origin on the
     table top, heading +x. The table is a static box, `table_size` (depth along x, width along y, m) and its
-    top at `table_height`, reaching `TABLE_MARGIN` m behind the base's disc. The target ("target": a dynamic box or
-    upright cylinder, every side or diameter in `target_size`, mass in `target_mass`) and the centre of the
-    place region (the scenario's goal, radius `place_tolerance`) are each drawn at a planar distance in
-    `reach` from the base and a bearing within `spread` degrees of +x, apart by at least `clearance`.
+    top at `table_height`, reaching `TABLE_MARGIN` m behind the base's disc. The target ("target": a dynamic
+    box or upright cylinder, every side or diameter in `target_size`, mass in `target_mass`) and the centre
+    of the place region (the scenario's goal, radius `place_tolerance`) are each drawn at a planar distance
+    in `reach` from the base and a bearing within `spread` degrees of +x, apart by at least `clearance`.
 
     `count` clutter models (a number, or a (lo, hi) range) drawn as by `worlds(kinds=, size=, mass=,
-    friction=, static=, yaw=)` stand upright on the table top (their lowest point on it), inside it, at
-    least `clearance` m from each other, the target, the place region and the arm's base (a disc of
-    `base_radius` m, known for the Panda); with `overlap`, they may overlap each other, the target and the
-    place region, never the base. Names: "box_0", "cylinder_1", ... The scenario names the target, the table
-    and every clutter model as watched (`Scenario.watch`); `timeout` is in simulated seconds.
+    friction=, static=, yaw=)` (the heights of boxes and cylinders in `height` when given) stand upright on
+    the table top (their lowest point on it), inside it, at least `clearance` m from each other, the target,
+    the place region and the arm's base (a disc of `base_radius` m, known for the Panda); with `overlap`,
+    they may overlap each other, the target and the place region, never the base. Names: "box_0",
+    "cylinder_1", ... The scenario names the target, the table and every clutter model as watched
+    (`Scenario.watch`); `timeout` is in simulated seconds.
 
     Raises InvalidArgument at once when the table cannot hold what is asked.
     """
@@ -124,6 +129,8 @@ def tabletop_worlds(
     target = _Primitives.checked("tabletop_worlds", TARGET_KINDS, target_size, target_mass, friction, False, yaw)
     tolerance = _checked_number("tabletop_worlds", "place_tolerance", place_tolerance, low_included=False)
     clutter = _Primitives.checked("tabletop_worlds", kinds, size, mass, friction, static, yaw)
+    heights = None if height is None else _milli("tabletop_worlds", "height",
+                                                 _checked_range("tabletop_worlds", "height", height))
     counts = _checked_count(count, "tabletop_worlds")
     gap = _checked_number("tabletop_worlds", "clearance", clearance)
     overlaps = _checked_flag("tabletop_worlds", "overlap", overlap)
@@ -149,6 +156,7 @@ def tabletop_worlds(
         clutter=_WorldPlan(scenario=None, count=counts, grid=grid, free=None, primitives=clutter, templates=(),
                            clearance=gap, overlap=overlaps, stacked=0, footprint=None, ground=Ground(z=top),
                            physics=physics, name=name, call=call),
+        height=heights,
         base_keep_out=base_keep_out, timeout=limit, physics=physics, name=name, call=call)
     if counts[1] and not clutter.kinds:
         raise _fail("tabletop_worlds", "kinds", "no kinds: nothing to draw the clutter from (or give count=0)")
@@ -303,10 +311,22 @@ class _Drawn:
 def _placed(plan: _TabletopPlan, drafts: Sequence[_Draft], layout: _Layout) -> World:
     clutter = plan.clutter
     free = clutter.grid.free(_keep_outs(plan, layout, World(models=(layout.target,))))
-    placed = _World(clutter, None, frozenset(free)).placed(drafts)
+    placed = _World(clutter, None, frozenset(free)).placed([_with_height(plan, draft) for draft in drafts])
     names = placed.names
     scenario = Scenario(robot=plan.arm, start=Pose(0.0, 0.0, plan.top), start_z_given=True,
                         goal=(layout.place[0], layout.place[1], None), goal_tolerance=plan.place_tolerance,
                         timeout=plan.timeout, target=TARGET, table=TABLE, watch=names)
     return World(models=(plan.table, layout.target, *placed.models), scenario=scenario, physics=plan.physics,
                  name=plan.name)
+
+
+def _with_height(plan: _TabletopPlan, draft: _Draft) -> _Draft:
+    """The draft with its height (a box's third size, a cylinder's second) moved from the `size` range to the
+    same place in the `height` range: it shrinks as before, and the footprint, hence the placing, is kept."""
+    spec = plan.clutter.primitives
+    if plan.height is None or draft.choice >= len(spec.kinds) or spec.kinds[draft.choice] == "sphere":
+        return draft
+    (lo, hi), (low, high) = spec.size, plan.height
+    drawn = draft.sizes[-1]
+    scaled = low if hi == lo else low + round((drawn - lo) * (high - low) / (hi - lo))
+    return dataclasses.replace(draft, sizes=(*draft.sizes[:-1], scaled))
