@@ -231,6 +231,7 @@ class RobotWorld:
         """The scenario as a `gymnasium.Env` (needs the `gym` extra): see `pytest_ddenv.scenario.gym_env.RobotEnv`
         (an arm's world: `pytest_ddenv.scenario.arm_env.ArmEnv`) for the observation and action spaces and
         `options`. Each finished episode is added to `runs`."""
+        import pytest_ddenv.scenario.gym_env  # noqa: F401 - first: without gymnasium, its ImportError says what to install
         from pytest_ddenv.scenario.arm_env import environment_for
 
         return environment_for(self, **options)
