@@ -39,3 +39,13 @@ def test_the_reduction_keeps_the_box_the_hand_hits(pytester: pytest.Pytester) ->
     assert summary["one_minimal"] is True
     minimal = World.load(summary_file.parent / "minimal.yaml")
     assert minimal.scenario is not None and minimal.scenario.target == "cube" and minimal.scenario.watch == ()
+
+
+def test_a_mobile_robots_predicate_on_an_arm_world_is_an_error_at_setup(pytester: pytest.Pytester) -> None:
+    pytester.makefile(".yaml", arm_blocked=BLOCKED)
+    pytester.makepyfile(test_arm=ARM_TEST.replace("def test_", '@pytest.mark.robot_failure("stuck")\ndef test_'))
+    result = pytester.runpytest_subprocess("--ddenv-reduce")
+    result.assert_outcomes(errors=1)
+    result.stdout.fnmatch_lines(["*ERROR at setup*", "*arm_blocked.yaml, field 'robot_failure': predicate 'stuck' is "
+                                 "for mobile robots; the world's robot 'panda' is an arm; arm predicates: *"])
+    assert not Path(pytester.path, "ddenv-artifacts").exists()

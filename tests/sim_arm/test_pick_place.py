@@ -81,6 +81,20 @@ def test_robot_world_runs_an_arm_world(smoke: World) -> None:
 
 
 def test_a_mobile_robot_predicate_is_refused_on_an_arm(smoke: World) -> None:
-    with pytest.raises(ScenarioError, match="'stuck' is for a wheeled robot") as caught:
+    with pytest.raises(ScenarioError, match="predicate 'stuck' is for mobile robots; the world's robot 'panda' is an arm") as caught:
         RobotWorld(smoke, predicates=["stuck"]).run()
     assert caught.value.field == "predicates"
+
+
+def test_an_arm_run_is_written_and_read_back(sim: Simulator, smoke: World) -> None:
+    import json
+
+    from pytest_ddenv.sim import Run
+
+    run = sim.run(smoke, seed=0)
+    again = Run.from_dict(json.loads(json.dumps(run.to_dict())))
+    assert again.robot_kind == "arm" and again.same_trajectory(run)
+    assert again.target_path is not None and np.array_equal(again.target_path, run.target_path)  # type: ignore[arg-type]
+    old = run.to_dict()
+    del old["robot_kind"], old["target_path"]  # a log written before arms
+    assert Run.from_dict(old).robot_kind == "mobile" and Run.from_dict(old).target_path is None

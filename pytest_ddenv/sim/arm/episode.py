@@ -162,7 +162,8 @@ class ArmEpisode:
         self._observed = False
 
     def _placed(self, state: ArmState) -> bool:
-        """The target rests in the place region, released: the gripper told to open, no finger touching it."""
+        """The target rests in the place region, released: the gripper told to open, not held by both fingers,
+        moved from where it started, and still."""
         target = state.target
         if target is None or target not in state.objects or state.gripper_command != GRIPPER_OPEN:
             return False
@@ -170,7 +171,7 @@ class ArmEpisode:
         before, self._target_before = self._target_before, (position[0], position[1], position[2])
         if before is None or math.dist(before, position) > PLACED_SPEED * self.tick_dt:
             return False
-        if any(c.model == target and c.finger for c in state.contacts):
+        if state.target_held:
             return False
         moved = math.dist(position, state.start_objects[target][:3]) > state.place_tolerance / 2.0
         return moved and state.place_distance(target) <= state.place_tolerance
