@@ -232,3 +232,21 @@ def test_arm_policy_example_is_reduced_to_the_tall_box(pytester: pytest.Pytester
     assert summary["minimal_models"] == ["table", "target", "tall_box"]
     assert summary["reference_failure"]["signature"]["predicate"] == "arm_collision"
     assert summary["reference_failure"]["signature"]["touched"] == ["tall_box"]
+
+
+@pytest.mark.slow
+def test_the_docs_arm_policy_fails_and_is_reduced(pytester: pytest.Pytester) -> None:
+    """docs/writing-tests.md, "An arm's policy through gymnasium": the example fails as it says and is reduced
+    to the tall box."""
+    import re
+
+    text = (ROOT / "docs" / "writing-tests.md").read_text(encoding="utf-8")
+    (example,) = [block for block in re.findall(r"```python\n(.*?)```", text, flags=re.DOTALL)
+                  if "arm_policy_table.yaml" in block]
+    pytester.makepyfile(test_arm_policy=example)
+    shutil.copytree(ROOT / "worlds", pytester.path / "worlds")
+    result = pytester.runpytest_subprocess("--ddenv-reduce", "--ddenv-media", "none")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*The 'arm_collision' predicate fired*tall_box*", "*19 -> 3 models*"])
+    (summary_file,) = Path(pytester.path, "ddenv-artifacts").glob("*/summary.json")
+    assert json.loads(summary_file.read_text())["minimal_models"] == ["table", "target", "tall_box"]
