@@ -136,6 +136,14 @@ def _check_scenario(scenario: Scenario, source: str | None) -> None:
     _check_numbers(zip(("goal.x", "goal.y", "goal.z"), goal if goal[2] is not None else goal[:2], strict=False), fail)
     _check_number(scenario.goal_tolerance, "goal_tolerance", fail, positive=True)
     _check_number(scenario.timeout, "timeout", fail, positive=True)
+    camera = scenario.camera
+    if camera is not None:
+        _check_numbers(((f"camera.{key}[{axis}]", value) for key in ("position", "look_at")
+                        for axis, value in enumerate(getattr(camera, key))), fail)
+        _check_number(camera.fov, "camera.fov", fail, positive=True)
+        problem = camera.problem()
+        if problem is not None:
+            raise fail(f"camera.{problem[0]}", problem[1])
 
 
 def _check_robot(robot: RobotDescription, fail: Fail) -> None:

@@ -155,3 +155,18 @@ def test_a_bad_sdf_arm_scenario_says_which_attribute(scenario: str, field: str, 
     with pytest.raises(ScenarioError, match=message) as caught:
         World.load(path)
     assert caught.value.field == field
+
+
+@pytest.mark.pybullet
+def test_a_urdf_pybullet_cannot_load_says_so(tmp_path: Path) -> None:
+    import dataclasses
+
+    from pytest_ddenv.sim import Simulator
+
+    (tmp_path / "panda.urdf").write_bytes(PANDA_URDF.read_bytes())  # without its meshes
+    world = World.from_yaml(arm_world(), source=tmp_path / "world.yaml")
+    world = dataclasses.replace(world, scenario=dataclasses.replace(  # type: ignore[arg-type]
+        world.scenario, robot=dataclasses.replace(PANDA, urdf="panda.urdf")))
+    with Simulator() as sim, pytest.raises(ScenarioError, match="pybullet cannot load the arm's URDF") as caught:
+        sim.run(world)
+    assert caught.value.field == "scenario.robot.urdf"

@@ -98,3 +98,11 @@ def test_an_arm_run_is_written_and_read_back(sim: Simulator, smoke: World) -> No
     old = run.to_dict()
     del old["robot_kind"], old["target_path"]  # a log written before arms
     assert Run.from_dict(old).robot_kind == "mobile" and Run.from_dict(old).target_path is None
+
+
+@pytest.mark.parametrize("removed", ["cube", "table"])
+def test_a_world_without_its_target_or_table_is_refused(sim: Simulator, smoke: World, removed: str) -> None:
+    field = "scenario.target" if removed == "cube" else "scenario.table"
+    with pytest.raises(ScenarioError, match=f"'{removed}' is not a model of the world") as caught:
+        sim.run(smoke.without([removed]))
+    assert caught.value.field == field

@@ -136,9 +136,13 @@ class ArmRobot(Robot):
         from pytest_ddenv.sim.arm.pybullet_arm import JointInfo, PybulletArm
 
         flags = p.URDF_USE_SELF_COLLISION | p.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
-        with silenced():
-            body = int(p.loadURDF(self.urdf, list(position), p.getQuaternionFromEuler([0.0, 0.0, yaw]),
-                                  useFixedBase=True, flags=flags, physicsClientId=client))
+        try:
+            with silenced():
+                body = int(p.loadURDF(self.urdf, list(position), p.getQuaternionFromEuler([0.0, 0.0, yaw]),
+                                      useFixedBase=True, flags=flags, physicsClientId=client))
+        except p.error as error:
+            raise ScenarioError(f"pybullet cannot load the arm's URDF {self.urdf}: {error}", source=self.source,
+                                field=f"{FIELD}.urdf") from None
         self._links = {-1: p.getBodyInfo(body, physicsClientId=client)[0].decode()}
         indices: dict[str, int] = {}
         parents: dict[int, int] = {}
