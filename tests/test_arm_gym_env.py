@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import shutil
@@ -23,6 +24,7 @@ from pytest_ddenv.scenario.robot_world import RobotFailure, RobotWorld  # noqa: 
 from pytest_ddenv.sim.arm.control import EndEffectorTarget, GripperCommand  # noqa: E402
 from pytest_ddenv.sim.arm.pick_place import PickAndPlace  # noqa: E402
 from pytest_ddenv.world import Model, Pose, Shape, World  # noqa: E402
+from pytest_ddenv.world.model import Camera  # noqa: E402
 
 pytestmark = pytest.mark.pybullet  # the arm runs in PyBullet (w31mujoco brings it to MuJoCo)
 
@@ -120,6 +122,23 @@ def test_a_mobile_robot_s_world_still_gives_a_robot_env(smoke: World) -> None:
     assert type(RobotWorld(World.from_yaml(WALL_WORLD)).make_env()) is RobotEnv
     with pytest.raises(ScenarioError, match="RobotEnv drives wheeled robots; this world's robot is not one"):
         RobotEnv(RobotWorld(smoke))
+
+
+@pytest.mark.parametrize(("kind", "shape", "dtype"), [("rgb", (24, 32, 3), np.uint8), ("depth", (24, 32), np.float32)])
+def test_a_declared_camera_s_picture_is_observed(smoke: World, kind: str, shape: tuple, dtype: type) -> None:
+    camera = Camera(position=(0.5, 0.0, 0.8), look_at=(0.5, 0.0, 0.4), width=32, height=24, kind=kind)
+    assert smoke.scenario is not None
+    world = dataclasses.replace(smoke, scenario=dataclasses.replace(smoke.scenario, camera=camera))
+    env = RobotWorld(world).make_env()
+    check_quietly(env)
+    observation, _ = env.reset()
+    image = observation["image"]
+    assert image.shape == shape and image.dtype == dtype and image.flags.writeable
+    assert env.observation_space.contains(observation)
+    assert env.last_observation is not None and np.array_equal(image, env.last_observation.image)
+    if kind == "depth":
+        assert image[12, 16] == pytest.approx(0.8 - 0.45, abs=0.01)  # the cube's top, under the camera
+    assert "image" not in RobotWorld(smoke).make_env().observation_space.spaces
 
 
 # -- what the actions do -----------------------------------------------------------------------------------------

@@ -21,7 +21,8 @@ Observation space (a `gymnasium.spaces.Dict` of float32 `Box`es, what the arm's 
 noise): `"joint_positions"` (n,), `"joint_velocities"` (n,), `"end_effector"` (6,): x, y, z, roll, pitch,
 yaw; `"gripper"` (2,): the opening (m) and the fingers' summed force (N); `"target"` (6,): the target's
 pose as perceived (zeros when the scenario names no target); `"place"` (3,): the place region's centre x, y
-and its radius; `"time"` (1,): simulated seconds, in [0, time limit + one tick].
+and its radius; `"time"` (1,): simulated seconds, in [0, time limit + one tick]; `"image"`, when the
+scenario declares a camera: its picture, (H, W, 3) uint8 RGB or (H, W) float32 depth (m).
 
 Reward: the decrease since the previous step of the true distance from the end effector to the target plus
 the target's planar distance to the place region's centre (m), minus 10 on the step a failure predicate
@@ -94,8 +95,9 @@ class ArmEnv(TickEnv[ArmEpisode, ArmObservation, ArmCommand]):
         self._layout(self._start(robot_world.run_seed, ()))
 
     def _layout(self, probe: ArmEpisode) -> None:
-        """Both spaces, from a throwaway episode (the number of joints, the time limit)."""
+        """Both spaces, from a throwaway episode (the number of joints, the time limit, the camera's picture)."""
         joints = len(probe.arm.joint_names)
+        image = probe.observe().image
         self._lower = np.asarray(probe.arm.lower, dtype=np.float64)
         self._upper = np.asarray(probe.arm.upper, dtype=np.float64)
         inf = np.inf
@@ -108,6 +110,10 @@ class ArmEnv(TickEnv[ArmEpisode, ArmObservation, ArmCommand]):
             "place": _box(np.full(3, -inf), np.full(3, inf)),
             "time": _box(np.zeros(1), np.full(1, probe.limit + probe.tick_dt)),
         })
+        if image is not None:
+            self.observation_space.spaces["image"] = (
+                spaces.Box(0, 255, image.shape, dtype=np.uint8) if image.dtype == np.uint8
+                else spaces.Box(0.0, np.inf, image.shape, dtype=np.float32))
         if self.actions == "joints":
             high = np.array([*(self.max_joint_step,) * joints, 1.0])
         else:
@@ -130,7 +136,7 @@ class ArmEnv(TickEnv[ArmEpisode, ArmObservation, ArmCommand]):
     def _encode(self, observation: ArmObservation) -> ObsDict:
         f32 = np.float32
         target = observation.target_pose
-        return {
+        encoded: ObsDict = {
             "joint_positions": np.array(observation.joint_positions, dtype=f32),
             "joint_velocities": np.array(observation.joint_velocities, dtype=f32),
             "end_effector": np.array(observation.end_effector, dtype=f32),
@@ -139,6 +145,9 @@ class ArmEnv(TickEnv[ArmEpisode, ArmObservation, ArmCommand]):
             "place": np.array([*observation.place[:2], observation.place_tolerance], dtype=f32),
             "time": np.array([observation.time], dtype=f32),
         }
+        if observation.image is not None:
+            encoded["image"] = np.array(observation.image)
+        return encoded
 
     def _command(self, action: ArrayLike, episode: ArmEpisode) -> ArmCommand:
         """The targets moved by the action's changes (joints within their limits), and the gripper's command."""

@@ -81,7 +81,8 @@ from pytest_ddenv.world.model import World
 
 __all__ = ["FAILURE_PENALTY", "GOAL_BONUS", "RobotEnv", "RobotWorldLike", "TickEnv"]
 
-ObsDict = dict[str, NDArray[np.float32]]
+ObsDict = dict[str, NDArray[Any]]
+"""An observation: float32 arrays (an arm's camera picture: uint8 when RGB)."""
 GOAL_BONUS = 10.0
 """Reward added on the step the goal is reached."""
 FAILURE_PENALTY = 10.0
