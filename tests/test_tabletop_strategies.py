@@ -231,3 +231,20 @@ def test_generated_tabletop_example_finds_a_collision_and_reduces_it_to_the_obje
     assert summary["minimal_models"] == ["table", "target", signature["touched"][0]] and summary["one_minimal"]
     assert summary["original_size"] >= 8 and summary["failure_rate"]["fails"] >= 3
     assert summary["hypothesis"]["world_argument"] == "world"
+
+
+@pytest.mark.pybullet
+def test_the_panda_s_base_fits_its_disc() -> None:
+    """PANDA_BASE_RADIUS (the world model cannot import the simulation) holds the shipped Panda's base link."""
+    import pybullet as p
+
+    from pytest_ddenv.sim.arm.robot import PANDA
+
+    client = p.connect(p.DIRECT)
+    try:
+        body = p.loadURDF(PANDA.urdf, useFixedBase=True, physicsClientId=client)
+        _, vertices = p.getMeshData(body, -1, physicsClientId=client)  # the base link's collision mesh
+    finally:
+        p.disconnect(physicsClientId=client)
+    farthest = max(math.hypot(x, y) for x, y, _ in vertices)
+    assert PANDA_BASE_RADIUS - 0.01 < farthest <= PANDA_BASE_RADIUS
