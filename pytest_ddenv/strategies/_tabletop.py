@@ -28,11 +28,12 @@ from pytest_ddenv.strategies._arguments import (
     _fail,
     _milli,
 )
-from pytest_ddenv.strategies._bodies import _Body, _draw_physics, _draw_sizes, _primitive, _Primitives
+from pytest_ddenv.strategies._bodies import SIZES, _Body, _draw_physics, _draw_sizes, _primitive, _Primitives
 from pytest_ddenv.strategies._defaults import MILLI, PRIMITIVE_KINDS, PrimitiveKind, Range
 from pytest_ddenv.strategies._drawing import _Draft, _drafts, _draw_milli, _draw_yaw, _World
 from pytest_ddenv.strategies._grid import Rectangle, _Grid
 from pytest_ddenv.strategies._plans import _call, _Plan, _WorldPlan
+from pytest_ddenv.validation import is_real
 from pytest_ddenv.world.limits import name_problem
 from pytest_ddenv.world.model import ArmDescription, Ground, Model, Physics, Pose, Scenario, Shape, World
 
@@ -63,9 +64,9 @@ class _TabletopPlan(_Plan):
     target: _Primitives
     place_tolerance: float
     clutter: _WorldPlan
+    """The clutter, drawn and placed as `worlds()` does, on a grid over the table top."""
     height: tuple[int, int] | None
     """The clutter's heights (boxes, cylinders) in mm; None: as drawn in `size`."""
-    """The clutter, drawn and placed as `worlds()` does, on a grid over the table top."""
     base_keep_out: Rectangle
     timeout: float
     physics: Physics
@@ -183,8 +184,7 @@ def _checked_base_radius(arm: str | ArmDescription, base_radius: object) -> floa
 
 def _checked_table_size(table_size: object, inset: float) -> tuple[float, float]:
     if not (isinstance(table_size, (tuple, list)) and len(table_size) == 2
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
-                    for v in table_size)):
+            and all(is_real(v) and math.isfinite(v) and v > 0 for v in table_size)):
         raise _fail("tabletop_worlds", "table_size", f"expected (depth, width) in m, two numbers > 0, got "
                                                      f"{shown(table_size)}")
     depth, width = float(table_size[0]), float(table_size[1])
@@ -268,7 +268,8 @@ def _layouts(draw: st.DrawFn, plan: _TabletopPlan) -> _Layout:
     region (toward the nearest bearing beside the target's, on the positive side first)."""
     spec, (near, far) = plan.target, plan.reach
     kind = spec.kinds[draw(st.integers(0, len(spec.kinds) - 1))]
-    body: _Body = _draw_physics(draw, spec).of(_primitive(kind, _draw_sizes(draw, spec, kind)))
+    sizes = _draw_sizes(draw, spec, "box")[:SIZES[kind]]  # as many draws whatever the kind (see `_drafts`)
+    body: _Body = _draw_physics(draw, spec).of(_primitive(kind, sizes))
     heading = _draw_yaw(draw) if spec.yaw and kind == "box" else 0.0
     distance = _draw_milli(draw, near, far, towards=(near + far) // 2)
     bearing = _draw_milli(draw, -plan.spread, plan.spread, towards=0)
