@@ -17,12 +17,12 @@ pointing down; the target starts at the end effector's pose, and each step sends
 opens. Actions are used as given (not clipped to the box); a NaN or infinite one raises `ControllerError`,
 a wrong shape `ValueError`.
 
-Observation space (a `gymnasium.spaces.Dict` of float32 `Box`es, what the arm's sensors say, with the seeded
-noise): `"joint_positions"` (n,), `"joint_velocities"` (n,), `"end_effector"` (6,): x, y, z, roll, pitch,
-yaw; `"gripper"` (2,): the opening (m) and the fingers' summed force (N); `"target"` (6,): the target's
-pose as perceived (zeros when the scenario names no target); `"place"` (3,): the place region's centre x, y
-and its radius; `"time"` (1,): simulated seconds, in [0, time limit + one tick]; `"image"`, when the
-scenario declares a camera: its picture, (H, W, 3) uint8 RGB or (H, W) float32 depth (m).
+Observation space (a `gymnasium.spaces.Dict` of float32 `Box`es from the `ArmObservation`: the joints and the
+target with the seeded noise): `"joint_positions"` (n,), `"joint_velocities"` (n,), `"end_effector"` (6,): x,
+y, z, roll, pitch, yaw; `"gripper"` (2,): the opening (m) and the fingers' summed force (N); `"target"` (6,):
+the target's pose as perceived (zeros when the scenario names no target); `"place"` (3,): the place region's
+centre x, y and its radius; `"time"` (1,): simulated seconds, in [0, time limit + one tick]; `"image"`, when
+the scenario declares a camera: its picture, (H, W, 3) uint8 RGB or (H, W) float32 depth (m).
 
 Reward: the decrease since the previous step of the true distance from the end effector to the target plus
 the target's planar distance to the place region's centre (m), minus 10 on the step a failure predicate

@@ -4,7 +4,8 @@ Get one from the fixture: `env = robot_world.make_env()` (needs the `gym` extra:
 `pip install 'pytest-ddenv[gym]'`). It is the same simulation as `robot_world.run()`: `reset()` starts an
 `Episode` on this process's shared simulator with the test's world, failure predicates and seed, and each
 `step(action)` is one control tick. A policy whose actions equal what a controller returns gives the very
-run `robot_world.run(controller=...)` gives.
+run `robot_world.run(controller=...)` gives. What follows is a mobile robot's; an arm's world gives an
+`ArmEnv` (scenario/arm_env.py), and both are a `TickEnv` (episodes, reward's penalty and bonus, runs).
 
 Observation space (a `gymnasium.spaces.Dict` of float32 `Box`es; what the robot's own sensors say, with the
 seeded noise, never the true pose):
