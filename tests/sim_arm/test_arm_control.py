@@ -7,16 +7,18 @@ import math
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import SMOKE
 
 from pytest_ddenv import World
 from pytest_ddenv.errors import ControllerError
 from pytest_ddenv.sim import RunSettings, Simulator
 from pytest_ddenv.sim.arm.control import ArmObservation, EndEffectorTarget, GripperCommand, JointTargets
 from pytest_ddenv.sim.settings import NoiseSettings
+
+SMOKE = Path(__file__).resolve().parents[1] / "data" / "arm_smoke.yaml"
 
 pytestmark = pytest.mark.pybullet
 

@@ -6,9 +6,10 @@ import re
 from pathlib import Path
 
 import pytest
-from conftest import SMOKE
 
 from pytest_ddenv import World
+
+SMOKE = Path(__file__).resolve().parents[1] / "data" / "arm_smoke.yaml"
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 

@@ -170,3 +170,20 @@ def test_a_urdf_pybullet_cannot_load_says_so(tmp_path: Path) -> None:
     with Simulator() as sim, pytest.raises(ScenarioError, match="pybullet cannot load the arm's URDF") as caught:
         sim.run(world)
     assert caught.value.field == "scenario.robot.urdf"
+
+
+def test_the_reduction_keeps_an_arms_table_and_target() -> None:
+    from pytest_ddenv.scenario.probe import keeps_start_support
+
+    keeps = keeps_start_support(World.from_yaml(arm_world()))
+    assert keeps(frozenset({"table", "cube"})) is None
+    assert keeps(frozenset({"table", "mug"})) == "removes 'cube', the arm's target"
+    assert keeps(frozenset({"cube", "mug"})) == "removes 'table', the model under the robot's start"
+
+
+@pytest.mark.parametrize(("robot", "kind"), [("panda", "arm"), ("husky", "mobile"), (PANDA, "arm"),
+                                             ("not_registered", "mobile")])
+def test_the_kind_of_a_scenarios_robot(robot: object, kind: str) -> None:
+    from pytest_ddenv.sim.arm.robot import robot_kind
+
+    assert robot_kind(robot) == kind  # type: ignore[arg-type]

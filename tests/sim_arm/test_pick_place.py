@@ -81,7 +81,8 @@ def test_robot_world_runs_an_arm_world(smoke: World) -> None:
 
 
 def test_a_mobile_robot_predicate_is_refused_on_an_arm(smoke: World) -> None:
-    with pytest.raises(ScenarioError, match="predicate 'stuck' is for mobile robots; the world's robot 'panda' is an arm") as caught:
+    refused = "predicate 'stuck' is for mobile robots; the world's robot 'panda' is an arm"
+    with pytest.raises(ScenarioError, match=refused) as caught:
         RobotWorld(smoke, predicates=["stuck"]).run()
     assert caught.value.field == "predicates"
 
