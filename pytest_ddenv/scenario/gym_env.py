@@ -4,7 +4,8 @@ Get one from the fixture: `env = robot_world.make_env()` (needs the `gym` extra:
 `pip install 'pytest-ddenv[gym]'`). It is the same simulation as `robot_world.run()`: `reset()` starts an
 `Episode` on this process's shared simulator with the test's world, failure predicates and seed, and each
 `step(action)` is one control tick. A policy whose actions equal what a controller returns gives the very
-run `robot_world.run(controller=...)` gives.
+run `robot_world.run(controller=...)` gives. What follows is a mobile robot's; an arm's world gives an
+`ArmEnv` (scenario/arm_env.py), and both are a `TickEnv` (episodes, reward's penalty and bonus, runs).
 
 Observation space (a `gymnasium.spaces.Dict` of float32 `Box`es; what the robot's own sensors say, with the
 seeded noise, never the true pose):
@@ -56,7 +57,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from typing import Any, Protocol, SupportsFloat
+from typing import Any, Generic, Protocol, SupportsFloat, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -68,7 +69,7 @@ except ImportError as _missing:  # pragma: no cover - exercised without the extr
     raise ImportError("robot_world.make_env() needs gymnasium: pip install 'pytest-ddenv[gym]'") from _missing
 
 from pytest_ddenv.errors import ControllerError, ControllerTimeout, ScenarioError
-from pytest_ddenv.oracle.predicates import Predicate
+from pytest_ddenv.oracle.predicates import FailureSignature, Predicate
 from pytest_ddenv.sim import shared_simulator
 from pytest_ddenv.sim.control import AnyCommand, Command, Observation, WheelCommand
 from pytest_ddenv.sim.engine import wall_limit
@@ -79,9 +80,10 @@ from pytest_ddenv.sim.settings import RunSettings
 from pytest_ddenv.validation import expected
 from pytest_ddenv.world.model import World
 
-__all__ = ["FAILURE_PENALTY", "GOAL_BONUS", "RobotEnv"]
+__all__ = ["FAILURE_PENALTY", "GOAL_BONUS", "RobotEnv", "RobotWorldLike", "TickEnv"]
 
-ObsDict = dict[str, NDArray[np.float32]]
+ObsDict = dict[str, NDArray[Any]]
+"""An observation: float32 arrays (an arm's camera picture: uint8 when RGB)."""
 GOAL_BONUS = 10.0
 """Reward added on the step the goal is reached."""
 FAILURE_PENALTY = 10.0
@@ -110,6 +112,35 @@ class RobotWorldLike(Protocol):
     def build_predicates(self) -> list[Predicate]: ...
 
 
+class EpisodeLike(Protocol):
+    """What a `TickEnv` uses of an episode: a mobile robot's `Episode` or an arm's `ArmEpisode`."""
+
+    seed: int
+    tick: int
+    started: float
+    """`time.perf_counter()` when it started."""
+    finished: bool
+    reached: bool
+    failure: FailureSignature | None
+
+    @property
+    def time(self) -> float: ...
+
+    @property
+    def limit(self) -> float: ...
+
+    def observe(self) -> Any: ...
+
+    def act(self, command: Any) -> None: ...
+
+    def result(self) -> Run: ...
+
+
+EpisodeT = TypeVar("EpisodeT", bound=EpisodeLike)
+ObservationT = TypeVar("ObservationT")
+CommandT = TypeVar("CommandT")
+
+
 def _claim_simulator() -> int:
     """A new token for an episode about to be started on the shared simulator; it invalidates the others."""
     global _holder, _starts
@@ -118,13 +149,11 @@ def _claim_simulator() -> int:
     return _holder
 
 
-class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
-    """A `RobotWorld`'s scenario as a gymnasium environment (see the module docstring for the spaces,
-    the reward, termination and how episodes land in `robot_world.runs`).
-
-    `settings` (default `RunSettings()`) and `timeout` (simulated seconds, default the world file's) are
-    what `robot_world.run()` takes; `wheel_actions` switches the action to wheel speeds; `max_wall_time`
-    (wall-clock seconds per episode, default the fixture's) raises `ControllerTimeout` when exceeded.
+class TickEnv(gymnasium.Env[dict[str, Any], NDArray[Any]], Generic[EpisodeT, ObservationT, CommandT]):
+    """What every scenario environment shares: episodes on this process's shared simulator, one control tick
+    per `step`, the reward's failure penalty and goal bonus, the wall-clock limit, and each episode's `Run`
+    appended to `robot_world.runs` once. `RobotEnv` (a mobile robot) and `ArmEnv` (an arm,
+    scenario/arm_env.py) give the spaces, how an action becomes a command, and the progress the reward pays.
     """
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 - as gymnasium.Env declares it (ClassVar conflicts)
@@ -135,58 +164,48 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
         *,
         settings: RunSettings | None = None,
         timeout: float | None = None,
-        wheel_actions: bool = False,
         max_wall_time: float | None = None,
         render_mode: str | None = None,
     ) -> None:
         if render_mode is not None:
-            raise ValueError(f"{expected('None', render_mode, 'render_mode')}; RobotEnv renders nothing "
-                             "(pictures of a run: pytest_ddenv.render)")
+            raise ValueError(f"{expected('None', render_mode, 'render_mode')}; {type(self).__name__} renders "
+                             "nothing (pictures of a run: pytest_ddenv.render)")
         if settings is not None and not isinstance(settings, RunSettings):
             raise TypeError(expected("a RunSettings", settings, "settings"))
         self.robot_world = robot_world
         self.settings = settings if settings is not None else RunSettings()
         self.timeout = timeout
-        self.wheel_actions = bool(wheel_actions)
         self.max_wall_time = wall_limit(robot_world.max_wall_time if max_wall_time is None else max_wall_time)
         self.render_mode = None
-        self.last_observation: Observation | None = None
-        self._episode: Episode | None = None
+        self.last_observation: ObservationT | None = None
+        self._episode: EpisodeT | None = None
         self._token = 0
         self._run: Run | None = None
         self._distance = 0.0
-        self._layout(self._start(robot_world.run_seed, ()))
 
-    # -- spaces --------------------------------------------------------------------------------------
-    def _layout(self, probe: Episode) -> None:
-        """Build both spaces from a throwaway episode (wheel and ray counts, time limit, wheel geometry)."""
-        first = probe.observe()
-        wheels = len(first.wheel_speeds)
-        rays = None if first.scan is None else len(first.scan.ranges)
-        self._max_range = float(self.settings.laser_range)
-        self._has_wheels, self._has_scan = wheels > 0, rays is not None
-        self.observation_space = _observation_space(wheels, rays, self._max_range, probe.limit + probe.tick_dt)
-        if self.wheel_actions:
-            high = np.full(2, _wheel_bound(probe.robot, self.settings))
-        else:
-            high = np.array([self.settings.max_speed, self.settings.max_turn_rate])
-        self.action_space = _box(-high, high)
+    # -- what each kind of robot gives ---------------------------------------------------------------
+    def _episode_of(self, started: object) -> EpisodeT:
+        """The episode the simulator started, of this environment's kind (ScenarioError otherwise)."""
+        raise NotImplementedError
 
-    def _encode(self, observation: Observation) -> ObsDict:
-        """The observation dict of an `Observation` (new arrays every call)."""
-        f32 = np.float32
-        encoded: ObsDict = {
-            "pose": np.array(observation.pose, dtype=f32),
-            "goal": np.array(observation.goal[:2], dtype=f32),
-            "velocity": np.array(observation.velocity, dtype=f32),
-            "time": np.array([observation.time], dtype=f32),
+    def _encode(self, observation: ObservationT) -> ObsDict:
+        """The observation dict of an observation (new arrays every call)."""
+        raise NotImplementedError
+
+    def _command(self, action: ArrayLike, episode: EpisodeT) -> CommandT:
+        """The command for `action` (checked: ValueError for a wrong shape, ControllerError for NaN)."""
+        raise NotImplementedError
+
+    def _progress(self, episode: EpisodeT) -> float:
+        """The true distance (m) the reward pays for shortening."""
+        raise NotImplementedError
+
+    def _info(self, episode: EpisodeT) -> dict[str, Any]:
+        return {
+            "failure": None if episode.failure is None else episode.failure.to_dict(),
+            "reached_goal": bool(episode.reached),
+            "time": float(episode.time),
         }
-        if self._has_wheels:
-            encoded["wheel_speeds"] = np.array(observation.wheel_speeds, dtype=f32)
-        if observation.scan is not None and self._has_scan:
-            ranges = np.where(np.isfinite(observation.scan.ranges), observation.scan.ranges, self._max_range)
-            encoded["scan"] = np.clip(ranges, 0.0, self._max_range).astype(f32)
-        return encoded
 
     # -- gymnasium API -------------------------------------------------------------------------------
     def reset(
@@ -194,14 +213,14 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
     ) -> tuple[ObsDict, dict[str, Any]]:
         """Start a new episode (recording the previous one if it was stepped and not yet recorded)."""
         if options:
-            raise ValueError(f"RobotEnv.reset() takes no options, got {sorted(options)}; pass settings and "
-                             "timeout to robot_world.make_env()")
+            raise ValueError(f"{type(self).__name__}.reset() takes no options, got {sorted(options)}; pass "
+                             "settings and timeout to robot_world.make_env()")
         super().reset(seed=seed)
         self._drop_episode()
         episode = self._start(self._episode_seed(seed), self.robot_world.build_predicates())
         self._episode, self._run = episode, None
         observation = self._observe(episode)
-        self._distance = _goal_distance(episode)
+        self._distance = self._progress(episode)
         info = self._info(episode)
         info["seed"] = episode.seed
         if episode.finished:  # decided at the start (e.g. spawned on the goal)
@@ -236,18 +255,15 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
 
     # -- helpers -------------------------------------------------------------------------------------
     @property
-    def episode(self) -> Episode | None:
+    def episode(self) -> EpisodeT | None:
         """The current episode (None before the first reset and after close)."""
         return self._episode
 
-    def _start(self, seed: int, predicates: Sequence[Predicate]) -> Episode:
+    def _start(self, seed: int, predicates: Sequence[Predicate]) -> EpisodeT:
         """Start an episode on the shared simulator (which ends any other environment's episode)."""
         self._token = _claim_simulator()
-        episode = shared_simulator().start(self.robot_world.world, seed=seed, predicates=predicates,
-                                           settings=self.settings, timeout=self.timeout)
-        if not isinstance(episode, Episode):
-            raise ScenarioError("make_env() drives wheeled robots; this world's robot is an arm")
-        return episode
+        return self._episode_of(shared_simulator().start(self.robot_world.world, seed=seed, predicates=predicates,
+                                                         settings=self.settings, timeout=self.timeout))
 
     def _episode_seed(self, seed: int | None) -> int:
         world = self.robot_world
@@ -255,22 +271,118 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
             return world.run_seed
         return int(seed) + world.run_seed - world.seed  # shifted per re-run as `run_seed` is
 
-    def _observe(self, episode: Episode) -> ObsDict:
+    def _observe(self, episode: EpisodeT) -> ObsDict:
         """Observe the tick (draws its noise unless the episode is finished) and encode it."""
-        self.last_observation = episode.observe()
-        return self._encode(self.last_observation)
+        observation: ObservationT = episode.observe()
+        self.last_observation = observation
+        return self._encode(observation)
 
-    def _live_episode(self) -> Episode:
+    def _live_episode(self) -> EpisodeT:
         episode = self._episode
         if episode is None:
             raise RuntimeError("call reset() before step()")
         if episode.finished:
             raise RuntimeError("the episode is over (terminated or truncated); call reset() to start another")
         if self._token != _holder:
-            raise RuntimeError("another RobotEnv started an episode on this process's shared simulator since this "
-                               "environment's reset(), so this episode is gone: a process runs one episode at a "
-                               "time (step environments one after another, or one process per environment)")
+            raise RuntimeError("another environment started an episode on this process's shared simulator since "
+                               "this environment's reset(), so this episode is gone: a process runs one episode at "
+                               "a time (step environments one after another, or one process per environment)")
         return episode
+
+    def _check_wall_time(self, episode: EpisodeT) -> None:
+        limit = self.max_wall_time
+        if limit is None or time.perf_counter() - episode.started <= limit:
+            return
+        self._episode = None  # like robot_world.run(), a run that timed out is not recorded
+        raise ControllerTimeout(
+            f"the episode took more than its wall-clock limit of {limit:g} s (at t = {episode.time:.2f} s "
+            f"simulated of {episode.limit:g} s): the policy or the world is too slow; raise the limit "
+            "(robot_world.make_env(max_wall_time=...), --ddenv-run-timeout)"
+        )
+
+    def _reward(self, episode: EpisodeT, failed_before: bool, reached_before: bool) -> float:
+        distance = self._progress(episode)
+        reward = self._distance - distance
+        self._distance = distance
+        if episode.failure is not None and not failed_before:
+            reward -= FAILURE_PENALTY
+        if episode.reached and not reached_before:
+            reward += GOAL_BONUS
+        return float(reward)
+
+    def _record(self, episode: EpisodeT) -> Run:
+        """Append the episode's run to `robot_world.runs`, once; return it."""
+        if self._run is None:
+            self._run = episode.result()
+            self.robot_world.runs.append(self._run)
+        return self._run
+
+    def _drop_episode(self) -> None:
+        episode = self._episode
+        if episode is not None and episode.tick > 0:
+            self._record(episode)
+        self._episode, self._run = None, None
+
+
+class RobotEnv(TickEnv[Episode, Observation, AnyCommand]):
+    """A `RobotWorld`'s scenario as a gymnasium environment (see the module docstring for the spaces,
+    the reward, termination and how episodes land in `robot_world.runs`).
+
+    `settings` (default `RunSettings()`) and `timeout` (simulated seconds, default the world file's) are
+    what `robot_world.run()` takes; `wheel_actions` switches the action to wheel speeds; `max_wall_time`
+    (wall-clock seconds per episode, default the fixture's) raises `ControllerTimeout` when exceeded.
+    """
+
+    def __init__(
+        self,
+        robot_world: RobotWorldLike,
+        *,
+        settings: RunSettings | None = None,
+        timeout: float | None = None,
+        wheel_actions: bool = False,
+        max_wall_time: float | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        super().__init__(robot_world, settings=settings, timeout=timeout, max_wall_time=max_wall_time,
+                         render_mode=render_mode)
+        self.wheel_actions = bool(wheel_actions)
+        self._layout(self._start(robot_world.run_seed, ()))
+
+    # -- spaces --------------------------------------------------------------------------------------
+    def _layout(self, probe: Episode) -> None:
+        """Build both spaces from a throwaway episode (wheel and ray counts, time limit, wheel geometry)."""
+        first = probe.observe()
+        wheels = len(first.wheel_speeds)
+        rays = None if first.scan is None else len(first.scan.ranges)
+        self._max_range = float(self.settings.laser_range)
+        self._has_wheels, self._has_scan = wheels > 0, rays is not None
+        self.observation_space = _observation_space(wheels, rays, self._max_range, probe.limit + probe.tick_dt)
+        if self.wheel_actions:
+            high = np.full(2, _wheel_bound(probe.robot, self.settings))
+        else:
+            high = np.array([self.settings.max_speed, self.settings.max_turn_rate])
+        self.action_space = _box(-high, high)
+
+    def _episode_of(self, started: object) -> Episode:
+        if not isinstance(started, Episode):
+            raise ScenarioError("RobotEnv drives wheeled robots; this world's robot is not one (robot_world."
+                                "make_env() gives the environment of the world's robot)", field="scenario.robot")
+        return started
+
+    def _encode(self, observation: Observation) -> ObsDict:
+        f32 = np.float32
+        encoded: ObsDict = {
+            "pose": np.array(observation.pose, dtype=f32),
+            "goal": np.array(observation.goal[:2], dtype=f32),
+            "velocity": np.array(observation.velocity, dtype=f32),
+            "time": np.array([observation.time], dtype=f32),
+        }
+        if self._has_wheels:
+            encoded["wheel_speeds"] = np.array(observation.wheel_speeds, dtype=f32)
+        if observation.scan is not None and self._has_scan:
+            ranges = np.where(np.isfinite(observation.scan.ranges), observation.scan.ranges, self._max_range)
+            encoded["scan"] = np.clip(ranges, 0.0, self._max_range).astype(f32)
+        return encoded
 
     def _command(self, action: ArrayLike, episode: Episode) -> AnyCommand:
         """The command for `action` (a standstill once the goal is reached, as in `robot_world.run()`)."""
@@ -284,48 +396,11 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
             return WheelCommand(values[0], values[1])
         return Command(values[0], values[1])
 
-    def _check_wall_time(self, episode: Episode) -> None:
-        limit = self.max_wall_time
-        if limit is None or time.perf_counter() - episode.started <= limit:
-            return
-        self._episode = None  # like robot_world.run(), a run that timed out is not recorded
-        raise ControllerTimeout(
-            f"the episode took more than its wall-clock limit of {limit:g} s (at t = {episode.time:.2f} s "
-            f"simulated of {episode.limit:g} s): the policy or the world is too slow; raise the limit "
-            "(robot_world.make_env(max_wall_time=...), --ddenv-run-timeout)"
-        )
+    def _progress(self, episode: Episode) -> float:
+        return _goal_distance(episode)
 
-    def _reward(self, episode: Episode, failed_before: bool, reached_before: bool) -> float:
-        distance = _goal_distance(episode)
-        reward = self._distance - distance
-        self._distance = distance
-        if episode.failure is not None and not failed_before:
-            reward -= FAILURE_PENALTY
-        if episode.reached and not reached_before:
-            reward += GOAL_BONUS
-        return float(reward)
-
-    @staticmethod
-    def _info(episode: Episode) -> dict[str, Any]:
-        return {
-            "failure": None if episode.failure is None else episode.failure.to_dict(),
-            "reached_goal": bool(episode.reached),
-            "time": float(episode.time),
-            "goal_distance": _goal_distance(episode),
-        }
-
-    def _record(self, episode: Episode) -> Run:
-        """Append the episode's run to `robot_world.runs`, once; return it."""
-        if self._run is None:
-            self._run = episode.result()
-            self.robot_world.runs.append(self._run)
-        return self._run
-
-    def _drop_episode(self) -> None:
-        episode = self._episode
-        if episode is not None and episode.tick > 0:
-            self._record(episode)
-        self._episode, self._run = None, None
+    def _info(self, episode: Episode) -> dict[str, Any]:
+        return {**super()._info(episode), "goal_distance": _goal_distance(episode)}
 
 
 # -- module helpers ------------------------------------------------------------------------------------

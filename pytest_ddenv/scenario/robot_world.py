@@ -18,6 +18,7 @@ from pytest_ddenv.world.model import World
 
 if TYPE_CHECKING:
     from pytest_ddenv.oracle.predicates import FailureSignature, Predicate, PredicateSpec
+    from pytest_ddenv.scenario.arm_env import ArmEnv
     from pytest_ddenv.scenario.gym_env import RobotEnv
     from pytest_ddenv.sim import ControllerLike, Run, RunSettings
 
@@ -226,12 +227,14 @@ class RobotWorld:
         if run.failure is not None:
             raise RobotFailure(run.failure, run)
 
-    def make_env(self, **options: Any) -> RobotEnv:
+    def make_env(self, **options: Any) -> RobotEnv | ArmEnv:
         """The scenario as a `gymnasium.Env` (needs the `gym` extra): see `pytest_ddenv.scenario.gym_env.RobotEnv`
-        for the observation and action spaces and `options`. Each finished episode is added to `runs`."""
-        from pytest_ddenv.scenario.gym_env import RobotEnv
+        (an arm's world: `pytest_ddenv.scenario.arm_env.ArmEnv`) for the observation and action spaces and
+        `options`. Each finished episode is added to `runs`."""
+        import pytest_ddenv.scenario.gym_env  # noqa: F401 - first: without gymnasium, its ImportError says what to install
+        from pytest_ddenv.scenario.arm_env import environment_for
 
-        return RobotEnv(self, **options)
+        return environment_for(self, **options)
 
     def report(
         self,

@@ -2,10 +2,11 @@
 
 `worlds()` draws a `World`: a scenario (the robot's start and goal), the ground, and models resting on the
 ground (or on top of one another) inside a region, never overlapping each other, the robot's start or the
-goal. `models()`, `poses()` and `scenarios()` are its parts. Every value is drawn with Hypothesis's
-`draw`, so examples shrink (toward fewer, smaller, static boxes near the middle of their places) and
-replay from `@seed` and the example database. Lengths are drawn in whole millimetres, headings in whole
-degrees: the YAML of a drawn world stays readable and round-trips exactly.
+goal. `models()`, `poses()` and `scenarios()` are its parts. `tabletop_worlds()` draws an arm's world: a
+table, the arm at its edge, a target, a place region and clutter standing on the table top. Every value is
+drawn with Hypothesis's `draw`, so examples shrink (toward fewer, smaller, static boxes near the middle of
+their places) and replay from `@seed` and the example database. Lengths are drawn in whole millimetres,
+headings in whole degrees: the YAML of a drawn world stays readable and round-trips exactly.
 
 Arguments are checked when a strategy is built: a request that cannot be met (more models than the region
 holds) raises `hypothesis.errors.InvalidArgument` at once, saying what to change. See
@@ -60,6 +61,7 @@ from pytest_ddenv.strategies._plans import (
     _ScenarioPlan,
     _WorldPlan,
 )
+from pytest_ddenv.strategies._tabletop import PANDA_BASE_RADIUS, tabletop_worlds
 from pytest_ddenv.validation import is_real
 from pytest_ddenv.world.limits import name_problem
 from pytest_ddenv.world.model import Ground, Model, Physics, Pose, RobotDescription, Scenario, World
@@ -68,10 +70,12 @@ __all__ = [
     "DEFAULT_REGION",
     "DEFAULT_SCENARIO",
     "HUSKY_FOOTPRINT",
+    "PANDA_BASE_RADIUS",
     "PRIMITIVE_KINDS",
     "models",
     "poses",
     "scenarios",
+    "tabletop_worlds",
     "worlds",
 ]
 

@@ -104,15 +104,15 @@ def _milli(function: str, argument: str, bounds: Range) -> tuple[int, int]:
     return lo, hi
 
 
-def _checked_count(count: object) -> tuple[int, int]:
+def _checked_count(count: object, function: str = "worlds") -> tuple[int, int]:
     if is_integer(count):
         counts = (count, count)
     elif isinstance(count, (tuple, list)) and len(count) == 2 and all(is_integer(c) for c in count):
         counts = (count[0], count[1])
     else:
-        raise _fail("worlds", "count", f"expected a whole number or a pair (lowest, highest), got {shown(count)}")
+        raise _fail(function, "count", f"expected a whole number or a pair (lowest, highest), got {shown(count)}")
     if counts[0] < 0 or counts[0] > counts[1]:
-        raise _fail("worlds", "count", f"expected 0 <= lowest <= highest, got {count!r}")
+        raise _fail(function, "count", f"expected 0 <= lowest <= highest, got {count!r}")
     return counts
 
 
