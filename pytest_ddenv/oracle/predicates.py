@@ -15,7 +15,7 @@ import inspect
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -24,6 +24,7 @@ from pytest_ddenv.validation import expected, is_finite_number
 
 __all__ = [
     "PREDICATES",
+    "ROBOT_KINDS",
     "Collided",
     "Contact",
     "FailureSignature",
@@ -39,10 +40,13 @@ __all__ = [
     "Timeout",
     "check_predicate",
     "check_predicate_models",
+    "check_predicates_for_robot",
     "make_predicate",
     "predicate",
     "predicate_spec",
+    "predicates_for",
     "register_predicate",
+    "robots_of",
     "signature",
 ]
 
@@ -201,18 +205,33 @@ class FailureSignature:
 class Predicate(Protocol):
     """A failure predicate: `reset()` before each run, `check(state)` once per control tick.
 
-    Return a `FailureSignature` (see `signature()`) to declare the failure, else None. Predicates may keep
-    state between ticks; `reset` must clear it so one instance can serve many runs.
+    `state` is a `RobotState` for a mobile robot, an `ArmState` (oracle/arm_state.py) for an arm. Return a
+    `FailureSignature` (see `signature()`) to declare the failure, else None. Predicates may keep state
+    between ticks; `reset` must clear it so one instance can serve many runs. An optional `robots` attribute
+    says which robots it is for ("mobile", "arm" or "any"; "any" without it): `check_predicates_for_robot`.
     """
 
     name: str
 
     def reset(self) -> None: ...
 
-    def check(self, state: RobotState) -> FailureSignature | None: ...
+    def check(self, state: Any) -> FailureSignature | None: ...
 
 
-def signature(name: str, state: RobotState, detail: str = "") -> FailureSignature:
+class PredicateState(Protocol):
+    """What `signature()` reads of a state: a `RobotState` or an `ArmState` (where: the end effector)."""
+
+    @property
+    def time(self) -> float: ...
+
+    @property
+    def pose(self) -> tuple[float, ...]: ...
+
+    @property
+    def touched(self) -> tuple[str, ...]: ...
+
+
+def signature(name: str, state: PredicateState, detail: str = "") -> FailureSignature:
     """The signature of a failure detected now (helper for predicate authors)."""
     return FailureSignature(name, float(state.time), tuple(float(v) for v in state.pose), state.touched, detail)
 
@@ -224,6 +243,7 @@ class Stuck:
     Ignores the first `window` seconds of the run, so the robot's start-up is never "stuck".
     """
 
+    robots: ClassVar[str] = "mobile"
     window: float = 5.0
     min_progress: float = 0.2
     name: str = field(default="stuck", init=False)
@@ -248,6 +268,7 @@ class Stuck:
 class Flipped:
     """Tilt (angle of the robot's up axis from vertical) above `max_tilt` rad for `duration` s."""
 
+    robots: ClassVar[str] = "mobile"
     max_tilt: float = math.radians(60.0)
     duration: float = 0.5
     name: str = field(default="flipped", init=False)
@@ -276,6 +297,7 @@ class HighCentered:
     less than `max_wheel_load` (a fraction of the robot's weight), continuously for `duration` s.
     """
 
+    robots: ClassVar[str] = "mobile"
     max_wheel_load: float = 0.5
     min_chassis_load: float = 20.0
     duration: float = 2.0
@@ -304,6 +326,7 @@ class HighCentered:
 class Fell:
     """The robot dropped more than `max_drop` m below its start height, or below the height `min_z`."""
 
+    robots: ClassVar[str] = "mobile"
     max_drop: float = 0.5
     min_z: float | None = None
     name: str = field(default="fell", init=False)
@@ -329,6 +352,7 @@ class Collided:
     `min_force` N are ignored.
     """
 
+    robots: ClassVar[str] = "mobile"
     models: tuple[str, ...] | None = None
     min_force: float = 1.0
     name: str = field(default="collided", init=False)
@@ -351,20 +375,32 @@ class Collided:
         return None
 
 
+TimeLimitCheck = Callable[[str, Any], FailureSignature | None]
+"""What `timeout` does at the time limit for one kind of state: (predicate name, state) -> signature or None."""
+
+TIME_LIMIT_CHECKS: dict[type, TimeLimitCheck] = {}
+"""`timeout`'s check at the limit by the state's type, for states other than `RobotState` (the arm's
+`ArmState`: oracle/arm_predicates.py registers "the target is not placed")."""
+
+
 @dataclass
 class Timeout:
-    """The goal was not reached within the run's time limit."""
+    """The goal was not reached within the run's time limit (an arm: the target is not placed at the limit)."""
 
+    robots: ClassVar[str] = "any"
     name: str = field(default="timeout", init=False)
 
     def reset(self) -> None:
         pass
 
-    def check(self, state: RobotState) -> FailureSignature | None:
-        if state.time >= state.timeout - 1e-9:
-            return signature(self.name, state, f"Goal still {state.goal_distance:.2f} m away after "
-                             f"{state.timeout:g} s.")
-        return None
+    def check(self, state: Any) -> FailureSignature | None:
+        if state.time < state.timeout - 1e-9:
+            return None
+        at_limit = TIME_LIMIT_CHECKS.get(type(state))
+        if at_limit is not None:
+            return at_limit(self.name, state)
+        return signature(self.name, state, f"Goal still {state.goal_distance:.2f} m away after "
+                         f"{state.timeout:g} s.")
 
 
 PREDICATES: dict[str, Callable[..., Predicate]] = {
@@ -375,12 +411,25 @@ PREDICATES: dict[str, Callable[..., Predicate]] = {
     "collided": Collided,
     "timeout": Timeout,
 }
-"""Predicates by name: the built-in ones and those added with `register_predicate`."""
-BUILT_IN = frozenset(PREDICATES)
+"""Predicates by name: the built-in ones (the arm's are added by oracle/arm_predicates.py, which the oracle
+package imports) and those added with `register_predicate`."""
+BUILT_IN: set[str] = set(PREDICATES)
+"""The names of the built-in predicates (mobile and arm)."""
 
-_NON_NEGATIVE = {"min_progress", "min_chassis_load", "min_force", "duration"}
-_POSITIVE = {"window", "max_tilt", "max_drop"}
+ROBOT_KINDS = ("mobile", "arm", "any")
+"""What a predicate's `robots` attribute may say: the robots it is for."""
+
+_NON_NEGATIVE = {"min_progress", "min_chassis_load", "min_force", "duration", "margin", "min_opening",
+                 "min_lift", "settle", "at", "height_tolerance"}
+_POSITIVE = {"window", "max_tilt", "max_drop", "place_tolerance"}
 _FRACTIONS = {"max_wheel_load"}
+_MAY_BE_NONE = {"min_z", "at", "place_tolerance"}
+
+
+def add_built_in(factories: Mapping[str, Callable[..., Predicate]]) -> None:
+    """Register more built-in predicates (oracle/arm_predicates.py's); not for users (`register_predicate`)."""
+    PREDICATES.update(factories)
+    BUILT_IN.update(factories)
 
 
 def register_predicate(name: str, factory: Callable[..., Predicate], *, replace: bool = False) -> None:
@@ -441,7 +490,7 @@ def _check_built_in_parameter(key: str, value: Any, where: str) -> None:
             raise ScenarioError(expected("at least one model name (leave models out for a collision with any "
                                          "model)", value), field=where)
         return
-    if key == "min_z" and value is None:
+    if key in _MAY_BE_NONE and value is None:
         return
     if not is_finite_number(value):
         raise ScenarioError(expected("a finite number", value), field=where)
@@ -471,7 +520,8 @@ class FunctionPredicate:
     """A plain function of the state as a predicate: it fails the run when it returns True (or a message, or
     a `FailureSignature`), and passes on False or None. Named after the function."""
 
-    function: Callable[[RobotState], Any]
+    function: Callable[[Any], Any]
+    """Called with the `RobotState` (a mobile robot) or the `ArmState` (an arm)."""
     name: str = ""
 
     def __post_init__(self) -> None:
@@ -480,7 +530,7 @@ class FunctionPredicate:
     def reset(self) -> None:
         pass
 
-    def check(self, state: RobotState) -> FailureSignature | None:
+    def check(self, state: Any) -> FailureSignature | None:
         result = self.function(state)
         if result is None or result is False or result is np.False_:
             return None
@@ -558,14 +608,17 @@ def predicate_spec(value: Any, params: Mapping[str, Any] | None = None) -> Predi
 
 
 def check_predicate_models(predicates: Sequence[PredicateSpec], names: Sequence[str], where: str) -> None:
-    """ScenarioError when a `collided(models=[...])` predicate names a model that `names` (the world's models,
-    `where` its file) does not hold: a typo would otherwise make the predicate silently never fire."""
+    """ScenarioError when a built-in predicate's `models=[...]` (`collided`, `arm_collision`, `knocked_over`)
+    names a model that `names` (the world's models, `where` its file) does not hold: a typo would otherwise
+    make the predicate silently never fire."""
     known = set(names)
     for spec in predicates:
-        if isinstance(spec.instance, Collided):
-            models = spec.instance.models
+        if spec.instance is not None:
+            built_in = any(isinstance(spec.instance, factory) for name, factory in PREDICATES.items()
+                           if name in BUILT_IN and isinstance(factory, type))
+            models = getattr(spec.instance, "models", None) if built_in else None
         else:
-            models = spec.params.get("models") if spec.instance is None and spec.name == "collided" else None
+            models = spec.params.get("models") if spec.name in BUILT_IN else None
         unknown = [name for name in models or () if name not in known]
         if unknown:
             listing = ", ".join(list(names)[:12]) + (", ..." if len(names) > 12 else "")
@@ -573,4 +626,42 @@ def check_predicate_models(predicates: Sequence[PredicateSpec], names: Sequence[
             raise ScenarioError(
                 f"the '{spec.name}' predicate names {', '.join(shown(n) for n in unknown[:5])}, which {what} of "
                 f"{where} (its models: {listing or 'none'})"
+            )
+
+
+# -- which robots a predicate is for -----------------------------------------------------------------
+def robots_of(value: Any) -> str:
+    """The robots a predicate (or a predicate's factory, or a `PredicateSpec`) is for: its `robots`
+    attribute, "any" without one. ScenarioError for a value that is not one of `ROBOT_KINDS`."""
+    if isinstance(value, PredicateSpec):
+        value = value.instance if value.instance is not None else PREDICATES.get(value.name)
+    kind = getattr(value, "robots", "any")
+    if kind not in ROBOT_KINDS:
+        raise ScenarioError(expected(f"one of {', '.join(ROBOT_KINDS)}", kind,
+                                     f"the robots attribute of predicate {shown(getattr(value, 'name', value))}"),
+                            field="predicate")
+    return str(kind)
+
+
+def predicates_for(kind: str) -> list[str]:
+    """The registered predicates' names that a robot of `kind` ("mobile" or "arm") can use, sorted."""
+    return sorted(name for name, factory in PREDICATES.items() if robots_of(factory) in (kind, "any"))
+
+
+_KIND_WORDS = {"mobile": "a mobile robot", "arm": "an arm"}
+_FOR_WORDS = {"mobile": "mobile robots", "arm": "arms"}
+
+
+def check_predicates_for_robot(predicates: Sequence[Predicate | PredicateSpec], kind: str, robot: str) -> None:
+    """ScenarioError for the first predicate that is not for a robot of `kind` ("mobile" or "arm"; `robot` its
+    name): "predicate 'stuck' is for mobile robots; the world's robot 'panda' is an arm; arm predicates: ..."
+    The simulation calls it before a run; predicates that say nothing (a user's) are for any robot."""
+    if kind not in _KIND_WORDS:
+        raise ValueError(expected("'mobile' or 'arm'", kind, "check_predicates_for_robot(kind=...)"))
+    for value in predicates:
+        robots = robots_of(value)
+        if robots not in (kind, "any"):
+            raise ScenarioError(
+                f"predicate {shown(value.name)} is for {_FOR_WORDS[robots]}; the world's robot {shown(robot)} is "
+                f"{_KIND_WORDS[kind]}; {kind} predicates: {', '.join(predicates_for(kind))}"
             )

@@ -9,8 +9,10 @@ docs/oracle.md.
 What "same" means is the user's to choose (`SameFailureRule`): the default rule (same predicate, same place,
 touching one of the models the reference touched), the place only, the touched models only, or a module-level
 function `same_failure(reference, signature) -> bool` of their own, for the test or per predicate.
-`why_other` says which part of the rule a failure missed. The verdict is always taken in the process that
-drives the reduction, never in a probe worker: a user's function is called there only.
+`why_other` says which part of the rule a failure missed. An arm's failure is "at the same place"
+within `ARM_TOLERANCE` (0.1 m) unless the user chose a tolerance (`tolerance_for`). The verdict is always
+taken in the process that drives the reduction, never in a probe worker: a user's function is called there
+only.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import numpy as np
 
 from pytest_ddenv import defaults
 from pytest_ddenv.errors import DdenvError, shown
-from pytest_ddenv.oracle.predicates import FailureSignature
+from pytest_ddenv.oracle.predicates import PREDICATES, FailureSignature, robots_of
 from pytest_ddenv.outcome import Outcome
 from pytest_ddenv.validation import expected, is_finite_number
 
@@ -53,6 +55,21 @@ SameFailureFunction = Callable[[FailureSignature, FailureSignature], Any]
 class SameFailureError(DdenvError):
     """A same-failure rule that cannot be used: an unknown match, a function that is not module-level or does
     not import, or one that raised or returned something else than True or False."""
+
+
+ARM_TOLERANCE = 0.1
+"""Metres of "the same place" for an arm's failure when the tolerance is the default (`defaults.TOLERANCE`,
+0.5 m, the length of a mobile robot, is half a table): see `tolerance_for`."""
+
+
+def tolerance_for(predicate: str, tolerance: float) -> float:
+    """The tolerance that applies to a reference failure of `predicate`: `ARM_TOLERANCE` for an arm's predicate
+    (a registered one whose `robots` is "arm") when `tolerance` is the default, else `tolerance` as given (a
+    tolerance chosen by the user applies to arms as given; `timeout` and unregistered predicates, which may be
+    any robot's, keep it too)."""
+    if tolerance == defaults.TOLERANCE and predicate in PREDICATES and robots_of(PREDICATES[predicate]) == "arm":
+        return ARM_TOLERANCE
+    return tolerance
 
 
 def same_failure(failure: FailureSignature, reference: FailureSignature,
@@ -81,7 +98,7 @@ def _differences(failure: FailureSignature, reference: FailureSignature, toleran
     if failure.predicate != reference.predicate:
         return ["predicate"]
     found = []
-    if match != "touched" and _distance(failure, reference) > tolerance:
+    if match != "touched" and _distance(failure, reference) > tolerance_for(reference.predicate, tolerance):
         found.append("place")
     if match != "place" and not _touches_as_reference(failure, reference, match):
         found.append("touched")
@@ -123,19 +140,20 @@ def why_other(failure: FailureSignature, reference: FailureSignature,
         return OtherReason(f"another predicate fired: {failure.predicate} (the reference: {reference.predicate})",
                            f"another predicate fired ({failure.predicate})", f"the reference: {reference.predicate}")
     distance = _distance(failure, reference)
+    tolerance = tolerance_for(reference.predicate, rule.tolerance)
     touched = f"the reference touched {_touched_text(reference.touched)}"
     if "place" in found:
-        far = f"{distance:.2f} m from the reference failure (more than {rule.tolerance:g} m)"
+        far = f"{distance:.2f} m from the reference failure (more than {tolerance:g} m)"
         if "touched" in found:
             return OtherReason(f"the same predicate fired {far} and touching {_touched_text(failure.touched)} "
                                f"({touched})", "the same predicate fired elsewhere, touching other models")
         return OtherReason(f"the same predicate fired {far}",
-                           f"the same predicate fired farther than {rule.tolerance:g} m from the reference failure",
+                           f"the same predicate fired farther than {tolerance:g} m from the reference failure",
                            advice="consider a larger tolerance"
                            + (" or same_failure='touched'" if match == "all" and reference.touched else ""))
     where = "at the same place " if match == "all" else ""
     near = f"({distance:.2f} m away) " if match == "all" else ""
-    advice = "consider same_failure='place'" if distance <= rule.tolerance else ""
+    advice = "consider same_failure='place'" if distance <= tolerance else ""
     if failure.touched and reference.touched:
         return OtherReason(f"the same predicate fired {where}{near}but touching {_touched_text(failure.touched)}, "
                            f"not {_touched_text(reference.touched)}",
@@ -169,8 +187,10 @@ class SameFailureRule:
     `match` is one of `MATCHES` or "module:qualname" of a module-level function `same_failure(reference,
     signature) -> bool`; `tolerance` the metres of "the same place"; `predicates` per-predicate matches
     (predicate name, match), from `robot_failure(..., same_failure=...)`, which take precedence for a reference
-    failure of that predicate. Plain data: a function is held by its name and imported when first used, so the
-    rule is recorded in `summary.json` and `ddenv replay` re-applies it (`to_json`, `from_json`)."""
+    failure of that predicate. A reference failure of an arm's predicate is matched within
+    `ARM_TOLERANCE` when `tolerance` is the default (`tolerance_for`). Plain data: a function is held by its
+    name and imported when first used, so the rule is recorded in `summary.json` and `ddenv replay` re-applies
+    it (`to_json`, `from_json`)."""
 
     match: str = defaults.SAME_FAILURE
     tolerance: float = defaults.TOLERANCE
@@ -208,7 +228,7 @@ class SameFailureRule:
                   dict(self.predicates) else f"same_failure={match!r}")
         if match not in MATCHES:
             return f"when {match}(reference, signature) says so"
-        place = f"within {self.tolerance:g} m"
+        place = f"within {tolerance_for(reference.predicate, self.tolerance):g} m"
         if not reference.touched:
             touching = "touching no model, as the reference" if match == "touched" else ""
         else:

@@ -243,8 +243,11 @@ class RobotEnv(gymnasium.Env[dict[str, Any], NDArray[Any]]):
     def _start(self, seed: int, predicates: Sequence[Predicate]) -> Episode:
         """Start an episode on the shared simulator (which ends any other environment's episode)."""
         self._token = _claim_simulator()
-        return shared_simulator().start(self.robot_world.world, seed=seed, predicates=predicates,
-                                        settings=self.settings, timeout=self.timeout)
+        episode = shared_simulator().start(self.robot_world.world, seed=seed, predicates=predicates,
+                                           settings=self.settings, timeout=self.timeout)
+        if not isinstance(episode, Episode):
+            raise ScenarioError("make_env() drives wheeled robots; this world's robot is an arm")
+        return episode
 
     def _episode_seed(self, seed: int | None) -> int:
         world = self.robot_world

@@ -200,12 +200,22 @@ def start_support(world: World) -> str | None:
 
 
 def keeps_start_support(world: World) -> Precondition:
-    """A precondition: never remove the model under the robot's start (the scenario would change)."""
+    """A precondition: never remove the model under the robot's start (the scenario would change), nor an
+    arm's table and target (docs/writing-tests.md, "Arms")."""
+    kept: dict[str, str] = {}
     support = start_support(world)
+    if support is not None:
+        kept[support] = "the model under the robot's start"
+    scenario = world.scenario
+    if scenario is not None:
+        for name, what in ((scenario.table, "the arm's table"), (scenario.target, "the arm's target")):
+            if name is not None and name in world.names:
+                kept.setdefault(name, what)
 
     def precondition(candidate: Candidate) -> str | None:
-        if support is not None and support not in candidate:
-            return f"removes '{support}', the model under the robot's start"
+        for name, what in kept.items():
+            if name not in candidate:
+                return f"removes '{name}', {what}"
         return None
 
     return precondition

@@ -163,8 +163,15 @@ class RobotWorld:
         return self.seed + self.attempt * ATTEMPT_SEED_STRIDE
 
     def build_predicates(self) -> list[Predicate]:
-        """The test's failure predicates, ready for one run (each is reset when the run starts)."""
-        return [spec.build() for spec in self.predicates]
+        """The test's failure predicates, ready for one run (each is reset when the run starts); for an arm's
+        world when the test names none, the arm's defaults (`oracle.default_predicates("arm")`)."""
+        specs = self.predicates
+        if not specs and self.world.scenario is not None:
+            from pytest_ddenv.oracle import default_predicates
+            from pytest_ddenv.sim.arm.robot import robot_kind
+
+            specs = default_predicates(robot_kind(self.world.scenario.robot, self.world.source))
+        return [spec.build() for spec in specs]
 
     def run(
         self,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Collection
 
 from pytest_ddenv.errors import ScenarioError, WorldError, shown
 from pytest_ddenv.sdf._values import Values
@@ -11,13 +12,22 @@ from pytest_ddenv.sdf._xml import DDENV_NS as DDENV_NS  # re-exported: its home 
 from pytest_ddenv.sdf._xml import local_name
 from pytest_ddenv.world.files import is_file, resolve_relative
 from pytest_ddenv.world.limits import solver_iterations_problem, timestep_problem
-from pytest_ddenv.world.model import DRIVE_KINDS, LaserMount, Physics, Pose, RobotDescription, Scenario, TagValue
+from pytest_ddenv.world.model import (
+    DRIVE_KINDS,
+    ArmDescription,
+    LaserMount,
+    Physics,
+    Pose,
+    RobotDescription,
+    Scenario,
+    TagValue,
+)
 
 WORLD_ELEMENTS = ("scenario", "physics")
 MODEL_ELEMENTS = ("keep", "tag")
-SCENARIO_ELEMENTS = ("start", "goal", "robot_description")
+SCENARIO_ELEMENTS = ("start", "goal", "robot_description", "arm_description")
 ATTRIBUTES = {
-    "scenario": ("robot", "timeout", "goal_tolerance"),
+    "scenario": ("robot", "timeout", "goal_tolerance", "target", "table", "watch"),
     "start": ("x", "y", "z", "yaw"),
     "goal": ("x", "y", "z"),
     "physics": ("timestep", "solver_iterations"),
@@ -25,6 +35,7 @@ ATTRIBUTES = {
     "keep": (),
     "robot_description": ("urdf", "drive", "left_wheels", "right_wheels", "wheel_radius", "track", "track_factor",
                           "max_wheel_torque", "laser", "name"),
+    "arm_description": ("urdf", "arm_joints", "finger_joints", "end_effector", "home", "mjcf", "name"),
 }
 """The attributes of each `ddenv:` element (what `dump_sdf` writes); any other is a typo, refused."""
 REQUIRED = {
@@ -164,14 +175,19 @@ class DdenvElements:
                              field=f"ddenv:{local_name(element.tag)}/@{name}", kind=kind)
         return value
 
-    def scenario(self, world: ET.Element) -> Scenario | None:
+    def scenario(self, world: ET.Element, models: Collection[str] | None = None) -> Scenario | None:
+        """The world's `ddenv:scenario` (None: none); its target, table and watch models checked to be among
+        `models` when given."""
         element = self.single(world, "scenario", "a world", None, kind=ScenarioError)
         if element is None:
             return None
         self.known_attributes(element, None, ScenarioError)
         self.known_children(element, SCENARIO_ELEMENTS, "ddenv:scenario", None, kind=ScenarioError)
-        start, goal, description = (self.single(element, tag, "a scenario", None, kind=ScenarioError)
-                                    for tag in SCENARIO_ELEMENTS)
+        start, goal, description, arm = (self.single(element, tag, "a scenario", None, kind=ScenarioError)
+                                         for tag in SCENARIO_ELEMENTS)
+        if description is not None and arm is not None:
+            raise self.error("a scenario has one robot: ddenv:robot_description or ddenv:arm_description", arm,
+                             field="ddenv:arm_description", kind=ScenarioError)
         if start is None or goal is None:
             raise self.error("ddenv:scenario needs ddenv:start and ddenv:goal", element, field="ddenv:scenario",
                              kind=ScenarioError)
@@ -187,8 +203,20 @@ class DdenvElements:
         def number(owner: ET.Element, name: str, fallback: float, *, positive: bool = False) -> float:
             return self.attribute_number(owner, name, fallback, positive=positive, kind=ScenarioError)
 
+        robot: str | RobotDescription | ArmDescription = str(element.get("robot", default.robot))
+        if description is not None:
+            robot = self.robot(description)
+        elif arm is not None:
+            robot = self.arm(arm)
+        named = {key: element.get(key) for key in ("target", "table")}
+        watch = tuple(dict.fromkeys((element.get("watch") or "").split()))
+        for key, names in (("target", [named["target"]]), ("table", [named["table"]]), ("watch", watch)):
+            for model in names:
+                if model is not None and models is not None and model not in models:
+                    raise self.error(f"{shown(model)} is not a model of this world", element,
+                                     field=f"ddenv:scenario/@{key}", kind=ScenarioError)
         return Scenario(
-            robot=element.get("robot", default.robot) if description is None else self.robot(description),
+            robot=robot,
             start=Pose(x=number(start, "x", 0.0), y=number(start, "y", 0.0), z=number(start, "z", 0.0),
                        yaw=number(start, "yaw", 0.0)),
             start_z_given=start.get("z") is not None,
@@ -196,6 +224,40 @@ class DdenvElements:
                   number(goal, "z", 0.0) if goal.get("z") is not None else None),
             goal_tolerance=number(element, "goal_tolerance", default.goal_tolerance, positive=True),
             timeout=number(element, "timeout", default.timeout, positive=True),
+            target=named["target"], table=named["table"], watch=watch,
+        )
+
+    def arm(self, element: ET.Element) -> ArmDescription:
+        """<ddenv:arm_description>, written by `dump_sdf` for an arm given as a mapping."""
+        field = "ddenv:arm_description"
+        self.known_attributes(element, None, ScenarioError)
+
+        def fail(message: str, name: str) -> WorldError:
+            return self.error(message, element, field=f"{field}/@{name}", kind=ScenarioError)
+
+        for key in ("urdf", "mjcf"):
+            path = element.get(key)
+            if (key == "urdf" or path is not None) and (not path or not is_file(resolve_relative(path, self.source))):
+                raise fail(f"{key.upper()} file not found: {shown(path or '')}", key)
+        joints = {key: tuple(element.get(key, "").split()) for key in ("arm_joints", "finger_joints")}
+        for key, names in joints.items():
+            if not names:
+                raise fail("expected the joint names, separated by spaces", key)
+        if not element.get("end_effector"):
+            raise fail("expected the end effector's link name", "end_effector")
+        home = None
+        if element.get("home") is not None:
+            try:
+                home = tuple(float(v) for v in str(element.get("home")).split())
+            except ValueError:
+                home = ()
+            if len(home) != len(joints["arm_joints"]) or not all(math.isfinite(v) for v in home):
+                raise fail(f"expected {len(joints['arm_joints'])} numbers (one per arm joint), got "
+                           f"{shown(element.get('home'))}", "home")
+        return ArmDescription(
+            urdf=str(element.get("urdf")), arm_joints=joints["arm_joints"], finger_joints=joints["finger_joints"],
+            end_effector=str(element.get("end_effector")), home=home, mjcf=element.get("mjcf"),
+            name=element.get("name", ""),
         )
 
 

@@ -119,7 +119,7 @@ class _Loader:
         ground, models = self.assemble(nodes, frames, states)
         return World(
             models=tuple(models),
-            scenario=self.ddenv.scenario(element),
+            scenario=self.ddenv.scenario(element, {model.name for model in models}),
             physics=self.ddenv.physics(element),
             ground=ground,
             name=name,

@@ -15,7 +15,17 @@ from collections.abc import Sequence
 from pytest_ddenv.sdf._reader import DDENV_NS, collada_unit
 from pytest_ddenv.validation import is_flag
 from pytest_ddenv.world.files import resolve_mesh_path, resolve_relative
-from pytest_ddenv.world.model import Ground, LaserMount, Model, Pose, RobotDescription, Scenario, Shape, World
+from pytest_ddenv.world.model import (
+    ArmDescription,
+    Ground,
+    LaserMount,
+    Model,
+    Pose,
+    RobotDescription,
+    Scenario,
+    Shape,
+    World,
+)
 
 SDF_VERSION = "1.6"
 CAPSULE_SDF_VERSION = "1.8"
@@ -201,13 +211,18 @@ def _sun(parent: ET.Element) -> None:
     _sub(light, "direction", "-0.5 0.1 -0.9")
 
 
-def _scenario(parent: ET.Element, scenario: Scenario, source: str | None) -> None:
+def _scenario(parent: ET.Element, scenario: Scenario, source: str | None,
+              names: tuple[str, ...] | None = None) -> None:
     robot = scenario.robot
     name = robot if isinstance(robot, str) else robot.label
+    named = {key: value for key, value in (("target", scenario.target), ("table", scenario.table)) if value}
+    watch = " ".join(m for m in scenario.watch if names is None or m in names)  # a reduced world may lack some
     element = _sub(parent, _ddenv("scenario"), robot=name, timeout=_number(scenario.timeout),
-                   goal_tolerance=_number(scenario.goal_tolerance))
+                   goal_tolerance=_number(scenario.goal_tolerance), **named, **({"watch": watch} if watch else {}))
     if isinstance(robot, RobotDescription):
         _robot_description(element, robot, source)
+    elif isinstance(robot, ArmDescription):
+        _arm_description(element, robot, source)
     start = {"x": _number(scenario.start.x), "y": _number(scenario.start.y)}
     if scenario.start_z_given:
         start["z"] = _number(scenario.start.z)
@@ -239,6 +254,20 @@ def _robot_description(parent: ET.Element, robot: RobotDescription, source: str 
     _sub(parent, _ddenv("robot_description"), **attributes)
 
 
+def _arm_description(parent: ET.Element, robot: ArmDescription, source: str | None) -> None:
+    """The arm mapping as <ddenv:arm_description> (file paths made absolute: SDF files move)."""
+    attributes = {"urdf": str(resolve_relative(robot.urdf, source).resolve()),
+                  "arm_joints": " ".join(robot.arm_joints), "finger_joints": " ".join(robot.finger_joints),
+                  "end_effector": robot.end_effector}
+    if robot.home is not None:
+        attributes["home"] = " ".join(_number(v) for v in robot.home)
+    if robot.mjcf is not None:
+        attributes["mjcf"] = str(resolve_relative(robot.mjcf, source).resolve())
+    if robot.name:
+        attributes["name"] = robot.name
+    _sub(parent, _ddenv("arm_description"), **attributes)
+
+
 def dump_sdf(world: World) -> str:
     """The world as SDF text (a `<world>` with a sun, Gazebo physics, the ground plane and the models): version
     1.6, or 1.8 when a model has a capsule (1.6 has no `<capsule>`), 1.11 when one has a cone."""
@@ -253,7 +282,7 @@ def dump_sdf(world: World) -> str:
     _sub(element, _ddenv("physics"), timestep=_number(world.physics.timestep),
          solver_iterations=str(world.physics.solver_iterations))
     if world.scenario is not None:
-        _scenario(element, world.scenario, world.source)
+        _scenario(element, world.scenario, world.source, world.names)
     _sun(element)
     if world.ground is not None:
         _ground(element, world.ground, set(world.names))

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 
 from pytest_ddenv.errors import ControllerError, ControllerTimeout
 from pytest_ddenv.oracle.predicates import Predicate
+from pytest_ddenv.sim.arm.robot import ArmRobot
 from pytest_ddenv.sim.control import (
     Command,
     Controller,
@@ -33,6 +34,7 @@ __tracebackhide__ = hidden_in_tracebacks
 
 __all__ = [
     "ROBOTS",
+    "ArmRobot",
     "Command",
     "Controller",
     "ControllerError",

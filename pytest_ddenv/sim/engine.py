@@ -10,7 +10,10 @@ from typing import Any, Self
 
 from pytest_ddenv.alarm import Alarm
 from pytest_ddenv.errors import ControllerTimeout, ScenarioError
-from pytest_ddenv.oracle.predicates import GROUND, Predicate
+from pytest_ddenv.oracle.predicates import GROUND, Predicate, check_predicates_for_robot
+from pytest_ddenv.sim.arm.control import ArmController, ArmObservation, check_arm_command
+from pytest_ddenv.sim.arm.episode import ArmEpisode
+from pytest_ddenv.sim.arm.robot import ArmRobot
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.control import (
     AnyCommand,
@@ -29,7 +32,7 @@ from pytest_ddenv.sim.run import Run
 from pytest_ddenv.sim.settings import RunSettings
 from pytest_ddenv.sim.tracebacks import hidden_in_tracebacks
 from pytest_ddenv.validation import expected, is_finite_number, is_integral, is_number
-from pytest_ddenv.world.model import RobotDescription, Scenario, World
+from pytest_ddenv.world.model import ArmDescription, RobotDescription, Scenario, World
 
 __tracebackhide__ = hidden_in_tracebacks
 """pytest leaves this module's frames out of a failing test's traceback (see sim/tracebacks.py)."""
@@ -101,7 +104,7 @@ class Simulator:
         if scenario is None:
             raise ScenarioError("the world has no scenario; add a 'scenario:' block (robot, start, goal, timeout)",
                                 source=world.source, field="scenario")
-        if not isinstance(scenario.robot, RobotDescription) and scenario.robot not in ROBOTS:
+        if not isinstance(scenario.robot, (RobotDescription, ArmDescription)) and scenario.robot not in ROBOTS:
             raise ScenarioError(
                 f"unknown robot {scenario.robot!r}; registered robots: {', '.join(sorted(ROBOTS))}",
                 source=world.source, field="scenario.robot",
@@ -117,6 +120,12 @@ class Simulator:
         if not (scenario.goal_tolerance > 0):
             raise ScenarioError(expected("a number > 0", scenario.goal_tolerance), source=world.source,
                                 field="scenario.goal_tolerance")
+        names = set(world.names)
+        for key in ("target", "table"):
+            name = getattr(scenario, key)
+            if name is not None and name not in names:
+                raise ScenarioError(f"the {key} {name!r} is not a model of the world", source=world.source,
+                                    field=f"scenario.{key}")
         return scenario
 
     # -- running ---------------------------------------------------------------------------------------
@@ -128,8 +137,9 @@ class Simulator:
         predicates: Sequence[Predicate] = (),
         settings: RunSettings = RunSettings(),
         timeout: float | None = None,
-    ) -> Episode:
-        """Build `world`, spawn its scenario's robot (seed `seed`) and return the episode at its first tick.
+    ) -> Episode | ArmEpisode:
+        """Build `world`, spawn its scenario's robot (seed `seed`) and return the episode at its first tick: an
+        `ArmEpisode` for an arm, else an `Episode`.
 
         `Simulator.run` drives it with a controller; `robot_world.make_env()` with a policy's actions.
         """
@@ -147,17 +157,27 @@ class Simulator:
         streams = noise_streams(int(seed))
         noise = settings.noise
         robot = make_robot(scenario.robot, world.source)
+        arm = isinstance(robot, ArmRobot)
+        try:
+            check_predicates_for_robot(predicates, "arm" if arm else "mobile", robot.name)
+        except ScenarioError as error:
+            raise ScenarioError(error.reason, source=world.source, field="predicates") from None
         physics.load(world, robot, settings.friction)
         jitter = streams[0].standard_normal(3)
+        if arm:  # an arm is bolted where the world puts it (the draws are made all the same)
+            jitter[:] = 0.0
         start_x = scenario.start.x + noise.start_xy * jitter[0]
         start_y = scenario.start.y + noise.start_xy * jitter[1]
         start_yaw = scenario.start.yaw + noise.start_yaw * jitter[2]
         start_z = self._start_height(physics, world, scenario, robot, start_x, start_y, start_yaw)
+        if arm and not scenario.start_z_given:
+            start_z -= START_CLEARANCE  # the arm's base stands on its support
         driven, body = physics.spawn(robot, (start_x, start_y, start_z), start_yaw)
         self._check_start_clear(physics, world)
         for predicate in predicates:
             predicate.reset()
-        return Episode(
+        kind: type[Episode | ArmEpisode] = ArmEpisode if arm else Episode
+        return kind(
             physics, world=world, scenario=scenario, robot=driven, body=body, seed=int(seed),
             streams=streams, predicates=predicates, settings=settings, limit=limit,
         )
@@ -170,7 +190,7 @@ class Simulator:
         predicates: Sequence[Predicate] = (),
         settings: RunSettings = RunSettings(),
         timeout: float | None = None,
-        controller: ControllerLike | None = None,
+        controller: ControllerLike | ArmController | None = None,
         max_wall_time: float | None = None,
     ) -> Run:
         """Simulate `world`'s scenario with noise seed `seed`; `timeout` overrides the scenario's limit.
@@ -178,15 +198,18 @@ class Simulator:
         `controller(observation) -> Command` drives the robot every control tick (default: `GoToGoal` with
         the settings' gains). What it raises propagates (with a note saying when); a command that is not a
         `Command`/`WheelCommand` or holds a NaN raises `ControllerError`; a run longer than
-        `max_wall_time` wall-clock seconds raises `ControllerTimeout`.
+        `max_wall_time` wall-clock seconds raises `ControllerTimeout`. An arm's controller sees an
+        `ArmObservation` and returns an arm's command (sim/arm/control.py); its default is `PickAndPlace`.
         """
-        if controller is None:
-            from pytest_ddenv.sim.controllers import default_controller
-
-            controller = default_controller(settings)
-        check_controller(controller)
+        if controller is not None:
+            check_controller(controller)
         max_wall_time = wall_limit(max_wall_time)
         episode = self.start(world, seed=seed, predicates=predicates, settings=settings, timeout=timeout)
+        if controller is None:
+            from pytest_ddenv.sim.arm.pick_place import PickAndPlace
+            from pytest_ddenv.sim.controllers import default_controller
+
+            controller = PickAndPlace() if isinstance(episode, ArmEpisode) else default_controller(settings)
         drive_loop(episode, controller, max_wall_time)
         return episode.result()
 
@@ -237,9 +260,13 @@ def wall_limit(max_wall_time: object) -> float | None:
     return float(max_wall_time)
 
 
-def drive_loop(episode: Episode, controller: ControllerLike, max_wall_time: float | None) -> None:
+def drive_loop(episode: Episode | ArmEpisode, controller: ControllerLike | ArmController,
+               max_wall_time: float | None) -> None:
     """Run `episode` to its end with `controller` called every control tick, within `max_wall_time`: checked
     every tick, and (in the main thread) an alarm that also stops a controller that never returns."""
+    if isinstance(episode, ArmEpisode):
+        _drive_arm(episode, controller, max_wall_time)
+        return
     reset = getattr(controller, "reset", None)
     first = True
     left = None if max_wall_time is None else max(max_wall_time - (time.perf_counter() - episode.started), 0.0)
@@ -258,7 +285,26 @@ def drive_loop(episode: Episode, controller: ControllerLike, max_wall_time: floa
                 raise _too_slow(episode, controller, max_wall_time)
 
 
-def _too_slow(episode: Episode, controller: ControllerLike, max_wall_time: float | None) -> ControllerTimeout:
+def _drive_arm(episode: ArmEpisode, controller: Any, max_wall_time: float | None) -> None:
+    """`drive_loop` for an arm: its commands checked by `check_arm_command`, the controller called to the end
+    (an arm that placed the target without stopping early goes on as its controller says)."""
+    reset = getattr(controller, "reset", None)
+    first = True
+    joints = len(episode.arm.joint_names)
+    left = None if max_wall_time is None else max(max_wall_time - (time.perf_counter() - episode.started), 0.0)
+    with Alarm(left, lambda: _too_slow(episode, controller, max_wall_time)):
+        while not episode.finished:
+            observation = episode.observe()
+            if first and reset is not None:
+                _call(reset, controller, observation)
+            first = False
+            episode.act(check_arm_command(_call(controller, controller, observation), controller, observation.time,
+                                          joints))
+            if max_wall_time is not None and time.perf_counter() - episode.started > max_wall_time:
+                raise _too_slow(episode, controller, max_wall_time)
+
+
+def _too_slow(episode: Episode | ArmEpisode, controller: object, max_wall_time: float | None) -> ControllerTimeout:
     return ControllerTimeout(
         f"the run took more than its wall-clock limit of {max_wall_time:g} s (at t = {episode.time:.2f} s "
         f"simulated of {episode.limit:g} s): the controller {controller_name(controller)} or the world is "
@@ -266,7 +312,7 @@ def _too_slow(episode: Episode, controller: ControllerLike, max_wall_time: float
     )
 
 
-def _call(function: Any, controller: object, observation: Observation) -> Any:
+def _call(function: Any, controller: object, observation: Observation | ArmObservation) -> Any:
     try:
         return function(observation)
     except Exception as error:

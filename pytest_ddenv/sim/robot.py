@@ -320,7 +320,15 @@ def husky_urdf() -> str:
 
 RobotFactory = Callable[[], Robot]
 ROBOTS: dict[str, RobotFactory] = {"husky": Husky}
-"""Registered robots by the name a world file's `scenario.robot` uses."""
+"""Registered robots by the name a world file's `scenario.robot` uses (sim/arm/robot.py adds "panda")."""
+ArmFactory = Callable[[ArmDescription, "str | None"], Robot]
+_arm_factory: list[ArmFactory] = []
+
+
+def register_arm_factory(factory: ArmFactory) -> None:
+    """How an `ArmDescription` becomes a robot: sim/arm/robot.py's `ArmRobot`, registered when that module is
+    imported (sim/__init__.py imports it: this module cannot, the arm's robot is a `Robot`)."""
+    _arm_factory[:] = [factory]
 
 
 def register_robot(name: str, robot: RobotFactory | RobotDescription, *, replace: bool = False) -> None:
@@ -360,18 +368,20 @@ def _described(name: str, where: str, description: RobotDescription) -> WheeledR
 def check_robot(robot: str | RobotDescription | ArmDescription, source: str | None = None) -> None:
     """Build a scenario's robot as a run does, without a simulation, when it is described by its URDF (a world
     file's `scenario.robot` mapping, or a name registered with a `RobotDescription`): a URDF pybullet cannot
-    load, a wheel joint it does not have, a wheel without a collision shape raise `ScenarioError` naming the
+    load, a wheel joint it does not have, an arm's joint or end-effector link it does not have, a wheel without
+    a collision shape raise `ScenarioError` naming the
     world file `source` and the field. A robot of a factory of yours, or a name not registered (yet), is left
     to the run."""
     factory = ROBOTS.get(robot) if isinstance(robot, str) else None
-    if isinstance(robot, RobotDescription) or (isinstance(factory, partial) and factory.func is _described):
+    described = isinstance(factory, partial) and factory.func is _described
+    if isinstance(robot, (RobotDescription, ArmDescription)) or described:
         make_robot(robot, source)
 
 
 def make_robot(robot: str | RobotDescription | ArmDescription, source: str | None = None) -> Robot:
     """The robot of a scenario: a registered name or a description (`source`: the world file)."""
     if isinstance(robot, ArmDescription):
-        raise ScenarioError("arms are not simulated yet", source=source, field="scenario.robot")
+        return _arm_factory[0](robot, source)
     if isinstance(robot, RobotDescription):
         return WheeledRobot.from_description(robot, source)
     try:

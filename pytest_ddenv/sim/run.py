@@ -51,6 +51,11 @@ class Run:
 
     `first_touch` / `last_touch`: model name -> first / last simulated time the robot touched it (checked
     every control tick). `first_sensed`: model name -> first time a laser ray hit it.
+
+    An arm's run (`robot_kind` "arm", docs/writing-tests.md "Arms") records its end effector in the place of
+    the base: `poses` and `velocities` are the end effector's, `wheel_contacts` (T, 2) the normal forces on
+    the two fingers, `first_touch`/`last_touch` the models any arm link touched, `target_path` (T, 3) the
+    target's position (None: a mobile robot, or no target), and `reached_goal` means the target was placed.
     """
 
     seed: int
@@ -77,6 +82,10 @@ class Run:
     engine: str = "pybullet"
     """The physics engine that ran it; `engine_version` its version (`pybullet_version` is empty for others)."""
     engine_version: str = ""
+    robot_kind: str = "mobile"
+    """"mobile" (a wheeled base) or "arm"."""
+    target_path: FloatArray | None = None
+    """An arm's run: (T, 3) x y z of the target at `times` (None: no target, or a mobile robot)."""
 
     @property
     def positions(self) -> FloatArray:
@@ -106,8 +115,8 @@ class Run:
         )
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-able data (arrays become nested lists of floats)."""
-        return {
+        """Plain JSON-able data (arrays become nested lists of floats; a mobile robot's as it always was)."""
+        data: dict[str, Any] = {
             "seed": self.seed,
             "settings": self.settings.to_dict(),
             "world_name": self.world_name,
@@ -131,6 +140,11 @@ class Run:
             "engine": self.engine,
             "engine_version": self.engine_version,
         }
+        if self.robot_kind != "mobile":
+            data["robot_kind"] = self.robot_kind
+        if self.target_path is not None:
+            data["target_path"] = self.target_path.tolist()
+        return data
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Run:
@@ -160,6 +174,8 @@ class Run:
             pybullet_version=str(data["pybullet_version"]),
             engine=str(data.get("engine", "pybullet")),
             engine_version=str(data.get("engine_version", data["pybullet_version"])),
+            robot_kind=str(data.get("robot_kind", "mobile")),
+            target_path=None if data.get("target_path") is None else array("target_path", 3),
         )
 
 

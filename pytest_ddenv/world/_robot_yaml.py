@@ -1,4 +1,5 @@
-"""The mapping form of `scenario.robot` in a world file: a wheeled robot described by its URDF.
+"""The mapping form of `scenario.robot` in a world file: a wheeled robot, or an arm (`arm_joints`), described
+by its URDF.
 
 Parsed strictly (every error names the file and the field, e.g. `scenario.robot.left_wheels`) and written
 back in the same form. No pybullet here: the URDF is only checked to exist; the simulation reads it.
@@ -19,6 +20,8 @@ ROBOT_KEYS = (
     "urdf", "drive", "left_wheels", "right_wheels", "wheel_radius", "track", "track_factor", "max_wheel_torque",
     "laser", "name",
 )
+ARM_KEYS = ("urdf", "arm_joints", "finger_joints", "end_effector", "home", "mjcf", "name")
+"""The keys of an arm's mapping (told from a wheeled robot's by `arm_joints`)."""
 LASER_KEYS = ("height", "min_range", "x", "y", "yaw")
 """The keys of a `laser` mapping: height and min_range are required, the mounting's x, y and yaw optional."""
 FIELD = "scenario.robot"
@@ -38,10 +41,13 @@ class FieldReader(Protocol):
     def text(self, value: Any, field: str) -> str: ...
 
 
-def parse_robot(reader: FieldReader, value: Any) -> str | RobotDescription:
-    """A registered robot's name, or a `RobotDescription` from a mapping."""
+def parse_robot(reader: FieldReader, value: Any) -> str | RobotDescription | ArmDescription:
+    """A registered robot's name, or a `RobotDescription` from a mapping (an `ArmDescription` from a mapping
+    with `arm_joints`)."""
     if not isinstance(value, Mapping):
         return reader.text(value, FIELD)
+    if "arm_joints" in value:
+        return _parse_arm(reader, value)
     data = reader.mapping(value, FIELD, ROBOT_KEYS)
     for key in ("urdf", "left_wheels", "right_wheels"):
         if key not in data:
@@ -79,6 +85,35 @@ def parse_robot(reader: FieldReader, value: Any) -> str | RobotDescription:
     )
 
 
+def _parse_arm(reader: FieldReader, value: Mapping[str, Any]) -> ArmDescription:
+    data = reader.mapping(value, FIELD, ARM_KEYS)
+    for key in ("urdf", "finger_joints", "end_effector"):
+        if key not in data:
+            raise reader.fail(f"{FIELD}.{key}", "missing; an arm's mapping needs urdf, arm_joints, finger_joints and "
+                                                "end_effector")
+    files = {}
+    for key in ("urdf", "mjcf"):
+        if key in data:
+            files[key] = reader.text(data[key], f"{FIELD}.{key}")
+            problem = regular_file_problem(resolve_relative(files[key], reader.source), f"{key.upper()} file")
+            if problem is not None:
+                raise reader.fail(f"{FIELD}.{key}", problem)
+    arm = _joint_names(reader, data["arm_joints"], f"{FIELD}.arm_joints")
+    fingers = _joint_names(reader, data["finger_joints"], f"{FIELD}.finger_joints")
+    home = None
+    if data.get("home") is not None:
+        raw = data["home"]
+        if not isinstance(raw, list) or len(raw) != len(arm):
+            raise reader.fail(f"{FIELD}.home", f"expected a list of {len(arm)} joint positions (one per arm joint), "
+                                               f"got {raw!r}")
+        home = tuple(reader.number(v, f"{FIELD}.home[{i}]") for i, v in enumerate(raw))
+    return ArmDescription(
+        urdf=files["urdf"], arm_joints=arm, finger_joints=fingers,
+        end_effector=reader.text(data["end_effector"], f"{FIELD}.end_effector"), home=home,
+        mjcf=files.get("mjcf"), name=reader.text(data["name"], f"{FIELD}.name") if "name" in data else "",
+    )
+
+
 def _joint_names(reader: FieldReader, value: Any, field: str) -> tuple[str, ...]:
     names = [value] if isinstance(value, str) else value
     if not isinstance(names, list) or not names:
@@ -108,7 +143,15 @@ def robot_dict(robot: str | RobotDescription | ArmDescription, source: str | Non
     if isinstance(robot, str):
         return robot
     if isinstance(robot, ArmDescription):
-        raise NotImplementedError("writing an arm is not implemented yet")
+        arm: dict[str, Any] = {"urdf": rebased(robot.urdf, source, relative_to), "arm_joints": list(robot.arm_joints),
+                               "finger_joints": list(robot.finger_joints), "end_effector": robot.end_effector}
+        if robot.home is not None:
+            arm["home"] = list(robot.home)
+        if robot.mjcf is not None:
+            arm["mjcf"] = rebased(robot.mjcf, source, relative_to)
+        if robot.name:
+            arm["name"] = robot.name
+        return arm
     data: dict[str, Any] = {"urdf": rebased(robot.urdf, source, relative_to), "drive": robot.drive,
                             "left_wheels": list(robot.left_wheels), "right_wheels": list(robot.right_wheels)}
     for key in ("wheel_radius", "track", "track_factor"):

@@ -55,7 +55,7 @@ MODEL_KEYS = (
     "name", "pose", "shapes", *SHAPE_KINDS, "static", "mass", "mu", "mu2", "restitution", "color", "keep", "tags",
 )
 SHAPE_KEYS = (*SHAPE_KINDS, "pose")
-SCENARIO_KEYS = ("robot", "start", "goal", "goal_tolerance", "timeout")
+SCENARIO_KEYS = ("robot", "start", "goal", "goal_tolerance", "timeout", "target", "table", "watch")
 WRITTEN_DEFAULT_ENGINE = "pybullet"
 """The engine a written world leaves unnamed (files without `physics.engine` have always meant pybullet; a
 file read where pybullet is not installed gets mujoco, `limits.default_engine`)."""
@@ -213,7 +213,7 @@ def parse_yaml(text: str, *, source: str | os.PathLike[str] | None = None) -> Wo
     reader.model = None
     return World(
         models=tuple(models),
-        scenario=_parse_scenario(reader, root["scenario"]) if root.get("scenario") is not None else None,
+        scenario=_parse_scenario(reader, root["scenario"], seen) if root.get("scenario") is not None else None,
         physics=_parse_physics(reader, root.get("physics")),
         ground=_parse_ground(reader, root.get("ground", {})),
         name=name,
@@ -410,7 +410,7 @@ def _parse_tags(reader: _Reader, value: Any) -> dict[str, TagValue]:
     return tags
 
 
-def _parse_scenario(reader: _Reader, value: Any) -> Scenario:
+def _parse_scenario(reader: _Reader, value: Any, models: Mapping[str, int]) -> Scenario:
     reader.error_type = ScenarioError
     try:
         data = reader.mapping(value, "scenario", SCENARIO_KEYS)
@@ -445,9 +445,31 @@ def _parse_scenario(reader: _Reader, value: Any) -> Scenario:
             ),
             goal_tolerance=reader.number(data.get("goal_tolerance", 0.3), "scenario.goal_tolerance", positive=True),
             timeout=reader.number(data["timeout"], "scenario.timeout", positive=True),
+            target=_model_name(reader, data.get("target"), "scenario.target", models),
+            table=_model_name(reader, data.get("table"), "scenario.table", models),
+            watch=_watched(reader, data.get("watch"), models),
         )
     finally:
         reader.error_type = WorldError
+
+
+def _model_name(reader: _Reader, value: Any, field: str, models: Mapping[str, int]) -> str | None:
+    """A scenario field naming one of the world's models (None: not given)."""
+    if value is None:
+        return None
+    name = reader.text(value, field)
+    if name not in models:
+        raise reader.fail(field, f"{shown(name)} is not a model of this world")
+    return name
+
+
+def _watched(reader: _Reader, value: Any, models: Mapping[str, int]) -> tuple[str, ...]:
+    if value is None:
+        return ()
+    if not isinstance(value, list):
+        raise reader.wrong("scenario.watch", "a list of model names", value)
+    names = tuple(_model_name(reader, item, f"scenario.watch[{i}]", models) or "" for i, item in enumerate(value))
+    return tuple(dict.fromkeys(names))
 
 
 def _parse_physics(reader: _Reader, value: Any) -> Physics:
@@ -504,7 +526,7 @@ def dump_yaml(world: World, relative_to: Path | None = None) -> str:
             document["physics"]["engine"] = world.physics.engine
     document["ground"] = None if world.ground is None else _ground_dict(world.ground)
     if world.scenario is not None:
-        document["scenario"] = _scenario_dict(world.scenario, world.source, relative_to)
+        document["scenario"] = _scenario_dict(world.scenario, world.source, relative_to, world.names)
     document["models"] = [_model_dict(model, world.source, relative_to) for model in world.models]
     return yaml.dump(document, Dumper=Dumper, sort_keys=False, default_flow_style=None, width=120)
 
@@ -513,7 +535,10 @@ def _ground_dict(ground: Ground) -> dict[str, float]:
     return {"z": ground.z, "mu": ground.mu, "mu2": ground.mu2, "restitution": ground.restitution}
 
 
-def _scenario_dict(scenario: Scenario, source: str | None, relative_to: Path | None) -> dict[str, Any]:
+def _scenario_dict(scenario: Scenario, source: str | None, relative_to: Path | None,
+                   names: tuple[str, ...]) -> dict[str, Any]:
+    """`scenario` as written; of its `watch` models, those still in the world (`names`: a reduced world's)."""
+    watch = [name for name in scenario.watch if name in names]
     start: dict[str, float] = {"x": scenario.start.x, "y": scenario.start.y}
     if scenario.start_z_given:
         start["z"] = scenario.start.z
@@ -527,6 +552,9 @@ def _scenario_dict(scenario: Scenario, source: str | None, relative_to: Path | N
         "goal": goal,
         "goal_tolerance": scenario.goal_tolerance,
         "timeout": scenario.timeout,
+        **({"target": scenario.target} if scenario.target is not None else {}),
+        **({"table": scenario.table} if scenario.table is not None else {}),
+        **({"watch": watch} if watch else {}),
     }
 
 

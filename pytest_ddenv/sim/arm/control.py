@@ -4,18 +4,24 @@ A controller is any callable `controller(observation) -> command`, as for mobile
 with an optional `reset(observation)`. The commands: `JointTargets` (a position for every arm joint),
 `EndEffectorTarget` (a tool position and yaw, pointing down; inverse kinematics turns it into joint targets)
 and `GripperCommand` (open or close, alone). The first two also carry an optional gripper command.
+`check_arm_command` checks what a controller returned.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from pytest_ddenv.errors import ControllerError
 from pytest_ddenv.oracle.arm_state import GRIPPER_CLOSE, GRIPPER_OPEN, Pose6
 from pytest_ddenv.oracle.predicates import Contact
+from pytest_ddenv.sim.control import controller_name
+from pytest_ddenv.validation import expected, is_real
 
 GRIPPER_ACTIONS = (GRIPPER_OPEN, GRIPPER_CLOSE)
 
@@ -86,3 +92,37 @@ class GripperCommand:
 
 
 ArmCommand = JointTargets | EndEffectorTarget | GripperCommand
+ArmController = Callable[[ArmObservation], ArmCommand]
+"""An arm's controller: `controller(observation) -> command`, optionally with `reset(observation)`."""
+
+
+def check_arm_command(value: Any, controller: object, time: float, joints: int | None = None) -> ArmCommand:
+    """The command an arm's controller returned, or ControllerError saying what was wrong and when (`joints`:
+    how many positions a `JointTargets` must hold)."""
+    where = f"controller {controller_name(controller)} at t = {time:.2f} s"
+    if not isinstance(value, (JointTargets, EndEffectorTarget, GripperCommand)):
+        raise ControllerError(
+            f"{where} returned {type(value).__name__} {value!r}; an arm's controller returns JointTargets(positions), "
+            "EndEffectorTarget(position, yaw) or GripperCommand('open' | 'close')"
+        )
+    if isinstance(value, GripperCommand):
+        actions: tuple[object, ...] = (value.action,)
+    else:
+        actions = () if value.gripper is None else (value.gripper,)
+    for action in actions:
+        if action not in GRIPPER_ACTIONS:
+            raise ControllerError(expected(f"a gripper action {GRIPPER_OPEN!r} or {GRIPPER_CLOSE!r}", action, where))
+    numbers: tuple[object, ...] = ()
+    if isinstance(value, JointTargets):
+        numbers = tuple(value.positions) if isinstance(value.positions, (tuple, list)) else (value.positions,)
+    elif isinstance(value, EndEffectorTarget):
+        position = value.position if isinstance(value.position, (tuple, list)) else (value.position,)
+        if len(position) != 3:
+            raise ControllerError(expected("an end-effector position (x, y, z)", value.position, where))
+        numbers = (*position, value.yaw)
+    for number in numbers:
+        if not is_real(number) or not math.isfinite(float(number)):
+            raise ControllerError(expected("finite numbers", value, where))
+    if isinstance(value, JointTargets) and joints is not None and len(numbers) != joints:
+        raise ControllerError(expected(f"JointTargets with {joints} positions (one per arm joint)", value, where))
+    return value

@@ -1,9 +1,17 @@
 """`DrivenArm`: an arm in a loaded world, as one physics engine drives it (the arm's side of the engine
 seam, sim/physics.py). `PybulletArm` (sim/arm/pybullet_arm.py) and `MujocoArm` (sim/mujoco/arm.py).
 
-An engine's `spawn(robot, position, yaw)` returns one when `robot` is an `ArmRobot`. Link keys are the
-engine's integers, named by `link_names`; the episode (sim/arm/episode.py) reads contacts through the
-engine's `robot_contacts()` as for mobile robots.
+How the episode gets it: an engine's `spawn(robot, position, yaw)`, given an `ArmRobot` (sim/arm/robot.py),
+returns `(driven, body)` as for any robot, and `driven.arm` is the `DrivenArm` (the arm joints at the
+robot's `home`, the gripper open, both held by their position controllers). PyBullet: `ArmRobot.spawn`
+sets its own `arm` to a `PybulletArm` and the engine returns the `ArmRobot` itself; MuJoCo returns its own
+driven robot with `arm` set to a `MujocoArm`. `ArmEpisode` (sim/arm/episode.py) reads `driven.arm` and
+nothing else of the robot but `name`, `footprint` and `link_names`.
+
+Link keys are the engine's integers, named by `link_names`; the episode reads contacts through the
+engine's `robot_contacts()` as for mobile robots (a self contact, whose other body is the arm, is left out
+there: `self_contacts()` reports those). An arm may also offer `end_effector_velocity() -> (linear,
+angular)` (world frame); the run records zeros for an arm without it.
 """
 
 from __future__ import annotations
