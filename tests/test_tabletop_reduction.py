@@ -128,7 +128,8 @@ USER_ARM_TEST = textwrap.dedent(
             goal, gripper = goals[self.phase]
             waited = observation.time - self.since
             there = math.dist(observation.end_effector[:3], goal) < 0.01
-            if self.phase != "open" and (there and self.phase != "close" or waited > (1.0 if self.phase == "close" else 5.0)):
+            done = waited > 1.0 if self.phase == "close" else there or waited > 5.0
+            if done and self.phase != "open":
                 self.phase, self.since = list(goals)[list(goals).index(self.phase) + 1], observation.time
             return EndEffectorTarget(goal, 0.0, gripper)
 
