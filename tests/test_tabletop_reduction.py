@@ -22,6 +22,7 @@ from pytest_ddenv.oracle import PredicateSpec, classify
 from pytest_ddenv.reduce import Outcome, Reduction, reduce
 from pytest_ddenv.reduce.rates import rate_drops
 from pytest_ddenv.scenario.probe import keeps_start_support, make_probe, trace_of
+from pytest_ddenv.stages import scenario_models
 
 ROOT = Path(__file__).resolve().parent.parent
 NAMES = ("tall_box", "tight_grasp", "carry")
@@ -47,12 +48,13 @@ def scenario(bench: ModuleType, name: str) -> tuple[World, tuple[PredicateSpec, 
 
 
 def reduced(world: World, predicates: tuple[PredicateSpec, ...]) -> Reduction:
-    """The engine's reduction of `world` with the plugin's probe and precondition, in this process (seed 0)."""
+    """The engine's reduction of `world` with the plugin's probe, precondition and kept models (the arm's table
+    and target), in this process (seed 0)."""
     original = run_scenario(world, predicates, seed=0)
     probe = make_probe(world, ScenarioJob(predicates, seed=0).handler(), reference_of(original))
     return reduce(world.names, probe, geometry=world, reference=trace_of(original), partition="model2model",
                   priority="avg-trajectory-proximal", deflake="auto", preconditions=(keeps_start_support(world),),
-                  seed=0)
+                  keep=scenario_models(world), seed=0)
 
 
 def failures(world: World, predicates: tuple[PredicateSpec, ...], reference_run: object) -> tuple[int, int]:
