@@ -22,7 +22,7 @@ from pytest_ddenv.oracle import PredicateSpec, classify
 from pytest_ddenv.reduce import Outcome, Reduction, reduce
 from pytest_ddenv.reduce.rates import rate_drops
 from pytest_ddenv.scenario.probe import keeps_start_support, make_probe, trace_of
-from pytest_ddenv.stages import scenario_models
+from pytest_ddenv.stages import attributes, passing, scenario_models
 
 ROOT = Path(__file__).resolve().parent.parent
 NAMES = ("tall_box", "tight_grasp", "carry")
@@ -73,6 +73,18 @@ def test_each_world_fails_its_own_way_and_passes_without_its_cause(bench: Module
     assert run.failure is not None and run.failure.predicate == predicates[0].name
     assert set(run.failure.touched) <= {*cause, world.scenario.target, world.scenario.table}
     assert run_scenario(world.without(cause), predicates, seed=0).reached_goal
+
+
+def test_no_stage_removes_moves_or_freezes_an_arms_table_or_target(bench: ModuleType, tmp_path: Path) -> None:
+    world, _, cause = scenario(bench, "tall_box")
+    assert scenario_models(world) == ("table", "mug")
+    final = world.select(("table", "mug", *cause))
+    assert list(passing.differences(final, None)) == ["without cereal_box"]
+    changed = {(p.model, p.attribute) for p in attributes.proposals(final, None, tmp_path)}
+    assert {("cereal_box", "static"), ("cereal_box", "mass"), ("mug", "mass"), ("table", "friction")} <= changed
+    assert not {(m, a) for m, a in changed if m in ("table", "mug") and a in ("x", "y", "yaw", "static", "size#0")}
+    mobile = World.load(ROOT / "worlds" / "ditch.yaml")
+    assert scenario_models(mobile) == ()
 
 
 @pytest.mark.slow
@@ -184,3 +196,35 @@ def test_user_arm_controller_and_predicate_reduce_to_the_same_world_however_prob
         assert summary["one_minimal"] and summary["errors"] == 0, how
         minimal.append(summary["minimal_models"])
     assert all(models == ["table", "mug", "cereal_box"] for models in minimal), minimal
+
+
+TALL_BOX_TEST = textwrap.dedent(
+    """\
+    import pytest
+
+
+    @pytest.mark.ddenv(world="tabletop_tall_box.yaml", stages="all")
+    @pytest.mark.robot_failure("arm_collision")
+    def test_picks_the_mug(robot_world):
+        assert robot_world.run().reached_goal
+    """
+)
+
+
+@pytest.mark.slow
+def test_the_stages_run_on_an_arm_world_and_leave_its_table_and_target_alone(
+        user_arm_project: pytest.Pytester) -> None:
+    user_arm_project.makepyfile(test_arm=TALL_BOX_TEST)
+    result = user_arm_project.runpytest_subprocess("--ddenv-reduce", "--ddenv-media", "none", "--ddenv-workers", "1")
+    result.assert_outcomes(failed=1)
+    (summary_path,) = Path(user_arm_project.path, "ddenv-artifacts").glob("*/summary.json")
+    summary = json.loads(summary_path.read_text())
+    assert summary["minimal_models"] == ["table", "mug", "cereal_box"] and summary["errors"] == 0
+    assert summary["precondition_kept"] == [] and summary["without_precondition_kept"] is None
+    findings = {stage["stage"]: stage["findings"] for stage in summary["stages"]["results"]}
+    assert "an arm's base does not move along its path: no later start is tried" in findings["time"]
+    assert "without mug: not run: the scenario names it (an arm's table or target), it is no culprit" in \
+        findings["explain"]
+    assert any(line.startswith("without cereal_box: passes") for line in findings["explain"])
+    assert any(line.startswith("nearest passing world: without cereal_box") for line in findings["passing"])
+    assert not any(line.startswith(("mug:", "table: x", "table: y")) for line in findings["attributes"])

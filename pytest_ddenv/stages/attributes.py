@@ -186,7 +186,8 @@ def proposals(world: World, rungs: dict[str, int] | None, folder: Path) -> list[
     """The simplifications of this pass: every one (`rungs` None, the first pass), else those named in
     `rungs` one rung finer (attributes without a ladder are not tried again)."""
     found: list[Proposal] = []
-    fixed = {start_support(world), *scenario_models(world)}
+    named = scenario_models(world)
+    fixed = {start_support(world), *named}
     gaps = nearest_gaps(world)
     for model in world.models:
         if model.keep:
@@ -206,9 +207,10 @@ def proposals(world: World, rungs: dict[str, int] | None, folder: Path) -> list[
                 candidates.append(Proposal(f"{model.name}:restitution", model.name, "restitution",
                                            _number(model.restitution), "0",
                                            lambda m: dataclasses.replace(m, restitution=0.0)))
-            if model.dynamic and model.name not in fixed:  # an arm's target must stay movable
-                candidates.append(Proposal(f"{model.name}:static", model.name, "static", "dynamic", "static",
-                                           lambda m: dataclasses.replace(m, static=True)))
+            if model.dynamic:
+                if model.name not in named:  # an arm's target must stay movable
+                    candidates.append(Proposal(f"{model.name}:static", model.name, "static", "dynamic", "static",
+                                               lambda m: dataclasses.replace(m, static=True)))
                 if model.mass is not None and model.mass != 1.0:
                     candidates.append(Proposal(f"{model.name}:mass", model.name, "mass",
                                                f"{_number(model.mass)} kg", "1 kg (the default)",
