@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import shutil
 import sys
 import textwrap
 from collections.abc import Iterator
@@ -228,3 +229,23 @@ def test_the_stages_run_on_an_arm_world_and_leave_its_table_and_target_alone(
     assert any(line.startswith("without cereal_box: passes") for line in findings["explain"])
     assert any(line.startswith("nearest passing world: without cereal_box") for line in findings["passing"])
     assert not any(line.startswith(("mug:", "table: x", "table: y")) for line in findings["attributes"])
+
+
+@pytest.mark.slow
+def test_the_tabletop_examples_reduce_to_their_causes(pytester: pytest.Pytester) -> None:
+    """`pytest examples --ddenv-reduce` on examples/test_tabletop.py, as the README runs it."""
+    (pytester.path / "examples").mkdir()
+    (pytester.path / "examples" / "test_tabletop.py").write_bytes((ROOT / "examples" / "test_tabletop.py").read_bytes())
+    shutil.copytree(ROOT / "worlds", pytester.path / "worlds")
+    result = pytester.runpytest_subprocess("examples", "--ddenv-reduce", "--ddenv-media", "none")
+    result.assert_outcomes(failed=3)
+    minimal = {}
+    for path in Path(pytester.path, "ddenv-artifacts").glob("*/summary.json"):
+        summary = json.loads(path.read_text())
+        assert summary["one_minimal"] and summary["errors"] == 0, summary["test"]
+        minimal[summary["test"].rsplit("::", 1)[1]] = summary["minimal_models"]
+    assert minimal == {
+        "test_panda_picks_the_mug_behind_the_cereal_box": ["table", "mug", "cereal_box"],
+        "test_panda_grasps_the_block_beside_the_juice_box": ["table", "block", "juice_box"],
+        "test_panda_carries_the_bottle_over_the_divider": ["table", "bottle", "divider"],
+    }
