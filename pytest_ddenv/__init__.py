@@ -24,6 +24,7 @@ from pytest_ddenv.world.model import (
 )
 
 if TYPE_CHECKING:
+    from pytest_ddenv.oracle.arm_state import ArmState
     from pytest_ddenv.oracle.predicates import FailureSignature, Predicate, RobotState, predicate, register_predicate
     from pytest_ddenv.scenario.robot_world import RobotFailure, RobotWorld
     from pytest_ddenv.sim import (
@@ -39,8 +40,16 @@ if TYPE_CHECKING:
         WheeledRobot,
         register_robot,
     )
+    from pytest_ddenv.sim.arm.control import ArmObservation, EndEffectorTarget, GripperCommand, JointTargets
+    from pytest_ddenv.sim.arm.pick_place import PickAndPlace
 
 _LAZY = {
+    "ArmObservation": "pytest_ddenv.sim.arm.control",
+    "EndEffectorTarget": "pytest_ddenv.sim.arm.control",
+    "GripperCommand": "pytest_ddenv.sim.arm.control",
+    "JointTargets": "pytest_ddenv.sim.arm.control",
+    "PickAndPlace": "pytest_ddenv.sim.arm.pick_place",
+    "ArmState": "pytest_ddenv.oracle.arm_state",
     "Command": "pytest_ddenv.sim",
     "ControllerError": "pytest_ddenv.sim",
     "ControllerTimeout": "pytest_ddenv.sim",
@@ -70,17 +79,23 @@ def __getattr__(name: str) -> Any:
 
 __all__ = [
     "ArmDescription",
+    "ArmObservation",
+    "ArmState",
     "Command",
     "ControllerError",
     "ControllerTimeout",
     "DdenvError",
+    "EndEffectorTarget",
     "FailureSignature",
+    "GripperCommand",
     "Ground",
+    "JointTargets",
     "LaserMount",
     "LaserScan",
     "Model",
     "Observation",
     "Physics",
+    "PickAndPlace",
     "Pose",
     "Predicate",
     "ReductionError",

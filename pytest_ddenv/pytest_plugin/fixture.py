@@ -83,9 +83,18 @@ def load_test_world(request: pytest.FixtureRequest, spec: ReductionSpec,
     if not override:  # a reduced world (--ddenv-world minimal.yaml) may lack models the predicates name
         check_predicate_models(predicates, world.names, where)
     if world.scenario is not None:  # a robot that does not fit its URDF: an error at setup, not a failure
+        from pytest_ddenv.errors import ScenarioError
+        from pytest_ddenv.oracle.predicates import check_predicates_for_robot
+        from pytest_ddenv.sim.arm.robot import robot_kind
         from pytest_ddenv.sim.robot import check_robot
 
-        check_robot(world.scenario.robot, world.source)
+        robot = world.scenario.robot
+        check_robot(robot, world.source)
+        try:  # a mobile robot's predicate on an arm's world, or the other way round
+            check_predicates_for_robot(predicates, robot_kind(robot, world.source),
+                                       robot if isinstance(robot, str) else robot.label)
+        except ScenarioError as error:
+            raise ScenarioError(error.reason, source=where, field="robot_failure") from None
     return world
 
 

@@ -15,6 +15,7 @@ from pytest_ddenv.world.limits import solver_iterations_problem, timestep_proble
 from pytest_ddenv.world.model import (
     DRIVE_KINDS,
     ArmDescription,
+    Camera,
     LaserMount,
     Physics,
     Pose,
@@ -25,7 +26,7 @@ from pytest_ddenv.world.model import (
 
 WORLD_ELEMENTS = ("scenario", "physics")
 MODEL_ELEMENTS = ("keep", "tag")
-SCENARIO_ELEMENTS = ("start", "goal", "robot_description", "arm_description")
+SCENARIO_ELEMENTS = ("start", "goal", "robot_description", "arm_description", "camera")
 ATTRIBUTES = {
     "scenario": ("robot", "timeout", "goal_tolerance", "target", "table", "watch"),
     "start": ("x", "y", "z", "yaw"),
@@ -36,6 +37,7 @@ ATTRIBUTES = {
     "robot_description": ("urdf", "drive", "left_wheels", "right_wheels", "wheel_radius", "track", "track_factor",
                           "max_wheel_torque", "laser", "name"),
     "arm_description": ("urdf", "arm_joints", "finger_joints", "end_effector", "home", "mjcf", "name"),
+    "camera": ("position", "look_at", "width", "height", "kind", "fov"),
 }
 """The attributes of each `ddenv:` element (what `dump_sdf` writes); any other is a typo, refused."""
 REQUIRED = {
@@ -183,8 +185,8 @@ class DdenvElements:
             return None
         self.known_attributes(element, None, ScenarioError)
         self.known_children(element, SCENARIO_ELEMENTS, "ddenv:scenario", None, kind=ScenarioError)
-        start, goal, description, arm = (self.single(element, tag, "a scenario", None, kind=ScenarioError)
-                                         for tag in SCENARIO_ELEMENTS)
+        start, goal, description, arm, camera = (self.single(element, tag, "a scenario", None, kind=ScenarioError)
+                                                 for tag in SCENARIO_ELEMENTS)
         if description is not None and arm is not None:
             raise self.error("a scenario has one robot: ddenv:robot_description or ddenv:arm_description", arm,
                              field="ddenv:arm_description", kind=ScenarioError)
@@ -225,7 +227,33 @@ class DdenvElements:
             goal_tolerance=number(element, "goal_tolerance", default.goal_tolerance, positive=True),
             timeout=number(element, "timeout", default.timeout, positive=True),
             target=named["target"], table=named["table"], watch=watch,
+            camera=None if camera is None else self.camera(camera),
         )
+
+    def camera(self, element: ET.Element) -> Camera:
+        """<ddenv:camera position="X Y Z" look_at="X Y Z" width=".." height=".." kind="rgb|depth" fov=".."/>."""
+        self.known_attributes(element, None, ScenarioError)
+        points = []
+        for key in ("position", "look_at"):
+            try:
+                point = [float(v) for v in (element.get(key) or "").split()]
+            except ValueError:
+                point = []
+            if len(point) != 3 or not all(math.isfinite(v) for v in point):
+                raise self.error(f"expected 3 numbers, got {shown(element.get(key) or '')}", element,
+                                 field=f"ddenv:camera/@{key}", kind=ScenarioError)
+            points.append((point[0], point[1], point[2]))
+        size = {}
+        for key in ("width", "height"):
+            text = element.get(key, "64")
+            size[key] = int(text) if text.isdigit() else -1
+        camera = Camera(position=points[0], look_at=points[1], width=size["width"], height=size["height"],
+                        kind=element.get("kind", "rgb"),
+                        fov=self.attribute_number(element, "fov", 60.0, kind=ScenarioError))
+        problem = camera.problem()
+        if problem is not None:
+            raise self.error(problem[1], element, field=f"ddenv:camera/@{problem[0]}", kind=ScenarioError)
+        return camera
 
     def arm(self, element: ET.Element) -> ArmDescription:
         """<ddenv:arm_description>, written by `dump_sdf` for an arm given as a mapping."""

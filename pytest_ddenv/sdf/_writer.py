@@ -223,6 +223,10 @@ def _scenario(parent: ET.Element, scenario: Scenario, source: str | None,
         _robot_description(element, robot, source)
     elif isinstance(robot, ArmDescription):
         _arm_description(element, robot, source)
+    camera = scenario.camera
+    if camera is not None:
+        _sub(element, _ddenv("camera"), position=_numbers(camera.position), look_at=_numbers(camera.look_at),
+             width=str(camera.width), height=str(camera.height), kind=camera.kind, fov=_number(camera.fov))
     start = {"x": _number(scenario.start.x), "y": _number(scenario.start.y)}
     if scenario.start_z_given:
         start["z"] = _number(scenario.start.z)

@@ -38,7 +38,8 @@ __tracebackhide__ = hidden_in_tracebacks
 
 
 class Robot(abc.ABC):
-    """A mobile robot driven by (linear, angular) commands. One instance serves one run.
+    """A mobile robot driven by (linear, angular) commands. One instance serves one run. (An arm is a `Robot`
+    too, sim/arm/robot.py's `ArmRobot`: the engine that spawns it gives it an `arm` for an arm's commands.)
 
     Geometry attributes (metres, robot frame: x forward, y left): `footprint` (length, width), used to find
     the support under the start pose and drawn in pictures; `base_height`, how far above the support surface

@@ -180,6 +180,39 @@ class ArmDescription:
         return self.name or Path(self.urdf).stem
 
 
+CAMERA_KINDS = ("rgb", "depth")
+MAX_CAMERA_PIXELS = 1024
+"""The widest and tallest camera picture (pixels): it is drawn every control tick."""
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A camera an arm's controller sees through (`ArmObservation.image`, docs/writing-tests.md "Arms"): at
+    `position`, looking at `look_at` (world frame, m), `width` x `height` pixels, `kind` "rgb" ((H, W, 3)
+    uint8) or "depth" ((H, W) float32, m along the view axis), vertical field of view `fov` degrees."""
+
+    position: tuple[float, float, float]
+    look_at: tuple[float, float, float]
+    width: int = 64
+    height: int = 64
+    kind: str = "rgb"
+    fov: float = 60.0
+
+    def problem(self) -> tuple[str, str] | None:
+        """(field, what is wrong) of a camera that cannot be rendered, or None."""
+        if tuple(self.position) == tuple(self.look_at):
+            return "look_at", "the camera cannot look at its own position"
+        for key in ("width", "height"):
+            number = getattr(self, key)
+            if not (isinstance(number, int) and not isinstance(number, bool) and 1 <= number <= MAX_CAMERA_PIXELS):
+                return key, f"expected a whole number of pixels from 1 to {MAX_CAMERA_PIXELS}, got {number!r}"
+        if self.kind not in CAMERA_KINDS:
+            return "kind", f"expected one of {', '.join(CAMERA_KINDS)}, got {self.kind!r}"
+        if not 0 < self.fov < 180:
+            return "fov", f"expected a vertical field of view between 0 and 180 degrees, got {self.fov!r}"
+        return None
+
+
 @dataclass(frozen=True)
 class Scenario:
     """What the robot does in the world: start pose, goal, time limit (simulated seconds).
@@ -191,6 +224,7 @@ class Scenario:
     the table), `target` the model to pick, `goal` the centre of the place region and `goal_tolerance` its
     radius (m, planar), `table` the model the objects stand on, `watch` further models whose poses the
     controller observes and the predicates see. The reduction never removes the table or the target.
+    `camera`: a `Camera` whose picture the arm's controller sees each tick (None: none).
     """
 
     robot: str | RobotDescription | ArmDescription = "husky"
@@ -202,6 +236,7 @@ class Scenario:
     target: str | None = None
     table: str | None = None
     watch: tuple[str, ...] = ()
+    camera: Camera | None = None
 
 
 @dataclass(frozen=True)

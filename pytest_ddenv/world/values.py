@@ -28,6 +28,7 @@ from pytest_ddenv.world.meshes import check_heightmap_image, polyline_problem
 from pytest_ddenv.world.model import (
     ENGINES,
     SHAPE_KINDS,
+    ArmDescription,
     Ground,
     LaserMount,
     Model,
@@ -124,8 +125,10 @@ def _check_scenario(scenario: Scenario, source: str | None) -> None:
     robot = scenario.robot
     if isinstance(robot, RobotDescription):
         _check_robot(robot, fail)
+    elif isinstance(robot, ArmDescription):
+        _check_numbers(((f"robot.home[{index}]", value) for index, value in enumerate(robot.home or ())), fail)
     elif not isinstance(robot, str) or not robot:
-        raise fail("robot", expected("a registered robot's name or a RobotDescription", robot))
+        raise fail("robot", expected("a registered robot's name, a RobotDescription or an ArmDescription", robot))
     _check_pose(scenario.start, "start", fail, [f"start.{axis}" for axis in ("x", "y", "z", "roll", "pitch", "yaw")])
     goal = scenario.goal
     if not isinstance(goal, (tuple, list)) or len(goal) != 3:
@@ -133,6 +136,14 @@ def _check_scenario(scenario: Scenario, source: str | None) -> None:
     _check_numbers(zip(("goal.x", "goal.y", "goal.z"), goal if goal[2] is not None else goal[:2], strict=False), fail)
     _check_number(scenario.goal_tolerance, "goal_tolerance", fail, positive=True)
     _check_number(scenario.timeout, "timeout", fail, positive=True)
+    camera = scenario.camera
+    if camera is not None:
+        _check_numbers(((f"camera.{key}[{axis}]", value) for key in ("position", "look_at")
+                        for axis, value in enumerate(getattr(camera, key))), fail)
+        _check_number(camera.fov, "camera.fov", fail, positive=True)
+        problem = camera.problem()
+        if problem is not None:
+            raise fail(f"camera.{problem[0]}", problem[1])
 
 
 def _check_robot(robot: RobotDescription, fail: Fail) -> None:

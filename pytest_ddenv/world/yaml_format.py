@@ -38,6 +38,7 @@ from pytest_ddenv.world.limits import (
 from pytest_ddenv.world.meshes import check_mesh_file
 from pytest_ddenv.world.model import (
     SHAPE_KINDS,
+    Camera,
     Ground,
     Model,
     Physics,
@@ -55,7 +56,8 @@ MODEL_KEYS = (
     "name", "pose", "shapes", *SHAPE_KINDS, "static", "mass", "mu", "mu2", "restitution", "color", "keep", "tags",
 )
 SHAPE_KEYS = (*SHAPE_KINDS, "pose")
-SCENARIO_KEYS = ("robot", "start", "goal", "goal_tolerance", "timeout", "target", "table", "watch")
+SCENARIO_KEYS = ("robot", "start", "goal", "goal_tolerance", "timeout", "target", "table", "watch", "camera")
+CAMERA_KEYS = ("position", "look_at", "width", "height", "kind", "fov")
 WRITTEN_DEFAULT_ENGINE = "pybullet"
 """The engine a written world leaves unnamed (files without `physics.engine` have always meant pybullet; a
 file read where pybullet is not installed gets mujoco, `limits.default_engine`)."""
@@ -448,6 +450,7 @@ def _parse_scenario(reader: _Reader, value: Any, models: Mapping[str, int]) -> S
             target=_model_name(reader, data.get("target"), "scenario.target", models),
             table=_model_name(reader, data.get("table"), "scenario.table", models),
             watch=_watched(reader, data.get("watch"), models),
+            camera=_camera(reader, data["camera"]) if data.get("camera") is not None else None,
         )
     finally:
         reader.error_type = WorldError
@@ -470,6 +473,27 @@ def _watched(reader: _Reader, value: Any, models: Mapping[str, int]) -> tuple[st
         raise reader.wrong("scenario.watch", "a list of model names", value)
     names = tuple(_model_name(reader, item, f"scenario.watch[{i}]", models) or "" for i, item in enumerate(value))
     return tuple(dict.fromkeys(names))
+
+
+def _camera(reader: _Reader, value: Any) -> Camera:
+    data = reader.mapping(value, "scenario.camera", CAMERA_KEYS)
+    for key in ("position", "look_at"):
+        if key not in data:
+            raise reader.fail(f"scenario.camera.{key}", "missing; a camera needs a position and a point to look at")
+    position, look_at = (reader.numbers(data[key], f"scenario.camera.{key}", (3,)) for key in ("position", "look_at"))
+    camera = Camera(position=(position[0], position[1], position[2]), look_at=(look_at[0], look_at[1], look_at[2]),
+                    width=data.get("width", 64), height=data.get("height", 64), kind=data.get("kind", "rgb"),
+                    fov=reader.number(data.get("fov", 60.0), "scenario.camera.fov"))
+    problem = camera.problem()
+    if problem is not None:
+        raise reader.fail(f"scenario.camera.{problem[0]}", problem[1])
+    return camera
+
+
+def camera_dict(camera: Camera) -> dict[str, Any]:
+    """`scenario.camera` as written."""
+    return {"position": list(camera.position), "look_at": list(camera.look_at), "width": camera.width,
+            "height": camera.height, "kind": camera.kind, "fov": camera.fov}
 
 
 def _parse_physics(reader: _Reader, value: Any) -> Physics:
@@ -555,6 +579,7 @@ def _scenario_dict(scenario: Scenario, source: str | None, relative_to: Path | N
         **({"target": scenario.target} if scenario.target is not None else {}),
         **({"table": scenario.table} if scenario.table is not None else {}),
         **({"watch": watch} if watch else {}),
+        **({"camera": camera_dict(scenario.camera)} if scenario.camera is not None else {}),
     }
 
 

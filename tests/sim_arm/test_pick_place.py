@@ -81,6 +81,29 @@ def test_robot_world_runs_an_arm_world(smoke: World) -> None:
 
 
 def test_a_mobile_robot_predicate_is_refused_on_an_arm(smoke: World) -> None:
-    with pytest.raises(ScenarioError, match="'stuck' is for a wheeled robot") as caught:
+    refused = "predicate 'stuck' is for mobile robots; the world's robot 'panda' is an arm"
+    with pytest.raises(ScenarioError, match=refused) as caught:
         RobotWorld(smoke, predicates=["stuck"]).run()
     assert caught.value.field == "predicates"
+
+
+def test_an_arm_run_is_written_and_read_back(sim: Simulator, smoke: World) -> None:
+    import json
+
+    from pytest_ddenv.sim import Run
+
+    run = sim.run(smoke, seed=0)
+    again = Run.from_dict(json.loads(json.dumps(run.to_dict())))
+    assert again.robot_kind == "arm" and again.same_trajectory(run)
+    assert again.target_path is not None and np.array_equal(again.target_path, run.target_path)  # type: ignore[arg-type]
+    old = run.to_dict()
+    del old["robot_kind"], old["target_path"]  # a log written before arms
+    assert Run.from_dict(old).robot_kind == "mobile" and Run.from_dict(old).target_path is None
+
+
+@pytest.mark.parametrize("removed", ["cube", "table"])
+def test_a_world_without_its_target_or_table_is_refused(sim: Simulator, smoke: World, removed: str) -> None:
+    field = "scenario.target" if removed == "cube" else "scenario.table"
+    with pytest.raises(ScenarioError, match=f"'{removed}' is not a model of the world") as caught:
+        sim.run(smoke.without([removed]))
+    assert caught.value.field == field

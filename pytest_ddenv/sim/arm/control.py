@@ -33,8 +33,8 @@ class ArmObservation:
     - `time`: simulated seconds since the start.
     - `joint_positions`, `joint_velocities`: the arm joints' (with the seeded sensing noise), in `joint_names`
       order.
-    - `end_effector`: the tool's pose (x, y, z, roll, pitch, yaw), from forward kinematics of the measured
-      joints.
+    - `end_effector`: the tool's pose (x, y, z, roll, pitch, yaw): the forward kinematics of the joints'
+      true positions (the arm's own kinematics knows them better than the noisy readings say).
     - `gripper_opening`: the distance between the fingers (m); `gripper_force`: the summed normal force the
       fingers feel (N).
     - `contacts`: what the arm touches now (model names, links, normal forces; `finger` marks the fingers).

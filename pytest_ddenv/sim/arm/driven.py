@@ -11,7 +11,9 @@ nothing else of the robot but `name`, `footprint` and `link_names`.
 Link keys are the engine's integers, named by `link_names`; the episode reads contacts through the
 engine's `robot_contacts()` as for mobile robots (a self contact, whose other body is the arm, is left out
 there: `self_contacts()` reports those). An arm may also offer `end_effector_velocity() -> (linear,
-angular)` (world frame); the run records zeros for an arm without it.
+angular)` (world frame; the run records zeros for an arm without it) and `camera_image(camera, colors) -> image`
+(the scenario's `Camera`'s picture, as `ArmObservation.image` describes it, `colors` the models' RGBA by
+body key; without it a scenario with a camera is refused).
 """
 
 from __future__ import annotations

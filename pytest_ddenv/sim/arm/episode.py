@@ -17,9 +17,10 @@ import time
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from numpy.typing import NDArray
 
 from pytest_ddenv.detail import detail_requested
+from pytest_ddenv.errors import ScenarioError
 from pytest_ddenv.oracle.arm_state import GRIPPER_OPEN, ArmState, Pose6
 from pytest_ddenv.oracle.predicates import GROUND, Contact, FailureSignature, History, Predicate
 from pytest_ddenv.sim.arm.control import ArmCommand, ArmObservation, GripperCommand, JointTargets
@@ -45,12 +46,16 @@ PLACED_SPEED = 0.02
 
 def pose6(position: Sequence[float], quaternion: Sequence[float]) -> Pose6:
     """(x, y, z, roll, pitch, yaw) of a position and an (x, y, z, w) quaternion (pybullet's Euler convention)."""
+    from scipy.spatial.transform import Rotation  # here: importing scipy.spatial takes 0.2-0.5 s
+
     roll, pitch, yaw = Rotation.from_quat(list(quaternion)).as_euler("xyz")
     return (float(position[0]), float(position[1]), float(position[2]), float(roll), float(pitch), float(yaw))
 
 
 def pointing_down(yaw: float) -> tuple[float, float, float, float]:
     """The (x, y, z, w) quaternion of a tool pointing down, turned by `yaw` about the vertical."""
+    from scipy.spatial.transform import Rotation
+
     x, y, z, w = Rotation.from_euler("xyz", [math.pi, 0.0, yaw]).as_quat()
     return float(x), float(y), float(z), float(w)
 
@@ -79,6 +84,8 @@ class ArmEpisode:
         self._ticks = math.ceil(limit / self.tick_dt - 1e-9)
         self._record_every = max(1, round(settings.control_rate / settings.record_rate))
         self._body_of = {name: key for key, name in self.bodies.items()}
+        self._models = frozenset(world.names)
+        self._colors: dict[int, tuple[float, float, float, float]] | None = None
         named = [scenario.target, scenario.table, *scenario.watch]
         self.watched = tuple(dict.fromkeys(n for n in named if n is not None and n in self._body_of))
         self.table_top = float(world.bounds(scenario.table)[1][2]) if scenario.table in self._body_of else None
@@ -162,7 +169,8 @@ class ArmEpisode:
         self._observed = False
 
     def _placed(self, state: ArmState) -> bool:
-        """The target rests in the place region, released: the gripper told to open, no finger touching it."""
+        """The target rests in the place region, released: the gripper told to open, not held by both fingers,
+        moved from where it started, and still."""
         target = state.target
         if target is None or target not in state.objects or state.gripper_command != GRIPPER_OPEN:
             return False
@@ -170,7 +178,7 @@ class ArmEpisode:
         before, self._target_before = self._target_before, (position[0], position[1], position[2])
         if before is None or math.dist(before, position) > PLACED_SPEED * self.tick_dt:
             return False
-        if any(c.model == target and c.finger for c in state.contacts):
+        if state.target_held:
             return False
         moved = math.dist(position, state.start_objects[target][:3]) > state.place_tolerance / 2.0
         return moved and state.place_distance(target) <= state.place_tolerance
@@ -245,7 +253,24 @@ class ArmEpisode:
             joint_velocities=state.joint_velocities, end_effector=state.pose, gripper_opening=state.gripper_opening,
             gripper_force=sum(c.normal_force for c in state.contacts if c.finger), contacts=state.contacts,
             objects=objects, target=state.target, place=state.place, place_tolerance=state.place_tolerance,
+            image=self._image(),
         )
+
+    def _image(self) -> NDArray[np.generic] | None:
+        """The scenario's camera's picture now (None: no camera)."""
+        camera = self.scenario.camera
+        if camera is None:
+            return None
+        render = getattr(self.arm, "camera_image", None)
+        if render is None:
+            raise ScenarioError(f"the {self.physics.name} engine's arm has no camera; remove scenario.camera",
+                                source=self.world.source, field="scenario.camera")
+        if self._colors is None:
+            self._colors = {key: self.world.model(name).color for key, name in self.bodies.items()
+                            if name in self._models}
+        image: NDArray[np.generic] = render(camera, self._colors)
+        image.flags.writeable = False
+        return image
 
     def act(self, command: ArmCommand) -> None:
         """Apply `command`, step the physics to the next tick, sense."""

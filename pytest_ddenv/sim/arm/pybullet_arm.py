@@ -10,12 +10,18 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+from numpy.typing import NDArray
+
 from pytest_ddenv.oracle.arm_state import GRIPPER_OPEN
 from pytest_ddenv.sim.arm.driven import Quaternion, Vector
+from pytest_ddenv.world.model import Camera
 
 IK_ITERATIONS = 100
 IK_RESIDUAL = 1e-4
 """m: pybullet's IK stops iterating below this end-effector error."""
+CAMERA_NEAR, CAMERA_FAR = 0.01, 10.0
+"""m: the camera's clipping planes (depth beyond the far one reads as CAMERA_FAR)."""
 FINGER_FRICTION = 1.0
 """Lateral friction of the fingers' pads (pybullet's default 0.5 lets a held box slide out)."""
 
@@ -50,6 +56,7 @@ class PybulletArm:
         self._ee = end_effector
         self._parents = dict(parents)
         self._home = [float(v) for v in home]
+        self._painted = False
         self._movable = sorted([*self._arm, *self._fingers], key=lambda j: j.index)
         """Every joint pybullet's IK solves for (its degrees of freedom, in index order)."""
         for finger in self._fingers:
@@ -115,6 +122,30 @@ class PybulletArm:
         )
         by_index = {j.index: float(v) for j, v in zip(self._movable, solution, strict=True)}
         return [min(max(by_index[j.index], j.lower), j.upper) for j in self._arm]
+
+    def camera_image(self, camera: Camera, colors: Mapping[int, Sequence[float]]) -> NDArray[np.generic]:
+        """The picture of `camera` now, drawn by pybullet's TinyRenderer: (H, W, 3) uint8 RGB, or (H, W)
+        float32 depth (m along the view axis). `colors`: body key -> RGBA of the world's bodies, painted
+        before the first picture (their visual shapes only: nothing of the physics changes)."""
+        p = self._p
+        if not self._painted:
+            for body, rgba in colors.items():
+                for link in range(-1, p.getNumJoints(body, physicsClientId=self._client)):
+                    p.changeVisualShape(body, link, rgbaColor=list(rgba), physicsClientId=self._client)
+            self._painted = True
+        direction = np.subtract(camera.look_at, camera.position)
+        vertical = abs(direction[2]) > 0.99 * float(np.linalg.norm(direction))
+        view = p.computeViewMatrix(list(camera.position), list(camera.look_at), [1.0, 0.0, 0.0] if vertical
+                                   else [0.0, 0.0, 1.0], physicsClientId=self._client)
+        projection = p.computeProjectionMatrixFOV(camera.fov, camera.width / camera.height, CAMERA_NEAR, CAMERA_FAR,
+                                                  physicsClientId=self._client)
+        _, _, rgba, depth, _ = p.getCameraImage(camera.width, camera.height, view, projection,
+                                                renderer=p.ER_TINY_RENDERER, physicsClientId=self._client)
+        if camera.kind == "depth":
+            buffer = np.asarray(depth, dtype=np.float64).reshape(camera.height, camera.width)
+            metres = CAMERA_FAR * CAMERA_NEAR / (CAMERA_FAR - (CAMERA_FAR - CAMERA_NEAR) * buffer)
+            return metres.astype(np.float32)
+        return np.asarray(rgba, dtype=np.uint8).reshape(camera.height, camera.width, 4)[:, :, :3].copy()
 
     def self_contacts(self) -> list[tuple[int, int]]:
         pairs: set[tuple[int, int]] = set()

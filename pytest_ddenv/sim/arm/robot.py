@@ -94,6 +94,19 @@ class ArmRobot(Robot):
         self.urdf = str(resolve_relative(description.urdf, source))
         self.name = description.label
         joints, links = read_urdf(Path(self.urdf), source)
+        self.joints, self.fingers = self._joints(joints)
+        if description.end_effector not in links:
+            raise ScenarioError(f"the arm's URDF {self.urdf} has no link named {description.end_effector!r}",
+                                source=source, field=f"{FIELD}.end_effector")
+        self.home = self._home()
+        self.arm: DrivenArm | None = None
+        """The arm as the engine that spawned it drives it (set by `spawn`; MuJoCo's engine sets its own)."""
+        self._links: dict[int, str] = {}
+        self._mass = 0.0
+
+    def _joints(self, joints: Mapping[str, UrdfJoint]) -> tuple[list[UrdfJoint], list[UrdfJoint]]:
+        """The description's arm and finger joints, checked against the URDF's `joints`."""
+        description, source = self.description, self.source
         for key, names in (("arm_joints", description.arm_joints), ("finger_joints", description.finger_joints)):
             if not names:
                 raise ScenarioError("an arm needs at least one joint here", source=source, field=f"{FIELD}.{key}")
@@ -109,26 +122,21 @@ class ArmRobot(Robot):
         if both:
             raise ScenarioError(f"{', '.join(sorted(both))} is both an arm and a finger joint", source=source,
                                 field=f"{FIELD}.finger_joints")
-        if description.end_effector not in links:
-            raise ScenarioError(f"the arm's URDF {self.urdf} has no link named {description.end_effector!r}",
-                                source=source, field=f"{FIELD}.end_effector")
-        self.joints = [joints[name] for name in description.arm_joints]
-        self.fingers = [joints[name] for name in description.finger_joints]
-        home = description.home
+        return [joints[name] for name in description.arm_joints], [joints[name] for name in description.finger_joints]
+
+    def _home(self) -> tuple[float, ...]:
+        """The description's `home` (default: zeros clipped to the limits), checked against the limits."""
+        home = self.description.home
         if home is None:
             home = tuple(min(max(0.0, j.lower), j.upper) for j in self.joints)
         if len(home) != len(self.joints):
             raise ScenarioError(f"expected {len(self.joints)} positions (one per arm joint), got {len(home)}",
-                                source=source, field=f"{FIELD}.home")
+                                source=self.source, field=f"{FIELD}.home")
         for joint, position in zip(self.joints, home, strict=True):
             if not joint.lower - 1e-9 <= position <= joint.upper + 1e-9:
                 raise ScenarioError(f"{position:g} is outside joint {joint.name!r}'s limits [{joint.lower:g}, "
-                                    f"{joint.upper:g}]", source=source, field=f"{FIELD}.home")
-        self.home = tuple(float(v) for v in home)
-        self.arm: DrivenArm | None = None
-        """The arm as the engine that spawned it drives it (set by `spawn`; MuJoCo's engine sets its own)."""
-        self._links: dict[int, str] = {}
-        self._mass = 0.0
+                                    f"{joint.upper:g}]", source=self.source, field=f"{FIELD}.home")
+        return tuple(float(v) for v in home)
 
     def spawn(self, client: int, position: tuple[float, float, float], yaw: float) -> int:
         import pybullet as p
@@ -136,9 +144,13 @@ class ArmRobot(Robot):
         from pytest_ddenv.sim.arm.pybullet_arm import JointInfo, PybulletArm
 
         flags = p.URDF_USE_SELF_COLLISION | p.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
-        with silenced():
-            body = int(p.loadURDF(self.urdf, list(position), p.getQuaternionFromEuler([0.0, 0.0, yaw]),
-                                  useFixedBase=True, flags=flags, physicsClientId=client))
+        try:
+            with silenced():
+                body = int(p.loadURDF(self.urdf, list(position), p.getQuaternionFromEuler([0.0, 0.0, yaw]),
+                                      useFixedBase=True, flags=flags, physicsClientId=client))
+        except p.error as error:
+            raise ScenarioError(f"pybullet cannot load the arm's URDF {self.urdf}: {error}", source=self.source,
+                                field=f"{FIELD}.urdf") from None
         self._links = {-1: p.getBodyInfo(body, physicsClientId=client)[0].decode()}
         indices: dict[str, int] = {}
         parents: dict[int, int] = {}
