@@ -3,9 +3,9 @@
 `predicates` (the failure predicates the simulation checks every control tick, `FailureSignature`,
 `RobotState`, `PredicateSpec`, `register_predicate` and `@predicate`, which robots a predicate is for),
 `arm_state` and `arm_predicates` (what an arm's predicates see, and the arm's built-in predicates, registered
-here), `verdict` (`classify`, `same_failure`,
-`SameFailureRule` the user's choice of what "same" means, `why_other`). Both know nothing of the simulation:
-a run is anything with a `failure`. See docs/oracle.md.
+when this package loads), `verdict` (`classify`, `same_failure`, `SameFailureRule` the user's choice of what
+"same" means, `why_other`). They know nothing of the simulation: a run is anything with a `failure`. See
+docs/oracle.md.
 """
 
 from pytest_ddenv.oracle.arm_predicates import (

@@ -189,9 +189,15 @@ class FailureSignature:
     def explain(self) -> str:
         x, y, z = (round(v, 2) + 0.0 for v in self.position)  # + 0.0: never "-0.00"
         roll, pitch, yaw = (round(math.degrees(v)) for v in self.pose[3:6])  # whole degrees, never "-0"
-        touching = ", ".join(self.touched) if self.touched else "no model (only the ground, or nothing)"
+        factory = PREDICATES.get(self.predicate)
+        if factory is not None and getattr(factory, "robots", "any") == "arm":  # oracle/arm_predicates.py
+            where = "the end effector"
+            touching = (", ".join(self.touched) if self.touched else "no model") + " besides the target and the table"
+        else:
+            where = "the robot"
+            touching = ", ".join(self.touched) if self.touched else "no model (only the ground, or nothing)"
         text = (
-            f"The '{self.predicate}' predicate fired at t = {self.time:.2f} s with the robot at "
+            f"The '{self.predicate}' predicate fired at t = {self.time:.2f} s with {where} at "
             f"({x:.2f}, {y:.2f}, {z:.2f}) m, roll {roll} deg, pitch {pitch} deg, yaw {yaw} deg, "
             f"touching {touching}."
         )
@@ -523,9 +529,14 @@ class FunctionPredicate:
     function: Callable[[Any], Any]
     """Called with the `RobotState` (a mobile robot) or the `ArmState` (an arm)."""
     name: str = ""
+    robots: str = field(default="any", repr=False)
+    """The robots it is for: "mobile", "arm" or "any" (`check_predicates_for_robot`)."""
 
     def __post_init__(self) -> None:
         self.name = self.name or getattr(self.function, "__name__", "") or type(self.function).__name__
+        if self.robots not in ROBOT_KINDS:
+            raise ScenarioError(expected(f"one of {', '.join(ROBOT_KINDS)}", self.robots,
+                                         f"predicate {shown(self.name)}: robots"), field="predicate")
 
     def reset(self) -> None:
         pass
@@ -545,16 +556,18 @@ class FunctionPredicate:
                             field="predicate")
 
 
-def predicate(function: Callable[[RobotState], Any] | None = None, *, name: str = "") -> Any:
-    """Decorator: make a plain function of the `RobotState` a failure predicate (a `FunctionPredicate`).
+def predicate(function: Callable[[Any], Any] | None = None, *, name: str = "", robots: str = "any") -> Any:
+    """Decorator: make a plain function of the state (a `RobotState`, an arm's `ArmState`) a failure predicate
+    (a `FunctionPredicate`).
 
     Use it for functions given to the marker, `@pytest.mark.robot_failure(no_progress)`: pytest takes a bare
     function passed alone to a marker for the function to decorate, so the marker needs the predicate
-    object. `@predicate(name="trapped")` names the failure (default: the function's name).
+    object. `@predicate(name="trapped")` names the failure (default: the function's name);
+    `@predicate(robots="arm")` says it is for arms only (default: any robot).
     """
     if function is None:
-        return lambda given: FunctionPredicate(given, name)
-    return FunctionPredicate(function, name)
+        return lambda given: FunctionPredicate(given, name, robots)
+    return FunctionPredicate(function, name, robots)
 
 
 @dataclass(frozen=True)

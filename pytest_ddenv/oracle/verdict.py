@@ -10,7 +10,7 @@ What "same" means is the user's to choose (`SameFailureRule`): the default rule 
 touching one of the models the reference touched), the place only, the touched models only, or a module-level
 function `same_failure(reference, signature) -> bool` of their own, for the test or per predicate.
 `why_other` says which part of the rule a failure missed. An arm's failure is "at the same place"
-within `ARM_TOLERANCE` (0.1 m) unless the user chose a tolerance (`tolerance_for`). The verdict is always
+within `ARM_TOLERANCE` (0.15 m) unless the user chose a tolerance (`tolerance_for`). The verdict is always
 taken in the process that drives the reduction, never in a probe worker: a user's function is called there
 only.
 """
@@ -57,9 +57,11 @@ class SameFailureError(DdenvError):
     not import, or one that raised or returned something else than True or False."""
 
 
-ARM_TOLERANCE = 0.1
+ARM_TOLERANCE = 0.15
 """Metres of "the same place" for an arm's failure when the tolerance is the default (`defaults.TOLERANCE`,
-0.5 m, the length of a mobile robot, is half a table): see `tolerance_for`."""
+0.5 m, the length of a mobile robot, is half a table): see `tolerance_for`. The shipped tabletop scenarios'
+failures spread over at most 0.025 m (a grasp, a collision on the way down) and 0.11 m (the target lost
+while carried, the end effector moving) across 8-10 seeds."""
 
 
 def tolerance_for(predicate: str, tolerance: float) -> float:
