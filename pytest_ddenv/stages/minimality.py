@@ -32,10 +32,12 @@ def run(context: StageContext) -> StageResult:
     undecided: list[str] = []
     findings: list[str] = []
     for model in world.models:
-        if model.keep or model.name == support or model.name in named:
-            why = ("marked keep" if model.keep else "under the robot's start" if model.name == support
-                   else "named by the scenario")
-            findings.append(f"without {model.name}: not run ({why}: kept, as in the models stage)")
+        if model.name in named and not model.keep:
+            findings.append(f"without {model.name}: not run (the scenario names it: kept, as in the models stage)")
+            continue
+        if model.keep or model.name == support:
+            why = "marked keep" if model.keep else "under the robot's start"
+            findings.append(f"without {model.name}: not run ({why}: kept by a precondition, as in the models stage)")
             continue
         decided = context.decide(STAGE, f"without {model.name} (world {digest})", world.without([model.name]),
                                  stage_begin=begin)
