@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
 
 from pytest_ddenv import World
@@ -21,6 +22,8 @@ from pytest_ddenv.cli.replay import reference_of
 from pytest_ddenv.driver.scenario_job import ScenarioJob, run_scenario
 from pytest_ddenv.oracle import PredicateSpec, classify
 from pytest_ddenv.reduce import Outcome, Reduction, reduce
+from pytest_ddenv.reduce.context import Context
+from pytest_ddenv.reduce.priority import make_prioritizer
 from pytest_ddenv.reduce.rates import rate_drops
 from pytest_ddenv.scenario.probe import keeps_start_support, make_probe, trace_of
 from pytest_ddenv.stages import attributes, passing, scenario_models
@@ -86,6 +89,24 @@ def test_no_stage_removes_moves_or_freezes_an_arms_table_or_target(bench: Module
     assert not {(m, a) for m, a in changed if m in ("table", "mug") and a in ("x", "y", "yaw", "static", "size#0")}
     mobile = World.load(ROOT / "worlds" / "ditch.yaml")
     assert scenario_models(mobile) == ()
+
+
+def test_the_schemas_see_the_end_effectors_path_and_the_carried_target(bench: ModuleType) -> None:
+    world, predicates, cause = scenario(bench, "carry")
+    run = run_scenario(world, predicates, seed=0)
+    trace = trace_of(run)
+    assert run.failure is not None and trace.carried is not None
+    assert np.array_equal(trace.positions, run.positions) and trace.carried.shape == trace.positions.shape
+    assert np.array_equal(trace.failure_position, np.asarray(run.failure.pose[:3]))  # the end effector's
+    context = Context(elements=world.names, geometry=world, trace=trace)
+    points = context.trace_points()
+    assert points is not None and len(points[0]) == 2 * len(trace)
+    distances = context.trace_distances(list(cause))
+    assert distances is not None  # the bottle hangs below the fingers: it comes closer to the divider
+    assert distances[len(trace):].min() < distances[: len(trace)].min()
+    objects = [(name,) for name in world.names if name not in scenario_models(world)]
+    for priority in ("min-trajectory-proximal", "failure-proximal"):
+        assert make_prioritizer(priority)(objects, context, 0)[0] == cause, priority
 
 
 @pytest.mark.slow
