@@ -26,6 +26,7 @@ from pytest_ddenv.reduce.context import Context
 from pytest_ddenv.reduce.priority import make_prioritizer
 from pytest_ddenv.reduce.rates import rate_drops
 from pytest_ddenv.scenario.probe import keeps_start_support, make_probe, trace_of
+from pytest_ddenv.sim import Run
 from pytest_ddenv.stages import attributes, passing, scenario_models
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -61,9 +62,9 @@ def reduced(world: World, predicates: tuple[PredicateSpec, ...]) -> Reduction:
                   keep=scenario_models(world), seed=0)
 
 
-def failures(world: World, predicates: tuple[PredicateSpec, ...], reference_run: object) -> tuple[int, int]:
+def failures(world: World, predicates: tuple[PredicateSpec, ...], reference_run: Run) -> tuple[int, int]:
     """(runs that fail the same way as `reference_run`, runs) over the fresh noise seeds."""
-    reference = reference_of(reference_run)  # type: ignore[arg-type]
+    reference = reference_of(reference_run)
     outcomes = [classify(run_scenario(world, predicates, seed=seed), reference.signature) for seed in FRESH_SEEDS]
     return sum(outcome is Outcome.FAIL for outcome in outcomes), len(outcomes)
 
