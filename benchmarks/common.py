@@ -51,6 +51,7 @@ from pytest_ddenv.oracle import PredicateSpec
 from pytest_ddenv.reduce import Outcome, ProbeObservation, Reduction, reduce
 from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedReruns
 from pytest_ddenv.scenario.probe import FailureReference, ProbeResult, keeps_start_support, make_probe, trace_of
+from pytest_ddenv.stages import scenario_models
 from pytest_ddenv.world import World
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -237,7 +238,8 @@ class NotFailing(RuntimeError):
 def make_problem(world: World, predicates: Sequence[PredicateSpec], seed: int, pools: Pools) -> Problem:
     """Run the original world once with noise seed `seed` (the failing run a user would have seen), on the
     pool of `pools` for (predicates, seed), which is warmed on `world` first."""
-    keep = tuple(m.name for m in world.models if m.keep)
+    named = scenario_models(world)  # an arm's table and target: kept, as the driver keeps them
+    keep = tuple(m.name for m in world.models if m.keep or m.name in named)
     problem = Problem(world=world, predicates=tuple(predicates), seed=seed, pools=pools,
                       reference=FailureReference("", ""), reference_trace=None, failure="", keep=keep,
                       reducible=tuple(n for n in world.names if n not in keep))

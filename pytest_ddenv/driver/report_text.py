@@ -144,9 +144,12 @@ def failure_rate_line(reduction: Reduction) -> str:
 
 
 def needed_lines(reduction: Reduction) -> list[str]:
-    """"needed for the failure" apart from "kept by a precondition" (and the check without the latter)."""
+    """"needed for the failure" apart from "kept by a precondition" (and the check without the latter), or from
+    the models kept out of the candidates (`keep`, an arm's table and target)."""
     if not reduction.precondition_kept:
-        return []
+        named = ", ".join(name for name in reduction.kept if name in reduction.minimal)
+        needed = ", ".join(reduction.needed) or "(no models)"
+        return [f"needed for the failure: {needed}; kept, not candidates: {named}"] if named else []
     kept = ", ".join(f"{name} ({reason})" for name, reason in reduction.precondition_kept)
     lines = [f"needed for the failure: {', '.join(reduction.needed) or '(no models)'}",
              f"kept by a precondition, not shown needed: {kept}"]

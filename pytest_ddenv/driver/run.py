@@ -64,6 +64,7 @@ from pytest_ddenv.stages import (
     StageContext,
     StagesOutcome,
     run_stages,
+    scenario_models,
     stage_budget,
     stage_policy,
 )
@@ -318,7 +319,8 @@ class _Locked:
         """The engine's reduction of the models (the best so far when interrupted)."""
         plan, calls, pool = self.plan, self.calls, self.pool
         spec, world = plan.spec, plan.world
-        keep = (set(spec.keep) & set(world.names)) | {m.name for m in world.models if m.keep}
+        keep = (set(spec.keep) & set(world.names)) | {m.name for m in world.models if m.keep} | set(
+            scenario_models(world))  # an arm's table and target: not candidates, the scenario needs them
         probe = calls.cancellable(make_probe(world, calls, plan.reference, rule=plan.rule))
         left = spec.max_probes if spec.max_probes is None else max(0, spec.max_probes - calls.started)
         seconds = None if calls.deadline is None else max(0.0, calls.deadline - time.monotonic())

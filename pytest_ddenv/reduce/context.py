@@ -73,7 +73,8 @@ class Context:
         return self._centroids[[self._index[name] for name in names]]
 
     def trace_points(self) -> tuple[FloatArray, FloatArray] | None:
-        """(points (N, 3), times (N,)) of the current trace, subsampled, or None if there are none."""
+        """(points (N, 3), times (N,)) of the current trace, subsampled (the carried path's points after the
+        robot's, with the same times), or None if there are none."""
         self._refresh_trace_cache()
         if self._points is None or self._point_times is None:
             return None
@@ -135,3 +136,6 @@ class Context:
             chosen = np.arange(count)
         self._points = self.trace.positions[chosen]
         self._point_times = self.trace.times[chosen]
+        if self.trace.carried is not None:  # what the robot carries passes by objects too
+            self._points = np.concatenate([self._points, self.trace.carried[chosen]])
+            self._point_times = np.concatenate([self._point_times, self._point_times])

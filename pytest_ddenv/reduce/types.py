@@ -38,6 +38,9 @@ class Trace:
     """Element name -> first time the robot's laser sensed it (absent = never sensed)."""
     touched: frozenset[str] = frozenset()
     """Elements the robot touched."""
+    carried: FloatArray | None = None
+    """(T, 3) the path of what the robot carries at the same times (an arm's target), or None: its points are
+    trace points too for the distances of the schemas."""
 
     def __post_init__(self) -> None:
         times = np.asarray(self.times, dtype=np.float64).reshape(-1)
@@ -61,13 +64,20 @@ class Trace:
                 raise ReductionError(
                     f"Trace.failure_position must be None or have shape (3,), got {failure_position.shape}"
                 )
-        for name, value in (("times", times), ("positions", positions), ("yaw_rates", yaw_rates)):
-            if not np.all(np.isfinite(value)):
+        carried = None if self.carried is None else np.asarray(self.carried, dtype=np.float64)
+        if carried is not None and carried.shape != (count, 3):
+            raise ReductionError(
+                f"Trace.carried must be None or have shape (T, 3) = ({count}, 3) to match Trace.times, got "
+                f"{carried.shape}")
+        for name, value in (("times", times), ("positions", positions), ("yaw_rates", yaw_rates),
+                            ("carried", carried)):
+            if value is not None and not np.all(np.isfinite(value)):
                 raise ReductionError(f"Trace.{name} contains NaN or infinite values")
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "positions", positions)
         object.__setattr__(self, "yaw_rates", yaw_rates)
         object.__setattr__(self, "failure_position", failure_position)
+        object.__setattr__(self, "carried", carried)
         object.__setattr__(self, "first_sensed", {str(k): float(v) for k, v in dict(self.first_sensed).items()})
         object.__setattr__(self, "touched", frozenset(self.touched))
 

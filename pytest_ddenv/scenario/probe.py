@@ -136,6 +136,7 @@ def trace_of(run: Run) -> Trace:
         failure_position=failure_position,
         first_sensed=dict(run.first_sensed),
         touched=touched,
+        carried=run.target_path if run.target_path is not None and len(run.target_path) == len(run.times) else None,
     )
 
 

@@ -22,7 +22,7 @@ from pytest_ddenv.reduce.deflake import CalibratedReruns, DeflakePolicy, FixedRe
 from pytest_ddenv.reduce.rates import rate_drops
 from pytest_ddenv.scenario.probe import start_support
 from pytest_ddenv.stages import attributes, explain, minimality, passing, runs_kept, shapes, shorten, structure
-from pytest_ddenv.stages.context import FRESH_ATTEMPTS, StageContext
+from pytest_ddenv.stages.context import FRESH_ATTEMPTS, StageContext, scenario_models
 from pytest_ddenv.stages.result import StageResult
 
 if TYPE_CHECKING:
@@ -119,8 +119,8 @@ def run_stages(stages: Sequence[str], context: StageContext, models: Reduction, 
     begin = budget.started()
     simulating = [stage for stage in SIMULATING if stage in stages]
     passing_reserve = PASSING_RESERVE if "passing" in stages else 0
-    support = start_support(context.base)  # the check removes every model but this one and the `keep` ones
-    check_reserve = min(10, CHECK_RESERVE * sum(not m.keep and m.name != support for m in context.base.models))
+    fixed = {start_support(context.base), *scenario_models(context.base)}  # the check removes every other model
+    check_reserve = min(10, CHECK_RESERVE * sum(not m.keep and m.name not in fixed for m in context.base.models))
     budget.reserve = (FINAL_RATE_RUNS + check_reserve if simulating else 0) + passing_reserve
     world = _simplify(context, simulating, models, outcome, minimal_run, folder)
     budget.share = None
@@ -263,4 +263,4 @@ Budget = StageBudget
 """The old name of `StageBudget`, kept for one release."""
 
 __all__ = ["DEFAULT_STAGES", "STAGES", "Budget", "StageBudget", "StageContext", "StageResult", "StagesError",
-           "StagesOutcome", "parse_stages", "run_stages", "stage_budget", "stage_policy"]
+           "StagesOutcome", "parse_stages", "run_stages", "scenario_models", "stage_budget", "stage_policy"]

@@ -29,7 +29,7 @@ import numpy as np
 
 from pytest_ddenv.reduce.types import Candidate
 from pytest_ddenv.scenario.probe import start_support
-from pytest_ddenv.stages.context import RATE_RUNS, StageContext
+from pytest_ddenv.stages.context import RATE_RUNS, StageContext, scenario_models
 from pytest_ddenv.stages.result import StageResult
 from pytest_ddenv.stages.structure import keeps_structure, nearest_gaps
 from pytest_ddenv.world.files import resolve_mesh_path
@@ -186,7 +186,8 @@ def proposals(world: World, rungs: dict[str, int] | None, folder: Path) -> list[
     """The simplifications of this pass: every one (`rungs` None, the first pass), else those named in
     `rungs` one rung finer (attributes without a ladder are not tried again)."""
     found: list[Proposal] = []
-    support = start_support(world)
+    named = scenario_models(world)
+    fixed = {start_support(world), *named}
     gaps = nearest_gaps(world)
     for model in world.models:
         if model.keep:
@@ -207,13 +208,14 @@ def proposals(world: World, rungs: dict[str, int] | None, folder: Path) -> list[
                                            _number(model.restitution), "0",
                                            lambda m: dataclasses.replace(m, restitution=0.0)))
             if model.dynamic:
-                candidates.append(Proposal(f"{model.name}:static", model.name, "static", "dynamic", "static",
-                                           lambda m: dataclasses.replace(m, static=True)))
+                if model.name not in named:  # an arm's target must stay movable
+                    candidates.append(Proposal(f"{model.name}:static", model.name, "static", "dynamic", "static",
+                                               lambda m: dataclasses.replace(m, static=True)))
                 if model.mass is not None and model.mass != 1.0:
                     candidates.append(Proposal(f"{model.name}:mass", model.name, "mass",
                                                f"{_number(model.mass)} kg", "1 kg (the default)",
                                                lambda m: dataclasses.replace(m, mass=1.0)))
-        moves_start = model.name == support  # never move what the robot starts on
+        moves_start = model.name in fixed  # never move what the robot starts on, nor an arm's table or target
         for key in ("x", "y") if not moves_start else ():
             rung = _rung(rungs, model.name, key)
             if rung is not None:

@@ -37,6 +37,15 @@ PASSES_RULE = ConfirmedRuns(max_runs=3, confirm=3)
 """A world "passes" when 3 of 3 runs pass (a passing world is shown by every run, not by luck)."""
 
 
+def scenario_models(world: World) -> tuple[str, ...]:
+    """The models the scenario itself names, in world order: an arm's table and target. No stage removes,
+    moves or resizes them (the scenario would change), and the models stage keeps them out of its partitions
+    (they are not candidates, as a `keep` model); a mobile robot's scenario names none."""
+    scenario = world.scenario
+    named = set() if scenario is None else {scenario.table, scenario.target}
+    return tuple(name for name in world.names if name in named)
+
+
 @dataclass
 class StageContext:
     """`base`: the world the stages start from (the model-level minimal world); `call` runs the test on a

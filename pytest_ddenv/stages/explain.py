@@ -15,7 +15,7 @@ from typing import Any
 
 from pytest_ddenv.outcome import Outcome
 from pytest_ddenv.reduce import ProbeLog, Reduction, events
-from pytest_ddenv.stages.context import StageContext
+from pytest_ddenv.stages.context import StageContext, scenario_models
 from pytest_ddenv.stages.result import StageResult
 
 STAGE = "explain"
@@ -77,6 +77,7 @@ def run(context: StageContext, models: Reduction, shapes: StageResult | None, *,
     """`context.base` is the final world; `models` the model-level reduction (its log is `context.log`)."""
     final = context.base
     begin = context.budget.started()
+    named = scenario_models(final)
     explained: list[dict[str, Any]] = []
     elements: list[tuple[str, str, Any]] = [("model", name, None) for name in models.minimal if name in final]
     if shapes is not None and shapes.reduction is not None:
@@ -88,7 +89,7 @@ def run(context: StageContext, models: Reduction, shapes: StageResult | None, *,
         else:
             counts = logged_without(context.log.view("shapes"), stage.reduction.minimal, element)
             source = "log: the shapes stage's world without it"
-        kept_by = dict(models.precondition_kept)
+        kept_by = dict(models.precondition_kept) | dict.fromkeys(named, "named by the scenario")
         if counts is None and simulate and kind == "model" and not final.model(element).keep \
                 and element not in kept_by:
             decided = context.decide(STAGE, f"without {element}", final.without([element]), stage_begin=begin)
@@ -100,6 +101,8 @@ def run(context: StageContext, models: Reduction, shapes: StageResult | None, *,
         if counts is not None:
             entry.update(counts)
             entry["without"] = describe(counts)
+        elif kind == "model" and element in named:
+            entry["without"] = "not run: the scenario names it (an arm's table or target), it is no culprit"
         elif kind == "model":
             entry["without"] = _why_not_run(models, element)
         else:

@@ -12,7 +12,7 @@ import hashlib
 from typing import Any
 
 from pytest_ddenv.scenario.probe import start_support
-from pytest_ddenv.stages.context import StageContext
+from pytest_ddenv.stages.context import StageContext, scenario_models
 from pytest_ddenv.stages.result import StageResult
 
 STAGE = "one-minimal"
@@ -21,16 +21,20 @@ STAGE = "one-minimal"
 
 def run(context: StageContext) -> StageResult:
     """Decide "`context.base` without each of its models" (not the models marked `keep`, nor the one under
-    the robot's start: the models stage keeps them by a precondition)."""
+    the robot's start, nor an arm's table and target: the models stage keeps them too)."""
     world = context.base
     begin = context.budget.started()
     support = start_support(world)
+    named = scenario_models(world)
     digest = hashlib.sha1(world.to_yaml().encode()).hexdigest()[:10]  # a resumed log answers for this world only
     needed: list[str] = []
     still_fails: list[str] = []
     undecided: list[str] = []
     findings: list[str] = []
     for model in world.models:
+        if model.name in named and not model.keep:
+            findings.append(f"without {model.name}: not run (the scenario names it: kept, as in the models stage)")
+            continue
         if model.keep or model.name == support:
             why = "marked keep" if model.keep else "under the robot's start"
             findings.append(f"without {model.name}: not run ({why}: kept by a precondition, as in the models stage)")

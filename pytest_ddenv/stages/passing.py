@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.reduce.types import Candidate
 from pytest_ddenv.scenario.probe import start_support
-from pytest_ddenv.stages.context import Decided, StageContext
+from pytest_ddenv.stages.context import Decided, StageContext, scenario_models
 from pytest_ddenv.stages.result import StageResult
 from pytest_ddenv.world.model import World
 
@@ -32,14 +32,14 @@ MAX_SINGLES = 3
 def differences(final: World, attributes: StageResult | None) -> dict[str, Callable[[World], World]]:
     """description -> change of `final`, in the order tried: simplifications, shapes, models."""
     found: dict[str, Callable[[World], World]] = dict(attributes.differences) if attributes is not None else {}
-    support = start_support(final)  # removing what the robot starts on changes the scenario, not the world
+    fixed = {start_support(final), *scenario_models(final)}  # removing them changes the scenario, not the world
     for model in final.models:
         if model.keep or len(model.shapes) < 2:
             continue
         for index, shape in enumerate(model.shapes):
             found[f"without shape #{index} ({shape.kind}) of {model.name}"] = _without_shape(model.name, index)
     for model in final.models:
-        if not model.keep and model.name != support:
+        if not model.keep and model.name not in fixed:
             found[f"without {model.name}"] = _without_model(model.name)
     return found
 

@@ -1,5 +1,6 @@
 """Stage `time`: shorten the scenario. The latest start pose along the failing trajectory that still gives
-the same failure (binary search over points of the path, at most `MAX_POINTS`), then the shortest time limit
+the same failure (binary search over points of the path, at most `MAX_POINTS`; not for an arm, whose base is
+fixed and whose path is the end effector's), then the shortest time limit
 (the failure's time from the new start plus a margin), each decided by the deflake rule. A start is rounded
 to the finest rung of the attributes stage's ladder (0.1 m, 5 degrees). The path is that of a failing run of
 the world the stage starts from: the one it is given, else one run here (logged, counted) when the log does
@@ -16,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pytest_ddenv.reduce import events
+from pytest_ddenv.sim.arm.robot import robot_kind
 from pytest_ddenv.stages import runs_kept
 from pytest_ddenv.stages.attributes import ANGLES, LENGTHS
 from pytest_ddenv.stages.context import StageContext
@@ -115,7 +117,8 @@ def run(context: StageContext) -> StageResult:
         return StageResult(STAGE, world, simulations=context.budget.started() - begin,
                            findings=[f"not shortened: {why}"])
     points, failure_time = path
-    search = _latest_start(context, world, points, begin)
+    arm = robot_kind(world.scenario.robot, world.source) == "arm"  # its path is the end effector's, not the base's
+    search = _Search() if arm else _latest_start(context, world, points, begin)
     good = search.good
     distance, start_time = points[good].distance, points[good].time
     shortened = world if good == 0 else moved(world, points[good])
@@ -124,6 +127,8 @@ def run(context: StageContext) -> StageResult:
         findings.append(f"starting {distance:.2f} m before the failure point (t = {start_time:.1f} s of the "
                         f"original run, {points[0].distance - distance:.2f} m along its path) still gives the same "
                         "failure")
+    elif arm:
+        findings.append("an arm's base does not move along its path: no later start is tried")
     else:
         findings.append("the robot needs its original start: no later start along the path gave the same failure")
     findings += search.errors
