@@ -24,6 +24,8 @@ from typing import Protocol
 Vector = tuple[float, float, float]
 Quaternion = tuple[float, float, float, float]
 """(x, y, z, w)."""
+CAMERA_NEAR, CAMERA_FAR = 0.01, 10.0
+"""m: a declared camera's clipping planes in every engine (depth beyond the far one reads as CAMERA_FAR)."""
 
 
 class DrivenArm(Protocol):

@@ -14,14 +14,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_ddenv.oracle.arm_state import GRIPPER_OPEN
-from pytest_ddenv.sim.arm.driven import Quaternion, Vector
+from pytest_ddenv.sim.arm.driven import CAMERA_FAR, CAMERA_NEAR, Quaternion, Vector
 from pytest_ddenv.world.model import Camera
 
 IK_ITERATIONS = 100
 IK_RESIDUAL = 1e-4
 """m: pybullet's IK stops iterating below this end-effector error."""
-CAMERA_NEAR, CAMERA_FAR = 0.01, 10.0
-"""m: the camera's clipping planes (depth beyond the far one reads as CAMERA_FAR)."""
 FINGER_FRICTION = 1.0
 """Lateral friction of the fingers' pads (pybullet's default 0.5 lets a held box slide out)."""
 

@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from pytest_ddenv.sim.arm.pybullet_arm import CAMERA_FAR
+from pytest_ddenv.sim.arm.driven import CAMERA_FAR
 from pytest_ddenv.world.model import Camera
 
 AMBIENT = 0.4
