@@ -5,7 +5,8 @@ Phases (`PickAndPlace.phase`, in order): "approach" (above the target at its yaw
 "release" (open), "retreat" (straight up), "done". A move's end-effector target travels in a straight line
 at `speed`; the phase ends when the end effector is within `tolerance` of the move's end, or after
 `move_time` seconds (the arm was blocked: the next phase starts anyway, as a scripted controller does).
-The gripper phases last `grip_time` seconds.
+The gripper phases last `grip_time` seconds. Until the gripper closes, the controller aims at the mean of
+every observation of the target so far (each is noisy, as a perception system's), not at the first alone.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ class PickAndPlace:
     _goal: Point = field(default=(0.0, 0.0, 0.0), init=False)
     _yaw: float = field(default=0.0, init=False)
     _pick: Point = field(default=(0.0, 0.0, 0.0), init=False)
+    _seen: list[tuple[float, float]] = field(default_factory=list, init=False)
     _ready: bool = field(default=False, init=False)
 
     def reset(self, observation: ArmObservation) -> None:
@@ -48,16 +50,29 @@ class PickAndPlace:
         here = observation.end_effector[:3]
         self._pick = (target[0], target[1], target[2]) if target is not None else (here[0], here[1], here[2])
         self._yaw = _grasp_yaw(target[5] if target is not None else 0.0)
+        self._seen = []
         self._ready = True
         self._enter("approach", observation)
 
     def __call__(self, observation: ArmObservation) -> ArmCommand:
         if not self._ready:
             self.reset(observation)
+        self._aim(observation)
         while True:
             command = self._command(observation)
             if command is not None:
                 return command
+
+    def _aim(self, observation: ArmObservation) -> None:
+        """Before the gripper closes: aim at the mean of the target's observed positions so far."""
+        target = observation.target_pose
+        if target is None or self.phase not in ("approach", "descend"):
+            return
+        self._seen.append((target[0], target[1]))
+        count = len(self._seen)
+        x, y = sum(p[0] for p in self._seen) / count, sum(p[1] for p in self._seen) / count
+        self._pick = (x, y, self._pick[2])
+        self._goal = (x, y, self._goal[2])
 
     # -- phases ---------------------------------------------------------------------------------------
     def _command(self, observation: ArmObservation) -> ArmCommand | None:
