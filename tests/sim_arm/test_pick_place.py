@@ -10,7 +10,8 @@ import pytest
 
 from pytest_ddenv import World
 from pytest_ddenv.errors import ScenarioError
-from pytest_ddenv.oracle.arm_state import GRIPPER_CLOSE, GRIPPER_OPEN
+from pytest_ddenv.oracle.arm_predicates import KnockedOver
+from pytest_ddenv.oracle.arm_state import GRIPPER_CLOSE, GRIPPER_OPEN, ArmState
 from pytest_ddenv.scenario.robot_world import RobotWorld
 from pytest_ddenv.sim import Simulator
 from pytest_ddenv.sim.arm.control import ArmObservation, EndEffectorTarget, GripperCommand
@@ -107,3 +108,30 @@ def test_a_world_without_its_target_or_table_is_refused(sim: Simulator, smoke: W
     with pytest.raises(ScenarioError, match=f"'{removed}' is not a model of the world") as caught:
         sim.run(smoke.without([removed]))
     assert caught.value.field == field
+
+
+class _SeenObjects:
+    """A predicate of the test's own: records which objects' poses the arm's state holds."""
+
+    name = "seen_objects"
+    robots = "arm"
+
+    def __init__(self) -> None:
+        self.seen: set[str] = set()
+
+    def reset(self) -> None:
+        self.seen = set()
+
+    def check(self, state: ArmState) -> None:
+        self.seen |= set(state.objects)
+
+
+@pytest.mark.parametrize("named", [True, False])
+def test_knocked_over_sees_the_models_it_names_even_unwatched(sim: Simulator, smoke: World, named: bool) -> None:
+    """`knocked_over(models=["block"])` on a model the scenario does not watch: the state holds its pose (a
+    named model it could not see would never fire)."""
+    spy = _SeenObjects()
+    predicates = [KnockedOver(models=("block",)), spy] if named else [spy]
+    sim.run(smoke, seed=0, predicates=predicates, timeout=0.5)
+    assert ("block" in spy.seen) is named
+    assert {"cube", "table", "mug"} <= spy.seen

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from pytest_ddenv.detail import detail_requested
 from pytest_ddenv.errors import ScenarioError
+from pytest_ddenv.oracle.arm_predicates import KnockedOver
 from pytest_ddenv.oracle.arm_state import GRIPPER_OPEN, ArmState, Pose6
 from pytest_ddenv.oracle.predicates import GROUND, Contact, FailureSignature, History, Predicate
 from pytest_ddenv.sim.arm.control import ArmCommand, ArmObservation, GripperCommand, JointTargets
@@ -86,7 +87,8 @@ class ArmEpisode:
         self._body_of = {name: key for key, name in self.bodies.items()}
         self._models = frozenset(world.names)
         self._colors: dict[int, tuple[float, float, float, float]] | None = None
-        named = [scenario.target, scenario.table, *scenario.watch]
+        knocked = [name for p in self.predicates if isinstance(p, KnockedOver) and p.models for name in p.models]
+        named = [scenario.target, scenario.table, *scenario.watch, *knocked]  # what knocked_over(models=) names too
         self.watched = tuple(dict.fromkeys(n for n in named if n is not None and n in self._body_of))
         self.table_top = float(world.bounds(scenario.table)[1][2]) if scenario.table in self._body_of else None
         self._finger_links = tuple(sorted(arm.finger_links))
