@@ -270,6 +270,7 @@ def run(context: StageContext, folder: Path) -> StageResult:
     incomplete: str | None = None
     rungs: dict[str, int] | None = None
     width = None if context.run is None else float(context.run.footprint[1])  # the robot's, for its gaps
+    robot = "the arm's hand" if context.run is not None and context.run.robot_kind == "arm" else "the robot"
     for number in range(PASSES):
         offered = proposals(world, rungs, folder)
         if not offered:
@@ -281,7 +282,8 @@ def run(context: StageContext, folder: Path) -> StageResult:
             return simplified(base, [proposal for proposal in offered if proposal.name not in kept])
 
         reduction = context.reduce_edits(f"{STAGE}-{number + 1}", tuple(by_name), build, stage_begin=begin,
-                                         preconditions=(keeps_structure(world, build, width),), rate_runs=RATE_RUNS)
+                                         preconditions=(keeps_structure(world, build, width, robot),),
+                                         rate_runs=RATE_RUNS)
         if reduction is None:  # what this pass offers is undecided, not "nothing to simplify"
             incomplete = "budget: no probes left"
             undecided = [proposal for proposal in offered if proposal.name not in broke.keys() | refused.keys()]

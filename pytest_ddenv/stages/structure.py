@@ -110,10 +110,10 @@ def relation(gap: float, robot_width: float | None) -> str:
     return "narrow" if gap < robot_width else "wide"
 
 
-def _described(kind: str, gap: float, robot_width: float | None) -> str:
+def _described(kind: str, gap: float, robot_width: float | None, robot: str) -> str:
     if kind in ("narrow", "wide"):
         comparison = "narrower" if kind == "narrow" else "wider"
-        return f"a {gap:.2f} m gap, {comparison} than the robot ({robot_width or 0.0:.2f} m)"
+        return f"a {gap:.2f} m gap, {comparison} than {robot} ({robot_width or 0.0:.2f} m)"
     return {"overlap": "sharing space", "touch": "touching"}.get(kind, "apart")
 
 
@@ -142,7 +142,8 @@ def nearest_gaps(world: World) -> dict[str, float]:
     return gaps
 
 
-def keeps_structure(base: World, build: Callable[[Candidate], World], robot_width: float | None) -> Precondition:
+def keeps_structure(base: World, build: Callable[[Candidate], World], robot_width: float | None,
+                    robot: str = "the robot") -> Precondition:
     """A precondition: refuse a candidate whose world (`build(candidate)`) changes how two models stand to each
     other (`relation`) from `base` (a different structure), saying which and how."""
     before_models = {model.name: model for model in base.models}
@@ -156,8 +157,8 @@ def keeps_structure(base: World, build: Callable[[Candidate], World], robot_widt
         for pair, (now, gap) in relations(world, robot_width, changed).items():
             was, old_gap = before.get(pair, (now, gap))
             if now != was:
-                return (f"changes {pair[0]} and {pair[1]} from {_described(was, old_gap, robot_width)} to "
-                        f"{_described(now, gap, robot_width)}: a different structure, not a simpler one")
+                return (f"changes {pair[0]} and {pair[1]} from {_described(was, old_gap, robot_width, robot)} to "
+                        f"{_described(now, gap, robot_width, robot)}: a different structure, not a simpler one")
         return None
 
     return precondition
