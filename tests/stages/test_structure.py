@@ -54,7 +54,8 @@ def test_rounding_two_posts_onto_one_another_is_refused_with_the_reason() -> Non
     assert check(("left",)) is None  # only the right one moved: a 0.15 m gap, still narrower than the robot
     assert check(("left", "right")) is None  # nothing moved
     arm = keeps_structure(world, build, 0.2, "the arm's hand")(())  # an arm's: the gap is measured against its hand
-    assert arm is not None and arm.startswith("changes left and right from a 0.60 m gap, wider than the arm's hand (0.20 m)")
+    assert arm is not None
+    assert arm.startswith("changes left and right from a 0.60 m gap, wider than the arm's hand (0.20 m)")
 
 
 def test_no_position_or_size_is_rounded_on_a_grid_coarser_than_the_nearest_gap() -> None:
