@@ -104,7 +104,8 @@ def test_version_help_and_no_command(capsys: pytest.CaptureFixture[str]) -> None
         (["run"], "the following arguments are required: world"),
         (["run", "w.yaml", "--seed", "-1"], "expected an integer >= 0"),
         (["run", "w.yaml", "--timeout", "0"], "expected a positive, finite number, got '0'"),
-        (["reduce", "w.yaml"], "--predicate"),
+        (["reduce", str(Path(__file__).parents[1] / "worlds" / "ditch.yaml")],
+         "the following arguments are required for a mobile robot's world: --predicate/-p"),
         (["reduce", "w.yaml", "-p", "stuck", "--partition", "nope"], "invalid choice: 'nope'"),
     ],
 )
@@ -113,6 +114,22 @@ def test_usage_errors_are_one_line_and_exit_2(capsys: pytest.CaptureFixture[str]
     code, out, err = run(capsys, *argv)
     assert code == 2 and out == ""
     assert_one_line_error(err, fragment)
+
+
+@pytest.mark.pybullet
+def test_reduce_on_an_arm_world_checks_the_arm_defaults_without_predicate(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`ddenv reduce` of an arm's world with no `--predicate`: the arm's default predicates find the hand
+    hitting the tall box, and the reduction keeps it (with the table and cube the scenario names)."""
+    monkeypatch.chdir(tmp_path)
+    world = Path(__file__).parent / "data" / "arm_blocked.yaml"
+    code, out, _ = run(capsys, "--json", "reduce", str(world), "--media", "none", "--workers", "1")
+    assert code == 0, out
+    summary = json.loads(out)
+    assert summary["reference_failure"]["signature"]["predicate"] == "arm_collision"
+    assert [p["name"] for p in summary["predicates"]] == ["arm_collision", "grasp_failed", "object_dropped",
+                                                         "knocked_over", "not_placed"]
+    assert sorted(summary["minimal_models"]) == ["cube", "table", "tall_box"]
 
 
 def test_debug_shows_the_traceback_and_keeps_the_exit_code(capsys: pytest.CaptureFixture[str]) -> None:

@@ -215,8 +215,9 @@ def _add_predicate_option(parser: argparse.ArgumentParser, *, required: bool) ->
     parser.add_argument("--predicate", "-p", dest="predicates", action="append", type=str, default=[],
                         required=required, metavar="NAME[:k=v,...]",
                         help="failure predicate, repeatable, e.g. stuck:window=5,min_progress=0.2 "
-                             "(stuck, flipped, high_centered, fell, collided, timeout, or one registered by an "
-                             "--import)")
+                             "(stuck, flipped, high_centered, fell, collided, timeout; for an arm arm_collision, "
+                             "grasp_failed, object_dropped, not_placed, knocked_over, joint_limit, self_collision; "
+                             "or one registered by an --import)")
 
 
 def _add_user_code_options(parser: argparse.ArgumentParser, *, controller: bool = True) -> None:
@@ -266,7 +267,7 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
     reduce = commands.add_parser("reduce", parents=[common],
                                  help="reduce a failing world to the models the failure needs")
     reduce.add_argument("world", help="world file (.yaml, .sdf, .xml)")
-    _add_predicate_option(reduce, required=True)
+    _add_predicate_option(reduce, required=False)  # required for a mobile robot: _reduce_predicates
     _add_user_code_options(reduce)
     reduce.add_argument("--timeout", type=_type(positive(), "--timeout"),
                         help="simulated seconds per run (default: the world's)")
@@ -436,6 +437,21 @@ def _cmd_convert(arguments: argparse.Namespace) -> int:
 # -- run, show --------------------------------------------------------------------------------------------
 def _predicates(texts: Sequence[str]) -> tuple[PredicateSpec, ...]:
     return tuple(parse_predicate(text) for text in texts)
+
+
+def _reduce_predicates(texts: Sequence[str], world: World) -> tuple[PredicateSpec, ...]:
+    """`ddenv reduce`'s predicates: those given, or for an arm's world the arm's defaults (`ARM_DEFAULTS`); a
+    mobile robot's world needs at least one (its run fails no other way)."""
+    predicates = _predicates(texts)
+    if predicates or world.scenario is None:
+        return predicates
+    from pytest_ddenv.oracle.arm_predicates import default_predicates
+    from pytest_ddenv.sim.arm.robot import robot_kind
+
+    if robot_kind(world.scenario.robot, world.source) == "arm":
+        return default_predicates("arm")
+    raise UsageError("the following arguments are required for a mobile robot's world: --predicate/-p "
+                     "(e.g. -p stuck); an arm's world checks the arm's default predicates when none is given")
 
 
 def _check_predicate_models(predicates: Sequence[PredicateSpec], world: World) -> None:
@@ -651,7 +667,7 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
         check_matplotlib_backend()
     _user_code(arguments)
     world = with_scenario(arguments, load_world(arguments, arguments.world), arguments.world)
-    predicates = _predicates(arguments.predicates)
+    predicates = _reduce_predicates(arguments.predicates, world)
     _check_predicate_models(predicates, world)
     arguments.same_failure_match = _same_failure(arguments.same_failure)
     keep = _keep(world, arguments.keep)
