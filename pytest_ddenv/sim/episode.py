@@ -131,7 +131,7 @@ class Episode:
                     weight=self._weight, history=self.history,
                 )
                 for predicate in self.predicates:
-                    self.failure = _checked(predicate, predicate.check(state), now)
+                    self.failure = checked_signature(predicate, predicate.check(state), now)
                     if self.failure is not None:
                         break
         decided = self.reached or self.failure is not None
@@ -245,7 +245,8 @@ class Episode:
         )
 
 
-def _checked(predicate: Predicate, result: object, now: float) -> FailureSignature | None:
+def checked_signature(predicate: Predicate, result: object, now: float) -> FailureSignature | None:
+    """What a predicate's `check` returned: a signature or None; anything else is a ScenarioError naming it."""
     if result is None or isinstance(result, FailureSignature):
         return result
     raise ScenarioError(f"predicate {predicate.name!r} returned {type(result).__name__} {result!r} at t = {now:.2f} s; "

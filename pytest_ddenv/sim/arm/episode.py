@@ -28,7 +28,7 @@ from pytest_ddenv.sim.arm.control import ArmCommand, ArmObservation, GripperComm
 from pytest_ddenv.sim.arm.driven import DrivenArm
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
 from pytest_ddenv.sim.detail_recorder import DetailRecorder
-from pytest_ddenv.sim.episode import _checked
+from pytest_ddenv.sim.episode import checked_signature
 from pytest_ddenv.sim.physics import PhysicsEngine
 from pytest_ddenv.sim.robot import Robot
 from pytest_ddenv.sim.run import Run
@@ -160,7 +160,7 @@ class ArmEpisode:
                 self.reached, self.goal_time = True, now
             else:
                 for predicate in self.predicates:
-                    self.failure = _checked(predicate, predicate.check(state), now)
+                    self.failure = checked_signature(predicate, predicate.check(state), now)
                     if self.failure is not None:
                         break
         decided = self.reached or self.failure is not None
