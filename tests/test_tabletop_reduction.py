@@ -133,7 +133,7 @@ def test_twenty_distractors_far_from_the_arm_change_nothing_and_cost_little(benc
     cluttered = reduced(bench.with_distractors(world), predicates)
     assert len(cluttered.minimal) == len(plain.minimal) and set(cluttered.minimal) == set(plain.minimal)
     assert cluttered.one_minimal
-    assert cluttered.probes <= 1.3 * plain.probes, (cluttered.probes, plain.probes)
+    assert cluttered.simulations <= 1.3 * plain.simulations, (cluttered.simulations, plain.simulations)
 
 
 USER_ARM_TEST = textwrap.dedent(
