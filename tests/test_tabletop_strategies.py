@@ -94,7 +94,10 @@ def test_the_arguments_shape_the_table_the_workspace_and_the_clutter(world: Worl
 
 
 def test_shrinking_deletes_clutter_and_makes_it_small() -> None:
-    world = find(tabletop_worlds(count=(0, 10)), lambda world: len(world) >= 5)
+    # derandomized: where a random search starts decides which local minimum shrinking ends in (one CI run
+    # on a loaded machine ended with a cylinder target)
+    world = find(tabletop_worlds(count=(0, 10)), lambda world: len(world) >= 5,
+                 settings=settings(derandomize=True, database=None))
     assert world.names == ("table", "target", "box_0", "box_1", "box_2")
     for name in world.names[1:]:
         assert world.model(name).shapes[0].kind == "box"
