@@ -11,7 +11,7 @@ from typing import Any, Self
 from pytest_ddenv.alarm import Alarm
 from pytest_ddenv.errors import ControllerTimeout, ScenarioError
 from pytest_ddenv.oracle.predicates import GROUND, Predicate, check_predicates_for_robot
-from pytest_ddenv.sim.arm.control import ArmController, ArmObservation, check_arm_command
+from pytest_ddenv.sim.arm.control import ArmCommand, ArmController, ArmObservation, check_arm_command
 from pytest_ddenv.sim.arm.episode import ArmEpisode
 from pytest_ddenv.sim.arm.robot import ArmRobot
 from pytest_ddenv.sim.builder import GROUND_BODY_NAME
@@ -264,44 +264,30 @@ def drive_loop(episode: Episode | ArmEpisode, controller: ControllerLike | ArmCo
                max_wall_time: float | None) -> None:
     """Run `episode` to its end with `controller` called every control tick, within `max_wall_time`: checked
     every tick, and (in the main thread) an alarm that also stops a controller that never returns."""
+    reset = getattr(controller, "reset", None)
+    first = True
+    left = None if max_wall_time is None else max(max_wall_time - (time.perf_counter() - episode.started), 0.0)
+    with Alarm(left, lambda: _too_slow(episode, controller, max_wall_time)):
+        while not episode.finished:
+            observation = episode.observe()
+            if first and reset is not None:
+                _call(reset, controller, observation)
+            first = False
+            episode.act(_command(episode, controller, observation))  # type: ignore[arg-type]
+            if max_wall_time is not None and time.perf_counter() - episode.started > max_wall_time:
+                raise _too_slow(episode, controller, max_wall_time)
+
+
+def _command(episode: Episode | ArmEpisode, controller: Any, observation: Observation | ArmObservation
+             ) -> AnyCommand | ArmCommand:
+    """This tick's command, checked. A mobile robot that reached its goal without stopping early is told to
+    stand still; an arm that placed the target goes on as its controller says."""
     if isinstance(episode, ArmEpisode):
-        _drive_arm(episode, controller, max_wall_time)
-        return
-    reset = getattr(controller, "reset", None)
-    first = True
-    left = None if max_wall_time is None else max(max_wall_time - (time.perf_counter() - episode.started), 0.0)
-    with Alarm(left, lambda: _too_slow(episode, controller, max_wall_time)):
-        while not episode.finished:
-            observation = episode.observe()
-            if first and reset is not None:
-                _call(reset, controller, observation)
-            first = False
-            if episode.reached:  # reached without stopping early: the robot is told to stand still
-                command: AnyCommand = Command(0.0, 0.0)
-            else:
-                command = check_command(_call(controller, controller, observation), controller, observation.time)
-            episode.act(command)
-            if max_wall_time is not None and time.perf_counter() - episode.started > max_wall_time:
-                raise _too_slow(episode, controller, max_wall_time)
-
-
-def _drive_arm(episode: ArmEpisode, controller: Any, max_wall_time: float | None) -> None:
-    """`drive_loop` for an arm: its commands checked by `check_arm_command`, the controller called to the end
-    (an arm that placed the target without stopping early goes on as its controller says)."""
-    reset = getattr(controller, "reset", None)
-    first = True
-    joints = len(episode.arm.joint_names)
-    left = None if max_wall_time is None else max(max_wall_time - (time.perf_counter() - episode.started), 0.0)
-    with Alarm(left, lambda: _too_slow(episode, controller, max_wall_time)):
-        while not episode.finished:
-            observation = episode.observe()
-            if first and reset is not None:
-                _call(reset, controller, observation)
-            first = False
-            episode.act(check_arm_command(_call(controller, controller, observation), controller, observation.time,
-                                          joints))
-            if max_wall_time is not None and time.perf_counter() - episode.started > max_wall_time:
-                raise _too_slow(episode, controller, max_wall_time)
+        command = _call(controller, controller, observation)
+        return check_arm_command(command, controller, observation.time, len(episode.arm.joint_names))
+    if episode.reached:
+        return Command(0.0, 0.0)
+    return check_command(_call(controller, controller, observation), controller, observation.time)
 
 
 def _too_slow(episode: Episode | ArmEpisode, controller: object, max_wall_time: float | None) -> ControllerTimeout:

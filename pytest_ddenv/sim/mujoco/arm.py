@@ -21,7 +21,7 @@ from pytest_ddenv.oracle.arm_state import GRIPPER_OPEN
 from pytest_ddenv.sim.arm.driven import Quaternion, Vector
 from pytest_ddenv.sim.mujoco.arm_camera import ray_picture
 from pytest_ddenv.sim.mujoco.arm_spec import GRIPPER, IMPRATIO, SATURATION, SERVO_STEP, arm_spec
-from pytest_ddenv.sim.mujoco.driven_robot import NOT_ROBOT
+from pytest_ddenv.sim.mujoco.driven_robot import NOT_ROBOT, touching
 from pytest_ddenv.sim.mujoco.robot_spec import PREFIX
 from pytest_ddenv.sim.mujoco.world_spec import world_spec
 from pytest_ddenv.sim.physics import BaseState
@@ -215,12 +215,7 @@ class MujocoArm:
     # -- what the engine reads -------------------------------------------------------------------------
     def touching(self, geom1: int, geom2: int) -> tuple[int, int] | None:
         """(arm link, other body id) when exactly one of the two geoms is the arm's."""
-        link1, link2 = self._geom_link[geom1], self._geom_link[geom2]
-        if link1 != NOT_ROBOT and link2 == NOT_ROBOT:
-            return link1, int(self.model.geom_bodyid[geom2])
-        if link2 != NOT_ROBOT and link1 == NOT_ROBOT:
-            return link2, int(self.model.geom_bodyid[geom1])
-        return None
+        return touching(self.model, self._geom_link, geom1, geom2)
 
     def base_state(self) -> BaseState:
         """The base's pose (its body origin), at rest."""

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import mujoco
 import numpy as np
@@ -80,12 +80,7 @@ class MujocoRobot(Robot):
     # -- what the engine reads -------------------------------------------------------------------------
     def touching(self, geom1: int, geom2: int) -> tuple[int, int] | None:
         """(robot link, other body id) when exactly one of the two geoms is the robot's."""
-        link1, link2 = self._geom_link[geom1], self._geom_link[geom2]
-        if link1 != NOT_ROBOT and link2 == NOT_ROBOT:
-            return link1, int(self.model.geom_bodyid[geom2])
-        if link2 != NOT_ROBOT and link1 == NOT_ROBOT:
-            return link2, int(self.model.geom_bodyid[geom1])
-        return None
+        return touching(self.model, self._geom_link, geom1, geom2)
 
     def geoms_near_listed(self) -> tuple[list[int], list[int], list[int]]:
         """The robot's geoms, the robot link of each, and the geoms of everything else but planes (the ground
@@ -124,3 +119,14 @@ def _welded_to(model: mujoco.MjModel, body: int, root: int) -> bool:
             return False
         body = int(model.body_parentid[body])
     return True
+
+
+def touching(model: mujoco.MjModel, geom_link: Sequence[int], geom1: int, geom2: int) -> tuple[int, int] | None:
+    """(robot link, other body id) of a contact when exactly one of its two geoms is the robot's (`geom_link`:
+    each geom's robot link, or `NOT_ROBOT`)."""
+    link1, link2 = geom_link[geom1], geom_link[geom2]
+    if link1 != NOT_ROBOT and link2 == NOT_ROBOT:
+        return link1, int(model.geom_bodyid[geom2])
+    if link2 != NOT_ROBOT and link1 == NOT_ROBOT:
+        return link2, int(model.geom_bodyid[geom1])
+    return None
