@@ -94,15 +94,17 @@ def test_the_arguments_shape_the_table_the_workspace_and_the_clutter(world: Worl
 
 
 def test_shrinking_deletes_clutter_and_makes_it_small() -> None:
-    # derandomized: where a random search starts decides which local minimum shrinking ends in (one CI run
-    # on a loaded machine ended with a cylinder target)
+    # derandomized; the target's kind is the one thing the shrinker leaves at either of its two simplest
+    # values: a box with Hypothesis 6.170, a cylinder with 6.80 (the lowest version pyproject.toml allows)
     world = find(tabletop_worlds(count=(0, 10)), lambda world: len(world) >= 5,
                  settings=settings(derandomize=True, database=None))
     assert world.names == ("table", "target", "box_0", "box_1", "box_2")
-    for name in world.names[1:]:
+    for name in world.names[2:]:
         assert world.model(name).shapes[0].kind == "box"
     assert all(side == 0.03 for name in world.names[2:] for side in world.model(name).shapes[0].size or ())
-    assert world.model("target").shapes[0].size == (0.04, 0.04, 0.04)
+    target = world.model("target").shapes[0]
+    assert (target.kind, target.size, target.radius, target.length) in (
+        ("box", (0.04, 0.04, 0.04), None, None), ("cylinder", None, 0.02, 0.04))  # its smallest, either way
     assert world.model("target").pose.x == pytest.approx(0.5) and world.model("target").pose.y == 0.0
 
 
