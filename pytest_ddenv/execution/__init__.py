@@ -14,7 +14,7 @@ from pytest_ddenv.execution.errors import (
     WorkerError,
     WorkerStartError,
 )
-from pytest_ddenv.execution.factory import check_executor, make_pool
+from pytest_ddenv.execution.factory import check_executor, make_cluster, make_pool
 from pytest_ddenv.execution.local import (
     LocalPool,
     cpu_count,
@@ -53,6 +53,7 @@ __all__ = [
     "WorkerStartError",
     "check_executor",
     "cpu_count",
+    "make_cluster",
     "make_pool",
     "resolve_workers",
     "serve_requests",

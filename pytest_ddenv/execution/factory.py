@@ -41,6 +41,16 @@ def check_executor(executor: str | None) -> str | None:
     return executor
 
 
+def make_cluster(executor: str, workers: int | str = "auto") -> DaskCluster:
+    """The connection to the distributed executor `executor` names ("dask": a local cluster of `workers`
+    processes; a scheduler's address), which a session opens on its first failure and keeps for every
+    reduction (`make_pool(..., cluster=)`); the caller closes it (`close()`)."""
+    kind = check_executor(executor)
+    if kind is None:
+        raise PoolConfigError("executor: local worker processes need no cluster")
+    return DaskCluster(None if kind == "dask" else kind, n_workers=None if workers == "auto" else int(workers))
+
+
 def make_pool(
     job: Job,
     workers: int | str = "auto",

@@ -45,7 +45,7 @@ class ReductionPlugin:
     def __init__(self, config: pytest.Config) -> None:
         self.config = config
         self.cluster: Any = None
-        """The dask cluster of `--ddenv-executor dask` (or a scheduler's address), started on the first failure."""
+        """The cluster of `--ddenv-executor` (dask, a scheduler's address, ...), opened on the first failure."""
         open_log(config)
 
     @pytest.hookimpl(wrapper=True)
@@ -115,7 +115,7 @@ def _probe_pool(plugin: ReductionPlugin, item: pytest.Function, example: GivenEx
                 warn: Callable[[str], None] | None = None) -> Pool[ProbeResult]:
     """A pool serving this test's probes: worker processes that run the test (or this process, with one
     worker), or the session's dask cluster."""
-    from pytest_ddenv.execution import DaskCluster, check_executor, make_pool
+    from pytest_ddenv.execution import check_executor, make_cluster, make_pool
     from pytest_ddenv.pytest_plugin.worker import ItemHandler, PytestJob
 
     config = item.config
@@ -129,8 +129,7 @@ def _probe_pool(plugin: ReductionPlugin, item: pytest.Function, example: GivenEx
         return make_pool(PytestJob.of(item, example=example), count, in_process=ItemHandler(item, example),
                          watchdog=watchdog, warn=warn)
     if plugin.cluster is None:
-        plugin.cluster = DaskCluster(None if executor == "dask" else executor,
-                                     n_workers=None if count == "auto" else int(count))
+        plugin.cluster = make_cluster(executor, count)
     return make_pool(PytestJob.of(item, capture="sys", example=example), count, executor, cluster=plugin.cluster,
                      watchdog=watchdog)
 
