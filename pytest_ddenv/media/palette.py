@@ -1,4 +1,4 @@
-"""The colours the animations and the recording share: the ground, the robot, and the models."""
+"""The colours the animations and the 3D recordings share: the ground, the robot, the models, and the marks."""
 
 from __future__ import annotations
 
@@ -29,3 +29,13 @@ def model_rgba(model: Model) -> tuple[float, float, float, float]:
         return red, green, blue, alpha
     index = int(hashlib.sha1(model.name.encode()).hexdigest(), 16) % len(PALETTE)
     return (*PALETTE[index], 1.0)
+
+HEADING_RGBA = (0.15, 0.15, 0.15, 1.0)
+TRAJECTORY_RGBA = (0.12, 0.47, 0.71, 1.0)
+SCAN_RGBA = (0.17, 0.63, 0.17, 1.0)
+CONTACT_RGBA = (1.0, 0.5, 0.05, 1.0)
+FAILURE_RGBA = (0.84, 0.15, 0.16, 1.0)
+GOAL_RGBA = (0.2, 0.7, 0.3, 1.0)
+TARGET_RGBA = (0.58, 0.25, 0.75, 1.0)
+"""The robot's heading arrow, its trajectory, the laser's hits, the contacts, the failure marker, the goal and
+an arm's target, in both 3D recordings (`.rrd` and `.mcap`)."""

@@ -36,7 +36,6 @@ written. See docs/recording.md.
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from collections.abc import Sequence
@@ -45,38 +44,39 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-from pytest_ddenv.media.palette import GROUND_RGBA, ROBOT_RGBA, model_rgba
-from pytest_ddenv.world import geometry
-from pytest_ddenv.world.files import resolve_mesh_path
-from pytest_ddenv.world.meshes import cone_mesh, load_heightmap, load_mesh, polyline_mesh
-from pytest_ddenv.world.model import Model, Pose, Shape, World
+from pytest_ddenv.media import content
+from pytest_ddenv.media.content import (
+    FOOTPRINT_HEIGHT,
+    GRIPPER_HALF_SIZE,
+    FloatArray,
+    quaternion,
+    quaternions,
+    scan_points,
+)
+from pytest_ddenv.media.palette import (
+    CONTACT_RGBA,
+    FAILURE_RGBA,
+    GOAL_RGBA,
+    GROUND_RGBA,
+    HEADING_RGBA,
+    ROBOT_RGBA,
+    SCAN_RGBA,
+    TARGET_RGBA,
+    TRAJECTORY_RGBA,
+    model_rgba,
+)
+from pytest_ddenv.world.model import Model, Shape, World
 
 if TYPE_CHECKING:
     from pytest_ddenv.sim.run import Run, RunDetail
 
-FloatArray = NDArray[np.float64]
+__all__ = ["INSTALL_HINT", "TIMELINE", "RecordingInfo", "RecordingUnavailable", "quaternions", "recording_available",
+           "scan_points", "write_recording"]
 
 TIMELINE = "sim_time"
 """The one timeline of a recording: simulated seconds (a duration timeline)."""
 INSTALL_HINT = "the 3D recording needs rerun-sdk: pip install 'pytest-ddenv[viewer]'"
-FOOTPRINT_HEIGHT = 0.3
-"""Height (m) of the robot's footprint box, centred on the robot's base frame."""
-GROUND_MARGIN = 3.0
-"""The ground box reaches this far (m) beyond the models, the trajectory and the goal."""
-MAX_HEIGHTMAP_SAMPLES = 257
-"""A heightmap image is drawn with at most this many samples a side (a 1025 x 1025 image would be 2 M
-triangles)."""
-HEADING_RGBA = (0.15, 0.15, 0.15, 1.0)
-TRAJECTORY_RGBA = (0.12, 0.47, 0.71, 1.0)
-SCAN_RGBA = (0.17, 0.63, 0.17, 1.0)
-CONTACT_RGBA = (1.0, 0.5, 0.05, 1.0)
-FAILURE_RGBA = (0.84, 0.15, 0.16, 1.0)
-GOAL_RGBA = (0.2, 0.7, 0.3, 1.0)
-TARGET_RGBA = (0.58, 0.25, 0.75, 1.0)
-GRIPPER_HALF_SIZE = (0.02, 0.1, 0.03)
-"""Half sizes (m) of the box drawn for an arm's gripper in the end effector's frame (a Franka hand's)."""
 
 
 class RecordingUnavailable(ImportError):
@@ -123,9 +123,8 @@ def write_recording(path: Path, runs: Sequence[tuple[str, World, Run]], *,
     on the `sim_time` timeline; atomically (a temporary file, then renamed). Labels must be distinct and
     not empty. Raises `RecordingUnavailable` without rerun-sdk."""
     rr = _rerun()
+    content.validate_labels(runs)
     labels = [label for label, _, _ in runs]
-    if not runs or any(not label for label in labels) or len(set(labels)) != len(labels):
-        raise ValueError(f"expected one or more distinct, non-empty labels, got {labels}")
     started = time.perf_counter()
     path = Path(path)
     temporary = path.with_name(f".{path.name}.tmp{os.getpid()}")
@@ -143,15 +142,8 @@ def write_recording(path: Path, runs: Sequence[tuple[str, World, Run]], *,
         stream.disconnect()
         temporary.unlink(missing_ok=True)
         raise
-    return RecordingInfo(path, tuple(writer.entities), _time_range(runs), path.stat().st_size,
+    return RecordingInfo(path, tuple(writer.entities), content.time_range(runs), path.stat().st_size,
                          time.perf_counter() - started)
-
-
-def _time_range(runs: Sequence[tuple[str, World, Run]]) -> tuple[float, float]:
-    """The first and last simulated time of all runs (their samples and failure times)."""
-    times = [float(t) for _, _, run in runs for t in (run.times[:1].tolist() + run.times[-1:].tolist())]
-    times += [float(run.failure.time) for _, _, run in runs if run.failure is not None]
-    return (min(times), max(times)) if times else (0.0, 0.0)
 
 
 def _blueprint(rr: Any, labels: Sequence[str]) -> Any:
@@ -211,70 +203,42 @@ def _log_run(writer: _Writer, root: str, world: World, run: Run) -> None:
 # -- the scene ------------------------------------------------------------------------------------------------
 def _log_ground(writer: _Writer, root: str, world: World, run: Run) -> None:
     """A flat box whose top is the ground plane, under the models, the trajectory and the goal."""
-    if world.ground is None:
-        return
-    points = [run.positions[:, :2]]
-    points += [world.bounds(model.name)[:, :2] for model in world.models]
-    if world.scenario is not None:
-        points.append(np.array([world.scenario.goal[:2]], dtype=np.float64))
-    flat = np.concatenate(points)
-    low, high = flat.min(axis=0) - GROUND_MARGIN, flat.max(axis=0) + GROUND_MARGIN
-    thickness = 0.02
-    centre = [*((low + high) / 2.0), world.ground.z - thickness / 2.0]
-    writer.static(f"{root}/ground", writer.rr.Boxes3D(
-        centers=[centre], half_sizes=[[*((high - low) / 2.0), thickness / 2.0]], colors=[GROUND_RGBA],
-        fill_mode="solid"))
+    box = content.ground_box(world, run)
+    if box is not None:
+        writer.static(f"{root}/ground", writer.rr.Boxes3D(centers=[box.centre], half_sizes=[box.half_sizes],
+                                                          colors=[GROUND_RGBA], fill_mode="solid"))
 
 
 def _log_goal(writer: _Writer, root: str, world: World) -> None:
-    """The goal point (on the ground unless it has a z; an arm's place region on its table) and its tolerance
-    circle."""
-    scenario = world.scenario
-    if scenario is None:
+    """The goal point (an arm's place region on its table) and its tolerance circle."""
+    goal = content.goal(world)
+    if goal is None:
         return
-    x, y, z = scenario.goal
-    height = z if z is not None else (world.ground.z if world.ground is not None else 0.0)
-    arm = scenario.table is not None or scenario.target is not None
-    if z is None and scenario.table in world.names:  # an arm's place region lies on its table
-        height = float(world.bounds(scenario.table)[1, 2])
     rr = writer.rr
-    writer.static(f"{root}/goal", rr.Points3D([[x, y, height]], radii=0.03 if arm else 0.08, colors=[GOAL_RGBA],
-                                              labels=["place region" if arm else "goal"]))
-    angles = np.linspace(0.0, 2.0 * math.pi, 65)
-    radius = scenario.goal_tolerance
-    circle = np.stack([x + radius * np.cos(angles), y + radius * np.sin(angles), np.full(65, height + 0.01)], 1)
-    writer.static(f"{root}/goal/tolerance", rr.LineStrips3D([circle], radii=0.004 if arm else 0.015,
+    writer.static(f"{root}/goal", rr.Points3D([goal.position], radii=0.03 if goal.arm else 0.08, colors=[GOAL_RGBA],
+                                              labels=[goal.label]))
+    writer.static(f"{root}/goal/tolerance", rr.LineStrips3D([goal.circle], radii=0.004 if goal.arm else 0.015,
                                                             colors=[GOAL_RGBA]))
 
 
 def _log_model(writer: _Writer, entity: str, model: Model, world: World, run: Run) -> None:
     """The model's pose (over time if it moves and the run has its poses) and its shapes in its frame."""
     rr = writer.rr
-    body_pose, shapes = _body_frame(model)
-    poses = None if run.detail is None else run.detail.bodies.get(model.name)
-    if poses is not None and len(poses) == len(run.times):
+    body_pose, shapes = content.body_frame(model)
+    poses = content.model_poses(model, run)
+    if poses is not None:
         writer.columns(entity, run.times, rr.Transform3D.columns(translation=poses[:, :3], quaternion=poses[:, 3:]))
     else:
-        writer.static(entity, rr.Transform3D(translation=body_pose.position, quaternion=_quaternion(body_pose)))
+        writer.static(entity, rr.Transform3D(translation=body_pose.position, quaternion=quaternion(body_pose)))
     rgba = model_rgba(model)
     for kind, archetype in _primitives(rr, shapes, rgba):
         writer.static(f"{entity}/{kind}", archetype)
     for index, shape in enumerate(shapes):
-        if shape.kind in ("mesh", "polyline", "heightmap", "cone"):
-            writer.static(f"{entity}/mesh{index}", _mesh(rr, shape, world.source, rgba))
-
-
-def _body_frame(model: Model) -> tuple[Pose, tuple[Shape, ...]]:
-    """The pose of the model's simulated body (what `RunDetail.bodies` records) and the shapes in its frame:
-    the model's pose and shapes, except for a moving model of one polyline, whose body frame is the
-    polyline's centre of mass (see `pytest_ddenv.sim.builder`)."""
-    shapes = model.shapes
-    if len(shapes) == 1 and shapes[0].kind == "polyline" and model.dynamic:
-        from pytest_ddenv.sim.builder import moved_shape, polyline_centre
-
-        centre = polyline_centre(shapes[0])
-        return model.pose.compose(centre), (moved_shape(shapes[0], centre),)
-    return model.pose, shapes
+        if shape.kind in content.MESH_KINDS:
+            mesh = content.triangle_mesh(shape, world.source)
+            writer.static(f"{entity}/mesh{index}", rr.Mesh3D(
+                vertex_positions=mesh.vertices, triangle_indices=mesh.faces, vertex_normals=mesh.normals,
+                albedo_factor=rgba))
 
 
 def _primitives(rr: Any, shapes: Sequence[Shape], rgba: Sequence[float]) -> list[tuple[str, Any]]:
@@ -284,52 +248,26 @@ def _primitives(rr: Any, shapes: Sequence[Shape], rgba: Sequence[float]) -> list
     if boxes:
         found.append(("boxes", rr.Boxes3D(
             half_sizes=[[v / 2.0 for v in s.size or (0.0, 0.0, 0.0)] for s in boxes],
-            centers=[s.pose.position for s in boxes], quaternions=[_quaternion(s.pose) for s in boxes],
+            centers=[s.pose.position for s in boxes], quaternions=[quaternion(s.pose) for s in boxes],
             colors=[rgba], fill_mode="solid")))
     cylinders = [s for s in shapes if s.kind == "cylinder"]
     if cylinders:
         found.append(("cylinders", rr.Cylinders3D(
             lengths=[s.length for s in cylinders], radii=[s.radius for s in cylinders],
-            centers=[s.pose.position for s in cylinders], quaternions=[_quaternion(s.pose) for s in cylinders],
+            centers=[s.pose.position for s in cylinders], quaternions=[quaternion(s.pose) for s in cylinders],
             colors=[rgba], fill_mode="solid")))
     capsules = [s for s in shapes if s.kind == "capsule"]
     if capsules:  # rerun's capsule runs from its origin along +z: start it half a length below the centre
         starts = [s.pose.position - s.pose.rotation[:, 2] * float(s.length or 0.0) / 2.0 for s in capsules]
         found.append(("capsules", rr.Capsules3D(
             lengths=[s.length for s in capsules], radii=[s.radius for s in capsules], translations=starts,
-            quaternions=[_quaternion(s.pose) for s in capsules], colors=[rgba], fill_mode="solid")))
+            quaternions=[quaternion(s.pose) for s in capsules], colors=[rgba], fill_mode="solid")))
     spheres = [s for s in shapes if s.kind == "sphere"]
     if spheres:
         found.append(("spheres", rr.Ellipsoids3D(
             half_sizes=[[s.radius] * 3 for s in spheres], centers=[s.pose.position for s in spheres],
             colors=[rgba], fill_mode="solid")))
     return found
-
-
-def _mesh(rr: Any, shape: Shape, source: str | None, rgba: Sequence[float]) -> Any:
-    """A `Mesh3D` of a mesh, polyline or heightmap shape, its vertices placed at the shape's pose."""
-    import trimesh
-
-    if shape.kind == "polyline":
-        assert shape.points is not None and shape.height is not None
-        mesh: Any = polyline_mesh(shape.points, shape.height)
-    elif shape.kind == "cone":
-        assert shape.radius is not None and shape.length is not None
-        mesh = cone_mesh(shape.radius, shape.length)
-    elif shape.kind == "heightmap":
-        assert shape.size is not None
-        heights = load_heightmap(resolve_mesh_path(shape.mesh, source))
-        rows, columns = (np.unique(np.linspace(0, n - 1, min(n, MAX_HEIGHTMAP_SAMPLES)).round().astype(int))
-                         for n in heights.shape)
-        vertices, faces = geometry.heightmap_solid(heights[np.ix_(rows, columns)], shape.size)
-        mesh = trimesh.Trimesh(vertices, faces, process=False)
-    else:
-        mesh = load_mesh(resolve_mesh_path(shape.mesh, source), shape.scale)
-    rotation = shape.pose.rotation
-    vertices = np.asarray(mesh.vertices, dtype=np.float64) @ rotation.T + shape.pose.position
-    normals = np.asarray(mesh.vertex_normals, dtype=np.float64) @ rotation.T
-    return rr.Mesh3D(vertex_positions=vertices, triangle_indices=np.asarray(mesh.faces, dtype=np.uint32),
-                     vertex_normals=normals, albedo_factor=rgba)
 
 
 # -- the robot and what it sensed ---------------------------------------------------------------------------
@@ -389,29 +327,6 @@ def _log_arm(writer: _Writer, root: str, world: World, run: Run) -> None:
         writer.columns(f"{root}/target/position", run.times[: len(target)], rr.Points3D.columns(positions=target))
 
 
-def scan_points(run: Run, detail: RunDetail) -> tuple[FloatArray, NDArray[np.int64]]:
-    """The laser's hits in the world frame, (N, 3), and how many belong to each sample, (T,): each ray leaves
-    the laser (`scan_origin` on the robot, `scan_height` up), at the robot's yaw plus its angle, tilted down
-    by `Laser.TILT` (as the laser casts it); rays without a hit are left out."""
-    from pytest_ddenv.sim.laser import Laser
-
-    assert detail.scan_angles is not None and detail.scan_ranges is not None
-    ranges = np.asarray(detail.scan_ranges, dtype=np.float64)
-    poses = np.asarray(run.poses, dtype=np.float64)[: len(ranges)]
-    hit = np.isfinite(ranges)
-    rows, rays = np.nonzero(hit)
-    headings = detail.scan_angles[rays] + poses[rows, 5]
-    reach = ranges[rows, rays]
-    flat = reach * math.cos(Laser.TILT)
-    forward, left = detail.scan_origin
-    yaws = poses[rows, 5]
-    x = poses[rows, 0] + forward * np.cos(yaws) - left * np.sin(yaws)
-    y = poses[rows, 1] + forward * np.sin(yaws) + left * np.cos(yaws)
-    points = np.stack([x + flat * np.cos(headings), y + flat * np.sin(headings),
-                       poses[rows, 2] + detail.scan_height - reach * math.sin(Laser.TILT)], axis=1)
-    return points, hit.sum(axis=1).astype(np.int64)
-
-
 def _log_scan(writer: _Writer, entity: str, run: Run, detail: RunDetail) -> None:
     """The laser hits at each sample (one row per sample, empty when nothing was hit)."""
     points, counts = scan_points(run, detail)
@@ -422,54 +337,20 @@ def _log_scan(writer: _Writer, entity: str, run: Run, detail: RunDetail) -> None
 
 def _log_contacts(writer: _Writer, entity: str, run: Run, detail: RunDetail) -> None:
     """The contact points at each sample, labelled with the model touched, radius growing with the force."""
-    samples = detail.contacts[: len(run.times)]
-    flat = [contact for contacts in samples for contact in contacts]
-    counts = [len(contacts) for contacts in samples]
-    positions = np.array([contact[1:4] for contact in flat], dtype=np.float64).reshape(-1, 3)
-    forces = np.array([contact[4] for contact in flat], dtype=np.float64)
-    radii = np.clip(0.02 + 0.004 * np.sqrt(np.maximum(forces, 0.0)), 0.02, 0.2)
+    found = content.contacts(run, detail)
     rr = writer.rr
     writer.static(entity, rr.Points3D.from_fields(colors=[CONTACT_RGBA], show_labels=False))
-    writer.columns(entity, run.times[: len(samples)], rr.Points3D.columns(
-        positions=positions, radii=radii, labels=[str(contact[0]) for contact in flat]).partition(counts))
+    writer.columns(entity, run.times[: len(found.counts)], rr.Points3D.columns(
+        positions=found.positions, radii=found.radii, labels=list(found.models)).partition(list(found.counts)))
 
 
 def _log_events(writer: _Writer, root: str, world: World, run: Run) -> None:
     """The text log (the run at its first time; the failure, or the end) and the failure marker."""
     rr = writer.rr
-    first = float(run.times[0]) if len(run.times) else 0.0
-    texts = [f"{world.name or run.world_name}: {len(world.models)} models, robot {run.robot}, seed {run.seed}"
-             + (f", {run.engine} {run.engine_version}" if run.engine_version else "")]  # not for a reported run
-    levels, times = ["INFO"], [first]
-    failure = run.failure
-    if failure is not None:
-        words = f"{failure.predicate} at t = {failure.time:.2f} s"
-        writer.columns(f"{root}/failure", [failure.time], rr.Points3D.columns(
-            positions=[failure.pose[:3]], radii=[0.12], colors=[FAILURE_RGBA], labels=[words]))
-        texts.append(f"FAILED: {failure.explain()}" + (f" {failure.detail}" if failure.detail else ""))
-        levels.append("ERROR")
-        times.append(float(failure.time))
-    elif len(run.times):
-        ending = f"reached the goal at t = {run.goal_time:.2f} s" if run.reached_goal and run.goal_time is not None \
-            else f"ended at t = {float(run.times[-1]):.2f} s without a failure"
-        texts.append(ending)
-        levels.append("INFO")
-        times.append(float(run.times[-1]))
-    writer.columns(f"{root}/log", times, rr.TextLog.columns(text=texts, level=levels))
-
-
-# -- numbers ----------------------------------------------------------------------------------------------
-def quaternions(rpy: FloatArray) -> FloatArray:
-    """(N, 4) x y z w quaternions of (N, 3) fixed-axis roll, pitch, yaw (rotation Rz @ Ry @ Rx, as
-    `pytest_ddenv.world.geometry.rotation_matrix` and pybullet's getQuaternionFromEuler)."""
-    half = np.asarray(rpy, dtype=np.float64).reshape(-1, 3) / 2.0
-    cr, cp, cy = np.cos(half).T
-    sr, sp, sy = np.sin(half).T
-    result: FloatArray = np.stack([sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
-                                   cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy], axis=1)
-    return result
-
-
-def _quaternion(pose: Pose) -> FloatArray:
-    quaternion: FloatArray = quaternions(np.array([[pose.roll, pose.pitch, pose.yaw]]))[0]
-    return quaternion
+    mark = content.failure_mark(run)
+    if mark is not None:
+        writer.columns(f"{root}/failure", [mark.time], rr.Points3D.columns(
+            positions=[mark.position], radii=[0.12], colors=[FAILURE_RGBA], labels=[mark.words]))
+    lines = content.log_lines(world, run)
+    writer.columns(f"{root}/log", [line.time for line in lines], rr.TextLog.columns(
+        text=[line.text for line in lines], level=[line.level for line in lines]))
