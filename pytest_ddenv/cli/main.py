@@ -660,6 +660,7 @@ def _read_runs(path: Path) -> tuple[list[Run], list[list[float]], list[str]]:
 def _cmd_reduce(arguments: argparse.Namespace) -> int:
     from pytest_ddenv.driver.scenario_job import ScenarioJob
     from pytest_ddenv.execution import check_executor, make_pool
+    from pytest_ddenv.media.writer import records_runs
     from pytest_ddenv.reduce import PRIORITY_ALIASES
 
     arguments.media = _resolved_media(arguments.media)
@@ -693,7 +694,7 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
                 ahead = import_ahead()
             progress.note(f"simulating the original world ({len(world)} models, seed {arguments.seed}; "
                           f"{_where(pool)})")
-            original = pool.call(world, 0, record=arguments.media == "all")
+            original = pool.call(world, 0, record=records_runs(arguments.media))
             if original.error is None or original.error.ddenv_error or original.error.phase != "call":
                 return _does_not_fail(arguments, original)
             progress.note(f"it fails: {_failure_text(original)}; reducing")

@@ -35,7 +35,7 @@ from pytest_ddenv.driver.report import (
     world_independent_summary,
 )
 from pytest_ddenv.execution import Pool
-from pytest_ddenv.media.writer import DEFAULT_MEDIA, PendingMedia, Shown
+from pytest_ddenv.media.writer import DEFAULT_MEDIA, PendingMedia, Shown, records_runs
 from pytest_ddenv.oracle.predicates import FailureSignature
 from pytest_ddenv.oracle.verdict import ErrorInfo, FailureReference, SameFailureRule, classify_result
 from pytest_ddenv.reduce import (
@@ -184,7 +184,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool[ProbeResult], *, note: Note = 
         with _sigterm_as_interrupt():
             confirmation = Confirmation() if plan.confirmed else confirm(
                 world, plan.reference, plan.rule, calls, deflake=spec.deflake, max_probes=spec.max_probes,
-                record=plan.media == "all", note=note)
+                record=records_runs(plan.media), note=note)
             if confirmation.status != "confirmed":
                 return ReductionOutcome(confirmation.status, message=confirmation.message)
             partition, priority, notes = _schemas(spec, plan.reference_run, plan.no_run_reason)
@@ -358,7 +358,7 @@ class _Locked:
         plan, calls = self.plan, self.calls
         if plan.media == "none":
             return None, []
-        record = plan.media == "all"
+        record = records_runs(plan.media)
         minimal_world = plan.world.select(reduction.minimal)
         minimal_run = calls.run_of(reduction.minimal, plan.world, plan.reference_run)
         shown: list[Shown] = []
@@ -410,7 +410,7 @@ class _Locked:
         try:
             if interrupted is None and shown:  # with worker processes, an animation renders beside the pictures
                 pending = PendingMedia(paths.directory, shown, failure_text=plan.reference.describe(),
-                                       helper=self.pool.size > 1 and not self.pool.in_process)
+                                       helper=self.pool.size > 1 and not self.pool.in_process, media=plan.media)
             if interrupted is None and plan.media != "none":
                 attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
             if pending is not None:

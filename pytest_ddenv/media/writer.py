@@ -1,9 +1,12 @@
-"""What a reduction shows besides its files: which media to make, and the animations and 3D recording.
+"""What a reduction shows besides its files: which media to make, and the animations and 3D recordings.
 
 `--ddenv-media` (ini `ddenv_media`, `$DDENV_MEDIA`, `ddenv reduce --media`) chooses: `all` (the default:
-pictures, `original.gif`/`minimal.gif`, and `recording.rrd` when rerun-sdk is installed), `pictures` (the
-PNG pictures only) or `none`. Animations and the recording are drawn from runs that recorded their full
-detail (`Run.detail`): the run that confirmed the failure, and one run of the minimal world.
+pictures, `original.gif`/`minimal.gif`, `recording.rrd` when rerun-sdk is installed and `recording.mcap` when
+foxglove-sdk is), `pictures` (the PNG pictures only), `none`, or a list of `pictures`, `animations`, `rrd` and
+`mcap` (`pictures,mcap`); the pictures come with every choice but `none`, and a recording named in a list
+whose package is not installed is an error (`all` leaves it out). Animations and recordings are drawn from
+runs that recorded their full detail (`Run.detail`): the run that confirmed the failure, and one run of the
+minimal world.
 """
 
 from __future__ import annotations
@@ -27,24 +30,70 @@ if TYPE_CHECKING:
     from pytest_ddenv.media.animate import AnimationInfo
 
 MEDIA_CHOICES = ("all", "pictures", "none")
+"""The words of `--ddenv-media` besides a list of `MEDIA_PARTS`."""
+MEDIA_PARTS = ("pictures", "animations", "rrd", "mcap")
+"""What a list may name: the PNG pictures, `original.gif`/`minimal.gif`, `recording.rrd`, `recording.mcap`."""
+RECORDED_PARTS = frozenset({"animations", "rrd", "mcap"})
+"""The media drawn from runs with their full detail (`Run.detail`)."""
 MEDIA_ENV = "DDENV_MEDIA"
 DEFAULT_MEDIA = "all"
 
 
 class MediaChoiceError(DdenvError, ValueError):
-    """A media setting that is not one of `MEDIA_CHOICES`; the message says where it was given."""
+    """A media setting that is not one of `MEDIA_CHOICES` or a list of `MEDIA_PARTS`, or names a recording
+    whose package is not installed; the message says where it was given."""
 
 
 def media_choice(value: str | None, where: str) -> str:
-    """`value` checked (None or empty: `$DDENV_MEDIA`, else `all`); `where` names the option in the error."""
+    """`value` checked (None or empty: `$DDENV_MEDIA`, else `all`); `where` names the option in the error. A
+    list comes back in the order of `MEDIA_PARTS`, with `pictures` first (`mcap` -> `pictures,mcap`)."""
     if value in (None, ""):
         value, where = os.environ.get(MEDIA_ENV, "").strip(), f"${MEDIA_ENV}"
         if not value:
             return DEFAULT_MEDIA
     text = str(value).strip().lower()
-    if text not in MEDIA_CHOICES:
-        raise MediaChoiceError(f"{where}: expected one of {', '.join(MEDIA_CHOICES)}, got {value!r}")
-    return text
+    if text in MEDIA_CHOICES:
+        return text
+    named = [part.strip() for part in text.split(",")]
+    unknown = [part for part in named if part not in MEDIA_PARTS]
+    if unknown:
+        raise MediaChoiceError(f"{where}: expected one of {', '.join(MEDIA_CHOICES)} or a comma-separated list of "
+                               f"{', '.join(MEDIA_PARTS)}, got {value!r}")
+    missing = _missing_package(set(named))
+    if missing:
+        raise MediaChoiceError(f"{where}: {missing}")
+    return ",".join(part for part in MEDIA_PARTS if part in named or part == "pictures")
+
+
+def media_parts(choice: str) -> frozenset[str]:
+    """The `MEDIA_PARTS` a checked choice makes (`all`: every one, the recordings when their package is
+    installed; `none`: none)."""
+    if choice == "all":
+        return frozenset(MEDIA_PARTS)
+    if choice == "none":
+        return frozenset()
+    return frozenset(choice.split(","))
+
+
+def records_runs(choice: str) -> bool:
+    """Whether a checked choice draws media from runs with their full detail (animations or recordings)."""
+    return bool(media_parts(choice) & RECORDED_PARTS)
+
+
+def _missing_package(named: set[str]) -> str | None:
+    """What a recording named explicitly needs and is not installed, in words, or None."""
+    if "rrd" in named:
+        from pytest_ddenv.media.recording import INSTALL_HINT, recording_available
+
+        if not recording_available():
+            return f"'rrd' was asked for, but {INSTALL_HINT}"
+    if "mcap" in named:
+        from pytest_ddenv.media.mcap import INSTALL_HINT as MCAP_HINT
+        from pytest_ddenv.media.mcap import mcap_available
+
+        if not mcap_available():
+            return f"'mcap' was asked for, but {MCAP_HINT}"
+    return None
 
 
 @dataclass(frozen=True)
@@ -67,27 +116,31 @@ class MediaWritten:
     seconds: float = 0.0
 
 
-def write_media(directory: Path, shown: Sequence[Shown], *, failure_text: str = "") -> MediaWritten:
-    """`<label>.gif` for each run shown, and one `recording.rrd` of them all (when rerun-sdk is installed).
+def write_media(directory: Path, shown: Sequence[Shown], *, failure_text: str = "",
+                media: str = DEFAULT_MEDIA) -> MediaWritten:
+    """`<label>.gif` for each run shown, one `recording.rrd` and one `recording.mcap` of them all (each when
+    its package is installed), as far as `media` (a checked `--ddenv-media`) asks for them.
     `failure_text` describes the reduced failure; the last frame of a run that failed the same way without
     a predicate firing (a plain `assert` after the run) says it. Never raises: a medium that cannot be made
     is a warning (the reduction's files are what matter)."""
-    return PendingMedia(directory, shown, failure_text=failure_text).finish()
+    return PendingMedia(directory, shown, failure_text=failure_text, media=media).finish()
 
 
 class PendingMedia:
     """`write_media` started now and finished by `finish()`. With `helper=True` (a reduction that ran its
     probes in worker processes: more than one core is the user's) the first animation renders in a helper
     process, started like the probe workers, while this process makes the pictures, the other animations
-    and the recording; without, everything is made in this process by `finish()`. Without pybullet,
+    and the recordings; without, everything is made in this process by `finish()`. Without pybullet,
     MuJoCo's renderer draws every animation in one helper process (media/gl_helper.py), started now with
     `helper=True`, else by `finish()`."""
 
     def __init__(self, directory: Path, shown: Sequence[Shown], *, failure_text: str = "",
-                 helper: bool = False) -> None:
+                 helper: bool = False, media: str = DEFAULT_MEDIA) -> None:
         self.started = time.perf_counter()
         self.directory, self.failure_text = directory, failure_text
-        self.items = [item for item in shown if item.run is not None]
+        self.parts = media_parts(media)
+        self.recorded = [item for item in shown if item.run is not None]
+        self.items = self.recorded if "animations" in self.parts else []
         self.elsewhere: tuple[Shown, concurrent.futures.ProcessPoolExecutor, concurrent.futures.Future[Any]] | None
         self.elsewhere = None
         self.in_mujoco: MujocoAnimations | None = None
@@ -121,10 +174,11 @@ class PendingMedia:
             if info is not None:
                 written.paths.append(info.path)
                 written.info[info.path.name] = info.to_dict()
-        if self.items:
-            _write_recording(self.directory / "recording.rrd",
-                             [(item.label, item.world, item.run) for item in self.items if item.run is not None],
-                             written)
+        runs = [(item.label, item.world, item.run) for item in self.recorded if item.run is not None]
+        if runs and "rrd" in self.parts:
+            _write_recording(self.directory / "recording.rrd", runs, written)
+        if runs and "mcap" in self.parts:
+            _write_mcap(self.directory / "recording.mcap", runs, written)
         written.seconds = time.perf_counter() - self.started
         return written
 
@@ -225,6 +279,20 @@ def _write_recording(path: Path, runs: Sequence[tuple[str, World, Run]], written
         return
     try:
         info = write_recording(path, runs)
+    except Exception as error:  # noqa: BLE001 - as above
+        warnings.warn(f"ddenv: {path.name} not written: {type(error).__name__}: {error}", stacklevel=1)
+        return
+    written.paths.append(info.path)
+    written.info[info.path.name] = info.to_dict()
+
+
+def _write_mcap(path: Path, runs: Sequence[tuple[str, World, Run]], written: MediaWritten) -> None:
+    from pytest_ddenv.media.mcap import mcap_available, write_mcap
+
+    if not mcap_available():  # the optional `mcap` extra is not installed
+        return
+    try:
+        info = write_mcap(path, runs)
     except Exception as error:  # noqa: BLE001 - as above
         warnings.warn(f"ddenv: {path.name} not written: {type(error).__name__}: {error}", stacklevel=1)
         return
