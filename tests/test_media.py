@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +14,15 @@ import pytest
 from pytest_ddenv.media.animate import HEIGHT, WIDTH, frame_times, write_animation
 from pytest_ddenv.detail import recording_detail
 from pytest_ddenv.execution import LocalPool
-from pytest_ddenv.media.writer import MediaChoiceError, PendingMedia, Shown, media_choice
+from pytest_ddenv.media.writer import (
+    MediaChoiceError,
+    PendingMedia,
+    Shown,
+    media_choice,
+    media_parts,
+    records_runs,
+    write_media,
+)
 from pytest_ddenv.oracle import PredicateSpec
 from pytest_ddenv.driver.scenario_job import ScenarioJob
 from pytest_ddenv.sim import Run, simulate
@@ -161,6 +170,45 @@ def test_a_bad_media_option_is_one_usage_error(pytester: pytest.Pytester) -> Non
     result = pytester.runpytest_subprocess("--ddenv-media", "movies")
     assert result.ret == pytest.ExitCode.USAGE_ERROR
     result.stderr.fnmatch_lines(["*--ddenv-media: expected one of all, pictures, none, got 'movies'*"])
+
+
+def test_a_media_list_picks_and_always_brings_the_pictures(monkeypatch: pytest.MonkeyPatch) -> None:
+    assert media_choice("mcap", "--x") == "pictures,mcap"
+    assert media_choice(" MCAP, pictures ", "--x") == "pictures,mcap"
+    assert media_choice("rrd,animations", "--x") == "pictures,animations,rrd"
+    assert media_parts("all") == {"pictures", "animations", "rrd", "mcap"} and media_parts("none") == set()
+    assert media_parts("pictures,mcap") == {"pictures", "mcap"}
+    assert records_runs("all") and records_runs("pictures,mcap") and records_runs("pictures,animations")
+    assert not records_runs("pictures") and not records_runs("none")
+    for bad in ("none,mcap", "pictures,movies", "pictures,"):
+        with pytest.raises(MediaChoiceError, match=r"--x: expected one of all, pictures, none, got .* \(or a "
+                                                   r"comma-separated list of pictures, animations, rrd, mcap\)"):
+            media_choice(bad, "--x")
+
+
+def test_a_recording_named_without_its_package_is_an_error_and_all_leaves_it_out(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setitem(sys.modules, "foxglove", None)
+    with pytest.raises(MediaChoiceError, match=r"--ddenv-media: 'mcap' was asked for, but the MCAP recording "
+                                               r"needs foxglove-sdk: pip install 'pytest-ddenv\[mcap\]'"):
+        media_choice("pictures,mcap", "--ddenv-media")
+    monkeypatch.setitem(sys.modules, "rerun", None)
+    with pytest.raises(MediaChoiceError, match=r"'rrd' was asked for, but .*pytest-ddenv\[viewer\]"):
+        media_choice("rrd", "--ddenv-media")
+    assert media_choice("all", "--ddenv-media") == "all"
+    world, run = failing_run("ditch", detail=False)
+    written = write_media(tmp_path, [Shown("minimal", world, run, True)], media="all")
+    assert [path.name for path in written.paths] == ["minimal.gif"]
+
+
+def test_the_media_chosen_are_the_files_written(tmp_path: Path) -> None:
+    pytest.importorskip("foxglove")
+    world, run = failing_run("ditch", detail=False)
+    shown = [Shown("minimal", world, run, True)]
+    written = write_media(tmp_path, shown, media=media_choice("mcap", "--x"))
+    assert [path.name for path in written.paths] == ["recording.mcap"] == sorted(p.name for p in tmp_path.iterdir())
+    assert written.info["recording.mcap"]["messages"] > len(run.times)
+    assert write_media(tmp_path / "none", shown, media="pictures").paths == []
 
 
 TEST = '''

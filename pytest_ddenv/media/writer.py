@@ -57,8 +57,8 @@ def media_choice(value: str | None, where: str) -> str:
     named = [part.strip() for part in text.split(",")]
     unknown = [part for part in named if part not in MEDIA_PARTS]
     if unknown:
-        raise MediaChoiceError(f"{where}: expected one of {', '.join(MEDIA_CHOICES)} or a comma-separated list of "
-                               f"{', '.join(MEDIA_PARTS)}, got {value!r}")
+        raise MediaChoiceError(f"{where}: expected one of {', '.join(MEDIA_CHOICES)}, got {value!r} (or a "
+                               f"comma-separated list of {', '.join(MEDIA_PARTS)})")
     missing = _missing_package(set(named))
     if missing:
         raise MediaChoiceError(f"{where}: {missing}")
