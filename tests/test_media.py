@@ -4,6 +4,7 @@ worker processes, real GIF files read back with imageio)."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -199,6 +200,21 @@ def test_a_recording_named_without_its_package_is_an_error_and_all_leaves_it_out
     world, run = failing_run("ditch", detail=False)
     written = write_media(tmp_path, [Shown("minimal", world, run, True)], media="all")
     assert [path.name for path in written.paths] == ["minimal.gif"]
+
+
+def test_mcap_asked_for_without_foxglove_sdk_stops_the_session(pytester: pytest.Pytester,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    blocked = pytester.mkdir("blocked") / "foxglove"
+    blocked.mkdir()
+    (blocked / "__init__.py").write_text("raise ImportError('not installed here')\n")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(blocked.parent),
+                                                                  os.environ.get("PYTHONPATH")])))
+    pytester.makepyfile("def test_nothing():\n    pass\n")
+    result = pytester.runpytest_subprocess("--ddenv-media", "pictures,mcap")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    assert result.stderr.lines[0] == ("ERROR: --ddenv-media: 'mcap' was asked for, but the MCAP recording needs "
+                                      "foxglove-sdk: pip install 'pytest-ddenv[mcap]'")
+    assert pytester.runpytest_subprocess("--ddenv-media", "all").ret == pytest.ExitCode.OK
 
 
 def test_the_media_chosen_are_the_files_written(tmp_path: Path) -> None:
