@@ -1,12 +1,13 @@
-"""What the animations and the 3D recording add to a reduction (`--media all` against `--media pictures`).
+"""What the animations and the 3D recordings add to a reduction (`--media all` against `--media pictures`).
 
     python benchmarks/bench_media.py [--scenarios ditch rubble friction cul_de_sac] [--out FILE.json]
 
 For each scenario it runs `ddenv reduce WORLD ... --workers 2` twice as a user would (a fresh process and a
 fresh artifacts folder each): once with `--media pictures` (the PNG pictures only), once with `--media all`
-(plus original.gif, minimal.gif and recording.rrd). Per row: both wall times and their difference, the
-simulations of each (the `all` run makes one more: the minimal world's recorded run), and from the `all`
-run's summary.json the seconds spent writing the media in the reducing process, each file's frames and size.
+(plus original.gif, minimal.gif, recording.rrd and recording.mcap, each recording when its package is
+installed). Per row: both wall times and their difference, the simulations of each (the `all` run makes one
+more: the minimal world's recorded run), and from the `all` run's summary.json the seconds spent writing the
+media in the reducing process, each file's frames (a GIF's), size and seconds.
 """
 
 from __future__ import annotations
