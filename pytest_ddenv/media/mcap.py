@@ -56,7 +56,6 @@ if TYPE_CHECKING:
 INSTALL_HINT = "the MCAP recording needs foxglove-sdk: pip install 'pytest-ddenv[mcap]'"
 PROFILE = "pytest-ddenv"
 """The profile written in the file's header."""
-CAPSULE_SEGMENTS = 3
 
 
 class McapUnavailable(ImportError):
