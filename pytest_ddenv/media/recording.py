@@ -71,9 +71,6 @@ from pytest_ddenv.world.model import Model, Shape, World
 if TYPE_CHECKING:
     from pytest_ddenv.sim.run import Run, RunDetail
 
-__all__ = ["INSTALL_HINT", "TIMELINE", "RecordingInfo", "RecordingUnavailable", "quaternions", "recording_available",
-           "scan_points", "write_recording"]
-
 TIMELINE = "sim_time"
 """The one timeline of a recording: simulated seconds (a duration timeline)."""
 INSTALL_HINT = "the 3D recording needs rerun-sdk: pip install 'pytest-ddenv[viewer]'"
