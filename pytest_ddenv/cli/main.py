@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 from pytest_ddenv import defaults
 from pytest_ddenv._version import __version__
+from pytest_ddenv.cli.bisect import add_bisect, cmd_bisect
 from pytest_ddenv.cli.output import appended, check_matplotlib_backend, check_output, check_record
 from pytest_ddenv.cli.world_options import (
     WORLD_SETTINGS,
@@ -200,6 +201,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_show(commands, common)
     _add_reduce(commands, common)
     _add_replay(commands, common)
+    add_bisect(commands, common)
     _add_convert(commands, common)
     return parser
 
@@ -937,6 +939,7 @@ _HANDLERS: dict[str, Callable[[argparse.Namespace], int]] = {
     "show": _cmd_show,
     "reduce": _cmd_reduce,
     "replay": _cmd_replay,
+    "bisect": cmd_bisect,
     "convert": _cmd_convert,
 }
 
