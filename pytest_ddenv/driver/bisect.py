@@ -323,20 +323,33 @@ def bisect(target: BisectTarget, settings: BisectSettings,
         if bad_verdict.decision != "bad":
             raise BadRevisionPasses(f"the bad revision {bad.describe()} does not fail like the reference: "
                               f"{bad_verdict.describe()}")
-        low, high, skipped = -1, len(line) - 1, set[int]()
-        while (index := _next(low, high, skipped)) is not None:
+
+        def decide(index: int) -> str:
             verdict = search.evaluate(line[index])
             report(verdict)
-            if verdict.decision == "bad":
-                high = index
-            elif verdict.decision == "good":
-                low = index
-            else:
-                skipped.add(index)
+            return verdict.decision
+
+        low, high = binary_search(len(line), decide)
         first_bad = line[high] if high - low == 1 else None
         candidates = () if first_bad is not None else tuple(line[low + 1:high + 1])
         assert search.reference is not None
         return BisectResult(good, bad, tuple(line), first_bad, candidates, tuple(search.verdicts), search.reference)
+
+
+def binary_search(count: int, decide: Callable[[int], str]) -> tuple[int, int]:
+    """(last good, first bad) of positions 0 .. count - 1, position count - 1 known bad and -1 good, asking
+    `decide(index)` ("good", "bad", anything else: skipped) at most ceil(log2(count)) times without skips.
+    When skips leave positions between them, every one of them (and the first bad) could be the first bad."""
+    low, high, skipped = -1, count - 1, set[int]()
+    while (index := _next(low, high, skipped)) is not None:
+        decision = decide(index)
+        if decision == "bad":
+            high = index
+        elif decision == "good":
+            low = index
+        else:
+            skipped.add(index)
+    return low, high
 
 
 def _next(low: int, high: int, skipped: set[int]) -> int | None:
@@ -478,4 +491,4 @@ class _LazyWorktree:
 
 
 __all__ = ["BadRevisionPasses", "BisectError", "BisectResult", "BisectSettings", "BisectTarget", "CommitVerdict",
-           "GitError", "SequentialTest", "bisect", "target_from_artifacts", "target_from_test"]
+           "GitError", "SequentialTest", "binary_search", "bisect", "target_from_artifacts", "target_from_test"]
