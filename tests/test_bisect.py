@@ -70,9 +70,10 @@ def git(repository: Path, *arguments: str) -> str:
                           text=True).stdout.strip()
 
 
-def make_repository(folder: Path, *, broken: tuple[int, ...] = ()) -> list[str]:
+def make_repository(folder: Path, *, broken: tuple[int, ...] = (), hung: tuple[int, ...] = ()) -> list[str]:
     """A repository of COMMITS + 1 commits (the good one first): the controller loses its waypoints at commit
-    FIRST_BAD; at the commits in `broken` it does not import. The shas, oldest first."""
+    FIRST_BAD; at the commits in `broken` it does not import, at those in `hung` its import hangs. The shas,
+    oldest first."""
     folder.mkdir(parents=True)
     git(folder, "init", "-q")
     git(folder, "config", "user.email", "bisect@example.org")
@@ -85,6 +86,7 @@ def make_repository(folder: Path, *, broken: tuple[int, ...] = ()) -> list[str]:
     for number in range(COMMITS + 1):
         waypoints = "[]" if number >= FIRST_BAD else "[(0.8, 2.7), (3.2, 2.7)]"
         broken_line = "\nraise ImportError('half-done refactoring')\n" if number in broken else ""
+        broken_line += "\nimport time\ntime.sleep(600)\n" if number in hung else ""
         (folder / "robot_control.py").write_text(CONTROLLER.format(waypoints=waypoints, broken=broken_line))
         (folder / "history.txt").write_text(f"step {number}\n")
         git(folder, "add", "-A")
@@ -171,6 +173,19 @@ def test_input_errors_are_one_line_and_exit_2(capsys: pytest.CaptureFixture[str]
         assert err.count("\n") == 1 and out == ""
 
 
+def test_a_hung_bad_revision_is_skipped_after_the_run_timeout_and_said_so(capsys: pytest.CaptureFixture[str],
+                                                                         tmp_path: Path) -> None:
+    folder = tmp_path / "project"
+    shas = make_repository(folder, hung=(COMMITS,))
+    code, out, err = run_cli(capsys, "bisect", "--test", TEST_ID, "--world", str(folder / "world.yaml"),
+                             "--good", shas[0], "--repo", str(folder), "--folder", str(tmp_path / "bisect"),
+                             "--run-timeout", "3")
+    assert code == 1 and out == ""
+    assert f"ddenv bisect: {shas[COMMITS][:7]} skip: pytest did not finish in 3 s (a hung test; --run-timeout)" in err
+    assert "ddenv: error: the bad revision" in err and "does not fail like the reference" in err
+    assert git(folder, "worktree", "list").count("\n") == 0
+
+
 # -- real searches -------------------------------------------------------------------------------------------
 @pytest.mark.slow
 def test_bisect_finds_the_known_bad_commit_within_the_bound_and_a_rerun_starts_no_simulation(
@@ -203,7 +218,7 @@ def test_bisect_finds_the_known_bad_commit_within_the_bound_and_a_rerun_starts_n
 @pytest.mark.slow
 def test_a_commit_that_cannot_import_is_skipped(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     folder = tmp_path / "project"
-    shas = make_repository(folder, broken=(5,))  # the middle commit first asked
+    shas = make_repository(folder, broken=(FIRST_BAD + 1,))  # the second commit asked
     code, out, err = run_cli(capsys, "bisect", "--test", TEST_ID, "--world", str(folder / "world.yaml"),
                              "--good", shas[0], "--repo", str(folder), "--folder", str(tmp_path / "bisect"),
                              "--json")
@@ -211,9 +226,21 @@ def test_a_commit_that_cannot_import_is_skipped(capsys: pytest.CaptureFixture[st
     result = json.loads(out)
     assert result["first_bad"]["commit"] == shas[FIRST_BAD]
     skipped = [verdict for verdict in result["verdicts"] if verdict["decision"] == "skip"]
-    assert [verdict["commit"] for verdict in skipped] == [shas[5]]
+    assert [verdict["commit"] for verdict in skipped] == [shas[FIRST_BAD + 1]]
     assert "half-done refactoring" in skipped[0]["reason"] and skipped[0]["started"] == 0
-    assert f"{shas[5][:7]} skip: pytest exited with" in err
+    assert f"{shas[FIRST_BAD + 1][:7]} skip: pytest exited with 4: " in err
+
+
+@pytest.mark.slow
+def test_a_skipped_parent_of_the_first_bad_commit_leaves_a_range(capsys: pytest.CaptureFixture[str],
+                                                                 tmp_path: Path) -> None:
+    folder = tmp_path / "project"
+    shas = make_repository(folder, broken=(FIRST_BAD - 1,))
+    code, out, err = run_cli(capsys, "bisect", "--test", TEST_ID, "--world", str(folder / "world.yaml"),
+                             "--good", shas[0], "--repo", str(folder), "--folder", str(tmp_path / "bisect"))
+    assert code == 1, err
+    assert out.startswith("no single first bad commit: skipped commits leave 2 that could be it (oldest first): "
+                          f"{shas[FIRST_BAD - 1][:7]} step {FIRST_BAD - 1}, {shas[FIRST_BAD][:7]} drive straight")
 
 
 @pytest.mark.slow
