@@ -173,17 +173,20 @@ def test_input_errors_are_one_line_and_exit_2(capsys: pytest.CaptureFixture[str]
         assert err.count("\n") == 1 and out == ""
 
 
-def test_a_hung_bad_revision_is_skipped_after_the_run_timeout_and_said_so(capsys: pytest.CaptureFixture[str],
-                                                                         tmp_path: Path) -> None:
+def test_a_hung_bad_revision_is_skipped_after_the_run_timeout_and_said_so(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     folder = tmp_path / "project"
     shas = make_repository(folder, hung=(COMMITS,))
+    monkeypatch.chdir(tmp_path)  # the default folder: ./ddenv-bisect/<test>-seed0-<hash>
     code, out, err = run_cli(capsys, "bisect", "--test", TEST_ID, "--world", str(folder / "world.yaml"),
-                             "--good", shas[0], "--repo", str(folder), "--folder", str(tmp_path / "bisect"),
-                             "--run-timeout", "3")
+                             "--good", shas[0], "--repo", str(folder), "--run-timeout", "3")
     assert code == 1 and out == ""
     assert f"ddenv bisect: {shas[COMMITS][:7]} skip: pytest did not finish in 3 s (a hung test; --run-timeout)" in err
     assert "ddenv: error: the bad revision" in err and "does not fail like the reference" in err
     assert git(folder, "worktree", "list").count("\n") == 0
+    (journal,) = (tmp_path / "ddenv-bisect").glob("test_robot.py__test_reaches_the_goal-seed0-*/journal.jsonl")
+    (entry,) = [json.loads(line) for line in journal.read_text().splitlines()]
+    assert entry["kind"] == "cannot_run" and entry["hung"] and entry["commit"] == shas[COMMITS]
 
 
 # -- real searches -------------------------------------------------------------------------------------------

@@ -81,7 +81,7 @@ def add_bisect(commands: Any, common: argparse.ArgumentParser) -> None:
     parser.add_argument("--repo", metavar="DIR", default=".", help="the git repository (default: .)")
     parser.add_argument("--folder", metavar="DIR",
                         help="the bisect's folder (journal, worktrees): default ARTIFACT_DIR/bisect, or "
-                             "ddenv-bisect/<test> with --test")
+                             "ddenv-bisect/<test>-seed<S>-<hash> with --test")
     parser.add_argument("--seed", type=_seed, metavar="S",
                         help="the seed of run 0 (default: the reduction's, else 0); run i uses S + i * 1000003")
     parser.add_argument("--max-runs", type=_count, default=DEFAULT_MAX_RUNS, metavar="N",
@@ -109,7 +109,7 @@ def cmd_bisect(arguments: argparse.Namespace) -> int:
         if arguments.world is None:
             raise BisectError("--test needs --world FILE")
         target = target_from_test(arguments.test, Path(arguments.world), arguments.seed)
-        folder = Path(arguments.folder or Path("ddenv-bisect") / artifact_dir_name(arguments.test))
+        folder = Path(arguments.folder or Path("ddenv-bisect") / artifact_dir_name(target.test, target.seed))
     settings = BisectSettings(arguments.good, arguments.bad, Path(arguments.repo), folder.resolve(),
                               SequentialTest(arguments.good_rate, arguments.bad_rate, arguments.level),
                               arguments.max_runs, arguments.run_timeout)
