@@ -13,6 +13,7 @@ import math
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -216,6 +217,35 @@ def test_bisect_finds_the_known_bad_commit_within_the_bound_and_a_rerun_starts_n
     assert code == 0 and again["first_bad"] == result["first_bad"]
     assert again["simulations_started"] == 0
     assert again["simulations_reused"] == result["simulations"]
+
+
+@pytest.mark.slow
+def test_a_rerun_after_kill_9_reuses_every_recorded_run(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                        repository: tuple[Path, list[str]]) -> None:
+    folder, shas = repository
+    argv = ["bisect", "--test", TEST_ID, "--world", str(folder / "world.yaml"), "--good", shas[0],
+            "--repo", str(folder), "--folder", str(tmp_path / "bisect"), "--json"]
+    journal = tmp_path / "bisect" / "journal.jsonl"
+    process = subprocess.Popen([sys.executable, "-m", "pytest_ddenv", *argv], stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL)
+    try:
+        while process.poll() is None and len(journal.read_text().splitlines() if journal.exists() else []) < 4:
+            time.sleep(0.05)  # polling for the journal, not timing anything
+    finally:
+        process.kill()  # SIGKILL: no cleanup, the worktree of the commit being run is left behind
+        process.wait()
+    recorded = [json.loads(line) for line in journal.read_text().splitlines()]
+    assert len(recorded) >= 4 and all(entry["kind"] == "run" for entry in recorded)
+
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["first_bad"]["commit"] == shas[FIRST_BAD]
+    assert result["simulations_reused"] == len(recorded)  # every recorded run reused, none simulated again
+    seeds = [(entry["commit"], entry["record"]["seed"]) for entry in journal.read_text().splitlines()
+             for entry in [json.loads(entry)]]
+    assert len(seeds) == len(set(seeds)) == len(recorded) + result["simulations_started"]
+    assert git(folder, "worktree", "list").count("\n") == 0
 
 
 @pytest.mark.slow

@@ -69,7 +69,7 @@ def run_batch(worktree: Path, request: BatchRequest, junit: Path) -> BatchResult
     junit.unlink(missing_ok=True)
     process = subprocess.Popen(request.pytest_arguments(junit), cwd=worktree, env=environment,
                                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                               text=True, errors="replace", start_new_session=True)
+                               text=True, errors="replace", start_new_session=True, preexec_fn=_die_with_parent)
     try:
         output, _ = process.communicate(timeout=request.timeout)
     except subprocess.TimeoutExpired:
@@ -84,6 +84,16 @@ def run_batch(worktree: Path, request: BatchRequest, junit: Path) -> BatchResult
     if process.returncode not in (0, 1):  # 2 interrupted or collection errors, 3 internal, 4 usage, 5 no tests
         return BatchResult(cannot_run=f"pytest exited with {process.returncode}: {_tail(output)}")
     return _read_junit(junit, request, output)
+
+
+def _die_with_parent() -> None:
+    """In the pytest child, before it runs: SIGKILL when `ddenv bisect` dies, even by kill -9 (Linux; its probe
+    workers end when their pipes to it close). Elsewhere, a killed bisect leaves its batch running to its end."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        pr_set_pdeathsig = 1
+        ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
 
 
 def _tail(output: str) -> str:
