@@ -65,7 +65,6 @@ def run_batch(worktree: Path, request: BatchRequest, junit: Path) -> BatchResult
     """Run the batch in `worktree` and read its runs back (see the module docstring for what is isolated)."""
     environment = dict(os.environ)
     environment["PYTHONPATH"] = os.pathsep.join([str(worktree), *filter(None, [environment.get("PYTHONPATH")])])
-    environment.pop("PYTEST_ADDOPTS", None)  # the bisect's own pytest options are not the test's
     junit.unlink(missing_ok=True)
     process = subprocess.Popen(request.pytest_arguments(junit), cwd=worktree, env=environment,
                                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
