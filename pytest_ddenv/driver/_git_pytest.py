@@ -29,6 +29,11 @@ OUTPUT_TAIL = 2000
 """Characters of a pytest process's output kept to say why a commit cannot run."""
 
 
+def run_seed(seed: int, index: int) -> int:
+    """The run seed of run `index` when run 0's is `seed` (as `--ddenv-rate` seeds its runs)."""
+    return seed + index * ATTEMPT_SEED_STRIDE
+
+
 @dataclass(frozen=True)
 class BatchRequest:
     """Runs `first` .. `first + count - 1` of the test on the world: run i uses the run seed
@@ -42,7 +47,7 @@ class BatchRequest:
     timeout: float
 
     def run_seed(self, index: int) -> int:
-        return self.seed + index * ATTEMPT_SEED_STRIDE
+        return run_seed(self.seed, index)
 
     def pytest_arguments(self, junit: Path) -> list[str]:
         return [sys.executable, "-m", "pytest", self.test, "--ddenv-world", str(self.world),

@@ -29,7 +29,7 @@ from pytest_ddenv.driver._git import (
     repository_root,
     resolve,
 )
-from pytest_ddenv.driver._git_pytest import BatchRequest, run_batch
+from pytest_ddenv.driver._git_pytest import BatchRequest, run_batch, run_seed
 from pytest_ddenv.driver.artifacts import ArtifactsError, FolderLock
 from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.oracle.predicates import FailureSignature
@@ -322,7 +322,7 @@ def bisect(target: BisectTarget, settings: BisectSettings,
         report(bad_verdict)
         if bad_verdict.decision != "bad":
             raise BadRevisionPasses(f"the bad revision {bad.describe()} does not fail like the reference: "
-                              f"{bad_verdict.describe()}")
+                                    f"{bad_verdict.describe()}")
 
         def decide(index: int) -> str:
             verdict = search.evaluate(line[index])
@@ -400,7 +400,7 @@ class _Search:
                 if batch.cannot_run:
                     self.journal.append([{"kind": "cannot_run", "commit": commit.sha, "reason": batch.cannot_run,
                                           "hung": batch.hung, "timeout": settings.run_timeout}])
-                    return CommitVerdict(commit, "skip", started=count if batch.hung else 0,
+                    return CommitVerdict(commit, "skip", started=started + (count if batch.hung else 0),
                                          reused=reused, reason=batch.cannot_run)
                 self.journal.append([{"kind": "run", "commit": commit.sha, "record": dict(record)}
                                      for record in batch.runs])
@@ -411,12 +411,9 @@ class _Search:
     def _journaled(self, commit: Commit) -> Iterator[Mapping[str, Any]]:
         """The journaled runs of this commit in run order, up to the first one missing."""
         index = 0
-        while (record := self.journal.runs.get((commit.sha, self._run_seed(index)))) is not None:
+        while (record := self.journal.runs.get((commit.sha, run_seed(self.target.seed, index)))) is not None:
             yield {**record, "run": index}
             index += 1
-
-    def _run_seed(self, index: int) -> int:
-        return BatchRequest(self.target.test, self.target.world, self.target.seed, index, 1, 0).run_seed(index)
 
     def _worktree(self, commit: Commit) -> _LazyWorktree:
         return _LazyWorktree(self.repository, commit, self.settings.folder / "worktrees" / commit.short)
