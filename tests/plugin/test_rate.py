@@ -5,6 +5,7 @@ noise, so some seeds fail and some pass."""
 
 from __future__ import annotations
 
+import html
 import json
 import textwrap
 import xml.etree.ElementTree as ET
@@ -99,7 +100,8 @@ def test_the_verdict_is_the_same_in_two_sessions_and_under_xdist(drift_project: 
 @pytest.mark.slow
 def test_a_passing_verdict_with_failed_runs_records_flaky_failures(drift_project: pytest.Pytester) -> None:
     drift_project.makepyfile(test_drift=DRIFT_TEST.format(marker=", rate=4, max_failure_rate=0.9"))
-    result = drift_project.runpytest_subprocess("--ddenv-workers", "2", "--junitxml=junit.xml", "-rA")
+    result = drift_project.runpytest_subprocess("--ddenv-workers", "2", "--junitxml=junit.xml", "-rA",
+                                                "--html=report.html", "--self-contained-html")
     props = properties(drift_project.path / "junit.xml")
     failed = [run for run in runs_of(props) if run["outcome"] == "failed"]
     assert failed, "some of the seeds fail"
@@ -117,6 +119,8 @@ def test_a_passing_verdict_with_failed_runs_records_flaky_failures(drift_project
     assert listing.startswith("ddenv failure rate: failed ") and "run 3 (seed 3000009)" in listing
     result.stdout.fnmatch_lines(["*ddenv failure rate*", "*not significantly above the allowed 90 %*",
                                  "run 0 (seed 0): *"])
+    page = html.unescape((drift_project.path / "report.html").read_text())
+    assert "ddenv-rate" in page and "<th>seed</th>" in page and "not significantly above the allowed 90 %" in page
 
 
 @pytest.mark.slow
