@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
+from pytest_ddenv.errors import raised_by_ddenv
 from pytest_ddenv.pytest_plugin.marks import spec_of
 from pytest_ddenv.pytest_plugin.options import options_of
 from pytest_ddenv.pytest_plugin.rate_records import with_rate
@@ -70,8 +71,9 @@ class RatePlugin:
         try:
             result = yield
         except Exception as error:
-            if isinstance(error, pytest.skip.Exception) or pyfuncitem.config.getoption("usepdb", False):
-                raise  # a skip is no run; under --pdb the debugger opens on run 0's own failure
+            if isinstance(error, pytest.skip.Exception) or raised_by_ddenv(error) \
+                    or pyfuncitem.config.getoption("usepdb", False):
+                raise  # a skip is no run, a broken setup no verdict; --pdb: the debugger opens on run 0's failure
             verdict = _judge(pyfuncitem, error, runs, allowed)
             if verdict.failed:
                 raise FailureRateExceeded(verdict) from error
