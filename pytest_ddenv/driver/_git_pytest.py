@@ -11,6 +11,7 @@ rebuilt per commit.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -25,6 +26,8 @@ from typing import Any
 from pytest_ddenv.scenario.robot_world import ATTEMPT_SEED_STRIDE
 
 RUN_OUTCOMES = ("passed", "failed", "error")
+KILLED_WAIT = 10.0
+"""Seconds to read what a killed pytest process wrote before giving up on its pipe."""
 OUTPUT_TAIL = 2000
 """Characters of a pytest process's output kept to say why a commit cannot run."""
 
@@ -78,7 +81,9 @@ def run_batch(worktree: Path, request: BatchRequest, junit: Path) -> BatchResult
         output, _ = process.communicate(timeout=request.timeout)
     except subprocess.TimeoutExpired:
         os.killpg(process.pid, signal.SIGKILL)  # the test's probe workers too: they are in its session
-        process.communicate()
+        with contextlib.suppress(subprocess.TimeoutExpired):  # a process that left the group may hold the pipe
+            process.communicate(timeout=KILLED_WAIT)
+        process.wait()
         return BatchResult(cannot_run=f"pytest did not finish in {request.timeout:g} s (a hung test; "
                                       "--run-timeout)", hung=True)
     except BaseException:
