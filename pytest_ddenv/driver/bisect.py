@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from pytest_ddenv import defaults
 from pytest_ddenv.driver._git import (
     Commit,
     GitError,
@@ -119,13 +120,15 @@ def target_from_artifacts(folder: Path, seed: int | None = None) -> BisectTarget
         signature = reference_data.get("signature")
         reference = FailureReference(str(reference_data["exception_type"]), str(reference_data["location"]),
                                      None if signature is None else FailureSignature.from_dict(signature))
-        rule = SameFailureRule.from_json(summary.get("same_failure") or {"tolerance": summary.get("tolerance", 0.5)},
+        rule = SameFailureRule.from_json(summary.get("same_failure")
+                                         or {"tolerance": summary.get("tolerance", defaults.TOLERANCE)},
                                          f"{summary_path}: same_failure")
         recorded_seed = int(summary.get("seed") or 0)
     except (ValueError, KeyError, TypeError, AttributeError) as error:
         raise ArtifactsError(f"{summary_path}: not a reduction's summary ({type(error).__name__}: {error})") from None
     if not isinstance(test, str) or "::" not in test:
-        raise ArtifactsError(f"{summary_path}: 'test' is {shown(test)}, not a pytest test id")
+        raise ArtifactsError(f"{summary_path}: 'test' is {shown(test)}, not a pytest test id (a folder of `ddenv "
+                             "reduce` names no test: give --test ID --world FILE)")
     world = folder / "minimal.yaml"
     if not world.is_file():
         raise ArtifactsError(f"{world}: missing; the artifacts folder has no minimal world")
