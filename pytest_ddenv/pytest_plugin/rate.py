@@ -70,10 +70,10 @@ class RatePlugin:
             return (yield)
         try:
             result = yield
-        except Exception as error:
-            if isinstance(error, pytest.skip.Exception) or raised_by_ddenv(error) \
+        except (Exception, pytest.fail.Exception) as error:  # pytest.fail() is a failure too
+            if isinstance(error, pytest.xfail.Exception) or raised_by_ddenv(error) \
                     or pyfuncitem.config.getoption("usepdb", False):
-                raise  # a skip is no run, a broken setup no verdict; --pdb: the debugger opens on run 0's failure
+                raise  # pytest.xfail() is no run, a broken setup no verdict; --pdb: the debugger opens on run 0's
             verdict = _judge(pyfuncitem, error, runs, allowed)
             if verdict.failed:
                 raise FailureRateExceeded(verdict) from error
