@@ -195,7 +195,9 @@ def test_a_hung_bad_revision_is_skipped_after_the_run_timeout_and_said_so(
 def test_bisect_finds_the_known_bad_commit_within_the_bound_and_a_rerun_starts_no_simulation(
         capsys: pytest.CaptureFixture[str], tmp_path: Path, repository: tuple[Path, list[str]]) -> None:
     folder, shas = repository
-    status_before = git(folder, "status", "--porcelain")
+    git(folder, "bisect", "start")  # a bisect of the user's own, under way
+    git(folder, "bisect", "bad", shas[-1])
+    status_before, bisect_log = git(folder, "status", "--porcelain"), git(folder, "bisect", "log")
     argv = ["bisect", "--test", TEST_ID, "--world", str(folder / "world.yaml"), "--good", shas[0],
             "--repo", str(folder), "--folder", str(tmp_path / "bisect"), "--json"]
     code, out, err = run_cli(capsys, *argv)
@@ -209,6 +211,8 @@ def test_bisect_finds_the_known_bad_commit_within_the_bound_and_a_rerun_starts_n
     verdicts = {verdict["commit"]: verdict for verdict in result["verdicts"]}
     assert all(verdicts[sha]["decision"] == ("bad" if shas.index(sha) >= FIRST_BAD else "good") for sha in verdicts)
     assert git(folder, "status", "--porcelain") == status_before  # the user's checkout untouched
+    assert git(folder, "bisect", "log") == bisect_log  # and their own bisect
+    git(folder, "bisect", "reset")
     assert git(folder, "worktree", "list").count("\n") == 0  # every worktree removed
     assert not list((tmp_path / "bisect" / "worktrees").iterdir())
 

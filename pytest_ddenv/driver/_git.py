@@ -1,11 +1,13 @@
 """The git plumbing of `ddenv bisect`: revisions, the first-parent line between two of them, and detached
-worktrees of one commit. Every git command runs with a timeout and reads only: nothing here touches the
-user's checkout, index or `git bisect` state (a worktree is added under the bisect's own folder and removed
-with `git worktree remove`, which touches only that worktree's administrative files).
+worktrees of one commit. Every git command runs with a timeout. Apart from adding and removing the bisect's
+own worktrees (a folder under the bisect's folder, and its entry under `.git/worktrees/`), they only read:
+nothing here touches the user's checkout, index, other worktrees or `git bisect` state.
 """
 
 from __future__ import annotations
 
+import contextlib
+import shutil
 import subprocess
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -115,10 +117,12 @@ def add_worktree(repository: Path, commit: Commit, folder: Path) -> Path:
 
 
 def remove_worktree(repository: Path, folder: Path) -> None:
-    """Remove a worktree `add_worktree` made (and its administrative files); quiet if it is already gone."""
+    """Remove a worktree `add_worktree` made (and its administrative files); quiet if it is already gone. A
+    folder git does not know as a worktree (a half-made one) is deleted: it is inside the bisect's own folder.
+    Other worktrees of the repository are left alone (no `git worktree prune`); one of ours whose folder went
+    missing is reused by `add_worktree --force`."""
     if folder.exists():
-        try:
+        with contextlib.suppress(GitError):
             git(repository, ["worktree", "remove", "--force", "--force", str(folder)])
-        except GitError:
-            pass
-    git(repository, ["worktree", "prune"])
+    if folder.exists():
+        shutil.rmtree(folder)
