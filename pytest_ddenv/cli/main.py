@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 from pytest_ddenv import defaults
 from pytest_ddenv._version import __version__
+from pytest_ddenv.cli.bisect import add_bisect, cmd_bisect
 from pytest_ddenv.cli.output import appended, check_matplotlib_backend, check_output, check_record
 from pytest_ddenv.cli.world_options import (
     WORLD_SETTINGS,
@@ -200,6 +201,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_show(commands, common)
     _add_reduce(commands, common)
     _add_replay(commands, common)
+    add_bisect(commands, common)
     _add_convert(commands, common)
     return parser
 
@@ -279,7 +281,8 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
 
 
 REDUCE_FLAGS: dict[tuple[str, ...], dict[str, Any]] = {
-    ("--out",): {"metavar": "DIR", "help": "artifacts folder (default ddenv-artifacts/WORLD)"},
+    ("--out",): {"metavar": "DIR", "help": "artifacts folder (default ddenv-artifacts/WORLD-seedN-HASH: the world "
+                 "file's name and the seed)"},
     ("--quiet", "-q"): {"action": "store_true", "help": "no progress on stderr"},
 }
 """The `ddenv reduce` flags of this command alone (besides the world, predicate, user code and scenario ones);
@@ -756,7 +759,12 @@ def _does_not_fail(arguments: argparse.Namespace, result: Any) -> int:
 
 
 def _artifacts_folder(arguments: argparse.Namespace) -> Path:
-    return Path(arguments.out) if arguments.out else Path("ddenv-artifacts") / _world_stem(arguments.world)
+    """--out, else ddenv-artifacts/ named by the world (the command's "test id") and the seed."""
+    from pytest_ddenv.driver.artifacts import artifact_dir_name
+
+    if arguments.out:
+        return Path(arguments.out)
+    return Path("ddenv-artifacts") / artifact_dir_name(_world_stem(arguments.world), arguments.seed)
 
 
 def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicates: Sequence[PredicateSpec],
@@ -938,6 +946,7 @@ _HANDLERS: dict[str, Callable[[argparse.Namespace], int]] = {
     "show": _cmd_show,
     "reduce": _cmd_reduce,
     "replay": _cmd_replay,
+    "bisect": cmd_bisect,
     "convert": _cmd_convert,
 }
 
