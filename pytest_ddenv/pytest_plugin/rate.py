@@ -11,7 +11,7 @@ properties and flakyFailure elements, pytest-html extras, the terminal line) are
 from __future__ import annotations
 
 import warnings
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from typing import TYPE_CHECKING, Any
 
 import pytest
@@ -31,6 +31,7 @@ from pytest_ddenv.scenario.robot_world import FIXTURE
 
 if TYPE_CHECKING:
     from pytest_ddenv.pytest_plugin.progress import PytestProgress
+    from pytest_ddenv.world.model import World
 
 _verdict_key = pytest.StashKey[RateVerdict]()
 
@@ -134,7 +135,7 @@ def _judge(item: pytest.Function, error: BaseException | None, runs: int, allowe
     return verdict
 
 
-def _pool_runs(item: pytest.Function, world: Any, seed: int, runs: int, done: Any,
+def _pool_runs(item: pytest.Function, world: World, seed: int, runs: int, done: Callable[[RateRun], None],
                progress: PytestProgress) -> list[RateRun]:
     """Runs 1..`runs`-1 on the test's probe pool; every one an error when the pool cannot start."""
     from pytest_ddenv.errors import DdenvError

@@ -89,12 +89,14 @@ def test_the_verdict_is_the_same_in_two_sessions_and_under_xdist(drift_project: 
     drift_project.runpytest_subprocess("--ddenv-rate", "4", "--ddenv-seed", "7", "--junitxml=first.xml")
     drift_project.runpytest_subprocess("--ddenv-rate", "4", "--ddenv-seed", "7", "--junitxml=second.xml")
     xdist = drift_project.runpytest_subprocess("--ddenv-rate", "4", "--ddenv-seed", "7", "-n", "2",
-                                               "--junitxml=xdist.xml")
+                                               "--junitxml=xdist.xml", "-o", "junit_logging=system-out")
     first = properties(drift_project.path / "first.xml")
     assert [run["seed"] for run in runs_of(first)] == [7 + index * ATTEMPT_SEED_STRIDE for index in range(4)]
     assert properties(drift_project.path / "second.xml") == first
     assert properties(drift_project.path / "xdist.xml") == first, "the records survive the trip to the controller"
     xdist.stdout.fnmatch_lines(["*ddenv failure rates*", "test_drift.py::test_drift: *: failed * of 4 runs*"])
+    (system_out,) = case_of(drift_project.path / "xdist.xml").findall("system-out")  # pytest's, with the runs
+    assert f"run 3 (seed {7 + 3 * ATTEMPT_SEED_STRIDE}): " in (system_out.text or "")
 
 
 @pytest.mark.slow
