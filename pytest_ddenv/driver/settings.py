@@ -198,7 +198,8 @@ def stages(value: Any, where: str, text: bool) -> tuple[str, ...]:
 
 
 def media(value: Any, where: str, text: bool) -> str:
-    """'all', 'pictures' or 'none' (None or empty: $DDENV_MEDIA, else all)."""
+    """'all', 'pictures', 'none' or a list of pictures, animations, rrd, mcap (None or empty: $DDENV_MEDIA,
+    else all)."""
     from pytest_ddenv.media.writer import MediaChoiceError, media_choice
 
     try:
@@ -389,8 +390,10 @@ SETTINGS: tuple[Setting, ...] = (
             "at most twice the model-level simulations)", integer(1), "N", option="stage-probes",
             flag="stage-probes"),
     Setting("media", "what a reduction shows besides its files: 'all' (pictures, original.gif/minimal.gif "
-            "animations, recording.rrd when rerun-sdk is installed), 'pictures' or 'none' (default: "
-            "$DDENV_MEDIA, else all)", media, "WHAT", option="media", flag="media"),
+            "animations, recording.rrd when rerun-sdk is installed, recording.mcap when foxglove-sdk is), "
+            "'pictures', 'none', or a comma-separated list of pictures, animations, rrd, mcap (the pictures come "
+            "with every choice but none) (default: $DDENV_MEDIA, else all)", media, "WHAT", option="media",
+            flag="media"),
     Setting("probe_timeout", "wall-clock limit of one probe of a reduction: SECONDS, 'auto' (the default: "
             "max(60 s, 10 x the longest of the original run and the slowest probe)) or 'none'; a probe past it "
             "is an error, not a verdict (default: $DDENV_PROBE_TIMEOUT, else auto)", probe_timeout, "SECONDS",
