@@ -56,11 +56,13 @@ class ArtifactsError(ReductionError):
     message says which folder or file, why, and what to do."""
 
 
-def artifact_dir_name(test_id: str) -> str:
-    """A folder name for a test id: safe on every file system, no traversal, and unique per id."""
+def artifact_dir_name(test_id: str, seed: int) -> str:
+    """A folder name for a test id and the seed of the run reduced ("test_x.py__test_y-seed7-1a2b3c4d"): safe on
+    every file system, no traversal, and unique per (id, seed), so that CI pages group a test's folders and a
+    rerun of the same test and seed resumes in the same one."""
     readable = _UNSAFE.sub("_", test_id.replace("::", "__")).strip("._") or "test"
-    digest = hashlib.sha1(test_id.encode("utf-8")).hexdigest()[:8]
-    return f"{readable[:80]}-{digest}"
+    digest = hashlib.sha1(f"{test_id}\0{seed}".encode()).hexdigest()[:8]
+    return f"{readable[:80]}-seed{seed}-{digest}"
 
 
 def write_text_atomic(path: Path, text: str) -> None:

@@ -50,6 +50,10 @@ class ReductionSpec:
     (`oracle.SameFailureRule`)."""
     keep: tuple[str, ...] = ()
     seed: int = defaults.SEED
+    rate: int = 1
+    """Runs of the test whose failure rate is its verdict (`--ddenv-rate`; 1: run once, as usual)."""
+    max_failure_rate: float = 0.0
+    """The failure rate the test may have (`--ddenv-max-failure-rate`): it fails when significantly above."""
     max_probes: int | None = None
     max_seconds: float | None = None
     skip_unsupported: bool = False

@@ -21,7 +21,10 @@ from typing import Any, Literal
 
 from pytest_ddenv import defaults
 from pytest_ddenv.errors import DdenvError, shown
-from pytest_ddenv.validation import at_least, expected, positive_finite
+from pytest_ddenv.validation import at_least, expected, is_finite_number, positive_finite
+
+MAX_RATE_RUNS = 10_000
+"""The most runs `--ddenv-rate` takes (each run is a whole simulation)."""
 
 MAX_STAGE_ITEMS = 20
 MAX_STAGE_NAME = 40
@@ -99,6 +102,27 @@ def positive(unit: str = "") -> Check:
         return number
 
     return check
+
+
+def run_count(value: Any, where: str, text: bool) -> int:
+    """The runs of a failure-rate verdict: an integer from 1 to `MAX_RATE_RUNS`."""
+    number = at_least(value, 1, text=text)
+    if number is None or number > MAX_RATE_RUNS:
+        raise SettingError(expected(f"an integer >= 1 and <= {MAX_RATE_RUNS}", value, where))
+    return number
+
+
+def failure_rate(value: Any, where: str, text: bool) -> float:
+    """A failure rate a test may have: a number >= 0 and < 1 (0.1: one run in ten)."""
+    number: Any = value
+    if text and isinstance(value, str):
+        try:
+            number = float(value)
+        except ValueError:
+            number = None
+    if not is_finite_number(number) or not 0 <= float(number) < 1:
+        raise SettingError(expected("a number >= 0 and < 1 (a failure rate, 0.1 for 10 %)", value, where))
+    return float(number)
 
 
 def workers(value: Any, where: str, text: bool) -> int | str:
@@ -339,6 +363,12 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("keep", "never remove this model", names, "MODEL", (), marker="keep", flag="keep"),
     Setting("seed", "base seed of every robot run and of the schemas (default: the marker's seed, else 0)",
             integer(0), "N", defaults.SEED, option="seed", marker="seed", flag="seed"),
+    Setting("rate", "run each robot_world test N times (run i with seed + i * 1000003; runs 1..N-1 on the "
+            "reduction's worker pool) and judge it by its failure rate and its Wilson interval at 95 percent "
+            f"(default 1: run once); at most {MAX_RATE_RUNS}", run_count, "N", 1, option="rate", marker="rate"),
+    Setting("max_failure_rate", "with --ddenv-rate: the failure rate a test may have; it fails when the lower end "
+            "of its Wilson interval (95 percent) is above this (default 0: any failing run fails it)", failure_rate,
+            "RATE", 0.0, option="max-failure-rate", marker="max_failure_rate"),
     Setting("budget", "a probe count or {'probes': N, 'seconds': S}", budget, marker="budget"),
     Setting("max_probes", "stop a reduction after this many simulations (best world so far is kept)", integer(1),
             "N", option="max-probes", flag="max-probes"),

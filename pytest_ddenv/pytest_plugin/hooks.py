@@ -8,6 +8,7 @@ markers, a check of each collected name for a misplaced predicate, and nothing p
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Generator
 from pathlib import Path
@@ -19,6 +20,7 @@ from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.pytest_plugin import marks
 from pytest_ddenv.pytest_plugin.fixture import DroppedModelsWarning, load_test_world
 from pytest_ddenv.pytest_plugin.options import add_options, options_of, read_options, stash_options
+from pytest_ddenv.pytest_plugin.progress import close_log, open_log
 
 if TYPE_CHECKING:
     from pytest_ddenv.scenario.robot_world import RobotWorld
@@ -28,7 +30,8 @@ __all__ = ["DroppedModelsWarning", "robot_world"]
 MARKERS = (
     ("ddenv(world=PATH, engine='pybullet'|'mujoco', partition=..., priority=..., n_partitions=2, "
     "granularity='ddmin', deflake='auto', "
-    "tolerance=0.5, same_failure='all'|'place'|'touched'|function, keep=(...), seed=0, budget=N, "
+    "tolerance=0.5, same_failure='all'|'place'|'touched'|function, keep=(...), seed=0, rate=1, "
+    "max_failure_rate=0, budget=N, "
     "skip_unsupported=False, stages='models,explain,passing', confirm_engines='mujoco'): "
     "the world of a robot scenario test and how to reduce it when the test fails under --ddenv-reduce."),
     ("robot_failure(NAME, **params, same_failure=...): a failure predicate checked while the robot runs "
@@ -51,6 +54,10 @@ def pytest_configure(config: pytest.Config) -> None:
         from pytest_ddenv.pytest_plugin.reduction import ReductionPlugin
 
         config.pluginmanager.register(ReductionPlugin(config), "ddenv-reduction")
+    if not worker:  # a failure-rate verdict's JUnit elements and terminal line, where reports arrive
+        from pytest_ddenv.pytest_plugin.rate_records import RateRecords
+
+        config.pluginmanager.register(RateRecords(config), "ddenv-rate-records")
     if options.world and not worker:  # a @given test runs once on that world (replay)
         from pytest_ddenv.pytest_plugin.given_example import GivenReplay
 
@@ -75,8 +82,25 @@ def pytest_make_collect_report(collector: pytest.Collector) -> Generator[None, p
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Validate the markers of every collected robot test now, not in the middle of a run."""
+    """Validate the markers of every collected robot test now, not in the middle of a run; with a test that
+    asks for a failure rate (`--ddenv-rate`, `ddenv(rate=N)`), the plugin that runs it."""
     marks.check_markers(config, items)
+    from pytest_ddenv.pytest_plugin.rate import RatePlugin, wants_rate
+    from pytest_ddenv.pytest_plugin.worker import WORKER
+
+    if not config.stash.get(WORKER, False) and not config.pluginmanager.has_plugin("ddenv-rate") \
+            and wants_rate(config, items):
+        capture = config.pluginmanager.getplugin("capturemanager")
+        with capture.global_and_fixture_disabled() if capture is not None else contextlib.nullcontext():
+            open_log(config)  # the progress lines' stream, past pytest's capture
+        config.pluginmanager.register(RatePlugin(), "ddenv-rate")
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    from pytest_ddenv.pytest_plugin.pools import close_cluster
+
+    close_log(config)
+    close_cluster(config)
 
 
 @pytest.fixture

@@ -48,6 +48,10 @@ class DdenvOptions:
     """Write the smallest worlds of this many other failures a reduction met (`other-<k>.yaml`)."""
     confirm_engines: tuple[str, ...] | None = None
     """--ddenv-confirm-engines (None: the marker's confirm_engines=, else none)."""
+    rate: int | None = None
+    """--ddenv-rate (None: the marker's rate=, else 1)."""
+    max_failure_rate: float | None = None
+    """--ddenv-max-failure-rate (None: the marker's max_failure_rate=, else 0)."""
 
     def stages_for(self, marker: tuple[str, ...] | None) -> tuple[str, ...] | None:
         """--ddenv-stages, else the marker's stages=, else the ini value (None: the default stages)."""
@@ -164,7 +168,8 @@ def _read_options(config: pytest.Config) -> DdenvOptions:
         stages_ini=_checked(config, "stages", config.getini("ddenv_stages") or None),
         stage_probes=_checked(config, "stage_probes"), run_timeout=_checked(config, "run_timeout"),
         media=_checked(config, "media"), keep_other=_checked(config, "keep_other") or 0,
-        confirm_engines=_checked(config, "confirm_engines"),
+        confirm_engines=_checked(config, "confirm_engines"), rate=_checked(config, "rate"),
+        max_failure_rate=_checked(config, "max_failure_rate"),
     )
 
 

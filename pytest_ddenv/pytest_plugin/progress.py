@@ -27,6 +27,8 @@ LOG = pytest.StashKey[TextIO]()
 def open_log(config: pytest.Config) -> None:
     """Make the `LOG` stream (called in `pytest_configure`, while output capture is suspended)."""
     worker = hasattr(config, "workerinput")
+    if LOG in config.stash:  # already open (a reduction's and a failure rate's plugins both ask for it)
+        return
     try:
         if not worker and sys.stdout.isatty():
             return
@@ -46,7 +48,7 @@ def close_log(config: pytest.Config) -> None:
 class PytestProgress:
     """The progress of one test's reduction (see the module docstring); `started` is its clock's zero."""
 
-    def __init__(self, config: pytest.Config, test_id: str) -> None:
+    def __init__(self, config: pytest.Config, test_id: str, doing: str = "reducing") -> None:
         self.config = config
         self.reporter = config.pluginmanager.getplugin("terminalreporter")
         self.capture = config.pluginmanager.getplugin("capturemanager")
@@ -67,7 +69,7 @@ class PytestProgress:
         """The models are reduced: what comes is the stages, the files and the pictures."""
         self._said_result = False
         if self.worker is not None:
-            self._write(f"ddenv: reducing {test_id}")
+            self._write(f"ddenv: {doing} {test_id}")
         elif self.log is not None:  # lines go past pytest, after what pytest has written so far
             with self._suspended():
                 self.reporter.ensure_newline()

@@ -12,11 +12,10 @@ from __future__ import annotations
 import base64
 import contextlib
 import dataclasses
-import inspect
+import functools
 import shlex
 import traceback
-import warnings
-from collections.abc import Callable, Generator
+from collections.abc import Generator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -29,14 +28,11 @@ from pytest_ddenv.pytest_plugin.progress import PytestProgress, close_log, open_
 from pytest_ddenv.scenario.robot_world import FIXTURE
 
 if TYPE_CHECKING:
-    from pytest_ddenv.execution import Pool
     from pytest_ddenv.pytest_plugin.given_example import GivenExample
-    from pytest_ddenv.scenario.probe import ProbeResult
 
 REPORT_KEY = "ddenv"
 SECTION = "ddenv reduction"
 _result_key = pytest.StashKey[dict[str, Any]]()
-_STATELESS_FIXTURES = {"request", "pytestconfig", "record_property", "record_xml_attribute", "tmp_path_factory"}
 
 
 class ReductionPlugin:
@@ -44,19 +40,18 @@ class ReductionPlugin:
 
     def __init__(self, config: pytest.Config) -> None:
         self.config = config
-        self.cluster: Any = None
-        """The cluster of `--ddenv-executor` (dask, a scheduler's address, ...), opened on the first failure."""
         open_log(config)
 
     @pytest.hookimpl(wrapper=True)
     def pytest_pyfunc_call(self, pyfuncitem: pytest.Function) -> Generator[None, object, object]:
+        __tracebackhide__ = True  # the failure's traceback is the test's, not this wrapper's
         calls: list[dict[str, Any]] = []
         try:
             with _recording_given_calls(pyfuncitem) as calls:
                 return (yield)
         except Exception as error:
             if _should_reduce(pyfuncitem, error):
-                _reduce_failed_test(self, pyfuncitem, error, calls[-1] if calls else None)
+                _reduce_failed_test(pyfuncitem, error, calls[-1] if calls else None)
             raise
 
     @pytest.hookimpl(wrapper=True)
@@ -72,10 +67,10 @@ class ReductionPlugin:
         _terminal_summary(terminalreporter)
 
     def pytest_unconfigure(self, config: pytest.Config) -> None:
+        from pytest_ddenv.pytest_plugin.pools import close_cluster
+
         close_log(config)
-        if self.cluster is not None:
-            self.cluster, cluster = None, self.cluster
-            cluster.close()
+        close_cluster(config)
 
 
 def _recording_given_calls(item: pytest.Function) -> contextlib.AbstractContextManager[list[dict[str, Any]]]:
@@ -111,37 +106,18 @@ def _given_example(item: pytest.Function, call: dict[str, Any] | None) -> GivenE
     return GivenExample.of(call, robot_world.latest.world, fixtures)  # type: ignore[attr-defined]
 
 
-def _probe_pool(plugin: ReductionPlugin, item: pytest.Function, example: GivenExample | None = None,
-                warn: Callable[[str], None] | None = None) -> Pool[ProbeResult]:
-    """A pool serving this test's probes: worker processes that run the test (or this process, with one
-    worker), or the session's dask cluster."""
-    from pytest_ddenv.execution import check_executor, make_cluster, make_pool
-    from pytest_ddenv.pytest_plugin.worker import ItemHandler, PytestJob
-
-    config = item.config
-    default = "1" if hasattr(config, "workerinput") else "auto"  # xdist already uses every core
-    options = options_of(config)
-    workers = options.workers or default
-    count = int(workers) if str(workers).isdigit() else workers
-    executor = check_executor(options.executor)
-    watchdog = options.watchdog
-    if executor is None:
-        return make_pool(PytestJob.of(item, example=example), count, in_process=ItemHandler(item, example),
-                         watchdog=watchdog, warn=warn)
-    if plugin.cluster is None:
-        plugin.cluster = make_cluster(executor, count)
-    return make_pool(PytestJob.of(item, capture="sys", example=example), count, executor, cluster=plugin.cluster,
-                     watchdog=watchdog)
-
-
-def _reduce_failed_test(plugin: ReductionPlugin, item: pytest.Function, error: BaseException,
-                        given_call: dict[str, Any] | None) -> None:
+def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call: dict[str, Any] | None) -> None:
+    from pytest_ddenv.pytest_plugin.pools import probe_pool, warn_about_shared_fixtures
+    from pytest_ddenv.pytest_plugin.rate_runs import FailureRateExceeded
     from pytest_ddenv.pytest_plugin.session import ReductionSession
 
     spec, _ = spec_of(item)
     options = options_of(item.config)
+    failing = error.verdict.reduced_run() if isinstance(error, FailureRateExceeded) else None
+    test_seed = spec.seed if options.seed is None else options.seed
     spec = dataclasses.replace(
         spec,
+        seed=test_seed if failing is None else failing.seed,
         deflake=spec.deflake if options.deflake is None else options.deflake,
         max_probes=options.max_probes or spec.max_probes,
         max_seconds=options.max_seconds or spec.max_seconds,
@@ -157,7 +133,9 @@ def _reduce_failed_test(plugin: ReductionPlugin, item: pytest.Function, error: B
         spec=spec,
         artifacts_root=options.artifacts,
         progress=progress,
-        replay=replay_command,
+        replay=functools.partial(replay_command, seed=None if failing is None or failing.seed == test_seed
+                                 else failing.seed),
+        failing=failing,
         model_paths=options.model_paths,
         media=options.media,
         keep_other=options.keep_other,
@@ -166,9 +144,10 @@ def _reduce_failed_test(plugin: ReductionPlugin, item: pytest.Function, error: B
     )
     try:
         session.example = _given_example(item, given_call)
-        with _probe_pool(plugin, item, session.example, lambda text: progress(text, final=True)) as pool:
+        with probe_pool(item, session.example, lambda text: progress(text, final=True),
+                        seed=None if failing is None else failing.seed) as pool:
             if pool.in_process:
-                _warn_about_shared_fixtures(item)
+                warn_about_shared_fixtures(item)
             result = session.run(pool)
     except KeyboardInterrupt:
         raise
@@ -202,27 +181,6 @@ def _reduce_failed_test(plugin: ReductionPlugin, item: pytest.Function, error: B
 def _attachment_lines(result: dict[str, Any]) -> str:
     """The JUnit attachments of a reduction's files, one `[[ATTACHMENT|path]]` line each (GitLab, Jenkins)."""
     return "".join(f"[[ATTACHMENT|{path}]]\n" for path in result.get("attachments", []))
-
-
-def _warn_about_shared_fixtures(item: pytest.Function) -> None:
-    parameters = set(inspect.signature(item.obj).parameters)
-    fixture_info = getattr(item, "_fixtureinfo", None)
-    definitions = getattr(fixture_info, "name2fixturedefs", {}) or {}
-    shared = sorted(
-        name
-        for name in parameters & set(item.funcargs)
-        if name != FIXTURE and name not in _STATELESS_FIXTURES
-        and all(getattr(d, "scope", "function") == "function" for d in definitions.get(name, ()))
-    )
-    if shared:
-        warnings.warn(
-            pytest.PytestWarning(
-                f"{item.nodeid}: function-scoped fixture(s) {', '.join(shared)} are not re-created for each "
-                "reduction probe with one worker (in this process); every probe reuses their values from the "
-                "failing run. With --ddenv-workers 2 or more each probe runs the whole test in a worker."
-            ),
-            stacklevel=1,
-        )
 
 
 # -- reports -----------------------------------------------------------------------------------------------
@@ -285,13 +243,14 @@ def _terminal_summary(terminalreporter: Any) -> None:
             terminalreporter.write_line(line)
 
 
-def replay_command(item: pytest.Item, minimal_yaml: Path) -> str:
+def replay_command(item: pytest.Item, minimal_yaml: Path, seed: int | None = None) -> str:
     """The command that re-runs the test on its minimal world (run from the rootdir), in the engine
-    `--ddenv-engine` chose (over the marker's, as in the reduction)."""
+    `--ddenv-engine` chose (over the marker's, as in the reduction), with `seed` (a failure-rate run's) when
+    given."""
     try:
         shown = minimal_yaml.relative_to(item.config.rootpath)
     except ValueError:
         shown = minimal_yaml
     engine = options_of(item.config).engine
     return (f"pytest {shlex.quote(item.nodeid)} --ddenv-world {shlex.quote(str(shown))}"
-            + (f" --ddenv-engine {engine}" if engine else ""))
+            + (f" --ddenv-engine {engine}" if engine else "") + (f" --ddenv-seed {seed}" if seed is not None else ""))

@@ -31,6 +31,7 @@ from pytest_ddenv.scenario.robot_world import FIXTURE, RobotWorld
 if TYPE_CHECKING:
     from pytest_ddenv.driver.report import ReductionReport
     from pytest_ddenv.execution import Pool
+    from pytest_ddenv.pytest_plugin.rate_runs import RateRun
     from pytest_ddenv.scenario.probe import ProbeResult
 
 Progress = Callable[..., None]
@@ -55,26 +56,35 @@ class ReductionSession:
     engine's own time."""
     verbose: bool = False
     """-v: the report section also gives the statistics of the failure-rate comparison."""
+    failing: RateRun | None = None
+    """The failing run of a failure-rate verdict that is reduced (`--ddenv-rate`): its failure is the reference,
+    its last run the reference run, its seed the reduction's (`spec.seed`); None: the test's own failure."""
 
     def run(self, pool: Pool[ProbeResult]) -> dict[str, Any]:
         fixture: RobotWorld = self.item.funcargs[FIXTURE]  # type: ignore[assignment]
         robot_world = fixture.latest  # the world the test ran last (a @given test rebinds each example's)
         world = robot_world.world
-        reference = FailureReference.of(describe_error(self.error, self.item.path))
-        folder = self.artifacts_root / artifacts.artifact_dir_name(self.item.nodeid)
+        failing = self.failing
+        error = describe_error(self.error, self.item.path) if failing is None else failing.error
+        assert error is not None
+        reference = FailureReference.of(error)
+        reference_run = robot_world.runs[-1] if robot_world.runs else None
+        if failing is not None and failing.index > 0:
+            reference_run = failing.run
+        folder = self.artifacts_root / artifacts.artifact_dir_name(self.item.nodeid, self.spec.seed)
         try:
             test_source = inspect.getsource(self.item.obj)
         except (OSError, TypeError):
             test_source = ""
         plan = ReductionPlan(
             world=world, test_id=self.item.nodeid, reference=reference,
-            reference_run=robot_world.runs[-1] if robot_world.runs else None, spec=self.spec, artifacts=folder,
+            reference_run=reference_run, spec=self.spec, artifacts=folder,
             replay_command=self.replay(self.item, folder / "minimal.yaml"),
             fingerprint={**self.spec.__dict__, "test": self.item.nodeid}, test_source=test_source,
             code=self._code(),
             run_settings={
                 "predicates": [spec.to_json() for spec in robot_world.predicates],
-                "scenario_seed": robot_world.seed,
+                "scenario_seed": robot_world.seed if failing is None else failing.seed,
                 **({} if self.example is None else
                    {"hypothesis": reproduction(self.item, self.error, self.example)}),
             },
@@ -92,6 +102,10 @@ class ReductionSession:
         except DdenvError as error:  # the folder is locked or cannot be written: say so, keep the test's failure
             outcome = ReductionOutcome("error", message=f"the reduction stopped: {error}")
         result = self._describe(outcome)
+        if failing is not None:  # which of the failure rate's runs was reduced
+            which = f"reduced run {failing.index} of the failure-rate runs (seed {failing.seed})"
+            result["text"] = f"{which}\n{result['text']}"
+            result["line"] = f"{result['line']} [run {failing.index}, seed {failing.seed}]"
         self.progress(result["line"], final=True)
         return result
 

@@ -79,12 +79,18 @@ class PytestJob:
     key: str = field(default_factory=lambda: uuid.uuid4().hex)
 
     @classmethod
-    def of(cls, item: pytest.Item, *, capture: str | None = None, example: GivenExample | None = None) -> PytestJob:
+    def of(cls, item: pytest.Item, *, capture: str | None = None, example: GivenExample | None = None,
+           seed: int | None = None) -> PytestJob:
+        """`seed`: the workers' `--ddenv-seed` (None: the session's), so that attempt a runs with seed + a *
+        ATTEMPT_SEED_STRIDE (a failure-rate run's seed being reduced)."""
         config = item.config
         factory = getattr(config, "_tmp_path_factory", None)  # as pytest-xdist does for its workers
         basetemp = None if factory is None else str(factory.getbasetemp() / "ddenv-probes")
+        args = tuple(str(a) for a in config.invocation_params.args)
+        if seed is not None:  # the last --ddenv-seed given wins
+            args = (*args, "--ddenv-seed", str(seed))
         return cls(
-            nodeid=item.nodeid, test_file=str(item.path), args=tuple(str(a) for a in config.invocation_params.args),
+            nodeid=item.nodeid, test_file=str(item.path), args=args,
             invocation_dir=str(config.invocation_params.dir), sys_path=tuple(sys.path), environ=dict(os.environ),
             basetemp=basetemp, capture=capture, example=example,
         )
@@ -238,12 +244,16 @@ class ItemHandler:
     """Probes in the pytest process: call the test function again with `robot_world` rebound to the
     candidate world; the other arguments keep the values the failing call received."""
 
-    def __init__(self, item: pytest.Function, example: GivenExample | None = None) -> None:
+    def __init__(self, item: pytest.Function, example: GivenExample | None = None, seed: int | None = None) -> None:
+        """`seed`: the base seed of the probes (None: the test's), as `PytestJob.of`'s."""
         self.item = item
         self.example = example
         self.arguments = fixture_arguments(item)
         original = item.funcargs[FIXTURE]
         assert isinstance(original, RobotWorld)
+        if seed is not None and seed != original.seed:
+            original = RobotWorld(original.world, predicates=original.predicates, seed=seed,
+                                  max_wall_time=original.max_wall_time, engine=original.engine)
         self.original = original
 
     def __call__(self, world: World, attempt: int) -> ProbeResult:

@@ -155,3 +155,13 @@ def wilson_interval(rate: Rate, confidence: float) -> tuple[float, float]:
         return 0.0, 1.0
     low, high = binomtest(rate.fails, rate.runs).proportion_ci(confidence, method="wilson")
     return float(low), float(high)
+
+
+VERDICT_CONFIDENCE = 0.95
+"""The confidence of a failure-rate verdict's Wilson interval (`--ddenv-rate`)."""
+
+
+def significantly_above(rate: Rate, threshold: float, confidence: float = VERDICT_CONFIDENCE) -> bool:
+    """`rate` is significantly above `threshold`: the lower end of its Wilson interval at `confidence` is above
+    it (so with a threshold of 0, any failure is); False without runs."""
+    return rate.runs > 0 and wilson_interval(rate, confidence)[0] > threshold
