@@ -19,15 +19,25 @@ seeds.
    testcase, and the interval is checked to contain the true rate (the acceptance: at least 19 of 20).
 3. Determinism: repetition 0's seed once more; its properties (the `ddenv_run_<i>` records included) must be
    identical to the first time's.
+4. `--api-repetitions N` (default 0): N more repetitions of 20 runs with the Python API instead of pytest
+   (seeds 2000 + r + i * 1000003, in `--api-workers` processes), to measure the coverage more precisely: a
+   run's outcome is a function of its seed alone, the same in the pytest process, a probe worker and this
+   process (tests/test_benchmarks_smoke.py compares them run by run). With them, a dispersion test of the
+   repetitions' failure counts against the binomial (Pearson's chi-square): are the runs independent?
 
 The table also gives the coverage a 95 % Wilson interval of 20 runs has at the measured true rate (the exact
-binomial sum), i.e. how often a repetition is expected to contain it. `--out` writes everything as JSON.
+binomial sum), i.e. how often a repetition is expected to contain it, and the coverage of the pooled rate (the
+true rate's runs and every repetition's: a closer estimate of the true rate, on more seeds). `--out` writes
+everything as JSON.
 """
 
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
+import functools
 import json
+import multiprocessing
 import subprocess
 import sys
 import tempfile
@@ -51,6 +61,9 @@ WORLD = ROOT / "worlds" / "doorway.yaml"
 PREDICATES = (PredicateSpec("stuck", {"window": 5.0, "min_progress": 0.2}),)
 """The example test's `robot_failure` marker."""
 CONFIDENCE = 0.95
+FIRST_API_SEED = 2000
+"""Python API repetition r runs the seeds 2000 + r + i * 1000003: disjoint from the true rate's and the pytest
+repetitions' seeds."""
 FIRST_REPETITION_SEED = 1000
 """Repetition r runs with `--ddenv-seed 1000 + r`: its run seeds 1000 + r + i * 1000003 are disjoint from
 the true rate's seeds (0..999 at most) and from every other repetition's."""
@@ -109,6 +122,45 @@ def true_rate(seeds: range) -> TrueRate:
     runs = len(outcomes) - errors
     return TrueRate(fails, runs, errors, wilson_interval(Rate(fails, runs), CONFIDENCE),
                     time.perf_counter() - started)
+
+
+@functools.cache
+def shared_robot_world() -> RobotWorld:
+    return RobotWorld(World.load(WORLD), predicates=PREDICATES)
+
+
+def api_repetition(seed: int, runs: int) -> list[str]:
+    """The outcomes of the runs a `--ddenv-rate runs --ddenv-seed seed` repetition makes, with the Python API."""
+    return [run_once(shared_robot_world(), seed + i * ATTEMPT_SEED_STRIDE) for i in range(runs)]
+
+
+def api_coverage(count: int, runs: int, rate: float, workers: int) -> dict[str, Any]:
+    """`count` repetitions of `runs` runs with the Python API: how many intervals contain `rate`, and Pearson's
+    dispersion test of their failure counts."""
+    seeds = [FIRST_API_SEED + r for r in range(count)]
+    started = time.perf_counter()
+    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        outcomes = list(pool.map(api_repetition, seeds, [runs] * count))
+    counted = [Rate(o.count("failed"), len(o) - o.count("error")) for o in outcomes]
+    covered = sum(low <= rate <= high for low, high in (wilson_interval(c, CONFIDENCE) for c in counted))
+    statistic, p_value = dispersion(counted)
+    return {"repetitions": count, "covered": covered, "fails": sum(c.fails for c in counted),
+            "runs": sum(c.runs for c in counted), "errors": sum(o.count("error") for o in outcomes),
+            "failures": [c.fails for c in counted], "dispersion_chi2": statistic, "dispersion_p": p_value,
+            "seconds": time.perf_counter() - started}
+
+
+def dispersion(counted: list[Rate]) -> tuple[float, float]:
+    """Pearson's chi-square of the repetitions' failure counts against independent runs at their pooled rate,
+    and its p-value (a small p: the counts spread more than independent runs give)."""
+    from scipy.stats import chi2
+
+    fails, total = sum(c.fails for c in counted), sum(c.runs for c in counted)
+    mean = fails / total if total else 0.0
+    if not 0 < mean < 1 or len(counted) < 2:
+        return 0.0, 1.0
+    statistic = sum((c.fails - c.runs * mean) ** 2 / (c.runs * mean * (1 - mean)) for c in counted)
+    return statistic, float(chi2.sf(statistic, len(counted) - 1))
 
 
 def rate_command(seed: int, runs: int, junit: Path, artifacts: Path) -> list[str]:
@@ -172,10 +224,10 @@ def percent(interval: tuple[float, float]) -> str:
 
 
 def repetition_row(index: int, repetition: Repetition, rate: float) -> list[Any]:
-    seeds = [record["seed"] for record in run_records(repetition.properties) if record["outcome"] == "failed"]
+    seeds = [str(record["seed"]) for record in run_records(repetition.properties) if record["outcome"] == "failed"]
     return [index, repetition.seed, f"{repetition.failures}/{repetition.runs}", repetition.errors,
             percent(repetition.interval), "yes" if repetition.contains(rate) else "NO", repetition.verdict,
-            f"{repetition.seconds:.1f}", ", ".join(str(seed) for seed in seeds[:3]) + (" ..." if len(seeds) > 3 else "")]
+            f"{repetition.seconds:.1f}", ", ".join(seeds[:3]) + (" ..." if len(seeds) > 3 else "")]
 
 
 HEADERS = ("rep", "--ddenv-seed", "failed", "errors", "Wilson 95 %", "contains true rate", "verdict", "wall s",
@@ -188,11 +240,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--true-runs", type=int, default=200, help="seeds 0..N-1 for the true rate (default 200)")
     parser.add_argument("--repetitions", type=int, default=20)
     parser.add_argument("--rate", type=int, default=20, help="--ddenv-rate of each repetition (default 20)")
+    parser.add_argument("--api-repetitions", type=int, default=0,
+                        help="more repetitions with the Python API, for the coverage (default 0)")
+    parser.add_argument("--api-workers", type=int, default=2, help="processes for --api-repetitions (default 2)")
     parser.add_argument("--out", type=Path, help="write every measurement as JSON here")
     arguments = parser.parse_args(argv)
     true_runs, repetitions = (40, 3) if arguments.quick else (arguments.true_runs, arguments.repetitions)
     if not 0 < true_runs <= FIRST_REPETITION_SEED or repetitions < 1 or arguments.rate < 1:
         parser.error(f"--true-runs must be 1..{FIRST_REPETITION_SEED}, --repetitions and --rate at least 1")
+    if not 0 <= arguments.api_repetitions <= 100_000 or arguments.api_workers < 1:
+        parser.error("--api-repetitions must be 0..100000 and --api-workers at least 1")
     started = time.perf_counter()
     print(f"load {load()}; true rate: {true_runs} runs of {WORLD.relative_to(ROOT)} in this process", flush=True)
     truth = true_rate(range(true_runs))
@@ -218,9 +275,26 @@ def main(argv: list[str] | None = None) -> int:
     print(f"coverage: {covered} of {repetitions} intervals contain the true rate (acceptance: at least "
           f"{repetitions - repetitions // 20} of {repetitions}); a 95 % Wilson interval of {arguments.rate} runs "
           f"contains a rate of {100 * truth.rate:.1f} % with probability {100 * expected:.1f} %")
+    pooled = Rate(truth.fails + sum(rep.failures for rep in done), truth.runs + sum(rep.runs for rep in done))
+    pooled_rate = pooled.fails / pooled.runs
+    pooled_covered = sum(rep.contains(pooled_rate) for rep in done)
+    print(f"pooled rate (the true rate's runs and every repetition's): {pooled.fails}/{pooled.runs} = "
+          f"{100 * pooled_rate:.1f} % {percent(wilson_interval(pooled, CONFIDENCE))}; {pooled_covered} of "
+          f"{repetitions} intervals contain it")
+    statistic, p_value = dispersion([Rate(rep.failures, rep.runs) for rep in done])
+    print(f"dispersion of the repetitions' failures: chi-square {statistic:.1f} on {repetitions - 1} degrees of "
+          f"freedom, p = {p_value:.2f}")
     print(f"deterministic: seed {done[0].seed} twice: "
           + ("identical properties" if identical else f"DIFFERENT properties: {', '.join(differing)}")
           + f" ({len(again.properties)} properties, {len(run_records(again.properties))} run records)")
+    api = None
+    if arguments.api_repetitions > 0:
+        api = api_coverage(arguments.api_repetitions, arguments.rate, truth.rate, arguments.api_workers)
+        print(f"Python API: {api['covered']} of {api['repetitions']} intervals of {arguments.rate} runs contain the "
+              f"true rate; their failures {api['fails']}/{api['runs']}; dispersion chi-square "
+              f"{api['dispersion_chi2']:.1f} on {api['repetitions'] - 1} degrees of freedom, p = "
+              f"{api['dispersion_p']:.2f} ({api['seconds']:.0f} s)")
+        wall = time.perf_counter() - started
     print(f"wall time: {wall / 60:.1f} min ({truth.seconds:.0f} s true rate, "
           f"{sum(rep.seconds for rep in done) + again.seconds:.0f} s for {repetitions + 1} pytest processes)")
     write_json(arguments.out, {
@@ -228,8 +302,10 @@ def main(argv: list[str] | None = None) -> int:
                                                                Path("junit.xml"), Path("artifacts"))[1:]),
         "stride": ATTEMPT_SEED_STRIDE, "true_rate": asdict(truth), "repetitions": [asdict(rep) for rep in done],
         "coverage": [covered, repetitions], "expected_coverage": expected,
+        "pooled": {"fails": pooled.fails, "runs": pooled.runs, "coverage": [pooled_covered, repetitions]},
+        "dispersion": {"chi2": statistic, "p": p_value},
         "deterministic": {"seed": done[0].seed, "identical": identical, "differing": differing},
-        "wall_seconds": wall,
+        "api": api, "wall_seconds": wall,
     })
     ok = covered >= repetitions - repetitions // 20 and identical
     return 0 if ok else 1
