@@ -250,14 +250,22 @@ def test_bench_rate_true_rate_and_expected_coverage(bench_rate):
     assert words[words.index("--ddenv-rate") + 1] == "20" and words[words.index("--ddenv-seed") + 1] == "1000"
 
 
+def test_bench_rate_dispersion_of_failure_counts(bench_rate):
+    rate = bench_rate.Rate
+    assert bench_rate.dispersion([rate(5, 20)] * 4) == (0.0, 1.0)  # no spread at all
+    statistic, p_value = bench_rate.dispersion([rate(0, 20), rate(20, 20), rate(0, 20), rate(20, 20)])
+    assert statistic == pytest.approx(80.0) and p_value < 1e-6  # all or nothing: not independent runs
+    assert bench_rate.dispersion([rate(0, 20), rate(0, 20)]) == (0.0, 1.0)  # no failure: nothing to test
+
+
 @pytest.mark.slow  # a pytest process whose runs go to probe workers: the full tier only
 def test_bench_rate_repetition_agrees_with_the_python_api_run_by_run(bench_rate):
     repetition = bench_rate.repeat(1000, 4)
     records = bench_rate.run_records(repetition.properties)
     assert [r["run"] for r in records] == [0, 1, 2, 3]
     assert [r["seed"] for r in records] == [1000 + i * bench_rate.ATTEMPT_SEED_STRIDE for i in range(4)]
-    robot_world = bench_rate.RobotWorld(bench_rate.World.load(bench_rate.WORLD), predicates=bench_rate.PREDICATES)
-    assert [r["outcome"] for r in records] == [bench_rate.run_once(robot_world, r["seed"]) for r in records]
+    # a run's outcome is its seed's, in a probe worker as in this process (what --api-repetitions relies on)
+    assert [r["outcome"] for r in records] == bench_rate.api_repetition(1000, 4)
     assert repetition.runs + repetition.errors == 4
     assert repetition.failures == sum(r["outcome"] == "failed" for r in records)
     assert repetition.interval[0] <= repetition.failures / repetition.runs <= repetition.interval[1]
