@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures
+import dataclasses
 import functools
 import json
 import multiprocessing
@@ -97,6 +98,8 @@ class Repetition:
     properties: dict[str, str]
     seconds: float
     exit_code: int
+    output: str = ""
+    """The end of pytest's output when a run erred (the JUnit record keeps a message's first 200 characters)."""
 
     def contains(self, rate: float) -> bool:
         return self.interval[0] <= rate <= self.interval[1]
@@ -208,7 +211,10 @@ def repeat(seed: int, runs: int) -> Repetition:
             raise RuntimeError(f"seed {seed}: pytest wrote no JUnit XML (exit {done.returncode}):\n"
                                f"{done.stdout[-2000:]}{done.stderr[-2000:]}")
         properties = junit_properties(junit, TEST.rsplit("::", 1)[1])
-    return repetition_of(properties, seed, seconds, done.returncode)
+    repetition = repetition_of(properties, seed, seconds, done.returncode)
+    if repetition.errors:
+        return dataclasses.replace(repetition, output=(done.stdout + done.stderr)[-4000:])
+    return repetition
 
 
 def expected_coverage(rate: float, runs: int) -> float:
@@ -259,7 +265,7 @@ def main(argv: list[str] | None = None) -> int:
     done: list[Repetition] = []
     for index in range(repetitions):
         done.append(repeat(FIRST_REPETITION_SEED + index, arguments.rate))
-        print(json.dumps({**asdict(done[-1]), "properties": None}), file=sys.stderr, flush=True)
+        print(json.dumps({**asdict(done[-1]), "properties": None, "output": None}), file=sys.stderr, flush=True)
     again = repeat(done[0].seed, arguments.rate)
     identical = again.properties == done[0].properties
     differing = sorted(name for name in set(again.properties) | set(done[0].properties)
