@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from pytest_ddenv.driver.artifacts import artifact_dir_name
+
 pytestmark = pytest.mark.slow  # real reductions in subprocesses
 
 TWO_WALLS = (Path(__file__).parent / "data" / "two_walls.yaml").read_text()
@@ -56,7 +58,7 @@ def project(tmp_path: Path) -> Path:
 
 
 def summary(folder: Path) -> dict:
-    return json.loads((folder / "ddenv-artifacts" / "walls" / "summary.json").read_text())
+    return json.loads((folder / "ddenv-artifacts" / artifact_dir_name("walls", 0) / "summary.json").read_text())
 
 
 def test_an_edited_imported_controller_gives_the_new_answer(project: Path) -> None:
@@ -78,4 +80,4 @@ def test_a_failure_without_any_model_is_not_reduced(project: Path) -> None:
     assert done.returncode == 1, done.stdout
     assert "the failure does not depend on the world: it also happens with no models" in done.stderr
     assert summary(project)["status"] == "world-independent"
-    assert not (project / "ddenv-artifacts" / "walls" / "minimal.yaml").exists()
+    assert not (project / "ddenv-artifacts" / artifact_dir_name("walls", 0) / "minimal.yaml").exists()

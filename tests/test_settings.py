@@ -75,3 +75,24 @@ def test_each_flag_is_checked_as_declared(setting: object) -> None:
     flag = getattr(setting, "flag_name")
     with pytest.raises(cli._ArgumentError, match=re.escape(f"argument {flag}: ")):
         cli.build_parser().parse_args(["reduce", "w.yaml", "-p", "stuck", flag, "-1.5?"])
+
+
+@pytest.mark.parametrize(("keyword", "value", "message"), [
+    ("rate", 0, "ddenv(rate=...): expected an integer >= 1 and <= 10000, got 0"),
+    ("rate", 10_001, "ddenv(rate=...): expected an integer >= 1 and <= 10000, got 10001"),
+    ("rate", "20", "ddenv(rate=...): expected an integer >= 1 and <= 10000, got '20'"),
+    ("rate", True, "ddenv(rate=...): expected an integer >= 1 and <= 10000, got True"),
+    ("max_failure_rate", 1.0, "ddenv(max_failure_rate=...): expected a number >= 0 and < 1"),
+    ("max_failure_rate", -0.1, "ddenv(max_failure_rate=...): expected a number >= 0 and < 1"),
+    ("max_failure_rate", float("nan"), "ddenv(max_failure_rate=...): expected a number >= 0 and < 1"),
+    ("max_failure_rate", "0.1", "ddenv(max_failure_rate=...): expected a number >= 0 and < 1"),
+])
+def test_a_bad_rate_marker_argument_is_one_clear_error(keyword: str, value: object, message: str) -> None:
+    with pytest.raises(MarkerError, match=re.escape(message)):
+        parse_ddenv_marker((), {keyword: value})
+
+
+def test_the_rate_marker_arguments_are_taken() -> None:
+    spec = parse_ddenv_marker((), {"rate": 20, "max_failure_rate": 0.1})
+    assert (spec.rate, spec.max_failure_rate) == (20, 0.1)
+    assert (parse_ddenv_marker((), {}).rate, parse_ddenv_marker((), {}).max_failure_rate) == (1, 0.0)

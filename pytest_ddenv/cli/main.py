@@ -279,7 +279,8 @@ def _add_reduce(commands: Any, common: argparse.ArgumentParser) -> None:
 
 
 REDUCE_FLAGS: dict[tuple[str, ...], dict[str, Any]] = {
-    ("--out",): {"metavar": "DIR", "help": "artifacts folder (default ddenv-artifacts/WORLD)"},
+    ("--out",): {"metavar": "DIR", "help": "artifacts folder (default ddenv-artifacts/WORLD-seedN-HASH: the world "
+                 "file's name and the seed)"},
     ("--quiet", "-q"): {"action": "store_true", "help": "no progress on stderr"},
 }
 """The `ddenv reduce` flags of this command alone (besides the world, predicate, user code and scenario ones);
@@ -755,7 +756,12 @@ def _does_not_fail(arguments: argparse.Namespace, result: Any) -> int:
 
 
 def _artifacts_folder(arguments: argparse.Namespace) -> Path:
-    return Path(arguments.out) if arguments.out else Path("ddenv-artifacts") / _world_stem(arguments.world)
+    """--out, else ddenv-artifacts/ named by the world (the command's "test id") and the seed."""
+    from pytest_ddenv.driver.artifacts import artifact_dir_name
+
+    if arguments.out:
+        return Path(arguments.out)
+    return Path("ddenv-artifacts") / artifact_dir_name(_world_stem(arguments.world), arguments.seed)
 
 
 def _reduce(arguments: argparse.Namespace, world: World, original: Any, predicates: Sequence[PredicateSpec],

@@ -54,10 +54,8 @@ def pytest_configure(config: pytest.Config) -> None:
         from pytest_ddenv.pytest_plugin.reduction import ReductionPlugin
 
         config.pluginmanager.register(ReductionPlugin(config), "ddenv-reduction")
-    if not worker:  # a failure-rate verdict's JUnit elements and terminal line, where reports arrive
-        from pytest_ddenv.pytest_plugin.rate_records import RateRecords
-
-        config.pluginmanager.register(RateRecords(config), "ddenv-rate-records")
+    if not worker and (options.rate not in (None, 1) or _xdist_controller(config)):
+        _register_rate_records(config)  # the reports of tests with a rate arrive here
     if options.world and not worker:  # a @given test runs once on that world (replay)
         from pytest_ddenv.pytest_plugin.given_example import GivenReplay
 
@@ -94,6 +92,21 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         with capture.global_and_fixture_disabled() if capture is not None else contextlib.nullcontext():
             open_log(config)  # the progress lines' stream, past pytest's capture
         config.pluginmanager.register(RatePlugin(), "ddenv-rate")
+        if not hasattr(config, "workerinput"):  # an xdist worker's reports go to its controller
+            _register_rate_records(config)
+
+
+def _xdist_controller(config: pytest.Config) -> bool:
+    """A pytest-xdist session's controller (`-n N`): the records of its workers' tests arrive here."""
+    return not hasattr(config, "workerinput") and getattr(config.option, "dist", "no") != "no"
+
+
+def _register_rate_records(config: pytest.Config) -> None:
+    """The hooks that write a failure-rate verdict's JUnit elements and terminal lines, once."""
+    from pytest_ddenv.pytest_plugin.rate_records import RateRecords
+
+    if not config.pluginmanager.has_plugin("ddenv-rate-records"):
+        config.pluginmanager.register(RateRecords(config), "ddenv-rate-records")
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

@@ -11,11 +11,12 @@ properties and flakyFailure elements, pytest-html extras, the terminal line) are
 from __future__ import annotations
 
 import warnings
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from typing import TYPE_CHECKING, Any
 
 import pytest
 
+from pytest_ddenv.errors import raised_by_ddenv
 from pytest_ddenv.pytest_plugin.marks import spec_of
 from pytest_ddenv.pytest_plugin.options import options_of
 from pytest_ddenv.pytest_plugin.rate_records import with_rate
@@ -30,6 +31,7 @@ from pytest_ddenv.scenario.robot_world import FIXTURE
 
 if TYPE_CHECKING:
     from pytest_ddenv.pytest_plugin.progress import PytestProgress
+    from pytest_ddenv.world.model import World
 
 _verdict_key = pytest.StashKey[RateVerdict]()
 
@@ -69,9 +71,10 @@ class RatePlugin:
             return (yield)
         try:
             result = yield
-        except Exception as error:
-            if isinstance(error, pytest.skip.Exception) or pyfuncitem.config.getoption("usepdb", False):
-                raise  # a skip is no run; under --pdb the debugger opens on run 0's own failure
+        except (Exception, pytest.fail.Exception) as error:  # pytest.fail() is a failure too
+            if isinstance(error, pytest.xfail.Exception) or raised_by_ddenv(error) \
+                    or pyfuncitem.config.getoption("usepdb", False):
+                raise  # pytest.xfail() is no run, a broken setup no verdict; --pdb: the debugger opens on run 0's
             verdict = _judge(pyfuncitem, error, runs, allowed)
             if verdict.failed:
                 raise FailureRateExceeded(verdict) from error
@@ -132,7 +135,7 @@ def _judge(item: pytest.Function, error: BaseException | None, runs: int, allowe
     return verdict
 
 
-def _pool_runs(item: pytest.Function, world: Any, seed: int, runs: int, done: Any,
+def _pool_runs(item: pytest.Function, world: World, seed: int, runs: int, done: Callable[[RateRun], None],
                progress: PytestProgress) -> list[RateRun]:
     """Runs 1..`runs`-1 on the test's probe pool; every one an error when the pool cannot start."""
     from pytest_ddenv.errors import DdenvError

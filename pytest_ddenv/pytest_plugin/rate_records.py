@@ -20,8 +20,15 @@ RATE_KEY = "ddenv_rate"
 """The call report's attribute that holds the verdict (`RateVerdict.to_json()`)."""
 SECTION = "ddenv failure rate"
 SUMMARY_SECTION = "ddenv failure rates"
-_SYSTEM_OUT_LOGGING = ("system-out", "out-err", "all", "log")
-"""The `junit_logging` values with which pytest itself may write a testcase's `system-out`."""
+_STDOUT_LOGGING = ("system-out", "out-err", "all")
+"""The `junit_logging` values with which pytest writes a testcase's captured stdout as its `system-out`."""
+
+
+def pytest_writes_stdout(config: pytest.Config, passed: bool) -> bool:
+    """Whether pytest's JUnit XML writes the test's captured stdout as its `system-out` (`junit_logging`,
+    `junit_log_passing_tests`)."""
+    return str(config.getini("junit_logging")) in _STDOUT_LOGGING and (
+        not passed or bool(config.getini("junit_log_passing_tests")))
 
 
 def run_lines(record: dict[str, Any]) -> list[str]:
@@ -39,7 +46,10 @@ def with_rate(item: pytest.Item, report: Any, verdict: RateVerdict) -> None:
     """The call's report with the verdict: its section, the plain record, and the pytest-html extras."""
     record = verdict.to_json()
     setattr(report, RATE_KEY, record)
-    report.sections.append((SECTION, "\n".join([record["headline"], *run_lines(record)]) + "\n"))
+    listing = "\n".join([record["headline"], *run_lines(record)]) + "\n"
+    report.sections.append((SECTION, listing))
+    if pytest_writes_stdout(item.config, not verdict.failed):  # the runs in its system-out, through the
+        item.add_report_section("call", "stdout", f"ddenv failure rate: {listing}")  # teardown's report
     html = item.config.pluginmanager.getplugin("html")
     if html is not None and hasattr(html, "extras"):
         report.extras = [*getattr(report, "extras", []), html.extras.html(html_table(record))]
@@ -83,7 +93,7 @@ def junit_records(config: pytest.Config, report: pytest.TestReport) -> None:
             out = ET.SubElement(element, "system-out")
             out.text = bin_xml_escape(f"ddenv run {run['run']}, seed {run['seed']}")
             reporter.append(element)
-    if xml.logging not in _SYSTEM_OUT_LOGGING:
+    if not pytest_writes_stdout(config, record["verdict"] == "passed"):
         out = ET.Element("system-out")
         out.text = bin_xml_escape("\n".join([f"ddenv failure rate: {record['headline']}", *run_lines(record)]))
         reporter.append(out)

@@ -108,12 +108,19 @@ def pool_runs(pool: Pool[ProbeResult], world: World, seed: int, indices: Sequenc
             return error_run(index, run_seed(seed, index), error)
 
     runs: list[RateRun] = []
-    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, min(pool.size, len(indices)))) as threads:
+    if pool.in_process or pool.size <= 1:  # in this process: on this (the main) thread, one after another
+        for index in indices:
+            runs.append(one(index))
+            done(runs[-1])
+        return runs
+    threads = concurrent.futures.ThreadPoolExecutor(max_workers=min(pool.size, len(indices)))
+    try:
         futures = [threads.submit(one, index) for index in indices]
         for future in concurrent.futures.as_completed(futures):
-            run = future.result()
-            runs.append(run)
-            done(run)
+            runs.append(future.result())
+            done(runs[-1])
+    finally:  # Ctrl-C: no new run starts; closing the pool ends the running ones
+        threads.shutdown(wait=False, cancel_futures=True)
     return sorted(runs, key=lambda run: run.index)
 
 

@@ -24,7 +24,7 @@ import pytest
 from pytest_ddenv.errors import DdenvError, raised_by_ddenv
 from pytest_ddenv.pytest_plugin.marks import spec_of
 from pytest_ddenv.pytest_plugin.options import options_of
-from pytest_ddenv.pytest_plugin.progress import PytestProgress, close_log, open_log
+from pytest_ddenv.pytest_plugin.progress import PytestProgress, open_log
 from pytest_ddenv.scenario.robot_world import FIXTURE
 
 if TYPE_CHECKING:
@@ -66,11 +66,6 @@ class ReductionPlugin:
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         _terminal_summary(terminalreporter)
 
-    def pytest_unconfigure(self, config: pytest.Config) -> None:
-        from pytest_ddenv.pytest_plugin.pools import close_cluster
-
-        close_log(config)
-        close_cluster(config)
 
 
 def _recording_given_calls(item: pytest.Function) -> contextlib.AbstractContextManager[list[dict[str, Any]]]:
