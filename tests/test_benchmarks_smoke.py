@@ -227,3 +227,46 @@ def test_bench_confirm_engines_runs_ddenv_reduce_with_the_other_engine_and_tabul
             "[0.72, 1.00] | pybullet 10/10 [0.72, 1.00] | possibly an artefact of the pybullet physics |"
             ) in bench_confirm_engines.rates_table([row])
     assert "| ditch | 0 | 40, 9.0, 20.0 | 20, 3.0, 2.5 |" in bench_confirm_engines.cost_table([row])
+
+
+@pytest.fixture(scope="module")
+def bench_rate():
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import bench_rate
+
+        yield bench_rate
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+
+
+def test_bench_rate_true_rate_and_expected_coverage(bench_rate):
+    truth = bench_rate.true_rate(range(2))
+    assert truth.runs + truth.errors == 2 and truth.errors == 0
+    assert truth.interval[0] <= truth.rate <= truth.interval[1]
+    # the chance that a 95 % Wilson interval of 20 runs contains the true rate: about 95 %
+    assert 0.9 < bench_rate.expected_coverage(0.3, 20) < 1.0
+    words = bench_rate.rate_command(1000, 20, Path("j.xml"), Path("a"))
+    assert words[words.index("--ddenv-rate") + 1] == "20" and words[words.index("--ddenv-seed") + 1] == "1000"
+
+
+def test_bench_rate_dispersion_of_failure_counts(bench_rate):
+    rate = bench_rate.Rate
+    assert bench_rate.dispersion([rate(5, 20)] * 4) == (0.0, 1.0)  # no spread at all
+    statistic, p_value = bench_rate.dispersion([rate(0, 20), rate(20, 20), rate(0, 20), rate(20, 20)])
+    assert statistic == pytest.approx(80.0) and p_value < 1e-6  # all or nothing: not independent runs
+    assert bench_rate.dispersion([rate(0, 20), rate(0, 20)]) == (0.0, 1.0)  # no failure: nothing to test
+
+
+@pytest.mark.slow  # a pytest process whose runs go to probe workers: the full tier only
+def test_bench_rate_repetition_agrees_with_the_python_api_run_by_run(bench_rate):
+    repetition = bench_rate.repeat(1000, 4)
+    records = bench_rate.run_records(repetition.properties)
+    assert [r["run"] for r in records] == [0, 1, 2, 3]
+    assert [r["seed"] for r in records] == [1000 + i * bench_rate.ATTEMPT_SEED_STRIDE for i in range(4)]
+    # a run's outcome is its seed's, in a probe worker as in this process (what --api-repetitions relies on)
+    assert [r["outcome"] for r in records] == bench_rate.api_repetition(1000, 4)
+    assert repetition.runs + repetition.errors == 4
+    assert repetition.failures == sum(r["outcome"] == "failed" for r in records)
+    assert repetition.interval[0] <= repetition.failures / repetition.runs <= repetition.interval[1]
+    assert repetition.verdict == "passed" and repetition.exit_code == 0  # the example allows up to 50 %

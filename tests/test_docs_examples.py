@@ -8,6 +8,7 @@ marked.
 from __future__ import annotations
 
 import re
+import shlex
 from pathlib import Path
 
 import pytest
@@ -64,10 +65,46 @@ def test_every_docs_page_linked_from_the_index_exists() -> None:
     assert not missing, f"docs/index.md links to missing pages: {missing}"
 
 
-def test_ci_examples_are_valid_yaml_that_keep_the_artifacts() -> None:
+def ci_pytest_command(lines: list[str]) -> list[str]:
+    """The arguments of the one pytest command of a CI job's steps or script, with the CI's variables
+    (`${{ github.run_number }}`, `$CI_PIPELINE_IID`) given a value."""
+    (command,) = [line for line in lines if line.startswith("pytest ")]
+    return shlex.split(re.sub(r"\$\{\{[^}]*\}\}|\$[A-Z_]+", "7", command))[1:]
+
+
+def checked_ci_command(pytester: pytest.Pytester, arguments: list[str]) -> tuple[str, str, tuple[object, object]]:
+    """Parse a CI job's pytest command as pytest and the plugin do (every option exists and its value is
+    accepted): the artifacts folder it writes (relative, with a trailing slash), its JUnit file, and its
+    (rate, max_failure_rate)."""
+    from pytest_ddenv.pytest_plugin.options import read_options
+
+    config = pytester.parseconfig(*arguments)
+    options = read_options(config)
+    assert options.reduce and options.max_seconds == 900
+    assert config.getini("junit_logging") == "system-out"
+    artifacts = f"{options.artifacts.relative_to(pytester.path).as_posix()}/"
+    return artifacts, config.option.xmlpath, (options.rate, options.max_failure_rate)
+
+
+def test_ci_examples_are_valid_yaml_that_keep_the_artifacts(pytester: pytest.Pytester) -> None:
     import yaml
 
     github, gitlab = (yaml.safe_load(block) for block in yaml_blocks("ci.md"))
-    upload = github["jobs"]["robot-scenarios"]["steps"][-1]
-    assert upload["if"] == "always()" and "ddenv-artifacts/" in upload["with"]["path"]
-    assert gitlab["robot-scenarios"]["artifacts"]["when"] == "always"
+    rates = []
+    for job in github["jobs"].values():
+        steps = job["steps"]
+        artifacts, junit, rate = checked_ci_command(pytester, ci_pytest_command([s.get("run", "") for s in steps]))
+        rates.append(rate)
+        (report,) = [s for s in steps if s.get("uses", "").startswith("mikepenz/action-junit-report@")]
+        assert report["if"] == "always()" and report["with"]["report_paths"] == junit
+        assert job["permissions"]["checks"] == "write"  # the report is a check run
+        upload = steps[-1]
+        assert upload["uses"].startswith("actions/upload-artifact@") and upload["if"] == "always()"
+        assert upload["with"]["path"].split() == [artifacts, junit]
+    for job in gitlab.values():
+        artifacts, junit, rate = checked_ci_command(pytester, ci_pytest_command(job["script"]))
+        rates.append(rate)
+        assert job["artifacts"]["when"] == "always" and job["artifacts"]["paths"] == [artifacts, junit]
+        assert job["artifacts"]["reports"]["junit"] == junit
+    # on each page: a job on every push (the rates of the tests' markers) and a nightly one with --ddenv-rate
+    assert rates == [(None, None), (50, 0.1)] * 2
