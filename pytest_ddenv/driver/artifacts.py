@@ -439,7 +439,8 @@ def folder_problem(folder: Path) -> str | None:
     """Why reductions cannot write into `folder` (made when missing), or None: a file in its place, a symbolic
     link to nothing, the folder (or its nearest existing parent) not writable, or a place where no folder can be
     made (`/proc`, a read-only file system). Checked before any probe runs, by trying: a file is made and
-    removed in an existing folder, and the first missing folder is made and removed."""
+    removed in an existing folder, a folder of a name of its own is made and removed in the nearest existing parent
+of a missing one (never the missing folder itself: processes that check at once must not see each other's)."""
     try:
         if folder.is_symlink() and not folder.exists():
             return f"{folder} is a symbolic link to {os.readlink(folder)}, which does not exist"
@@ -467,15 +468,12 @@ def folder_problem(folder: Path) -> str | None:
                 return f"no file can be written in the folder {folder}: {error.strerror or error}"
             os.close(handle)
             os.unlink(name)
-        else:
-            first = folder
-            while first.parent != existing:
-                first = first.parent
+        else:  # a folder of a name of its own: processes checking at once (probe workers) never collide
             try:
-                first.mkdir()
+                made = tempfile.mkdtemp(prefix=".ddenv-check-", dir=existing)
             except OSError as error:
                 return f"no folder can be made in {existing} (to make {folder}): {error.strerror or error}"
-            first.rmdir()
+            os.rmdir(made)
     except OSError as error:  # a loop of symbolic links, a name too long, a place that takes no folder ...
         return f"{folder} cannot be used: {error.strerror or error}"
     return None

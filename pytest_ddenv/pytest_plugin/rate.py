@@ -22,6 +22,7 @@ from pytest_ddenv.pytest_plugin.options import options_of
 from pytest_ddenv.pytest_plugin.rate_records import with_rate
 from pytest_ddenv.pytest_plugin.rate_runs import (
     FailureRateExceeded,
+    FailureRateUnknown,
     RateRun,
     RateVerdict,
     pool_runs,
@@ -78,10 +79,14 @@ class RatePlugin:
             verdict = _judge(pyfuncitem, error, runs, allowed)
             if verdict.failed:
                 raise FailureRateExceeded(verdict) from error
+            if verdict.erred_mostly:
+                raise FailureRateUnknown(verdict) from error
             return True  # run 0's failure is swallowed: the rate is the verdict (its run is a flaky failure)
         verdict = _judge(pyfuncitem, None, runs, allowed)
         if verdict.failed:
             raise FailureRateExceeded(verdict)
+        if verdict.erred_mostly:
+            raise FailureRateUnknown(verdict)
         return result
 
     @pytest.hookimpl(wrapper=True)

@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
+from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.reduce.rates import VERDICT_CONFIDENCE, Rate, significantly_above, wilson_interval
 from pytest_ddenv.scenario.robot_world import ATTEMPT_SEED_STRIDE
 
@@ -157,6 +158,17 @@ class RateVerdict:
         return significantly_above(self.rate, self.max_failure_rate)
 
     @property
+    def erred_mostly(self) -> bool:
+        """More than half the runs erred (workers that could not start, watchdog kills): what is left is no
+        verdict, and the test errs instead of passing on the few runs that ended."""
+        return 2 * self.errors > len(self.runs)
+
+    @property
+    def word(self) -> str:
+        """The verdict: "failed" (significantly above the allowed rate), "error" (`erred_mostly`), "passed"."""
+        return "failed" if self.failed else "error" if self.erred_mostly else "passed"
+
+    @property
     def failed_runs(self) -> tuple[RateRun, ...]:
         return tuple(run for run in self.runs if run.outcome == "failed")
 
@@ -175,6 +187,8 @@ class RateVerdict:
             text += f", {relation} the allowed {percent(self.max_failure_rate)}"
         if self.errors:
             text += f" ({self.errors} run{'s' if self.errors != 1 else ''} erred: not counted)"
+        if self.word == "error":
+            text = f"no verdict: {self.errors} of {len(self.runs)} runs erred; {text}"
         return text
 
     def failure_text(self) -> str:
@@ -191,7 +205,7 @@ class RateVerdict:
             ("ddenv_rate_failures", self.failures),
             ("ddenv_rate_errors", self.errors),
             ("ddenv_rate_interval", f"{low:.3f},{high:.3f}"),
-            ("ddenv_rate_verdict", "failed" if self.failed else "passed"),
+            ("ddenv_rate_verdict", self.word),
             *((f"ddenv_run_{run.index}", json.dumps(run.to_json(), sort_keys=True)) for run in self.runs),
         ]
 
@@ -200,13 +214,25 @@ class RateVerdict:
         low, high = self.interval
         return {
             "headline": self.headline(),
-            "verdict": "failed" if self.failed else "passed",
+            "verdict": self.word,
             "runs": [run.to_json() for run in self.runs],
             "failures": self.failures, "errors": self.errors, "counted": self.rate.runs,
             "interval": [low, high], "max_failure_rate": self.max_failure_rate,
             "tracebacks": {str(run.index): run.error.traceback for run in self.failed_runs
                            if run.error is not None},
         }
+
+
+class FailureRateUnknown(DdenvError):
+    """More than half of a test's runs erred (`RateVerdict.erred_mostly`): an error of the runs, not a verdict
+    on the test (never reduced), each erring run's reason listed."""
+
+    def __init__(self, verdict: RateVerdict) -> None:
+        erred = [run for run in verdict.runs if run.outcome == "error"]
+        super().__init__("\n".join([f"ddenv failure rate: {verdict.headline()}",
+                                     *(f"  {run.describe()}" for run in erred[:5]),
+                                     *([f"  ... and {len(erred) - 5} more"] if len(erred) > 5 else [])]))
+        self.verdict = verdict
 
 
 class FailureRateExceeded(AssertionError):

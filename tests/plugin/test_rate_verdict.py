@@ -3,10 +3,14 @@ sessions: the runs are given."""
 
 from __future__ import annotations
 
+import concurrent.futures
 import json
+import multiprocessing
+from pathlib import Path
 
+from pytest_ddenv.driver.artifacts import folder_problem
 from pytest_ddenv.oracle.verdict import ErrorInfo
-from pytest_ddenv.pytest_plugin.rate_runs import RateRun, RateVerdict, outcome_of, run_seed
+from pytest_ddenv.pytest_plugin.rate_runs import FailureRateUnknown, RateRun, RateVerdict, outcome_of, run_seed
 from pytest_ddenv.reduce.rates import Rate, significantly_above
 
 
@@ -57,3 +61,28 @@ def test_significantly_above_is_the_lower_end_of_the_interval() -> None:
     assert significantly_above(Rate(1, 20), 0.0) and not significantly_above(Rate(0, 20), 0.0)
     assert not significantly_above(Rate(0, 0), 0.0)
     assert significantly_above(Rate(5, 10), 0.2) and not significantly_above(Rate(2, 10), 0.2)
+
+
+def test_a_verdict_on_runs_that_mostly_erred_is_an_error_not_a_pass() -> None:
+    verdict = RateVerdict(runs(0, 20, errors=18), 0.5)  # 2 passing runs left: no verdict on the test
+    assert verdict.erred_mostly and not verdict.failed and verdict.word == "error"
+    assert verdict.headline().startswith("no verdict: 18 of 20 runs erred; failed 0 of 2 runs")
+    assert dict(verdict.properties())["ddenv_rate_verdict"] == "error"
+    message = str(FailureRateUnknown(verdict))
+    assert "the worker died twice" in message and message.count("\n  run ") == 5 and "... and 13 more" in message
+    assert RateVerdict(runs(2, 20, errors=18)).word == "failed", "failing runs that are significant still fail it"
+    assert RateVerdict(runs(0, 20, errors=10)).word == "passed", "half the runs erring still leaves a verdict"
+
+
+def check_often(folder: Path) -> set[str | None]:
+    return {folder_problem(folder) for _ in range(300)}
+
+
+def test_the_artifacts_folder_check_of_processes_at_once_never_collides(tmp_path: Path) -> None:
+    """Probe workers start at once and each checks --ddenv-artifacts: a folder that does not exist yet was made
+    and removed under its own name by each, so one saw the other's and its pytest stopped (exit code 4)."""
+    folder = tmp_path / "missing" / "artifacts"
+    with concurrent.futures.ProcessPoolExecutor(4, mp_context=multiprocessing.get_context("fork")) as pool:
+        problems = set().union(*pool.map(check_often, [folder] * 4))
+    assert problems == {None}
+    assert not (tmp_path / "missing").exists(), "the check leaves nothing behind"
