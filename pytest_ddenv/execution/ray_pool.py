@@ -62,9 +62,9 @@ def _import_ray() -> Any:
 
 
 class RayCluster:
-    """A connection to a Ray cluster and its probe actors: a local head node of `n_workers` CPUs started for
-    this session (`address` None or "ray"), or a running cluster at ray://host:port (its CPUs, at connection
-    time, are the actors). Checks that every actor has the same pytest-ddenv, pybullet, mujoco and numpy."""
+    """A connection to a Ray cluster and its probe actors, one per CPU: a local head node of `n_workers` CPUs
+    started for this session (`address` None or "ray"), or a running cluster at ray://host:port (`n_workers`
+    of its CPUs, or all that are free at connection time). Checks that every actor has the same pytest-ddenv, pybullet, mujoco and numpy."""
 
     def __init__(self, address: str | None = None, *, n_workers: int | None = None,
                  check_versions: bool = True) -> None:
@@ -99,9 +99,11 @@ class RayCluster:
             raise PoolConfigError(f"cannot connect to the Ray cluster at {self.address}: {error}") from error
         try:
             if not local:
-                count = int(ray.cluster_resources().get("CPU", 0))
-                if count < 1:
-                    raise PoolConfigError(f"the Ray cluster at {self.address} has no CPU to run probes on")
+                free = int(ray.available_resources().get("CPU", 0))
+                count = free if n_workers is None else count
+                if count < 1 or count > free:
+                    raise PoolConfigError(f"the Ray cluster at {self.address} has {free} free CPUs: the ray executor "
+                                          f"needs one per probe running at once ({max(1, count)} asked for)")
             self._slot = ray.remote(num_cpus=1, max_restarts=0, max_concurrency=1)(_slot_class())
             self._sys_path = tuple(sys.path) if local else ()
             for _ in range(count):
@@ -127,6 +129,9 @@ class RayCluster:
         ray = _import_ray()
         try:
             remote = ray.get([actor.versions.remote() for actor in self._actors], timeout=STARTUP_TIMEOUT)
+        except ray.exceptions.GetTimeoutError:
+            raise PoolConfigError(f"the {len(self._actors)} probe actors did not start on the Ray cluster at "
+                                  f"{self.address} within {STARTUP_TIMEOUT:g} s") from None
         except Exception as error:  # typically ModuleNotFoundError in the actor
             raise PoolConfigError(
                 f"the Ray workers at {self.address} cannot run pytest-ddenv ({type(error).__name__}: {error}); "

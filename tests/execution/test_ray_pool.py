@@ -21,7 +21,7 @@ import pytest
 from plugin.conftest import WALL_WORLD
 from plugin.test_plugin_user_code import MY_ROBOT_CONFTEST, USER_CODE_TEST
 
-from pytest_ddenv.execution import Fault, LocalPool, ProbeDeadline, WorkerError, make_cluster
+from pytest_ddenv.execution import Fault, LocalPool, PoolConfigError, ProbeDeadline, WorkerError, make_cluster
 from pytest_ddenv.execution.children import Process, _stat, descendants, end_processes
 from pytest_ddenv.execution.ray_head import STARTED, free_port
 from pytest_ddenv.world import World
@@ -39,13 +39,14 @@ TESTS = str(Path(__file__).resolve().parents[1])
 
 @pytest.fixture(scope="module")
 def client_address() -> Iterator[str]:
-    """A Ray head on this machine, started like a user's: `ray start --head` with its own temporary folder
-    and ports, 2 CPUs; its Ray client address. Stopped by ending its own processes (never `ray stop`)."""
+    """A Ray head on this machine, started like a user's: `ray start --head` with its own temporary folder,
+    ports and token, 4 (logical) CPUs: 2 for the module's cluster, 2 for a session's; its Ray client address.
+    Stopped by ending its own processes (never `ray stop`)."""
     temp_dir = tempfile.mkdtemp(prefix="ddenv-test-ray-")
     client_port = free_port()
     command = [str(Path(sys.executable).with_name("ray")), "start", "--head", "--block", "--node-ip-address",
                "127.0.0.1", "--port", str(free_port()), "--ray-client-server-port", str(client_port),
-               "--dashboard-agent-listen-port", str(free_port()), "--num-cpus", "2", "--temp-dir", temp_dir,
+               "--dashboard-agent-listen-port", str(free_port()), "--num-cpus", "4", "--temp-dir", temp_dir,
                "--include-dashboard", "false", "--disable-usage-stats", "--object-store-memory", str(200 * 2**20)]
     log = Path(temp_dir, "head.log")
     token = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32)}
@@ -226,3 +227,8 @@ def test_the_local_head_ends_with_the_session_even_when_it_is_killed(tmp_path: P
         session.send_signal(signal.SIGKILL)
         session.wait()
     assert all(gone(pid, within=30.0) for pid in pids)
+
+
+def test_a_second_ray_connection_in_the_session_is_refused(cluster: RayCluster) -> None:
+    with pytest.raises(PoolConfigError, match=r"needs this process's Ray connection, and it is already open"):
+        make_cluster("ray", 1)
