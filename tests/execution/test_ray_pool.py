@@ -232,3 +232,21 @@ def test_the_local_head_ends_with_the_session_even_when_it_is_killed(tmp_path: P
 def test_a_second_ray_connection_in_the_session_is_refused(cluster: RayCluster) -> None:
     with pytest.raises(PoolConfigError, match=r"needs this process's Ray connection, and it is already open"):
         make_cluster("ray", 1)
+
+
+def test_ddenv_reduce_on_ray_finds_the_same_minimal_world(cluster: RayCluster, tmp_path: Path) -> None:
+    world = tmp_path / "wall.yaml"
+    world.write_text(WALL_WORLD)
+    executor = "ray" if cluster.address.startswith("ray (local") else cluster.address
+    ddenv = str(Path(sys.executable).with_name("ddenv"))
+    found = []
+    for how in (["--workers", "2"], ["--executor", executor, "--workers", "2"]):
+        out = tmp_path / f"out-{len(found)}"
+        done = subprocess.run([ddenv, "reduce", str(world), "-p", "stuck:window=2.0,min_progress=0.2", "--deflake",
+                               "1", "--media", "none", "--out", str(out), "--json", *how],
+                              capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+        summary = json.loads(done.stdout)
+        assert summary["one_minimal"] and summary["errors"] == 0, how
+        found.append(summary["minimal_models"])
+    assert found[0] == found[1] == ["wall"]
