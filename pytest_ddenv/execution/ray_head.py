@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
+import select
 import shutil
 import signal
 import socket
@@ -31,6 +32,8 @@ HEAD_TIMEOUT = 120.0
 """Seconds the head may take to start."""
 STARTED = "Ray runtime started"
 """What `ray start` prints when the head runs."""
+REAP_EVERY = 0.5
+"""Seconds between two collections of the keeper's ended children."""
 
 
 def free_port() -> int:
@@ -108,6 +111,14 @@ class LocalHead:
         shutil.rmtree(self.temp_dir, ignore_errors=True)
 
 
+def _reap_orphans() -> None:
+    """Collect the exit status of the processes of the head that ended (as a subreaper, the keeper adopts
+    those whose parent ended first: a probe process whose actor was killed)."""
+    with contextlib.suppress(ChildProcessError):
+        while os.waitpid(-1, os.WNOHANG)[0] > 0:
+            pass
+
+
 def keep(command: list[str]) -> int:
     """The keeper: run `command`, until standard input closes; then end every process under this one."""
     from pytest_ddenv.execution.children import become_subreaper, descendants, end_processes
@@ -119,8 +130,8 @@ def keep(command: list[str]) -> int:
     become_subreaper(True)
     child = subprocess.Popen(command, stdin=subprocess.DEVNULL)
     with contextlib.suppress(OSError, KeyboardInterrupt):
-        while sys.stdin.buffer.read(65536):
-            pass
+        while not select.select([sys.stdin], [], [], REAP_EVERY)[0] or os.read(sys.stdin.fileno(), 65536):
+            _reap_orphans()
     for _ in range(3):  # processes that were starting meanwhile
         if not end_processes(descendants(os.getpid()), grace=2.0):
             break

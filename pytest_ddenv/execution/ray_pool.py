@@ -64,7 +64,8 @@ def _import_ray() -> Any:
 class RayCluster:
     """A connection to a Ray cluster and its probe actors, one per CPU: a local head node of `n_workers` CPUs
     started for this session (`address` None or "ray"), or a running cluster at ray://host:port (`n_workers`
-    of its CPUs, or all that are free at connection time). Checks that every actor has the same pytest-ddenv, pybullet, mujoco and numpy."""
+    of its CPUs, or all that are free at connection time). Checks that every actor has the same pytest-ddenv,
+    pybullet, mujoco and numpy."""
 
     def __init__(self, address: str | None = None, *, n_workers: int | None = None,
                  check_versions: bool = True) -> None:
@@ -314,23 +315,26 @@ class RayPool:
         backstop = None if limit is None else limit + (DEADLINE_GRACE if by_deadline else
                                                        STARTUP_TIMEOUT + BACKSTOP_GRACE)
         give_up = None if backstop is None else time.monotonic() + backstop
-        while not ray.wait([reference], timeout=POLL if give_up is None else
-                           max(0.0, min(POLL, give_up - time.monotonic())))[0]:
-            if self._closed or self.cluster.closed:
-                self.cluster.replace(actor)
-                self._stats.add("errors")
-                raise WorkerError(f"probe of {what}: the ray pool was closed while it ran")
-            if give_up is not None and time.monotonic() >= give_up:
-                self.cluster.replace(actor)
-                if by_deadline:
-                    self._stats.add("cancelled")
-                    raise ProbeDeadline(f"probe of {what} was cancelled at the reduction's deadline") from None
-                self._stats.add("timeouts")
-                self._stats.add("errors")
-                raise WorkerError(f"probe of {what}: its ray actor did not answer within {backstop:g} s (watchdog, "
-                                  "probe process start and grace); the actor was killed") from None
         try:
+            while not ray.wait([reference], timeout=POLL if give_up is None else
+                               max(0.0, min(POLL, give_up - time.monotonic())))[0]:
+                if self._closed or self.cluster.closed:
+                    raise _Abandoned(f"probe of {what}: the ray pool was closed while it ran", "closed")
+                if give_up is not None and time.monotonic() >= give_up:
+                    if by_deadline:
+                        raise _Abandoned(f"probe of {what} was cancelled at the reduction's deadline", "deadline")
+                    raise _Abandoned(f"probe of {what}: its ray actor did not answer within {backstop:g} s "
+                                     "(watchdog, probe process start and grace); the actor was killed", "timeout")
             done: TaskReply = ray.get(reference)
+        except _Abandoned as abandoned:
+            self.cluster.replace(actor)
+            if abandoned.kind == "deadline":
+                self._stats.add("cancelled")
+                raise ProbeDeadline(str(abandoned)) from None
+            if abandoned.kind == "timeout":
+                self._stats.add("timeouts")
+            self._stats.add("errors")
+            raise WorkerError(str(abandoned)) from None
         except ray.exceptions.RayActorError as error:
             self.cluster.replace(actor)
             for name in ("simulations", "crashes", "errors"):
@@ -347,6 +351,10 @@ class RayPool:
             if isinstance(cause, WorkerError):
                 raise cause from None
             raise WorkerError(f"probe of {what} failed in its ray actor: {_first_line(error)}") from error
+        except Exception as error:  # the connection to the cluster was lost, ...
+            self.cluster.replace(actor)
+            self._stats.add("errors")
+            raise WorkerError(f"probe of {what} was lost by the ray cluster: {_first_line(error)}") from error
         return done
 
     def close(self) -> None:
@@ -362,6 +370,15 @@ class RayPool:
 
     def __repr__(self) -> str:
         return f"RayPool({self.job.label} on {self.cluster.address}{', closed' if self._closed else ''})"
+
+
+class _Abandoned(Exception):
+    """A probe the pool stopped waiting for (its actor is replaced): the pool was `closed`, the caller's
+    `deadline` passed, or the actor did not answer in time (`timeout`)."""
+
+    def __init__(self, message: str, kind: str) -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 def _first_line(error: BaseException) -> str:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import secrets
+import shutil
 import signal
 import subprocess
 import sys
@@ -67,6 +68,7 @@ def client_address() -> Iterator[str]:
         end_processes(([Process(head.pid, status[2])] if status else []) + descendants(head.pid), grace=5.0)
         head.wait()
         patch.undo()
+        shutil.rmtree(temp_dir, ignore_errors=True)
 
 
 @pytest.fixture(scope="module", params=["ray", "ray-client"])
@@ -250,3 +252,32 @@ def test_ddenv_reduce_on_ray_finds_the_same_minimal_world(cluster: RayCluster, t
         assert summary["one_minimal"] and summary["errors"] == 0, how
         found.append(summary["minimal_models"])
     assert found[0] == found[1] == ["wall"]
+
+
+def test_closing_the_pool_returns_its_running_probes_at_once_and_replaces_their_actors(
+        cluster: RayCluster, wall_world: World, tmp_path: Path) -> None:
+    import threading
+
+    pid_file = tmp_path / "pid"
+    job = UserCodeJob(str(pid_file))
+    raised: list[BaseException] = []
+    pool = RayPool(job, cluster, watchdog=600.0)
+
+    def hang() -> None:
+        try:
+            pool.call(wall_world, HANG)
+        except BaseException as error:  # noqa: BLE001 - the test looks at it
+            raised.append(error)
+
+    caller = threading.Thread(target=hang)
+    caller.start()
+    deadline = time.monotonic() + 120
+    while not pid_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    pool.close()
+    caller.join(timeout=30)
+    assert not caller.is_alive() and len(raised) == 1
+    assert isinstance(raised[0], WorkerError) and "closed while it ran" in str(raised[0])
+    assert gone(int(pid_file.read_text()), within=30.0) and cluster.threads == 2
+    with RayPool(job, cluster, watchdog=60.0) as again:
+        assert [again.call(wall_world, attempt)["models"] for attempt in (0, 1)] == [len(wall_world)] * 2
