@@ -328,6 +328,7 @@ class RayPool:
             done: TaskReply = ray.get(reference)
         except _Abandoned as abandoned:
             self.cluster.replace(actor)
+            self._stats.add("simulations")  # sent to an idle actor: it started
             if abandoned.kind == "deadline":
                 self._stats.add("cancelled")
                 raise ProbeDeadline(str(abandoned)) from None

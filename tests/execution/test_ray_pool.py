@@ -53,7 +53,8 @@ def client_address() -> Iterator[str]:
     token = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32)}
     with open(log, "wb") as out:  # the tests' modules (UserCodeJob) import in the actors
         head = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
-                                env={**os.environ, **token, "PYTHONPATH": TESTS, "RAY_USAGE_STATS_ENABLED": "0"})
+                                env={**os.environ, **token, "PYTHONPATH": os.pathsep.join(filter(None, (
+                                    TESTS, os.environ.get("PYTHONPATH")))), "RAY_USAGE_STATS_ENABLED": "0"})
     patch = pytest.MonkeyPatch()
     for name, value in token.items():  # the Ray client (and the pytester sessions) find the token there
         patch.setenv(name, value)
