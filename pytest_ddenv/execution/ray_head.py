@@ -4,7 +4,8 @@ process that ends every process of it when the session closes it or dies.
 `ray start --head --block` runs as the child of a keeper (``python -m pytest_ddenv.execution.ray_head``), a
 child subreaper (Linux) so that the Ray processes orphaned on the way (agents, workers) stay its descendants.
 The keeper waits for its standard input to close: the session closed the cluster, or the session's process
-died (the pipe closes with it, even on SIGKILL). It then ends its descendants (`children.py`) and exits.
+died (the pipe closes with it, even on SIGKILL). It then ends its descendants (`children.py`), removes the
+head's temporary folder and exits.
 Only those processes: another Ray cluster of the user is never touched (no `ray stop`). The head gets its
 own temporary folder and free ports, the node address 127.0.0.1, no dashboard and no usage report. Ray's
 servers listen on every interface of the machine whatever the node address, so the head requires a token
@@ -67,7 +68,8 @@ class LocalHead:
         self._log = Path(self.temp_dir, "head.log")
         with open(self._log, "wb") as log:
             self._keeper = subprocess.Popen(
-                [sys.executable, "-m", "pytest_ddenv.execution.ray_head", *head_command(cpus, self.temp_dir, port)],
+                [sys.executable, "-m", "pytest_ddenv.execution.ray_head", self.temp_dir,
+                 *head_command(cpus, self.temp_dir, port)],
                 stdin=subprocess.PIPE, stdout=log, stderr=subprocess.STDOUT,
                 env={**os.environ, **self.environ, "RAY_USAGE_STATS_ENABLED": "0"},
             )
@@ -119,8 +121,9 @@ def _reap_orphans() -> None:
             pass
 
 
-def keep(command: list[str]) -> int:
-    """The keeper: run `command`, until standard input closes; then end every process under this one."""
+def keep(temp_dir: str, command: list[str]) -> int:
+    """The keeper: run `command`, until standard input closes; then end every process under this one and
+    remove `temp_dir` (the head's temporary folder)."""
     from pytest_ddenv.execution.children import become_subreaper, descendants, end_processes
 
     def stop(signum: int, frame: object) -> None:
@@ -137,8 +140,9 @@ def keep(command: list[str]) -> int:
             break
     with contextlib.suppress(ChildProcessError):
         child.wait(5)
+    shutil.rmtree(temp_dir, ignore_errors=True)
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(keep(sys.argv[1:]))
+    sys.exit(keep(sys.argv[1], sys.argv[2:]))

@@ -214,7 +214,7 @@ KEEPER = textwrap.dedent(
 
     cluster = RayCluster("ray", n_workers=1)
     pids = [cluster._head.pid] + [process.pid for process in descendants(cluster._head.pid)]
-    print(" ".join(map(str, pids)), flush=True)
+    print(cluster._head.temp_dir, " ".join(map(str, pids)), flush=True)
     time.sleep(600)
     """
 )
@@ -224,12 +224,15 @@ def test_the_local_head_ends_with_the_session_even_when_it_is_killed(tmp_path: P
     session = subprocess.Popen([sys.executable, "-c", KEEPER], stdout=subprocess.PIPE, text=True)
     try:
         assert session.stdout is not None
-        pids = [int(word) for word in session.stdout.readline().split()]
-        assert len(pids) > 3 and all(map(alive, pids))  # the keeper, `ray start`, the GCS, the raylet, ...
+        temp_dir, *words = session.stdout.readline().split()
+        pids = [int(word) for word in words]
+        # the keeper, `ray start`, the GCS, the raylet, ...
+        assert len(pids) > 3 and all(map(alive, pids)) and Path(temp_dir).is_dir()
     finally:
         session.send_signal(signal.SIGKILL)
         session.wait()
     assert all(gone(pid, within=30.0) for pid in pids)
+    assert not Path(temp_dir).exists()  # the keeper removed it before it exited
 
 
 def test_a_second_ray_connection_in_the_session_is_refused(cluster: RayCluster) -> None:
