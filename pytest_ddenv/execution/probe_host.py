@@ -133,7 +133,7 @@ class HostedJob:
     several threads runs several), kept idle between probes. `host`: what the host is called in messages
     ('dask worker', 'ray actor')."""
 
-    def __init__(self, job: Job, host: str = "dask worker") -> None:
+    def __init__(self, job: Job, host: str) -> None:
         self.job = job
         self.host = host
         self._wrapped = _OrphanSafeJob(job)
