@@ -7,9 +7,10 @@ The keeper waits for its standard input to close: the session closed the cluster
 died (the pipe closes with it, even on SIGKILL). It then ends its descendants (`children.py`), removes the
 head's temporary folder and exits.
 Only those processes: another Ray cluster of the user is never touched (no `ray stop`). The head gets its
-own temporary folder and free ports, the node address 127.0.0.1, no dashboard and no usage report. Ray's
-servers listen on every interface of the machine whatever the node address, so the head requires a token
-of its own (Ray's token authentication), which only the session knows (`LocalHead.environ`).
+own temporary folder and free ports, no dashboard and no usage report. It asks for the node address
+127.0.0.1, but Ray (2.60) registers the machine's address instead, and its servers listen on every
+interface whatever the node address: so the head requires a token of its own (Ray's token authentication),
+which only the session knows (`LocalHead.environ`).
 """
 
 from __future__ import annotations

@@ -6,8 +6,8 @@ idle actor, which runs it on a probe process of its own (`probe_host.py`: the te
 that process, started on the first probe of the job and kept; the watchdog kills a probe process past it;
 one that dies is replaced and its probe retried once). An actor that dies or stops answering is killed
 and replaced; the probe it ran is a `WorkerError`. ``"ray"`` starts a local head node for the session
-(`ray_head.py`: node address 127.0.0.1, its own ports and temporary folder, no dashboard, ended with the
-session); ``ray://host:port`` connects to a running cluster through the Ray client. The actors belong to the
+(`ray_head.py`: its own ports, temporary folder and token, no dashboard, ended with the session);
+``ray://host:port`` connects to a running cluster through the Ray client. The actors belong to the
 session's connection: Ray ends them when it closes or the session dies. Ray's connection is one per
 process (`ray.init`), so a session that already has one (its tests use Ray) cannot use the ray executor.
 """
