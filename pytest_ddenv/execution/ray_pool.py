@@ -49,6 +49,9 @@ BACKSTOP_GRACE = 30.0
 that does not answer before it kills and replaces it."""
 POLL = 0.25
 """Seconds between two looks at a probe's result (a closed pool is noticed within this)."""
+CLIENT_TRIES = 3
+SERVER_FAILED = "Initialization failure from server"
+"""What the Ray client says when the cluster's client server could not start the session's server."""
 
 __all__ = ["RayCluster", "RayPool"]
 
@@ -203,15 +206,16 @@ class RayCluster:
 
 
 def _connect(ray: Any, address: str) -> None:
-    """`ray.init` to `address`; a Ray client connection is tried twice: the client server of a fresh head
-    may fail to start the first session's server ("Starting Ray client server failed")."""
-    for tries_left in (1, 0):
+    """`ray.init` to `address`; a Ray client connection is tried up to `CLIENT_TRIES` times when the server
+    fails to start the session's end of it: the client server of a fresh head sometimes does on the first
+    connections (Ray 2.60: "Starting Ray client server failed", a `ZombieProcess` in its proxier)."""
+    for tries_left in reversed(range(CLIENT_TRIES)):
         try:
             ray.init(address=address, namespace=f"ddenv-{uuid.uuid4().hex[:8]}", logging_level=logging.ERROR,
                      log_to_driver=False)
             return
         except ConnectionError as error:
-            if not tries_left or not address.startswith(ADDRESS_SCHEME) or "client server failed" not in str(error):
+            if not tries_left or not address.startswith(ADDRESS_SCHEME) or SERVER_FAILED not in str(error):
                 raise
             with contextlib.suppress(Exception):
                 ray.shutdown()

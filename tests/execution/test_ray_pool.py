@@ -15,14 +15,25 @@ import sys
 import tempfile
 import textwrap
 import time
+import uuid
 from collections.abc import Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 from plugin.conftest import WALL_WORLD
 from plugin.test_plugin_user_code import MY_ROBOT_CONFTEST, USER_CODE_TEST
 
-from pytest_ddenv.execution import Fault, LocalPool, PoolConfigError, ProbeDeadline, WorkerError, make_cluster
+from pytest_ddenv.execution import (
+    Channel,
+    Fault,
+    LocalPool,
+    PoolConfigError,
+    ProbeDeadline,
+    WorkerError,
+    WorkerStartError,
+    make_cluster,
+)
 from pytest_ddenv.execution.children import Process, _stat, descendants, end_processes
 from pytest_ddenv.execution.ray_head import STARTED, free_port
 from pytest_ddenv.world import World
@@ -285,3 +296,28 @@ def test_closing_the_pool_returns_its_running_probes_at_once_and_replaces_their_
     assert gone(int(pid_file.read_text()), within=30.0) and cluster.threads == 2
     with RayPool(job, cluster, watchdog=60.0) as again:
         assert [again.call(wall_world, attempt)["models"] for attempt in (0, 1)] == [len(wall_world)] * 2
+
+
+@dataclass(frozen=True)
+class UnstartableJob:
+    """A job whose probe processes cannot start it (as when the test imports a module the node does not have)."""
+
+    key: str = field(default_factory=lambda: uuid.uuid4().hex)
+
+    @property
+    def label(self) -> str:
+        return "unstartable job"
+
+    def serve(self, channel: Channel) -> None:
+        channel.failed("ModuleNotFoundError: No module named 'lab_driver_only_on_the_ci_host'")
+
+
+def test_a_test_that_cannot_start_in_an_actor_is_named_once_and_for_all(cluster: RayCluster,
+                                                                        wall_world: World) -> None:
+    with RayPool(UnstartableJob(), cluster, watchdog=60.0) as pool:
+        for _ in range(2):  # the second call does not try again
+            with pytest.raises(WorkerStartError, match=r"unstartable job: a ray actor could not start the test: "
+                                                       r".*No module named 'lab_driver_only_on_the_ci_host'"):
+                pool.call(wall_world, 0)
+        assert pool.stats.errors == 1 and pool.stats.probes == 0
+    assert cluster.threads == 2
