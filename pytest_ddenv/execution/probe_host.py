@@ -211,11 +211,6 @@ class HostedJob:
             return _task_reply(reply, None, "", _host(self.host, worker), counts)
         raise AssertionError("unreachable")  # pragma: no cover
 
-    def pids(self) -> list[int]:
-        """The pids of this job's probe processes."""
-        with self._lock:
-            return sorted(int(worker.process.pid) for worker in self._live if worker.process.pid)
-
     def close(self, grace: float = CLOSE_GRACE) -> None:
         with self._lock:
             self.closed = True

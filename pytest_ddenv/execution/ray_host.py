@@ -33,9 +33,5 @@ class ProbeSlot:
     def pid(self) -> int:
         return os.getpid()
 
-    def hosted(self) -> dict[str, list[int]]:
-        """The probe processes (pids) of each hosted job, by job key."""
-        return {key: hosted.pids() for key, hosted in self._jobs.jobs.items()}
-
     def close(self) -> None:
         self._jobs.close()
