@@ -1,6 +1,6 @@
 """Execution layer: where probes run. A `Job` (the user's test, or a world's scenario) is served by
-persistent local worker processes (`LocalPool`), in the calling process, or on a dask.distributed cluster
-(`DaskPool`); `make_pool` picks one from the command-line options.
+persistent local worker processes (`LocalPool`), in the calling process, on a dask.distributed cluster
+(`DaskPool`) or on a Ray cluster (`RayPool`); `make_pool` picks one from the command-line options.
 
 Knows the world model only (no pytest, no reduction): jobs are defined by the layers above. See
 docs/architecture.md and docs/scaling.md.
@@ -20,6 +20,7 @@ from pytest_ddenv.execution.local import (
     cpu_count,
     resolve_workers,
 )
+from pytest_ddenv.execution.ray_pool import RayCluster, RayPool
 from pytest_ddenv.execution.request import (
     FAULT_ENV,
     Channel,
@@ -48,6 +49,8 @@ __all__ = [
     "ProbeDeadline",
     "ProbeRequest",
     "ProbeTimeout",
+    "RayCluster",
+    "RayPool",
     "Reply",
     "WorkerError",
     "WorkerStartError",

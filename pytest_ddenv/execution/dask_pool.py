@@ -37,6 +37,7 @@ from pytest_ddenv.execution.errors import (
     WorkerStartError,
 )
 from pytest_ddenv.execution.local import STARTUP_TIMEOUT
+from pytest_ddenv.execution.probe_host import finish, version_problem
 from pytest_ddenv.execution.request import (
     Fault,
     Job,
@@ -146,14 +147,10 @@ class DaskCluster:
                 f"the dask workers at {self.address} cannot run pytest-ddenv ({type(error).__name__}: {error}); "
                 "install the same pytest-ddenv, pybullet and numpy on every worker"
             ) from error
-        mine = worker_versions()
         for worker, versions in sorted(remote.items()):
-            different = {k: v for k, v in versions.items() if mine.get(k) != v}
-            if different:
-                shown = ", ".join(f"{k} {v} (here {mine.get(k)})" for k, v in sorted(different.items()))
-                raise PoolConfigError(
-                    f"dask worker {worker} has {shown}; runs are bit-identical only with the same versions"
-                )
+            problem = version_problem(f"dask worker {worker}", versions)
+            if problem is not None:
+                raise PoolConfigError(problem)
 
 
 class DaskPool:
@@ -279,27 +276,7 @@ class DaskPool:
         return done
 
     def _finish(self, done: TaskReply, what: str, limit: float | None, by_deadline: bool, started: float) -> Any:
-        for name in ("simulations", "crashes", "retries", "restarts"):
-            if getattr(done, name):
-                self._stats.add(name, getattr(done, name))
-        if done.failure == "hung":
-            if by_deadline:
-                self._stats.add("cancelled")
-                raise ProbeDeadline(f"probe of {what} was stopped at the reduction's deadline; its probe process "
-                                    f"({done.host}) was killed")
-            self._stats.add("timeouts")
-            self._stats.add("errors")
-            raise WorkerError(f"probe of {what} ran past the {limit:g} s watchdog; its probe process "
-                              f"({done.host}) was killed")
-        if done.failure is not None or done.reply is None:
-            self._stats.add("errors")
-            raise WorkerError(f"probe of {what} failed twice: its probe process died each time on {done.host} "
-                              f"(last: {done.detail})")
-        reply = done.reply
-        self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds, reply.cpu_seconds)
-        if reply.error is not None:
-            raise reply.error
-        return reply.value
+        return finish(self._stats, done, what, limit, by_deadline, started)
 
     def close(self) -> None:
         self._closed = True

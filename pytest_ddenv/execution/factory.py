@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.execution.base import Pool
 from pytest_ddenv.execution.dask_pool import DaskCluster, DaskPool
@@ -11,28 +11,33 @@ from pytest_ddenv.execution.local import LocalPool, resolve_workers
 from pytest_ddenv.execution.request import Handler, Job
 from pytest_ddenv.validation import expected
 
+if TYPE_CHECKING:
+    from pytest_ddenv.execution.ray_pool import RayCluster
+
 
 def executor_problem(executor: str) -> str | None:
-    """Why `executor` is not 'local', 'dask' or a dask scheduler address tcp://HOST:PORT (tls://...), or None.
-    Only the form is checked: whether the scheduler answers is known when a reduction connects to it."""
+    """Why `executor` is not 'local', 'dask', a dask scheduler address tcp://HOST:PORT (tls://...), 'ray' or a
+    Ray client address ray://HOST:PORT, or None. Only the form is checked: whether the scheduler answers is
+    known when a reduction connects to it."""
     from urllib.parse import urlsplit
 
-    if executor in ("local", "dask"):
+    if executor in ("local", "dask", "ray"):
         return None
-    forms = "'local', 'dask' or a dask scheduler address tcp://HOST:PORT (or tls://HOST:PORT)"
+    forms = ("'local', 'dask' or a dask scheduler address tcp://HOST:PORT (or tls://HOST:PORT), "
+             "or 'ray' or a Ray client address ray://HOST:PORT")
     try:
         parts = urlsplit(executor)
         port = parts.port
     except ValueError:  # a port that is not a number from 0 to 65535
         return expected(forms, executor)
-    if parts.scheme not in ("tcp", "tls") or not parts.hostname or not port or parts.path not in ("", "/") or (
+    if parts.scheme not in ("tcp", "tls", "ray") or not parts.hostname or not port or parts.path not in ("", "/") or (
             parts.query or parts.fragment or parts.username):
         return expected(forms, executor)
     return None
 
 
 def check_executor(executor: str | None) -> str | None:
-    """None for local worker processes, else "dask" or a scheduler address (PoolConfigError if invalid)."""
+    """None for local worker processes, else "dask", "ray" or a cluster's address (PoolConfigError if invalid)."""
     if executor in (None, "", "local"):
         return None
     problem = executor_problem(executor) if isinstance(executor, str) else expected("a string", executor)
@@ -41,14 +46,24 @@ def check_executor(executor: str | None) -> str | None:
     return executor
 
 
-def make_cluster(executor: str, workers: int | str = "auto") -> DaskCluster:
-    """The connection to the distributed executor `executor` names ("dask": a local cluster of `workers`
-    processes; a scheduler's address), which a session opens on its first failure and keeps for every
-    reduction (`make_pool(..., cluster=)`); the caller closes it (`close()`)."""
+def is_ray(executor: str) -> bool:
+    """`executor` (checked) names a Ray cluster: 'ray' or ray://HOST:PORT."""
+    return executor == "ray" or executor.startswith("ray://")
+
+
+def make_cluster(executor: str, workers: int | str = "auto") -> DaskCluster | RayCluster:
+    """The connection to the distributed executor `executor` names ("dask" or "ray": a local cluster of
+    `workers` processes; a dask scheduler's or Ray cluster's address), which a session opens on its first
+    failure and keeps for every reduction (`make_pool(..., cluster=)`); the caller closes it (`close()`)."""
     kind = check_executor(executor)
     if kind is None:
         raise PoolConfigError("executor: local worker processes need no cluster")
-    return DaskCluster(None if kind == "dask" else kind, n_workers=None if workers == "auto" else int(workers))
+    n_workers = None if workers == "auto" else int(workers)
+    if is_ray(kind):
+        from pytest_ddenv.execution.ray_pool import RayCluster
+
+        return RayCluster(kind, n_workers=n_workers)
+    return DaskCluster(None if kind == "dask" else kind, n_workers=n_workers)
 
 
 def make_pool(
@@ -57,26 +72,34 @@ def make_pool(
     executor: str | None = None,
     *,
     in_process: Handler | None = None,
-    cluster: DaskCluster | None = None,
+    cluster: DaskCluster | RayCluster | None = None,
     **options: Any,
 ) -> Pool[Any]:
     """The pool for `--ddenv-workers` / `--ddenv-executor` (and the `ddenv` command's `--workers`/`--executor`).
 
     `executor` None (or "local"): `workers` local worker processes serving `job`; with 1 worker and an
-    `in_process` handler, probes run in this process instead. "dask": a local dask cluster of `workers`
-    processes; "tcp://host:port" / "tls://...": a running dask scheduler (`workers` is then ignored). Pass
-    `cluster` to reuse a dask connection (it is then not closed with the pool). `options` go to the pool
-    class (watchdog, fault_injection, ...). Raises PoolConfigError for invalid values.
+    `in_process` handler, probes run in this process instead. "dask" / "ray": a local dask / Ray cluster of
+    `workers` processes; "tcp://host:port" / "tls://...": a running dask scheduler, "ray://host:port": a
+    running Ray cluster (`workers` is then ignored). Pass `cluster` (from `make_cluster`) to reuse a
+    connection (it is then not closed with the pool). `options` go to the pool class (watchdog,
+    fault_injection, ...). Raises PoolConfigError for invalid values.
     """
     count = resolve_workers(workers)
     kind = check_executor(executor)
     if kind is None:
         return LocalPool(job, count, in_process=in_process if count == 1 else None, **options)
-    if cluster is not None:
-        return DaskPool(job, cluster, **options)
-    cluster = DaskCluster(None if kind == "dask" else kind, n_workers=count)
+    if cluster is None:
+        cluster = make_cluster(kind, count)
+        owns = True
+    else:
+        owns = False
     try:
-        return DaskPool(job, cluster, owns_cluster=True, **options)
+        if isinstance(cluster, DaskCluster):
+            return DaskPool(job, cluster, owns_cluster=owns, **options)
+        from pytest_ddenv.execution.ray_pool import RayPool
+
+        return RayPool(job, cluster, owns_cluster=owns, **options)
     except BaseException:
-        cluster.close()
+        if owns:
+            cluster.close()
         raise

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import sys
 
 import pytest
 
@@ -14,6 +15,7 @@ from pytest_ddenv.execution import (
     make_pool,
     resolve_workers,
 )
+from pytest_ddenv.execution.factory import executor_problem
 from pytest_ddenv.execution.request import fault_for, parse_faults
 
 from .conftest import stuck_job
@@ -31,11 +33,22 @@ def test_bad_worker_counts_are_refused(workers: object) -> None:
         make_pool(stuck_job(), workers)  # type: ignore[arg-type]
 
 
-@pytest.mark.parametrize("executor", ["http://host:8786", "threads", "tcp:/host"])
+@pytest.mark.parametrize("executor", ["http://host:8786", "threads", "tcp:/host", "ray://host", "rays", "ray://h:1/x"])
 def test_bad_executors_are_refused(executor: str) -> None:
     with pytest.raises(PoolConfigError, match=f"executor: expected 'local', 'dask' or a dask scheduler address .*, got "
                                               f"'{executor}'"):
         make_pool(stuck_job(), 2, executor)
+
+
+@pytest.mark.parametrize("executor", ["local", "dask", "tcp://host:8786", "tls://host:8786", "ray", "ray://host:10001"])
+def test_every_executor_form_is_accepted(executor: str) -> None:
+    assert executor_problem(executor) is None
+
+
+def test_the_ray_executor_without_ray_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
+    with pytest.raises(PoolConfigError, match=re.escape("the ray executor needs ray: pip install 'pytest-ddenv[ray]'")):
+        make_pool(stuck_job(), 2, "ray")
 
 
 def test_one_worker_is_in_process_when_given_a_handler() -> None:

@@ -5,30 +5,23 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import signal
-import threading
 import time
-import uuid
 from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 from pytest_ddenv.execution import (
-    Channel,
     Fault,
     LocalPool,
     PoolConfigError,
     ProbeDeadline,
     WorkerError,
     make_pool,
-    serve_requests,
 )
 from pytest_ddenv.world import World
 
-from .conftest import reduce_with, run_of, stuck_job
+from .conftest import HANG, UserCodeJob, alive, gone, reduce_with, run_of, stuck_job
 
 pytestmark = pytest.mark.slow  # real reductions (subprocesses, simulations): the full tier only
 
@@ -70,54 +63,6 @@ def test_a_reduction_on_dask_finds_the_same_minimal_world(dask_pool: DaskPool, w
     reduction = reduce_with(dask_pool, wall_world)
     assert reduction.minimal == ("wall",) and reduction.one_minimal and reduction.errors == 0
     assert dask_pool.stats.probes >= reduction.probes
-
-
-HANG = 99
-"""The attempt number on which `UserCodeJob` hangs."""
-
-
-@dataclass(frozen=True)
-class UserCodeJob:
-    """A job whose probes do what user code may do: need the main thread (signal handlers) and, on attempt
-    `HANG`, hang (after writing their pid to `pid_file`)."""
-
-    pid_file: str
-    key: str = field(default_factory=lambda: uuid.uuid4().hex)
-
-    @property
-    def label(self) -> str:
-        return "user-code job"
-
-    def serve(self, channel: Channel) -> None:
-        serve_requests(channel, self.probe)
-
-    def probe(self, world: World, attempt: int) -> dict[str, Any]:
-        assert threading.current_thread() is threading.main_thread()
-        previous = signal.signal(signal.SIGUSR1, lambda signum, frame: None)  # ValueError off the main thread
-        signal.signal(signal.SIGUSR1, previous)
-        if attempt == HANG:
-            Path(self.pid_file).write_text(str(os.getpid()))
-            time.sleep(3600)
-        return {"pid": os.getpid(), "parent": os.getppid(), "models": len(world)}
-
-
-def alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    return True
-
-
-def gone(pid: int, within: float = 10.0) -> bool:
-    deadline = time.monotonic() + within
-    while time.monotonic() < deadline:
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            return True
-        time.sleep(0.05)
-    return False
 
 
 def test_the_dask_workers_are_daemonic_and_the_test_runs_in_the_main_thread_of_a_probe_process(
@@ -183,7 +128,7 @@ def hosted_jobs() -> dict[str, int]:
     """On a dask worker: how many probe processes each job it hosts has, by job key."""
     from pytest_ddenv.execution import dask_host
 
-    return {key: len(hosted._live) for key, hosted in dask_host._hosted.items()}
+    return {key: len(hosted._live) for key, hosted in dask_host.hosted_jobs().jobs.items()}
 
 
 def test_a_dask_worker_keeps_the_probe_processes_of_its_most_recent_jobs_only(
