@@ -209,7 +209,7 @@ def media(value: Any, where: str, text: bool) -> str:
 
 
 def executor(value: Any, where: str, text: bool) -> str:
-    """'local', 'dask' or a dask scheduler's address."""
+    """'local', 'dask', a dask scheduler's address, 'ray' or a Ray cluster's ray:// address."""
     from pytest_ddenv.execution.factory import executor_problem
 
     problem = executor_problem(value) if isinstance(value, str) else expected("a string", value)
@@ -401,8 +401,9 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("workers", "simulation worker processes: a number, 'auto' for one per core (the default), or 1 to "
             "simulate in the main process", workers, "N", "auto", option="workers", flag="workers"),
     Setting("executor", "where probes simulate: 'local' worker processes (default), 'dask' (a local dask "
-            "cluster) or tcp://HOST:PORT of a dask scheduler", executor, "ADDRESS", option="executor",
-            flag="executor"),
+            "cluster), tcp://HOST:PORT of a dask scheduler, 'ray' (a local Ray cluster started for the session) "
+            "or ray://HOST:PORT of a running Ray cluster (through the Ray client)", executor, "ADDRESS",
+            option="executor", flag="executor"),
     Setting("keep_other", "write the smallest worlds of the N most frequent other failures a reduction's probes "
             "met as other-1.yaml ... other-N.yaml in its artifacts folder (default 0: listed in the report and "
             "summary.json only)", integer(0), "N", 0, option="keep-other", flag="keep-other"),
