@@ -194,3 +194,36 @@ def limit_of(watchdog: float | None, deadline: float | None, now: float) -> tupl
     if left is not None and (watchdog is None or left < watchdog):
         return left, True
     return watchdog, False
+
+
+class ClusterPoolBase:
+    """What a pool on a distributed cluster (`DaskPool`, `RayPool`) keeps of the `Pool` API: its size, its
+    statistics and its watchdog (`watchdog` as `check_watchdog` takes it; 'auto' is max(`floor`, `factor` x
+    the longest run so far)). Its probes never run in this process."""
+
+    def __init__(self, size: int, watchdog: float | str | None, floor: float, factor: float) -> None:
+        self._size = size
+        self._watchdog = check_watchdog(watchdog)
+        self._floor, self._factor = float(floor), float(factor)
+        self._stats = StatsBook(size)
+
+    @property
+    def size(self) -> int:
+        return self._size
+
+    @property
+    def in_process(self) -> bool:
+        return False
+
+    @property
+    def stats(self) -> PoolStats:
+        return self._stats.snapshot()
+
+    def watchdog_seconds(self) -> float | None:
+        if self._watchdog == "auto":
+            return self._stats.watchdog(self._floor, self._factor)
+        return self._watchdog  # type: ignore[return-value]
+
+    def expect(self, seconds: float) -> None:
+        """See `LocalPool.expect`."""
+        self._stats.expect(seconds)

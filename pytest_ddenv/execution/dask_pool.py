@@ -24,9 +24,7 @@ from pytest_ddenv.execution.base import (
     DEFAULT,
     DEFAULT_WATCHDOG_FACTOR,
     DEFAULT_WATCHDOG_FLOOR,
-    PoolStats,
-    StatsBook,
-    check_watchdog,
+    ClusterPoolBase,
     limit_of,
 )
 from pytest_ddenv.execution.dask_host import JOBS_KEPT, TaskReply, run_probe_task, worker_versions
@@ -153,7 +151,7 @@ class DaskCluster:
                 raise PoolConfigError(problem)
 
 
-class DaskPool:
+class DaskPool(ClusterPoolBase):
     """The probes of `job` on a `DaskCluster` (the `Pool` API).
 
     `watchdog` as for `LocalPool`: the dask worker kills the probe process of a probe past it (the time the
@@ -180,11 +178,8 @@ class DaskPool:
         self.job = job
         self.cluster = cluster
         self._owns_cluster = owns_cluster
-        self._watchdog = check_watchdog(watchdog)
-        self._floor, self._factor = float(watchdog_floor), float(watchdog_factor)
+        super().__init__(cluster.threads, watchdog, watchdog_floor, watchdog_factor)
         self._faults = parse_faults(fault_injection)
-        self._size = cluster.threads
-        self._stats = StatsBook(self._size)
         self._sequence = 0
         self._lock = threading.Lock()
         self._closed = False
@@ -192,27 +187,6 @@ class DaskPool:
         self._pending: set[Any] = set()
         self.notes: list[str] = []
         """Nothing to say so far: a dask pool changes nothing on its own (`Pool.notes`)."""
-
-    @property
-    def size(self) -> int:
-        return self._size
-
-    @property
-    def in_process(self) -> bool:
-        return False
-
-    @property
-    def stats(self) -> PoolStats:
-        return self._stats.snapshot()
-
-    def watchdog_seconds(self) -> float | None:
-        if self._watchdog == "auto":
-            return self._stats.watchdog(self._floor, self._factor)
-        return self._watchdog  # type: ignore[return-value]
-
-    def expect(self, seconds: float) -> None:
-        """See `LocalPool.expect`."""
-        self._stats.expect(seconds)
 
     def call(self, world: World, attempt: int, *, timeout: float | None = None, record: bool = False) -> Any:
         """Like `LocalPool.call`, on the cluster."""

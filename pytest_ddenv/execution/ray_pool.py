@@ -29,9 +29,7 @@ from pytest_ddenv.execution.base import (
     DEFAULT,
     DEFAULT_WATCHDOG_FACTOR,
     DEFAULT_WATCHDOG_FLOOR,
-    PoolStats,
-    StatsBook,
-    check_watchdog,
+    ClusterPoolBase,
     limit_of,
 )
 from pytest_ddenv.execution.errors import PoolConfigError, ProbeDeadline, WorkerError, WorkerStartError
@@ -239,7 +237,7 @@ def _slot_class() -> type:
     return ProbeSlot
 
 
-class RayPool:
+class RayPool(ClusterPoolBase):
     """The probes of `job` on a `RayCluster` (the `Pool` API); `watchdog`, `fault_injection` and
     `owns_cluster` as for `DaskPool`. The watchdog runs in the actor (the time a probe waited for an idle
     actor and its probe process took to start is not counted). `close()` makes the threads waiting on
@@ -259,38 +257,14 @@ class RayPool:
         self.job = job
         self.cluster = cluster
         self._owns_cluster = owns_cluster
-        self._watchdog = check_watchdog(watchdog)
-        self._floor, self._factor = float(watchdog_floor), float(watchdog_factor)
+        super().__init__(cluster.threads, watchdog, watchdog_floor, watchdog_factor)
         self._faults = parse_faults(fault_injection)
-        self._size = cluster.threads
-        self._stats = StatsBook(self._size)
         self._sequence = 0
         self._lock = threading.Lock()
         self._closed = False
         self._start_error: WorkerStartError | None = None
         self.notes: list[str] = []
         """Nothing to say so far: a ray pool changes nothing on its own (`Pool.notes`)."""
-
-    @property
-    def size(self) -> int:
-        return self._size
-
-    @property
-    def in_process(self) -> bool:
-        return False
-
-    @property
-    def stats(self) -> PoolStats:
-        return self._stats.snapshot()
-
-    def watchdog_seconds(self) -> float | None:
-        if self._watchdog == "auto":
-            return self._stats.watchdog(self._floor, self._factor)
-        return self._watchdog  # type: ignore[return-value]
-
-    def expect(self, seconds: float) -> None:
-        """See `LocalPool.expect`."""
-        self._stats.expect(seconds)
 
     def call(self, world: World, attempt: int, *, timeout: float | None = None, record: bool = False) -> Any:
         """Like `LocalPool.call`, on the cluster."""
