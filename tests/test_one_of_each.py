@@ -78,14 +78,15 @@ def test_the_pool_protocol_declares_what_its_callers_use() -> None:
     import inspect
     import typing
 
-    from pytest_ddenv.execution import DaskPool, LocalPool, Pool
+    from pytest_ddenv.execution import DaskPool, LocalPool, Pool, RayPool
     from pytest_ddenv.scenario.probe import ProbeResult
 
     for name in ("in_process", "expect", "notes", "call", "size", "stats", "close"):
         assert name in vars(Pool), name
     assert typing.get_args(Pool[ProbeResult]) == (ProbeResult,)  # `call` returns the job's result type
     assert inspect.signature(Pool.call).return_annotation == "ResultT_co"
-    assert isinstance(vars(DaskPool)["in_process"], property) and isinstance(vars(LocalPool)["in_process"], property)
+    for pool in (DaskPool, LocalPool, RayPool):
+        assert isinstance(inspect.getattr_static(pool, "in_process"), property), pool
 
 
 def _package_lines_with(*fragments: str) -> list[str]:

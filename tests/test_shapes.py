@@ -306,3 +306,20 @@ def test_sdf_exports_with_the_new_shapes_load_in_libsdformat(sdformat_check: Pat
                             capture_output=True, text=True, check=False)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "ok, 5 models" in result.stdout and "ok, 4 models" in result.stdout
+
+
+def test_a_mesh_file_edited_or_read_from_another_folder_is_read_again(tmp_path: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """The mesh cache is per content of the file: the edit-and-rerun loop in one process (a notebook, a long
+    pytest-xdist worker) sees the edited mesh, and the same relative name in another folder is another file."""
+    triangle = ("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex {x} 0 0\nvertex 0 1 0\nendloop\n"
+                "endfacet\nendsolid t\n")
+    for folder, x in (("a", 1), ("b", 3)):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "part.stl").write_text(triangle.format(x=x))
+    monkeypatch.chdir(tmp_path / "a")
+    assert load_mesh(Path("part.stl"), (1.0, 1.0, 1.0)).bounds[1][0] == 1.0  # type: ignore[attr-defined]
+    monkeypatch.chdir(tmp_path / "b")
+    assert load_mesh(Path("part.stl"), (1.0, 1.0, 1.0)).bounds[1][0] == 3.0  # type: ignore[attr-defined]
+    (tmp_path / "b" / "part.stl").write_text(triangle.format(x=5.5))
+    assert load_mesh(Path("part.stl"), (1.0, 1.0, 1.0)).bounds[1][0] == 5.5  # type: ignore[attr-defined]

@@ -37,9 +37,22 @@ MAX_HEIGHTMAP_PIXELS = HEIGHTMAP_SIDE * HEIGHTMAP_SIDE
 wrong, 4096 x 4096 a segmentation fault). The limit is about half of that (a quarter on macOS)."""
 
 
-@functools.lru_cache(maxsize=256)
 def load_mesh(path: Path, scale: tuple[float, float, float]) -> object:
-    """A trimesh.Trimesh of the file's geometry with `scale` applied (loaded once per process).
+    """A trimesh.Trimesh of the file's geometry with `scale` applied, loaded once per process for each content
+    of the file: the cache is keyed by the file's absolute path, size and modification time, so that a file
+    edited (or a relative path read from another folder) is read again (`_load_mesh`)."""
+    try:
+        status = path.stat()
+    except OSError:  # read_regular says what is wrong with it
+        return _load_mesh(path, scale, (path.absolute(), None))
+    return _load_mesh(path, scale, (path.absolute(), (status.st_size, status.st_mtime_ns, status.st_ino)))
+
+
+@functools.lru_cache(maxsize=256)
+def _load_mesh(path: Path, scale: tuple[float, float, float],
+               version: tuple[Path, tuple[int, int, int] | None]) -> object:
+    """`load_mesh` of one version of the file: `path` as given (in messages), `version` its absolute path and
+    its size, modification time and inode (None: unknown).
 
     The file is read only if it is a regular file within MAX_MESH_BYTES (`files.read_regular`). Only the
     geometry is read: materials and textures are not loaded (a texture file that is missing or unreadable
@@ -202,6 +215,10 @@ def check_heightmap_image(path: Path, fail: Callable[[str | None, str], WorldErr
         pass
 
 
+def _no_triangles(path: Path) -> str:
+    return f"not a mesh file: {shown_path(path)} holds no triangles (supported: .stl, .obj, .dae)"
+
+
 def check_mesh_file(path: Path, scale: tuple[float, float, float], fail: Callable[[str], WorldError]) -> None:
     """Raise `fail(reason)` unless `path` is a mesh file with triangles and finite vertices (read now, once per
     process, so that a garbage or non-mesh file is refused when the world is loaded, not in the simulator)."""
@@ -220,14 +237,15 @@ def check_mesh_file(path: Path, scale: tuple[float, float, float], fail: Callabl
         cause = error.__cause__
         if cause is None:  # vertices that are not finite
             raise fail(error.reason) from None
-        # trimesh's own failures that say nothing about the file: an optional module missing, or (trimesh 4) a
-        # TypeError when it decodes binary garbage as text with no encoding detector installed.
-        detail = "" if isinstance(cause, (ImportError, TypeError)) else f" ({str(cause).splitlines()[0][:120]})"
+        if isinstance(cause, TypeError):  # (trimesh 4) binary garbage decoded as text with no encoding detector
+            raise fail(_no_triangles(path)) from None  # installed; with one, the same file loads with no triangles
+        # an optional module missing says nothing about the file
+        detail = "" if isinstance(cause, ImportError) else f" ({str(cause).splitlines()[0][:120]})"
         raise fail(f"not a mesh file: {shown_path(path)} cannot be read as {path.suffix or 'a mesh'}{detail}"
                    ) from None
     vertices = np.asarray(getattr(mesh, "vertices", ()), dtype=float)
     faces = np.asarray(getattr(mesh, "faces", ()))
     if len(faces) == 0 or len(vertices) == 0:
-        raise fail(f"not a mesh file: {shown_path(path)} holds no triangles (supported: .stl, .obj, .dae)")
+        raise fail(_no_triangles(path))
     if not np.all(np.isfinite(vertices)):
         raise fail(f"the mesh file {shown_path(path)} has vertices that are not finite numbers")

@@ -57,13 +57,13 @@ def test_robot(robot_world):
     assert robot_world.run().reached_goal
 """
 QUICK_DASK = """\
-import pytest_ddenv.execution as execution
+import pytest_ddenv.execution.factory as factory
 
-class QuickCluster(execution.DaskCluster):  # a real connection attempt that gives up after 1 s, not 30 s
+class QuickCluster(factory.DaskCluster):  # a real connection attempt that gives up after 1 s, not 30 s
     def __init__(self, address=None, **options):
         super().__init__(address, **{**options, "connect_timeout": 1.0})
 
-execution.DaskCluster = QuickCluster
+factory.DaskCluster = QuickCluster  # the cluster the session opens (execution.make_cluster)
 """
 
 
