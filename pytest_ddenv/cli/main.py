@@ -51,6 +51,7 @@ from pytest_ddenv.driver.settings import (
 from pytest_ddenv.driver.user_code import UserCodeExit, is_exit
 from pytest_ddenv.errors import DdenvError, raised_by_ddenv, shown
 from pytest_ddenv.oracle.predicates import PredicateSpec, check_predicate_models
+from pytest_ddenv.oracle.verdict import hit_wall_clock_cap, is_run_error, wall_clock_cap_message
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_ddenv.driver.report import ReductionReport
@@ -66,8 +67,6 @@ EXIT_USER_EXIT = 3
 """The user's code (a controller, an --import) exited during the run: as an internal error, never a success."""
 EXIT_INTERRUPTED = 130
 
-DEFAULT_RUN_TIMEOUT = 300.0
-"""`ddenv run --run-timeout`: as `robot_world.run()`'s limit in a test (`robot_world.DEFAULT_MAX_WALL_TIME`)."""
 YAML_SUFFIXES = (".yaml", ".yml")
 SDF_SUFFIXES = (".sdf", ".world")
 MJCF_SUFFIXES = (".xml", ".mjcf")
@@ -241,13 +240,9 @@ def _add_run(commands: Any, common: argparse.ArgumentParser) -> None:
     _add_user_code_options(run)
     run.add_argument("--timeout", type=_type(positive(), "--timeout"),
                      help="simulated seconds (default: the world's scenario)")
-    run.add_argument("--run-timeout", type=_type(positive(" of seconds"), "--run-timeout"),
-                     default=DEFAULT_RUN_TIMEOUT, metavar="SECONDS",
-                     help="wall-clock seconds the run may take before it fails with ControllerTimeout (default "
-                          f"{DEFAULT_RUN_TIMEOUT:g}): bounds a controller that is too slow")
     add_scenario_options(run)
     add_world_options(run)
-    add_setting_flags(run, [SETTING["engine"]])
+    add_setting_flags(run, [SETTING["engine"], SETTING["run_timeout"]])
     run.add_argument("-o", "--output", help="picture to write (default: WORLD-run.png in the current folder)")
     run.add_argument("--no-picture", action="store_true", help="do not write a picture")
     run.add_argument("--record", metavar="RUNS.jsonl", help="append the run (trajectory included) to this file")
@@ -296,7 +291,7 @@ def _add_replay(commands: Any, common: argparse.ArgumentParser) -> None:
                         help="a folder written by ddenv reduce or pytest --ddenv-reduce")
     _add_predicate_option(replay, required=False)
     _add_user_code_options(replay)
-    add_setting_flags(replay, [SETTING["engine"]])
+    add_setting_flags(replay, [SETTING["engine"], SETTING["run_timeout"]])
     replay.add_argument("--runs", type=_type(integer(1), "--runs"), default=10, metavar="N",
                         help="run N fresh seeds, none a reduction probe used (default 10); with --recorded, at "
                              "most N of the seeds the reduction saw fail")
@@ -538,13 +533,16 @@ def _run_raised(arguments: argparse.Namespace, world: World, error: Exception) -
     from pytest_ddenv.sim import ControllerTimeout
 
     info = describe_error(error, None)
-    if isinstance(error, ControllerTimeout):  # its hint names the pytest options: say ddenv's own
+    capped = isinstance(error, ControllerTimeout)  # the wall-clock cap: an error of the run, not a failure
+    if capped:  # its hint names the pytest options: say ddenv's own
         info = replace(info, message=info.message.replace(RUN_TIMEOUT_HINT, "ddenv run --run-timeout SECONDS"))
     notes = "".join(f" {note}" for note in getattr(error, "__notes__", ()))
-    text = (f"{arguments.world}: {len(world)} models, seed {arguments.seed}: FAILED (the run raised "
+    verdict = "ERROR (the run went past its wall-clock cap:" if capped else "FAILED (the run raised"
+    text = (f"{arguments.world}: {len(world)} models, seed {arguments.seed}: {verdict} "
             f"{info.type_name} at {info.location}: {info.message}){notes}")
     _emit(arguments, text, {"ok": False, "world": arguments.world, "models": len(world), "seed": arguments.seed,
-                            "outcome": "raised", "exception": info.type_name, "message": info.message,
+                            "outcome": "error" if capped else "raised", "exception": info.type_name,
+                            "message": info.message,
                             "location": info.location, "dropped": dropped_models(world)})
     return EXIT_FAILED
 
@@ -686,7 +684,7 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
     # --timeout is in the world's scenario (with_scenario), not a per-run override: the time stage's shorter
     # limit must apply to its candidates
     job = ScenarioJob(tuple(predicates), seed=arguments.seed, controller=arguments.controller,
-                      imports=tuple(arguments.imports))
+                      imports=tuple(arguments.imports), max_wall_time=arguments.run_timeout)
     progress = ProgressLine(sys.stderr, quiet=arguments.quiet)
     in_process = job.handler() if executor is None and arguments.workers == 1 else None
     ahead: threading.Thread | None = None
@@ -698,7 +696,7 @@ def _cmd_reduce(arguments: argparse.Namespace) -> int:
             progress.note(f"simulating the original world ({len(world)} models, seed {arguments.seed}; "
                           f"{_where(pool)})")
             original = pool.call(world, 0, record=records_runs(arguments.media))
-            if original.error is None or original.error.ddenv_error or original.error.phase != "call":
+            if original.error is None or is_run_error(original.error):
                 return _does_not_fail(arguments, original)
             progress.note(f"it fails: {_failure_text(original)}; reducing")
             outcome, interrupted = _reduce(arguments, world, original, predicates, keep, priority, pool,
@@ -744,6 +742,13 @@ def _keep(world: World, names: Sequence[str]) -> tuple[str, ...]:
 def _does_not_fail(arguments: argparse.Namespace, result: Any) -> int:
     if result.error is not None and is_exit(result.error):  # the code under test exited: an error, never a pass
         raise UserCodeExit(f"{arguments.world}: {result.error.message}")
+    if result.error is not None and hit_wall_clock_cap(result.error):  # an error of the run, nothing to reduce
+        message = (f"{arguments.world}: {wall_clock_cap_message(result.error.location)} "
+                   f"({result.error.message.replace(RUN_TIMEOUT_HINT, 'ddenv reduce --run-timeout SECONDS')})")
+        print(f"ddenv: {message}", file=sys.stderr)
+        if arguments.json:
+            _print_json({"ok": False, "error": message, "exit_code": EXIT_FAILED, "outcome": "error"})
+        return EXIT_FAILED
     if result.error is not None:  # the scenario cannot be run at all: an input error
         raise UsageError(f"{arguments.world}: the scenario could not be run: {result.error.describe()}")
     run = result.run
@@ -915,7 +920,7 @@ def _cmd_replay(arguments: argparse.Namespace) -> int:
     with recording_detail(arguments.animate is not None):
         result = replay(arguments.artifacts, predicates=predicates, max_runs=arguments.runs,
                         tolerance=arguments.tolerance, controller=controller, recorded=arguments.recorded,
-                        engine=arguments.engine,
+                        engine=arguments.engine, run_timeout=arguments.run_timeout,
                         same_failure=None if arguments.same_failure is None else _same_failure(arguments.same_failure))
     reference = result.reference
     lines = [(f"{arguments.artifacts}: minimal world of {len(result.world)} models in "

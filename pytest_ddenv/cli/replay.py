@@ -15,13 +15,13 @@ from typing import TYPE_CHECKING, Any
 from pytest_ddenv import defaults
 from pytest_ddenv.driver.artifacts import ArtifactsError
 from pytest_ddenv.driver.scenario_job import run_scenario
-from pytest_ddenv.errors import raised_by_ddenv, shown
+from pytest_ddenv.errors import ControllerTimeout, raised_by_ddenv, shown
 from pytest_ddenv.oracle.predicates import PredicateSpec
 from pytest_ddenv.reduce import Outcome, events
 from pytest_ddenv.reduce.log import read_events
 from pytest_ddenv.reduce.rates import Rate, wilson_interval
 from pytest_ddenv.reduce.records import json_value, read_regular
-from pytest_ddenv.scenario.robot_world import RobotFailure
+from pytest_ddenv.scenario.robot_world import DEFAULT_MAX_WALL_TIME, RobotFailure
 from pytest_ddenv.validation import expected
 from pytest_ddenv.world.model import World
 
@@ -120,13 +120,24 @@ class ReplayResult:
         return sum(1 for run in self.runs if run.outcome is Outcome.FAIL)
 
     @property
+    def errors(self) -> int:
+        """Runs that ended in an error of the run (stopped by the wall-clock cap): counted in no rate."""
+        return sum(1 for run in self.runs if run.outcome is Outcome.ERROR)
+
+    @property
+    def judged(self) -> int:
+        """Runs that count in the failure rate: every run but the errors."""
+        return len(self.runs) - self.errors
+
+    @property
     def interval(self) -> tuple[float, float]:
-        """The failure rate's 95 % confidence interval (Wilson score), from the replayed runs."""
-        return wilson_interval(Rate(self.reproduced, len(self.runs)), CONFIDENCE)
+        """The failure rate's 95 % confidence interval (Wilson score), from the replayed runs (errors left out)."""
+        return wilson_interval(Rate(self.reproduced, self.judged), CONFIDENCE)
 
     @property
     def ok(self) -> bool:
-        """The failure reproduced: in at least one fresh run, or in every recorded failing seed."""
+        """The failure reproduced: in at least one fresh run, or in every recorded failing seed (a run that
+        ended in an error, past the wall-clock cap, is not one that reproduced it)."""
         if not self.runs:
             return False
         return self.reproduced > 0 if self.fresh else self.reproduced == len(self.runs)
@@ -134,12 +145,15 @@ class ReplayResult:
     def describe(self) -> str:
         """"reproduced: 7/10 fresh seeds failed the same way (70 %, 95% interval 40-89 %); the original world
         failed 5/5 fresh runs in the reduction"."""
-        total = len(self.runs)
+        total = self.judged
         kind = "fresh seeds" if self.fresh else "recorded failing seeds"
         low, high = self.interval
         text = (f"{'reproduced' if self.ok else 'NOT reproduced'}: {self.reproduced}/{total} {kind} failed the same "
                 f"way ({100 * self.reproduced / max(total, 1):.0f} %, {CONFIDENCE:.0%} interval "
                 f"{100 * low:.0f}-{100 * high:.0f} %)")
+        if self.errors:
+            text += (f"; {self.errors} more run(s) went past the wall-clock cap (--run-timeout): errors, in no "
+                     "rate")
         if self.original_rate is not None:
             text += (f"; the original world failed {self.original_rate[0]}/{self.original_rate[1]} fresh runs "
                      "in the reduction")
@@ -180,7 +194,8 @@ class ReplayResult:
                 for run in self.runs
             ],
             "reproduced": self.reproduced,
-            "rate": self.reproduced / len(self.runs) if self.runs else None,
+            "errors": self.errors,
+            "rate": self.reproduced / self.judged if self.judged else None,
             "interval": [low, high],
             "original_rate": None if self.original_rate is None else list(self.original_rate),
             "ok": self.ok,
@@ -282,12 +297,14 @@ def recorded_rule(summary: Mapping[str, Any], where: Path) -> SameFailureRule:
 def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None = None, max_runs: int = 10,
            tolerance: float | None = None, timeout: float | None = None,
            controller: ControllerLike | None = None, recorded: bool = False,
-           same_failure: str | None = None, engine: str | None = None) -> ReplayResult:
+           same_failure: str | None = None, engine: str | None = None,
+           run_timeout: float | None = DEFAULT_MAX_WALL_TIME) -> ReplayResult:
     """Re-run the minimal world of an artifacts folder `max_runs` times on fresh seeds, which no probe of the
     reduction used, and measure how often it fails the same way, by the recorded same-failure rule (or
     `same_failure`, a match for every predicate, and `tolerance`); with `recorded`, re-run instead the seeds
     on which the reduction saw it fail (exact reproduction: each should fail again). `engine`: simulate in
-    this physics engine instead of the one `minimal.yaml` names."""
+    this physics engine instead of the one `minimal.yaml` names. `run_timeout`: wall-clock seconds each run
+    may take (None: no cap); a run past it is an error (`Outcome.ERROR`), in no rate."""
     from dataclasses import replace
 
     from pytest_ddenv.oracle.verdict import classify, same_failure_match, why_other
@@ -304,7 +321,7 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
     if tolerance is not None:
         rule = replace(rule, tolerance=tolerance)
     where = folder / "summary.json"
-    run_timeout = timeout if timeout is not None else summary_field(summary, "timeout", where, "a number > 0 or null",
+    sim_timeout = timeout if timeout is not None else summary_field(summary, "timeout", where, "a number > 0 or null",
                                                                      _positive_or_none, None)
     seed = summary_field(summary, "scenario_seed", where, "an integer >= 0", _seed,
                          summary_field(summary, "seed", where, "an integer >= 0", _seed, 0))
@@ -315,7 +332,11 @@ def replay(directory: str | Path, *, predicates: Sequence[PredicateSpec] | None 
     results = []
     for run_seed in seeds:
         try:
-            run = run_scenario(world, chosen, seed=run_seed, timeout=run_timeout, controller=controller)
+            run = run_scenario(world, chosen, seed=run_seed, timeout=sim_timeout, controller=controller,
+                               max_wall_time=run_timeout)
+        except ControllerTimeout as error:  # the wall-clock cap: an error of the run, never a verdict
+            results.append(ReplayRun(run_seed, Outcome.ERROR, None, f"{type(error).__name__}: {error}"))
+            continue
         except Exception as error:
             if raised_by_ddenv(error):
                 raise

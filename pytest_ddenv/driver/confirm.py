@@ -7,7 +7,13 @@ from typing import TYPE_CHECKING, NamedTuple
 
 from pytest_ddenv.driver.calls import Calls
 from pytest_ddenv.execution import WorkerError, WorkerStartError
-from pytest_ddenv.oracle.verdict import ErrorInfo, FailureReference, classify_result
+from pytest_ddenv.oracle.verdict import (
+    WALL_CLOCK_CAP,
+    ErrorInfo,
+    FailureReference,
+    classify_result,
+    wall_clock_cap_message,
+)
 from pytest_ddenv.reduce import Outcome
 from pytest_ddenv.scenario.probe import ProbeResult
 
@@ -43,7 +49,10 @@ class Confirmation:
 def confirm(world: World, reference: FailureReference, rule: SameFailureRule, calls: Calls, *,
             deflake: int | str, max_probes: int | None, record: bool, note: Callable[[str], None]) -> Confirmation:
     """Run `world` on fresh attempts (one, then as many as the deflake rule would re-run a candidate) until
-    a run fails the same way; `record`: the runs record their full detail (for the animations)."""
+    a run fails the same way; `record`: the runs record their full detail (for the animations). A reference
+    failure that is the run's wall-clock cap is an error of the run: status "error", no run."""
+    if reference.signature is None and reference.exception_type == WALL_CLOCK_CAP:
+        return Confirmation((), "error", wall_clock_cap_message(reference.location))
     runs = 1 + deflake if isinstance(deflake, int) else AUTO_CONFIRMATIONS
     if max_probes is not None:
         runs = max(1, min(runs, max_probes))

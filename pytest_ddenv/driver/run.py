@@ -35,6 +35,7 @@ from pytest_ddenv.driver.report import (
     world_independent_summary,
 )
 from pytest_ddenv.execution import Pool
+from pytest_ddenv.execution.base import world_size
 from pytest_ddenv.media.writer import DEFAULT_MEDIA, PendingMedia, Shown, records_runs
 from pytest_ddenv.oracle.predicates import FailureSignature
 from pytest_ddenv.oracle.verdict import ErrorInfo, FailureReference, SameFailureRule, classify_result
@@ -175,7 +176,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool[ProbeResult], *, note: Note = 
     make_policy(spec.deflake, 0.95)  # an invalid deflake fails now, before any simulation
     deadline = None if spec.max_seconds is None else time.monotonic() + spec.max_seconds
     if plan.reference_run is not None:  # the watchdog scales with the original run
-        pool.expect(plan.reference_run.wall_time)
+        pool.expect(plan.reference_run.wall_time, world_size(world))
     # This process waits for the workers: import meanwhile (a caller may have started it earlier).
     ahead = None if pool.in_process else import_ahead()
     try:

@@ -23,6 +23,9 @@ from pytest_ddenv import defaults
 from pytest_ddenv.errors import DdenvError, shown
 from pytest_ddenv.validation import at_least, expected, is_finite_number, positive_finite
 
+RUN_TIMEOUT = 300.0
+"""The default of `run_timeout`: `robot_world.DEFAULT_MAX_WALL_TIME`."""
+
 MAX_RATE_RUNS = 10_000
 """The most runs `--ddenv-rate` takes (each run is a whole simulation)."""
 
@@ -407,9 +410,10 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("keep_other", "write the smallest worlds of the N most frequent other failures a reduction's probes "
             "met as other-1.yaml ... other-N.yaml in its artifacts folder (default 0: listed in the report and "
             "summary.json only)", integer(0), "N", 0, option="keep-other", flag="keep-other"),
-    Setting("run_timeout", "wall-clock seconds one robot_world.run() may take before it fails with "
-            "ControllerTimeout (default 300): bounds a controller that is too slow", positive(" of seconds"),
-            "SECONDS", option="run-timeout"),
+    Setting("run_timeout", "wall-clock seconds one run of the scenario may take (robot_world.run(), every probe "
+            "of a reduction, every replayed run) before it ends with ControllerTimeout, an error of the run, never "
+            "a verdict (default 300): bounds a controller that is too slow, or a big world on a busy machine",
+            positive(" of seconds"), "SECONDS", RUN_TIMEOUT, option="run-timeout", flag="run-timeout"),
 )
 SETTING: dict[str, Setting] = {setting.name: setting for setting in SETTINGS}
 

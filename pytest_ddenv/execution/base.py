@@ -20,6 +20,13 @@ DEFAULT_WATCHDOG_FLOOR = 60.0
 DEFAULT_WATCHDOG_FACTOR = 10.0
 """The automatic watchdog is this many times the longest of: the original run (`expect`) and the slowest probe
 seen so far (or the floor)."""
+DEFAULT_RUN_CAP = 300.0
+"""Seconds: the wall-clock cap of one run when the pool's job does not say its own (`max_wall_time`); the same
+as `robot_world.DEFAULT_MAX_WALL_TIME` (the execution layer does not import the scenario layer)."""
+FIRST_RUN_MARGIN = 60.0
+"""Seconds past the run's own wall-clock cap the automatic watchdog allows while no run has been timed: a run
+that is merely slow ends at its cap (`ControllerTimeout`, an error of the run); the watchdog is for one that
+hangs where the cap cannot stop it."""
 WATCHDOG_ENV = "DDENV_PROBE_TIMEOUT"
 """The watchdog of pools created without an explicit ``watchdog=``: seconds (e.g. ``30``), ``auto`` (the
 default) or ``none``. The pytest plugin and ``ddenv reduce`` create their pools that way."""
@@ -77,33 +84,44 @@ class StatsBook:
         self._slowest = 0.0
         self._expected = 0.0
         self._cpu = 0.0
+        self._largest = (0, 0.0)  # (size, seconds) of the largest world timed (`world_size`)
 
     def add(self, name: str, amount: int = 1) -> None:
         with self._lock:
             self._counts[name] += amount
 
-    def completed(self, overhead: float, seconds: float, cpu_seconds: float = 0.0) -> None:
+    def completed(self, overhead: float, seconds: float, cpu_seconds: float = 0.0, size: int = 0) -> None:
+        """A probe of a world of `size` (`world_size`; 0: unknown) came back after `seconds`."""
         with self._lock:
             self._counts["probes"] += 1
             self._overhead += max(0.0, overhead)
             self._slowest = max(self._slowest, seconds)
             self._cpu += max(0.0, cpu_seconds)
+            self._timed(size, seconds)
 
-    def expect(self, seconds: float) -> None:
-        """The original run took `seconds`: the automatic watchdog is at least `factor` times that."""
+    def expect(self, seconds: float, size: int = 0) -> None:
+        """The original run (a world of `size`, 0: unknown) took `seconds`: the automatic watchdog is at least
+        `factor` times that."""
         with self._lock:
             if math.isfinite(seconds) and seconds > 0:
                 self._expected = max(self._expected, float(seconds))
+                self._timed(size, float(seconds))
+
+    def _timed(self, size: int, seconds: float) -> None:
+        if size > 0 and (size, seconds) > self._largest:
+            self._largest = (size, seconds)
 
     @property
     def slowest(self) -> float:
         with self._lock:
             return self._slowest
 
-    def watchdog(self, floor: float, factor: float) -> float:
-        """The automatic watchdog: max(floor, factor x the longest of the original run and the slowest probe)."""
+    def watchdog(self, floor: float, factor: float, size: int = 0, run_cap: float | None = None) -> float:
+        """The automatic watchdog of a probe of a world of `size` (`world_size`; 0: unknown), see
+        `automatic_watchdog`."""
         with self._lock:
-            return max(floor, factor * max(self._slowest, self._expected))
+            return automatic_watchdog(floor, factor, max(self._slowest, self._expected), self._largest, size,
+                                      run_cap)
 
     def snapshot(self) -> PoolStats:
         with self._lock:
@@ -115,6 +133,34 @@ class StatsBook:
                 cpu_seconds=round(self._cpu, 6),
                 **self._counts,
             )
+
+
+def automatic_watchdog(floor: float, factor: float, longest: float, largest: tuple[int, float], size: int,
+                       run_cap: float | None) -> float:
+    """Seconds a probe may run under the automatic watchdog.
+
+    No run timed yet (`longest` 0: the original and the confirmation runs of `ddenv reduce`): max(`floor`, the
+    run's own wall-clock cap `run_cap` (None: `DEFAULT_RUN_CAP`) + `FIRST_RUN_MARGIN`). Else max(`floor`,
+    `factor` x the longest run timed), where a world bigger than the largest timed one (`largest`: its size and
+    seconds) counts as that run's seconds scaled by the size ratio: a world of 10 times the shapes of any timed
+    one may take 10 times as long."""
+    if longest <= 0:
+        return max(floor, (DEFAULT_RUN_CAP if run_cap is None else run_cap) + FIRST_RUN_MARGIN)
+    largest_size, largest_seconds = largest
+    if 0 < largest_size < size:
+        longest = max(longest, largest_seconds * size / largest_size)
+    return max(floor, factor * longest)
+
+
+def world_size(world: World) -> int:
+    """What a run's time grows with, for the watchdog: the world's collision shapes (1 per mesh shape)."""
+    return sum(len(model.shapes) for model in world)
+
+
+def run_cap_of(job: object) -> float | None:
+    """The wall-clock cap of one run of `job` (its `max_wall_time`, as `ScenarioJob` has it), else None."""
+    cap = getattr(job, "max_wall_time", None)
+    return float(cap) if is_finite_number(cap) and cap > 0 else None
 
 
 ResultT_co = TypeVar("ResultT_co", covariant=True)
@@ -146,8 +192,9 @@ class Pool(Protocol[ResultT_co]):
         """What the pool changed on its own while it ran that a report should say (a probe moved to a worker)."""
         ...
 
-    def expect(self, seconds: float) -> None:
-        """The original run of the test took `seconds` (wall): the automatic watchdog scales with it."""
+    def expect(self, seconds: float, size: int = 0) -> None:
+        """The original run of the test, a world of `size` (`world_size`; 0: unknown), took `seconds` (wall):
+        the automatic watchdog scales with it."""
         ...
 
     def call(self, world: World, attempt: int, *, timeout: float | None = None, record: bool = False) -> ResultT_co:
@@ -219,11 +266,12 @@ class ClusterPoolBase:
     def stats(self) -> PoolStats:
         return self._stats.snapshot()
 
-    def watchdog_seconds(self) -> float | None:
+    def watchdog_seconds(self, size: int = 0) -> float | None:
+        """See `LocalPool.watchdog_seconds`."""
         if self._watchdog == "auto":
-            return self._stats.watchdog(self._floor, self._factor)
+            return self._stats.watchdog(self._floor, self._factor, size, run_cap_of(getattr(self, "job", None)))
         return self._watchdog  # type: ignore[return-value]
 
-    def expect(self, seconds: float) -> None:
+    def expect(self, seconds: float, size: int = 0) -> None:
         """See `LocalPool.expect`."""
-        self._stats.expect(seconds)
+        self._stats.expect(seconds, size)

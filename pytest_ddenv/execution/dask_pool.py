@@ -26,6 +26,7 @@ from pytest_ddenv.execution.base import (
     DEFAULT_WATCHDOG_FLOOR,
     ClusterPoolBase,
     limit_of,
+    world_size,
 )
 from pytest_ddenv.execution.dask_host import JOBS_KEPT, TaskReply, run_probe_task, worker_versions
 from pytest_ddenv.execution.errors import (
@@ -199,7 +200,7 @@ class DaskPool(ClusterPoolBase):
             sequence = self._sequence
         request = ProbeRequest(world, int(attempt), fault_for(self._faults, sequence, 0), record=bool(record))
         what = describe_request(self.job.label, request)
-        limit, by_deadline = limit_of(self.watchdog_seconds(), None if timeout is None else
+        limit, by_deadline = limit_of(self.watchdog_seconds(world_size(world)), None if timeout is None else
                                       time.monotonic() + max(0.0, timeout), time.monotonic())
         started = time.perf_counter()
         future = self.cluster.client.submit(run_probe_task, self.job, request, fault_for(self._faults, sequence, 1),
@@ -211,7 +212,7 @@ class DaskPool(ClusterPoolBase):
         finally:
             with self._lock:
                 self._pending.discard(future)
-        return self._finish(done, what, limit, by_deadline, started)
+        return self._finish(done, what, limit, by_deadline, started, world_size(world))
 
     def _result_of(self, future: Any, what: str, limit: float | None, by_deadline: bool) -> TaskReply:
         """The task's `TaskReply`; the errors of the cluster (not of the probe) as `WorkerError`s."""
@@ -249,8 +250,9 @@ class DaskPool(ClusterPoolBase):
             raise
         return done
 
-    def _finish(self, done: TaskReply, what: str, limit: float | None, by_deadline: bool, started: float) -> Any:
-        return finish(self._stats, done, what, limit, by_deadline, started)
+    def _finish(self, done: TaskReply, what: str, limit: float | None, by_deadline: bool, started: float,
+                size: int = 0) -> Any:
+        return finish(self._stats, done, what, limit, by_deadline, started, size)
 
     def close(self) -> None:
         self._closed = True

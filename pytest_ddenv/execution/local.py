@@ -35,6 +35,8 @@ from pytest_ddenv.execution.base import (
     StatsBook,
     check_watchdog,
     limit_of,
+    run_cap_of,
+    world_size,
 )
 from pytest_ddenv.execution.children import descendants, end_processes, processes_ended
 from pytest_ddenv.execution.errors import (
@@ -344,16 +346,17 @@ class LocalPool:
         """Process ids of the live workers (empty in-process)."""
         return sorted(w.process.pid for w in list(self._live) if w.process.pid is not None)
 
-    def watchdog_seconds(self) -> float | None:
-        """The watchdog the next probe gets (None: none)."""
+    def watchdog_seconds(self, size: int = 0) -> float | None:
+        """The watchdog the next probe, of a world of `size` (`world_size`; 0: unknown), gets (None: none); see
+        `automatic_watchdog` for 'auto'."""
         if self._watchdog == "auto":
-            return self._stats.watchdog(self._floor, self._factor)
+            return self._stats.watchdog(self._floor, self._factor, size, run_cap_of(self.job))
         return self._watchdog  # type: ignore[return-value]
 
-    def expect(self, seconds: float) -> None:
-        """The original run of the test took `seconds` (wall): the automatic watchdog is at least
-        `watchdog_factor` times that."""
-        self._stats.expect(seconds)
+    def expect(self, seconds: float, size: int = 0) -> None:
+        """The original run of the test, a world of `size` (`world_size`; 0: unknown), took `seconds` (wall):
+        the automatic watchdog is at least `watchdog_factor` times that."""
+        self._stats.expect(seconds, size)
 
     def call(self, world: World, attempt: int, *, timeout: float | None = None, record: bool = False) -> Any:
         """Run the job's test on `world` as re-run `attempt` on a worker; return the handler's value.
@@ -396,7 +399,8 @@ class LocalPool:
         assert self._handler is not None
         what = describe_request(self.job.label, request)
         with self._local_lock:
-            limit, by_deadline = limit_of(self.watchdog_seconds(), deadline, time.monotonic())
+            size = world_size(request.world)
+            limit, by_deadline = limit_of(self.watchdog_seconds(size), deadline, time.monotonic())
             self._stats.add("simulations")
             started = time.perf_counter()
             watchdog = ProbeWatchdog(limit, what, self._warn)
@@ -420,7 +424,7 @@ class LocalPool:
                     + ("was stopped by harder interrupts" if stopped else "its result is not used"))
                 raise WorkerError(f"probe of {what} ran past the {limit:g} s watchdog in this process; {how}") \
                     from None
-        return self._finish(reply, started)
+        return self._finish(reply, started, size)
 
     def _move_to_workers(self, what: str, limit: float | None, why: str) -> None:
         """A probe defeated the in-process watchdog (past its `limit`, or None: it finished in time but
@@ -439,13 +443,14 @@ class LocalPool:
     # -- worker processes ----------------------------------------------------------------------------
     def _call_on_worker(self, request: ProbeRequest, sequence: int, deadline: float | None) -> Any:
         what = describe_request(self.job.label, request)
+        size = world_size(request.world)
         worker = self._acquire()
         for try_index in (0, 1):
             attempt = replace(request, fault=fault_for(self._faults, sequence, try_index))
             try:
                 if not worker.ready:
                     worker.await_ready(self._startup_timeout)
-                watchdog, by_deadline = limit_of(self.watchdog_seconds(), deadline, time.monotonic())
+                watchdog, by_deadline = limit_of(self.watchdog_seconds(size), deadline, time.monotonic())
                 self._stats.add("simulations")
                 started = time.perf_counter()
                 reply = worker.call(attempt, watchdog)
@@ -484,11 +489,12 @@ class LocalPool:
                 self._stats.add("errors")
                 raise
             self._release(worker)
-            return self._finish(reply, started)
+            return self._finish(reply, started, size)
         raise AssertionError("unreachable")  # pragma: no cover
 
-    def _finish(self, reply: Reply, started: float) -> Any:
-        self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds, reply.cpu_seconds)
+    def _finish(self, reply: Reply, started: float, size: int) -> Any:
+        self._stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds, reply.cpu_seconds,
+                              size)
         if reply.error is not None:
             raise reply.error
         return reply.value

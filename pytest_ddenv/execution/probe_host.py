@@ -276,10 +276,11 @@ def worker_versions() -> dict[str, str]:
 
 
 def finish(stats: StatsBook, done: TaskReply, what: str, limit: float | None, by_deadline: bool,
-           started: float) -> Any:
+           started: float, size: int = 0) -> Any:
     """Where pytest runs: the probe's value from `done` (its error raised), counted in `stats`; a probe process
     killed by the watchdog (`WorkerError`) or at the deadline (`ProbeDeadline`), or that died twice
-    (`WorkerError`). `started`: `time.perf_counter()` when the probe was sent."""
+    (`WorkerError`). `started`: `time.perf_counter()` when the probe was sent; `size`: its world's
+    `world_size` (for the watchdog)."""
     for name in ("simulations", "crashes", "retries", "restarts"):
         if getattr(done, name):
             stats.add(name, getattr(done, name))
@@ -297,7 +298,7 @@ def finish(stats: StatsBook, done: TaskReply, what: str, limit: float | None, by
         raise WorkerError(f"probe of {what} failed twice: its probe process died each time on {done.host} "
                           f"(last: {done.detail})")
     reply = done.reply
-    stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds, reply.cpu_seconds)
+    stats.completed(time.perf_counter() - started - reply.seconds, reply.seconds, reply.cpu_seconds, size)
     if reply.error is not None:
         raise reply.error
     return reply.value

@@ -31,6 +31,7 @@ from pytest_ddenv.execution.base import (
     DEFAULT_WATCHDOG_FLOOR,
     ClusterPoolBase,
     limit_of,
+    world_size,
 )
 from pytest_ddenv.execution.errors import PoolConfigError, ProbeDeadline, WorkerError, WorkerStartError
 from pytest_ddenv.execution.local import STARTUP_TIMEOUT
@@ -279,12 +280,12 @@ class RayPool(ClusterPoolBase):
         what = describe_request(self.job.label, request)
         deadline = None if timeout is None else time.monotonic() + max(0.0, timeout)
         actor = self.cluster.acquire(lambda: self._closed)
-        limit, by_deadline = limit_of(self.watchdog_seconds(), deadline, time.monotonic())
+        limit, by_deadline = limit_of(self.watchdog_seconds(world_size(world)), deadline, time.monotonic())
         started = time.perf_counter()
         reference = actor.probe.remote(self.job, request, fault_for(self._faults, sequence, 1), limit, by_deadline)
         done = self._result_of(reference, actor, what, limit, by_deadline)
         self.cluster.release(actor)
-        return finish(self._stats, done, what, limit, by_deadline, started)
+        return finish(self._stats, done, what, limit, by_deadline, started, world_size(world))
 
     def _result_of(self, reference: Any, actor: Any, what: str, limit: float | None, by_deadline: bool) -> TaskReply:
         """The actor's `TaskReply`; the errors of the cluster (not of the probe) as `WorkerError`s. The actor

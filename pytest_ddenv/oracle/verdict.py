@@ -421,12 +421,37 @@ class FailureReference:
         }
 
 
+WALL_CLOCK_CAP = "ControllerTimeout"
+"""The exception type of a run stopped by its wall-clock cap (`max_wall_time`, `--ddenv-run-timeout`, `ddenv
+reduce --run-timeout`): an error of the run (ERROR), never a verdict."""
+
+
+def hit_wall_clock_cap(error: ErrorInfo | None) -> bool:
+    """Whether `error` is a run stopped by its wall-clock cap (`WALL_CLOCK_CAP`)."""
+    return error is not None and error.signature is None and error.type_name == WALL_CLOCK_CAP
+
+
+def is_run_error(error: ErrorInfo | None) -> bool:
+    """Whether `error` is an error of the run rather than an outcome of the test: pytest-ddenv's own error, a
+    broken setup or teardown, or a run stopped by its wall-clock cap."""
+    return error is not None and (error.ddenv_error or error.phase != "call" or hit_wall_clock_cap(error))
+
+
+def wall_clock_cap_message(location: str) -> str:
+    """Why a test whose original failure (raised at `location`) is its run's wall-clock cap is not reduced."""
+    return (f"the test failed with {WALL_CLOCK_CAP} at {location}: its run went past its wall-clock cap, an error of "
+            "the run (a busy machine, a slow controller or a big world), not a failure of the robot; it cannot "
+            "be reduced as a failure. Raise the cap (robot_world.run(max_wall_time=...), --ddenv-run-timeout, "
+            "ddenv reduce --run-timeout) or make the controller faster. No reduction was run.")
+
+
 def classify_result(error: ErrorInfo | None, reference: FailureReference, rule: SameFailureRule | float) -> Outcome:
     """Compare what a probe raised with the original failure: a predicate failure by `rule` (a
-    `SameFailureRule`, or the default rule with this tolerance), an exception by its type and line."""
+    `SameFailureRule`, or the default rule with this tolerance), an exception by its type and line. An error
+    of the run (`is_run_error`: a run stopped by its wall-clock cap included) is ERROR."""
     if error is None:
         return Outcome.PASS
-    if error.ddenv_error or error.phase != "call":
+    if is_run_error(error):
         return Outcome.ERROR
     if error.signature is not None:
         if reference.signature is None:
