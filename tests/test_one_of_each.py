@@ -24,19 +24,23 @@ def test_every_error_the_package_raises_on_purpose_is_a_ddenv_error() -> None:
 
 def test_a_controller_error_stays_the_tests_failure_not_an_error_of_ddenv() -> None:
     """ControllerError is a DdenvError now, but what the controller under test did is still the test's
-    failure (a verdict), never an error of pytest-ddenv (which a probe reports as ERROR)."""
+    failure (a verdict), never an error of pytest-ddenv (which a probe reports as ERROR). A run stopped by
+    its wall-clock cap (ControllerTimeout) is an error of the run, though (issue 33): ERROR, never a verdict."""
     from pytest_ddenv.errors import raised_by_ddenv
     from pytest_ddenv.outcome import Outcome
     from pytest_ddenv.scenario.probe import FailureReference, classify_result, describe_error
 
-    try:
-        raise ControllerTimeout("the run went past its wall-clock limit")
-    except ControllerTimeout as error:
-        info = describe_error(error, None)
-    assert not info.ddenv_error and not raised_by_ddenv(ControllerError("x"))
+    for raised in (ControllerError("the controller returned NaN"),
+                   ControllerTimeout("the run went past its wall-clock limit")):
+        try:
+            raise raised
+        except ControllerError as error:
+            info = describe_error(error, None)
+        assert not info.ddenv_error and not raised_by_ddenv(raised)
+        reference = FailureReference(info.type_name, info.location)
+        expected = Outcome.ERROR if isinstance(raised, ControllerTimeout) else Outcome.FAIL
+        assert classify_result(info, reference, 0.5) is expected
     assert raised_by_ddenv(DdenvError("x"))
-    reference = FailureReference(info.type_name, info.location)
-    assert classify_result(info, reference, 0.5) is Outcome.FAIL
 
 
 def test_one_artifacts_error_for_the_folder_and_its_replay() -> None:
