@@ -166,3 +166,13 @@ def test_a_test_whose_own_failure_is_the_cap_is_not_reduced_and_says_why(project
     assert result.returncode == pytest.ExitCode.TESTS_FAILED, result.stdout
     assert "cannot be reduced as a failure" in result.stdout and "No reduction was run" in result.stdout, \
         result.stdout
+
+
+@pytest.mark.slow  # `ddenv reduce` in a subprocess beside a CPU burner
+def test_bench_loaded_completes_a_small_yard_beside_a_burner(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    import bench_loaded
+
+    result = bench_loaded.measure(12, 0, 1, "1", None, tmp_path)
+    assert result["completed"] and result["culprit_found"], result
+    assert result["errors"] == 0 and result["watchdog_kills"] == 0 and result["simulations"] > 0
