@@ -22,6 +22,7 @@ from typing import Any
 import pytest
 
 from pytest_ddenv.execution import Fault, LocalPool, ProbeDeadline, WorkerError
+from pytest_ddenv.execution.base import DEFAULT_RUN_CAP, FIRST_RUN_MARGIN
 from pytest_ddenv.execution.request import FaultKind
 from pytest_ddenv.world import World
 
@@ -103,7 +104,8 @@ def test_a_hung_worker_is_killed_by_the_watchdog_and_the_reduction_goes_on(wall_
 
 def test_the_automatic_watchdog_follows_the_original_run_and_the_slowest_simulation(wall_world: World) -> None:
     with LocalPool(stuck_job(), 2, watchdog_floor=1.0, watchdog_factor=10.0) as pool:
-        assert pool.watchdog_seconds() == 1.0
+        # no run timed yet: the run's own wall-clock cap + a margin, never the floor (issue 33)
+        assert pool.watchdog_seconds() == DEFAULT_RUN_CAP + FIRST_RUN_MARGIN  # ScenarioJob: a 300 s cap
         pool.expect(0.5)  # the original run took 0.5 s
         assert pool.watchdog_seconds() == 5.0
         run = run_of(pool.call(wall_world, 0))
