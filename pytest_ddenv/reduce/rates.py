@@ -74,8 +74,8 @@ class RateComparison:
     level: float
     """The level this look tested at (`LEVEL` divided by the number of looks)."""
     skipped: int = 0
-    """Runs of the original this look did not need (`settled`): `p_value` is then the largest over every
-    outcome they could have had."""
+    """Runs of the original this look did not need (`settled`): `p_value` is then the bound that decided,
+    over every outcome they could have had (the largest for "below", the smallest otherwise)."""
 
     def describe(self) -> str:
         verdict = {
@@ -83,7 +83,8 @@ class RateComparison:
             "below": "significantly below the original's",
             "continue": "undecided",
         }[self.decision]
-        p_value = f"p = {self.p_value:.3g}" if not self.skipped else f"p <= {self.p_value:.3g}"
+        bound = "=" if not self.skipped else "<=" if self.decision == "below" else ">="
+        p_value = f"p {bound} {self.p_value:.3g}"
         skipped = (f"; {self.skipped} more runs of the original skipped: none could change the decision"
                    if self.skipped else "")
         return (f"fails {self.reduced} fresh runs vs the original's {self.original}: {verdict} "
@@ -123,8 +124,8 @@ def compare(original: Rate, reduced: Rate, looks: Sequence[int] = LOOKS, level: 
 def settled(original: Rate, look: int, reduced: Rate, looks: Sequence[int] = LOOKS,
             level: float = LEVEL) -> RateComparison | None:
     """The decision at `look` when the original has made only `original.runs` of its `look` runs and no
-    outcome of the others could change it (a comparison with `skipped` set and the largest p-value over
-    those outcomes); None when they are needed. A look of "continue" whatever they give defers them to the
+    outcome of the others could change it (a comparison with `skipped` set and, over those outcomes, the
+    largest p-value for "below", the smallest otherwise); None when they are needed. A look of "continue" whatever they give defers them to the
     next look, which makes them anyway."""
     missing = look - original.runs
     if missing <= 0 or reduced.runs != look:
@@ -132,7 +133,8 @@ def settled(original: Rate, look: int, reduced: Rate, looks: Sequence[int] = LOO
     completions = [compare(Rate(original.fails + more, look), reduced, looks, level) for more in range(missing + 1)]
     if len({completion.decision for completion in completions}) != 1:
         return None
-    worst = max(completions, key=lambda completion: completion.p_value)
+    bound = max if completions[0].decision == "below" else min
+    worst = bound(completions, key=lambda completion: completion.p_value)
     return RateComparison(original, reduced, worst.p_value, worst.decision, worst.level, skipped=missing)
 
 

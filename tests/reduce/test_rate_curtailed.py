@@ -25,7 +25,7 @@ def test_a_minimal_world_failing_every_run_holds_without_any_run_of_the_original
     early = settled(Rate(0, 0), 5, Rate(5, 5))
     assert early is not None and early.decision == "holds" and early.skipped == 5
     assert early.original == Rate(0, 0) and early.p_value == 1.0
-    assert "5 more runs of the original skipped" in early.describe() and "p <= 1" in early.describe()
+    assert "5 more runs of the original skipped" in early.describe() and "p >= 1" in early.describe()
 
 
 def test_the_original_runs_when_its_outcomes_could_change_the_decision() -> None:
@@ -41,6 +41,8 @@ def test_a_decided_below_and_a_deferred_look() -> None:
     assert below.p_value == max(compare(Rate(f, 10), Rate(0, 10)).p_value for f in (9, 10)) < LEVEL_PER_LOOK
     deferred = settled(Rate(4, 4), 5, Rate(3, 5))  # 4/5 or 5/5 against 3/5: undecided either way
     assert deferred is not None and deferred.decision == "continue" and deferred.skipped == 1
+    assert deferred.p_value == min(compare(Rate(f, 5), Rate(3, 5)).p_value for f in (4, 5))
+    assert "p <= " in below.describe() and "p >= " in deferred.describe()
 
 
 LEVEL_PER_LOOK = 0.05 / len(LOOKS)
