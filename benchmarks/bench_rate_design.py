@@ -29,6 +29,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from common import table
+
 from pytest_ddenv.reduce.rates import LOOKS, Rate, compare, settled
 
 CASES: tuple[tuple[float, float], ...] = (
@@ -57,12 +59,12 @@ def binomial(runs: int, rate: float) -> Iterator[tuple[int, float]]:
             yield fails, chance
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def full_decision(original_fails: int, look: int, reduced_fails: int) -> str:
     return compare(Rate(original_fails, look), Rate(reduced_fails, look), LOOKS).decision
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def settled_decision(original_fails: int, original_runs: int, look: int, reduced_fails: int) -> str | None:
     early = settled(Rate(original_fails, original_runs), look, Rate(reduced_fails, look), LOOKS)
     return None if early is None else early.decision
@@ -99,10 +101,6 @@ def curtailed_design(original: float, reduced: float, calibration: int) -> Chara
     previous = 0
     for look in LOOKS:
         following: dict[tuple[int, int, int], float] = {}
-
-        def go_on(key: tuple[int, int, int], p: float) -> None:
-            following[key] = following.get(key, 0.0) + p
-
         for (fo, made, fr), chance in states.items():
             for more_r, p_r in binomial(look - previous, reduced):
                 outcomes: list[tuple[int, int, float, str]] = []
@@ -114,7 +112,8 @@ def curtailed_design(original: float, reduced: float, calibration: int) -> Chara
                                  for more_o, p_o in binomial(look - made, original)]
                 for fo_now, made_now, p, decision in outcomes:
                     if decision == "continue":
-                        go_on((fo_now, made_now, fr + more_r), p)
+                        key = (fo_now, made_now, fr + more_r)
+                        following[key] = following.get(key, 0.0) + p
                         continue
                     below += p if decision == "below" else 0.0
                     holds += p if decision == "holds" else 0.0
@@ -134,14 +133,6 @@ def rows(calibration: int) -> list[list[str]]:
                       f"{new.reduced_runs:.2f} + {new.original_runs:.2f}",
                       f"{old.reduced_runs + old.original_runs - new.reduced_runs - new.original_runs:.2f}"])
     return lines
-
-
-def table(headers: list[str], lines: list[list[str]]) -> str:
-    widths = [max(len(str(cell)) for cell in column) for column in zip(headers, *lines, strict=True)]
-    out = [" | ".join(h.ljust(w) for h, w in zip(headers, widths, strict=True))]
-    out.append("-|-".join("-" * w for w in widths))
-    out += [" | ".join(str(c).ljust(w) for c, w in zip(line, widths, strict=True)) for line in lines]
-    return "\n".join(out)
 
 
 def main(argv: list[str] | None = None) -> int:

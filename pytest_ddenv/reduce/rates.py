@@ -125,12 +125,13 @@ def settled(original: Rate, look: int, reduced: Rate, looks: Sequence[int] = LOO
             level: float = LEVEL) -> RateComparison | None:
     """The decision at `look` when the original has made only `original.runs` of its `look` runs and no
     outcome of the others could change it (a comparison with `skipped` set and, over those outcomes, the
-    largest p-value for "below", the smallest otherwise); None when they are needed. A look of "continue" whatever they give defers them to the
-    next look, which makes them anyway."""
+    largest p-value for "below", the smallest otherwise); None when they are needed. A look of "continue"
+    whatever they give defers them to the next look, which makes them anyway."""
     missing = look - original.runs
     if missing <= 0 or reduced.runs != look:
         return None
-    completions = [compare(Rate(original.fails + more, look), reduced, looks, level) for more in range(missing + 1)]
+    completions = [compare(Rate(original.fails + more, look), reduced, looks, level)
+                   for more in range(missing + 1)]
     if len({completion.decision for completion in completions}) != 1:
         return None
     bound = max if completions[0].decision == "below" else min
