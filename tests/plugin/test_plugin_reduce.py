@@ -61,6 +61,7 @@ def test_auto_deflake_calibrates_on_the_original_world(wall_project: pytest.Pyte
     # 5 of 5, so no run of the original could change its decision
     assert summary["original_failure_rate"] == {"fails": 3, "runs": 3}, "the wall stops the robot every time"
     assert summary["rate_check"]["decision"] == "holds" and summary["rate_check"]["backoffs"] == 0
+    assert summary["rate_check"]["original_runs_skipped"] == 2
     assert summary["schemas"]["deflake"] == "auto:2-of-3", "a solid failure: confirmed by 2 of at most 3 runs"
     records = [json.loads(line) for line in Path(summary["files"]["log"]).read_text().splitlines()]
     assert [r["attempt"] for r in records if r.get("purpose") == "calibration"] == [1, 2, 3]
