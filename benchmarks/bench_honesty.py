@@ -1,7 +1,8 @@
 """The cost of honesty (issue 33): our reductions with the rate comparison on, against picire, same probe.
 
-    python benchmarks/bench_honesty.py --quick [--out honesty.json]    # ditch, seed 0: about 2 min quiet
-    python benchmarks/bench_honesty.py [--out honesty.json]            # 3 scenarios x 3 rules x 3 seeds
+    python benchmarks/bench_honesty.py --quick [--out honesty.json]    # ditch, seed 0: 2.6 min at load 6-10
+    python benchmarks/bench_honesty.py [--out honesty.json]            # 3 scenarios x 3 rules x 3 seeds: hours
+    python benchmarks/bench_honesty.py --scenarios friction --seeds 0  # 16.9 min at load 6-12
 
 Per row (scenario x deflake rule: any-of-1 is `deflake=0`, any-of-4 `deflake=3`, and `auto`): our mean
 simulations with the end-of-run rate comparison on (`failure_rate_runs=20`, the plugin's default; every
