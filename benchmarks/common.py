@@ -293,9 +293,12 @@ class Row:
 
 def ddenv_reduce(problem: Problem, *, partition: str, priority: str, deflake: int | str,
                  workers: int | None = None, max_seconds: float | None = None, failure_rate_runs: int = 10,
-                 world_label: str | None = None, seed: int | None = None) -> Row:
+                 world_label: str | None = None, seed: int | None = None, rate_check_runs: int = 0) -> Row:
     """Reduce with our engine (the driver's call of `reduce`: `workers` probe threads, default the pool's
-    size), then measure the minimal world's failure rate. The pool is warm before the clock starts."""
+    size), then measure the minimal world's failure rate. The pool is warm before the clock starts.
+    `rate_check_runs`: the engine's own rate comparison (`failure_rate_runs` of `reduce`; 0: off, the
+    paper tables' setting; 20: the plugin's default); `simulations_started` in `extra` counts every
+    simulation started, that comparison's and the speculative ones included."""
     workers = problem.pool.size if workers is None else workers
     probe = problem.probe()
     executor = (concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="ddenv-probe")
@@ -307,7 +310,7 @@ def ddenv_reduce(problem: Problem, *, partition: str, priority: str, deflake: in
             problem.world.names, probe, geometry=problem.world, reference=problem.reference_trace,
             partition=partition, priority=priority, deflake=deflake, keep=problem.keep,
             preconditions=problem.preconditions(), seed=problem.seed if seed is None else seed, executor=executor,
-            workers=workers, max_seconds=max_seconds, failure_rate_runs=0,
+            workers=workers, max_seconds=max_seconds, failure_rate_runs=rate_check_runs,
         )
     finally:
         if executor is not None:
@@ -325,7 +328,10 @@ def ddenv_reduce(problem: Problem, *, partition: str, priority: str, deflake: in
         note=reduction.incomplete_reason or "",
         extra={"simulations_started": started_sims, "skipped": reduction.skipped, "errors": reduction.errors,
                "steps": [list(s) for s in reduction.steps], "deflake_used": reduction.deflake,
-               "calibration": reduction.calibration},
+               "calibration": reduction.calibration, "engine_simulations": reduction.simulations,
+               "rate_check": None if reduction.rate_check is None else reduction.rate_check.describe(),
+               "rate_backoffs": reduction.rate_backoffs, "probes": reduction.probes,
+               "precondition_check": reduction.without_precondition_kept},
     )
 
 

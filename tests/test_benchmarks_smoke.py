@@ -103,6 +103,16 @@ def test_our_engine_finds_the_culprit(bench, problem):
     assert row.to_dict()["reduction_percent"] == pytest.approx(80.0)
 
 
+def test_our_engine_with_its_rate_comparison_counts_every_simulation(bench, problem):
+    common, make_yard = bench
+    row = common.ddenv_reduce(problem, partition="even", priority="sequential", deflake=0,
+                              failure_rate_runs=0, rate_check_runs=5)
+    assert tuple(row.minimal) == make_yard.CULPRITS
+    # the yard's trap fails every run: 5 fresh runs of the minimal world, none of the original (bench_honesty.py)
+    assert "fails 5/5 fresh runs" in row.extra["rate_check"] and row.extra["rate_backoffs"] == 0
+    assert row.extra["simulations_started"] == row.extra["engine_simulations"] == row.extra["probes"] + 5
+
+
 def test_picire_adapter_finds_the_culprit(bench, problem):
     pytest.importorskip("picire")
     common, make_yard = bench

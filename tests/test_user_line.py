@@ -86,8 +86,11 @@ def _solid() -> Reduction:
 def test_the_failure_rate_line_says_in_words_how_often_the_minimal_world_fails() -> None:
     solid = _solid()
     assert solid.rate_check is not None and solid.rate_check.decision == "holds"
-    assert failure_rate_line(solid) == "minimal world fails as often as the original: 5/5 vs 5/5 fresh runs"
-    check = solid.rate_check
+    assert failure_rate_line(solid) == ("minimal world fails 5/5 fresh runs: not significantly less often than the "
+                                        "original (3/3 fresh runs; 2 more could not change that)")
+    check = replace(solid.rate_check, original=Rate(5, 5), skipped=0)
+    assert failure_rate_line(replace(solid, rate_check=check)) == (
+        "minimal world fails as often as the original: 5/5 vs 5/5 fresh runs")
     fewer = replace(solid, rate_check=replace(check, original=Rate(20, 20), reduced=Rate(17, 20)))
     assert failure_rate_line(fewer) == ("minimal world fails about as often as the original: 17/20 vs 20/20 fresh "
                                         "runs (fewer, within chance)")

@@ -164,7 +164,8 @@ def confirm_in_engines(engines: tuple[str, ...], original: World, reduction: Red
     own = _own_rates(reduction, original)
     plan: list[_Run] = []
     for kind, world in worlds.items():
-        attempts = _attempts(log, kind, world, own[kind])
+        # an original whose runs the rate comparison did not need (rates.settled): as many as the minimal world's
+        attempts = _attempts(log, kind, world, own[kind] or own["minimal"])
         for engine in ((main,) if own[kind] is None else ()) + others:
             plan += [_Run(engine, kind, world.with_engine(engine), attempt) for attempt in attempts]
     reused = _reused(log, plan)

@@ -155,6 +155,7 @@ class ReductionReport:
                 "decision": reduction.rate_check.decision,
                 "p_value": round(reduction.rate_check.p_value, 6),
                 "level_per_look": round(reduction.rate_check.level, 6),
+                "original_runs_skipped": reduction.rate_check.skipped,
                 "backoffs": reduction.rate_backoffs,
             },
             "needed_models": list(reduction.needed),

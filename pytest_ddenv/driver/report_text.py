@@ -124,6 +124,11 @@ def failure_rate_line(reduction: Reduction) -> str:
     if check is not None and check.decision == "continue":
         return (f"minimal world fails {check.reduced} fresh runs vs the original's {check.original}: undecided, "
                 "the budget stopped the rate comparison (warning: the rate is not checked)")
+    if check is not None and check.skipped and check.decision == "holds":  # the original's runs were not needed
+        made = (f"{check.original} fresh runs; {check.skipped} more" if check.original.runs
+                else f"its {check.skipped} fresh runs")
+        return (f"minimal world fails {check.reduced} fresh runs: not significantly less often than the original "
+                f"({made} could not change that)")
     if check is not None:  # in words; the test's statistics are in summary.json (rate_check) and under -v
         runs_text = f"{check.reduced} vs {check.original} fresh runs"
         if check.decision == "below":

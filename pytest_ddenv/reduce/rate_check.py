@@ -5,7 +5,9 @@ runs it was accepted on: runs selected for failing are never counted) and compar
 `rates.compare` (a one-sided group-sequential Fisher test, see rates.py and docs/algorithm.md): this module
 runs and logs, the statistics are rates.py's. Every run is
 logged with purpose "failure-rate", so a resumed reduction reuses them; the original world's calibration
-runs (deflake="auto") count as its first fresh runs.
+runs (deflake="auto") count as its first fresh runs, once: they are the original's attempts 1, 2, ... and a
+fresh run is one attempt, whatever made it. At each look the reduced world runs first; the original's runs
+of the look that no outcome could make matter are not started (`rates.settled`).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from dataclasses import replace
 from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.extra_runs import ExtraRuns
 from pytest_ddenv.reduce.log import ProbeLog
-from pytest_ddenv.reduce.rates import Rate, RateComparison, compare, looks_up_to
+from pytest_ddenv.reduce.rates import Rate, RateComparison, compare, looks_up_to, settled
 from pytest_ddenv.reduce.types import Candidate, Outcome
 
 
@@ -56,6 +58,18 @@ class RateChecker:
     def original_rate(self, target: int) -> Rate:
         return self.rate(self.original, 1, target)
 
+    def known_original(self, look: int) -> Rate:
+        """The original's fresh runs already made (this run's or a resumed log's), from attempt 1 up to the
+        first one not made: the first of those `original_rate(look)` would count (an ERROR run is not)."""
+        known = {**self._logged(self.original), **self.record_of(self.original)}
+        counted: list[Outcome] = []
+        attempt = 1
+        while attempt in known and len(counted) < look:
+            if known[attempt] is not Outcome.ERROR:
+                counted.append(known[attempt])
+            attempt += 1
+        return Rate(sum(outcome is Outcome.FAIL for outcome in counted), len(counted))
+
     def compare(self, world: Candidate, first: int) -> RateComparison | None:
         """Compare `world` (fresh attempts from `first`) with the original, look by look; None when the
         comparison is switched off (max_runs 0). The decision is "continue" when the budget stopped it.
@@ -63,6 +77,11 @@ class RateChecker:
         comparison: RateComparison | None = None
         for look in self.looks:
             reduced = self.rate(world, first, look)  # the reduced world first: its rate is the one reported
+            if reduced.runs == look and (early := settled(self.known_original(look), look, reduced, self.looks)):
+                comparison = early
+                if early.decision != "continue":
+                    break
+                continue
             original = self.original_rate(look)
             comparison = compare(original, reduced, self.looks)
             if reduced.runs < look or original.runs < look:  # the budget ran out: no verdict on so few runs

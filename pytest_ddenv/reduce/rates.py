@@ -16,6 +16,10 @@ fresh seeds and their failure rates compared:
   over the looks (Bonferroni), so the chance of calling an equally failing world "below" is at most 5 %.
 - Stop early when the reduced world's observed rate is at least the original's (it cannot then be
   significantly below on these runs), or when the test rejects H0; after the last look, "holds".
+- Curtailed (`settled`): at each look the reduced world runs first; the original's runs of that look that are
+  not made yet (calibration runs count) are skipped when no outcome of theirs could change the look's
+  decision. The decisions are exactly those of the full test, so are its level and power; only the cost
+  falls (a reduced world failing 5 of 5 holds with no run of the original at all).
 
 Only the runs made for this comparison count; the original's first failing run is excluded, because it was
 selected for failing.
@@ -69,6 +73,9 @@ class RateComparison:
     decision: Decision
     level: float
     """The level this look tested at (`LEVEL` divided by the number of looks)."""
+    skipped: int = 0
+    """Runs of the original this look did not need (`settled`): `p_value` is then the bound that decided,
+    over every outcome they could have had (the largest for "below", the smallest otherwise)."""
 
     def describe(self) -> str:
         verdict = {
@@ -76,8 +83,12 @@ class RateComparison:
             "below": "significantly below the original's",
             "continue": "undecided",
         }[self.decision]
+        bound = "=" if not self.skipped else "<=" if self.decision == "below" else ">="
+        p_value = f"p {bound} {self.p_value:.3g}"
+        skipped = (f"; {self.skipped} more runs of the original skipped: none could change the decision"
+                   if self.skipped else "")
         return (f"fails {self.reduced} fresh runs vs the original's {self.original}: {verdict} "
-                f"(one-sided Fisher exact p = {self.p_value:.3g}, level {self.level:.3g} per look)")
+                f"(one-sided Fisher exact {p_value}, level {self.level:.3g} per look{skipped})")
 
 
 def next_look(runs: int, looks: Sequence[int] = LOOKS) -> int:
@@ -108,6 +119,24 @@ def compare(original: Rate, reduced: Rate, looks: Sequence[int] = LOOKS, level: 
     else:
         decision = "continue"
     return RateComparison(original, reduced, p_value, decision, per_look)
+
+
+def settled(original: Rate, look: int, reduced: Rate, looks: Sequence[int] = LOOKS,
+            level: float = LEVEL) -> RateComparison | None:
+    """The decision at `look` when the original has made only `original.runs` of its `look` runs and no
+    outcome of the others could change it (a comparison with `skipped` set and, over those outcomes, the
+    largest p-value for "below", the smallest otherwise); None when they are needed. A look of "continue"
+    whatever they give defers them to the next look, which makes them anyway."""
+    missing = look - original.runs
+    if missing <= 0 or reduced.runs != look:
+        return None
+    completions = [compare(Rate(original.fails + more, look), reduced, looks, level)
+                   for more in range(missing + 1)]
+    if len({completion.decision for completion in completions}) != 1:
+        return None
+    bound = max if completions[0].decision == "below" else min
+    worst = bound(completions, key=lambda completion: completion.p_value)
+    return RateComparison(original, reduced, worst.p_value, worst.decision, worst.level, skipped=missing)
 
 
 def p_below(rate: Rate, reference: Rate) -> float:

@@ -240,8 +240,9 @@ class Reduction:
 
     @property
     def original_failure_rate(self) -> tuple[int, int] | None:
-        """(fails, runs) of the original world's fresh runs: the rate comparison's, else the calibration's."""
-        if self.rate_check is not None:
+        """(fails, runs) of the original world's fresh runs: the rate comparison's (which counts the
+        calibration's; it may need none, `RateComparison.skipped`), else the calibration's."""
+        if self.rate_check is not None and self.rate_check.original.runs:
             return (self.rate_check.original.fails, self.rate_check.original.runs)
         return self.calibration
 

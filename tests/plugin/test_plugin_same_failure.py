@@ -173,14 +173,15 @@ def test_the_place_rule_says_the_minimal_world_fails_as_often_as_the_original(
     result.assert_outcomes(failed=1)
     summary = summary_of(pytester)
     assert summary["minimal_models"] == ["wall"] and summary["one_minimal"] is True
-    assert summary["original_failure_rate"] == {"fails": 5, "runs": 5}
+    assert summary["original_failure_rate"] == {"fails": 3, "runs": 3}  # calibration; 2 more could not matter
     assert summary["failure_rate"] == {"fails": 5, "runs": 5}
     assert summary["rate_check"]["decision"] == "holds"
     assert summary["same_failure"]["match"] == recorded
     assert summary["original_reproduction"] is None
     assert not [failure for failure in summary["other_failures"] if failure["signature"].get("predicate")], \
         "the failure itself is never listed as another failure"
-    result.stdout.fnmatch_lines(["*minimal world fails as often as the original: 5/5 vs 5/5 fresh runs*"])
+    result.stdout.fnmatch_lines(["*minimal world fails 5/5 fresh runs: not significantly less often than the "
+                                 "original (3/3 fresh runs; 2 more could not change that)*"])
     result.stdout.no_fnmatch_line("*the original world failed the same way in only*")
     # ddenv replay re-applies the recorded rule
     replayed = ddenv_replay(pytester)

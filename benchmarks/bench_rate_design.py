@@ -1,0 +1,167 @@
+"""Operating characteristics of the end-of-run rate comparison, computed exactly (no physics, no sampling).
+
+    python benchmarks/bench_rate_design.py [--calibration 0 3 5] [--level 0.05]     # a few seconds
+
+The comparison (pytest_ddenv/reduce/rates.py) looks after 5, 10 and 20 fresh runs of each world and tests
+"the minimal world fails less often than the original" with a one-sided Fisher exact test at 5 % / 3 per
+look. For true failure rates (original, minimal) this script sums over every outcome of the runs (binomial)
+and prints, for the old procedure (both worlds topped up to every look) and the curtailed one of issue 33
+(the minimal world first; the original's runs a look does not need are not started, `rates.settled`):
+
+- P(below): the chance of calling the minimal world significantly rarer (at equal rates: the false "below"
+  rate; at 50 % against 100 %: the power),
+- the expected fresh runs of the minimal world and of the original beyond its calibration runs (deflake
+  "auto" makes `--calibration` runs of the original before the reduction; they are its first fresh runs).
+
+The two procedures make the same decision on every outcome, so P(below) must agree to rounding; only the
+runs differ.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import math
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from common import table
+
+from pytest_ddenv.reduce.rates import LEVEL, LOOKS, Rate, compare, settled
+
+CASES: tuple[tuple[float, float], ...] = (
+    (1.0, 1.0), (0.9, 0.9), (0.8, 0.8), (0.6, 0.6), (0.5, 0.5), (0.3, 0.3),
+    (1.0, 0.8), (1.0, 0.5), (1.0, 0.4), (0.5, 0.2),
+)
+"""(original's rate, minimal world's rate): equal rates (false "below"), then drops (power)."""
+
+
+@dataclass(frozen=True)
+class Characteristics:
+    below: float
+    """P(decision "below")."""
+    holds: float
+    reduced_runs: float
+    """Expected fresh runs of the minimal world."""
+    original_runs: float
+    """Expected fresh runs of the original beyond its calibration runs."""
+
+
+def binomial(runs: int, rate: float) -> Iterator[tuple[int, float]]:
+    """(fails, probability) of `runs` runs failing at `rate`, the impossible ones left out."""
+    for fails in range(runs + 1):
+        chance = math.comb(runs, fails) * rate**fails * (1.0 - rate) ** (runs - fails)
+        if chance > 0.0:
+            yield fails, chance
+
+
+@functools.cache
+def full_decision(original_fails: int, look: int, reduced_fails: int, level: float = LEVEL) -> str:
+    return compare(Rate(original_fails, look), Rate(reduced_fails, look), LOOKS, level).decision
+
+
+@functools.cache
+def settled_decision(original_fails: int, original_runs: int, look: int, reduced_fails: int,
+                     level: float = LEVEL) -> str | None:
+    early = settled(Rate(original_fails, original_runs), look, Rate(reduced_fails, look), LOOKS, level)
+    return None if early is None else early.decision
+
+
+def old_design(original: float, reduced: float, calibration: int, level: float = LEVEL) -> Characteristics:
+    """Both worlds run to every look (the original's first `calibration` runs already made)."""
+    below = holds = reduced_runs = original_runs = 0.0
+    states = {(0, 0): 1.0}  # (original fails, reduced fails) -> probability, runs = the previous look
+    previous = 0
+    for look in LOOKS:
+        following: dict[tuple[int, int], float] = {}
+        for (fo, fr), chance in states.items():
+            for more_o, p_o in binomial(look - previous, original):
+                for more_r, p_r in binomial(look - previous, reduced):
+                    p = chance * p_o * p_r
+                    decision = full_decision(fo + more_o, look, fr + more_r, level)
+                    if decision == "continue":
+                        following[(fo + more_o, fr + more_r)] = following.get((fo + more_o, fr + more_r), 0.0) + p
+                        continue
+                    below += p if decision == "below" else 0.0
+                    holds += p if decision == "holds" else 0.0
+                    reduced_runs += p * look
+                    original_runs += p * max(0, look - calibration)
+        states, previous = following, look
+    return Characteristics(below, holds, reduced_runs, original_runs)
+
+
+def curtailed_design(original: float, reduced: float, calibration: int, level: float = LEVEL) -> Characteristics:
+    """The minimal world first; the original topped up to a look only when `settled` says its runs matter."""
+    below = holds = reduced_runs = original_runs = 0.0
+    # (original fails, original runs, reduced fails) -> probability; the original starts with its calibration
+    states = {(fo, min(calibration, LOOKS[0]), 0): p for fo, p in binomial(min(calibration, LOOKS[0]), original)}
+    previous = 0
+    for look in LOOKS:
+        following: dict[tuple[int, int, int], float] = {}
+        for (fo, made, fr), chance in states.items():
+            for more_r, p_r in binomial(look - previous, reduced):
+                outcomes: list[tuple[int, int, float, str]] = []
+                early = settled_decision(fo, made, look, fr + more_r, level) if made < look else None
+                if early is not None:
+                    outcomes.append((fo, made, chance * p_r, early))
+                else:
+                    outcomes += [(fo + more_o, look, chance * p_r * p_o,
+                                  full_decision(fo + more_o, look, fr + more_r, level))
+                                 for more_o, p_o in binomial(look - made, original)]
+                for fo_now, made_now, p, decision in outcomes:
+                    if decision == "continue":
+                        key = (fo_now, made_now, fr + more_r)
+                        following[key] = following.get(key, 0.0) + p
+                        continue
+                    below += p if decision == "below" else 0.0
+                    holds += p if decision == "holds" else 0.0
+                    reduced_runs += p * look
+                    original_runs += p * max(0, made_now - calibration)
+        states, previous = following, look
+    return Characteristics(below, holds, reduced_runs, original_runs)
+
+
+def largest_false_below(level: float = LEVEL) -> tuple[float, float]:
+    """(rate, P(below)) of the equal rate 0.05, 0.10, ..., 1.0 called "below" most often."""
+    return max(((rate / 20, old_design(rate / 20, rate / 20, 0, level).below) for rate in range(1, 21)),
+               key=lambda pair: pair[1])
+
+
+def rows(calibration: int, level: float = LEVEL) -> list[list[str]]:
+    lines = []
+    for original, reduced in CASES:
+        old = old_design(original, reduced, calibration, level)
+        new = curtailed_design(original, reduced, calibration, level)
+        what = "false below" if original == reduced else "power"
+        lines.append([f"{original:.0%} / {reduced:.0%}", what, f"{old.below:.2%}", f"{new.below:.2%}",
+                      f"{old.reduced_runs:.2f} + {old.original_runs:.2f}",
+                      f"{new.reduced_runs:.2f} + {new.original_runs:.2f}",
+                      f"{old.reduced_runs + old.original_runs - new.reduced_runs - new.original_runs:.2f}"])
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--calibration", type=int, nargs="+", default=[0, 3, 5],
+                        help="runs of the original made before the comparison (deflake=auto: 3 or 5; else 0)")
+    parser.add_argument("--level", type=float, default=LEVEL,
+                        help=f"overall level, split evenly over the looks (default {LEVEL}: the engine's)")
+    args = parser.parse_args(argv)
+    print(f"looks {LOOKS}, one-sided Fisher exact, {args.level:.3g} overall ({args.level / len(LOOKS):.3g} per "
+          "look, Bonferroni); exact sums over every outcome")
+    rate, worst = largest_false_below(args.level)
+    print(f"largest false-below rate over equal rates 0.05, 0.10, ..., 1.0: {worst:.2%} (at {rate:.2f})")
+    for calibration in args.calibration:
+        print(f"\ncalibration runs of the original already made: {calibration}\n")
+        print(table(["original / minimal rate", "", "P(below) old", "P(below) new",
+                     "runs old (minimal + original)", "runs new (minimal + original)", "saved"],
+                    rows(calibration, args.level)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
