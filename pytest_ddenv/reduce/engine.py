@@ -36,6 +36,7 @@ from pytest_ddenv.reduce.trial import Trial
 from pytest_ddenv.reduce.types import (
     Candidate,
     Decision,
+    FirstCutResult,
     Geometry,
     Outcome,
     Probe,
@@ -204,6 +205,7 @@ class _Engine:
         self.verifying = False
         self.calibration: tuple[int, int] | None = None
         self.independent = False
+        self.first_cut: FirstCutResult | None = None
 
     # -- driver -------------------------------------------------------------------------------------------
 
@@ -236,6 +238,7 @@ class _Engine:
             if self.settings.check_independence and self.reproduces_without_elements():
                 return False, WORLD_INDEPENDENT
             self.calibrate()
+            self.try_first_cut()
             while True:
                 one_minimal = self.reduce_to_one_minimal()
                 if one_minimal and self.unverified:
@@ -335,6 +338,27 @@ class _Engine:
         self.calibration = (fails, runs)
         self.probing.decider.policy = rule
         self.minimal_runs = 1 + runs  # the failure-rate runs of an unreduced world continue after these
+
+    def try_first_cut(self) -> None:
+        """The caller's first cut (`first_cut`: the driver's cut by reach), tried as one trial judged like any
+        other (deflake rule, log, cache: a resumed log answers without a simulation) before the rounds; adopted
+        as a step when it reproduces f. Its simulations count as any other's."""
+        if self.settings.first_cut is None:
+            return
+        whole = self.full(self.current)
+        trial = Trial(self.full(tuple(name for name in self.current if name in self.settings.first_cut)), "reach")
+        if len(trial.candidate) == len(whole):
+            return
+        before = self.probing.counters.simulations
+        found = self.probing.scheduler.first_reproducing([trial])
+        self.first_cut = FirstCutResult(len(whole), len(trial.candidate), found is not None,
+                                        self.probing.counters.simulations - before)
+        self.write(events.FirstCut(original=len(whole), kept=len(trial.candidate),
+                                   decision="holds" if found is not None else "does-not-hold",
+                                   simulations=self.first_cut.simulations))
+        if found is not None:
+            self.adopt(trial, found[1])
+            self.granularity = min(self.settings.n_partitions, len(self.current))
 
     def reduce_to_one_minimal(self) -> bool:
         """ddmin rounds until the finest round fails, then the verification pass; True when 1-minimal."""
@@ -573,6 +597,7 @@ class _Engine:
             precondition_kept=self.precondition_kept(),
             without_precondition_kept=self.precondition_check,
             independent=self.independent,
+            first_cut=self.first_cut,
         )
 
     def write_start(self) -> None:
