@@ -257,9 +257,13 @@ class _Engine:
         """Whether the world without every reducible element the preconditions allow to remove reproduces f
         in one run (attempt 0, the reference's): then the failure does not depend on the elements. Logged
         with purpose "independence" (a resumed log answers without a simulation)."""
-        needed = tuple(name for name in self.current if self.refused(self.full(tuple(
-            other for other in self.current if other != name))) is not None)
-        empty = self.full(needed)
+        empty = self.full(())
+        needed: tuple[str, ...] = ()
+        if self.refused(empty) is not None:  # only then look for the elements the preconditions need (N checks)
+            whole = self.full(self.current)
+            needed = tuple(name for at, name in enumerate(whole) if name not in self.settings.keep
+                           and self.refused(whole[:at] + whole[at + 1:]) is not None)
+            empty = self.full(needed)
         if len(needed) == len(self.current) or self.refused(empty) is not None:
             return False
         known = self.log.measured(INDEPENDENCE, empty) if self.log is not None else {}
