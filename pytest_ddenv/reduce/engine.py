@@ -206,6 +206,8 @@ class _Engine:
         self.calibration: tuple[int, int] | None = None
         self.independent = False
         self.first_cut: FirstCutResult | None = None
+        self.cutting: Trial | None = None
+        """The first cut's trial while it is decided: what idle workers run ahead (not the whole world's round)."""
 
     # -- driver -------------------------------------------------------------------------------------------
 
@@ -354,7 +356,11 @@ class _Engine:
         if len(trial.candidate) == len(whole):
             return
         before = self.probing.counters.simulations
-        found = self.probing.scheduler.first_reproducing([trial])
+        self.cutting = trial
+        try:
+            found = self.probing.scheduler.first_reproducing([trial])
+        finally:
+            self.cutting = None
         self.first_cut = FirstCutResult(len(whole), len(trial.candidate), found is not None,
                                         self.probing.counters.simulations - before)
         self.write(events.FirstCut(original=len(whole), kept=len(trial.candidate),
@@ -439,6 +445,8 @@ class _Engine:
     def lookahead(self) -> list[tuple[Candidate, int]]:
         """The probes the engine starts next if the current round (or verification pass) finds nothing:
         prefetched on idle workers (see prefetch.py). A guess: a schema error here is left to the real round."""
+        if self.cutting is not None:
+            return self.probing.scheduler.planned([self.cutting])
         if self.verifying or not self.current:
             runs = self.rates.looks[0] if self.rates.looks else 0
             return [(self.full(self.current), attempt)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import concurrent.futures
 import json
 from pathlib import Path
 
@@ -75,3 +76,14 @@ def test_the_cut_keeps_the_kept_elements() -> None:
 def test_a_bad_cut_is_refused_naming_the_field(given: object, words: str) -> None:
     with pytest.raises(ReductionError, match=words):
         reduce(names(4), SetOracle(frozenset({"m0001"})), deflake=0, first_cut=given)  # type: ignore[arg-type]
+
+
+def test_idle_workers_run_the_cuts_attempts_ahead_not_the_whole_worlds_round() -> None:
+    world = names(40)
+    oracle = SetOracle(frozenset({"m0003"}))
+    with concurrent.futures.ThreadPoolExecutor(4) as threads:
+        result = reduce(world, oracle, deflake=2, first_cut=world[:10], executor=threads, workers=4,
+                        failure_rate_runs=0)
+    assert result.minimal == ("m0003",) and result.first_cut is not None and result.first_cut.holds
+    assert all(set(candidate) <= set(world[:10]) for candidate, _ in oracle.calls)
+    assert result.simulations == len(oracle.calls)
