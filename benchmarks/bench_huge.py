@@ -48,10 +48,10 @@ def one_run_cpu(path: Path) -> tuple[float, float]:
     return loaded, time.process_time() - cpu
 
 
-def reduce_yard(path: Path, out: Path, workers: int) -> tuple[float, dict[str, Any]]:
+def reduce_yard(path: Path, out: Path, workers: int, options: list[str]) -> tuple[float, dict[str, Any]]:
     """(wall seconds of `ddenv reduce` from start to exit, its summary.json)."""
     command = [sys.executable, "-m", "pytest_ddenv", "reduce", str(path), "-p", STUCK, "--media", "none",
-               "--workers", str(workers), "--out", str(out), "--quiet"]
+               "--workers", str(workers), "--out", str(out), "--quiet", *options]
     started = time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True, check=False)
     wall = time.perf_counter() - started
@@ -67,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=list(SIZES))
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", help="write every measurement to this JSON file")
+    parser.add_argument("--probe-timeout", type=float,
+                        help="`ddenv reduce --probe-timeout` (the watchdog; default: the command's own)")
     args = parser.parse_args(argv)
     sizes = list(QUICK) if args.quick else args.sizes
     info = machine()
@@ -79,7 +81,8 @@ def main(argv: list[str] | None = None) -> int:
             path = Path(folder) / f"yard_{size}.yaml"
             path.write_text(yard_yaml(size, 0))
             loaded, cpu = one_run_cpu(path)
-            wall, summary = reduce_yard(path, Path(folder) / f"out_{size}", args.workers)
+            options = [] if args.probe_timeout is None else ["--probe-timeout", str(args.probe_timeout)]
+            wall, summary = reduce_yard(path, Path(folder) / f"out_{size}", args.workers, options)
             cut = summary.get("first_cut") or {}
             minimal = summary["minimal_models"]
             row = {"objects": size, "load_s": loaded, "one_run_cpu_s": cpu, "simulations": summary["simulations"],

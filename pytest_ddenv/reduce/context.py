@@ -1,6 +1,6 @@
 """What the schemas may look at: the geometry, the latest failing trace, and the verdicts so far.
 
-One `Context` lives for one reduction. It caches the geometry queries: element centroids once, and the
+One `Context` lives for one reduction. It caches the geometry queries: an element's centroid once, and the
 distance from every trace point to an element once per trace, when a schema first asks for it (the trace
 changes only when a smaller failing world is adopted, and then only the current elements are asked for).
 """
@@ -39,7 +39,7 @@ class Context:
     history: list[Verdict] = field(default_factory=list)
     """Verdicts in the order the serial algorithm consults them (identical with and without an executor)."""
     _index: dict[str, int] = field(default_factory=dict, init=False, repr=False)
-    _centroids: FloatArray | None = field(default=None, init=False, repr=False)
+    _centroids: dict[str, FloatArray] = field(default_factory=dict, init=False, repr=False)
     _distance_trace: Trace | None = field(default=None, init=False, repr=False)
     _distances: dict[str, FloatArray] = field(default_factory=dict, init=False, repr=False)
     _points: FloatArray | None = field(default=None, init=False, repr=False)
@@ -62,15 +62,18 @@ class Context:
         """(E, 3) centroids of the named elements, or None without geometry."""
         if self.geometry is None:
             return None
-        if self._centroids is None:
-            centroids = np.asarray(self.geometry.centroids(list(self.elements)), dtype=np.float64)
-            if centroids.shape != (len(self.elements), 3) or not np.all(np.isfinite(centroids)):
+        missing = [name for name in dict.fromkeys(names) if name not in self._centroids]
+        if missing:
+            centroids = np.asarray(self.geometry.centroids(missing), dtype=np.float64)
+            if centroids.shape != (len(missing), 3) or not np.all(np.isfinite(centroids)):
                 raise ReductionError(
-                    f"geometry.centroids() must return finite values of shape ({len(self.elements)}, 3), "
+                    f"geometry.centroids() must return finite values of shape ({len(missing)}, 3), "
                     f"got shape {centroids.shape}"
                 )
-            self._centroids = centroids
-        return self._centroids[[self._index[name] for name in names]]
+            self._centroids.update(zip(missing, centroids, strict=True))
+        if not names:
+            return np.zeros((0, 3))
+        return np.stack([self._centroids[name] for name in names])
 
     def trace_points(self) -> tuple[FloatArray, FloatArray] | None:
         """(points (N, 3), times (N,)) of the current trace, subsampled (the carried path's points after the
