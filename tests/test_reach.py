@@ -107,7 +107,7 @@ def test_the_cut_is_skipped_with_a_reason_when_the_reach_is_not_bounded(yard_and
 
 @pytest.mark.slow
 def test_ddenv_reduce_of_a_300_object_yard_reports_the_cut_and_finds_the_back_wall(tmp_path: Path) -> None:
-    from pytest_ddenv.cli import main as cli
+    from pytest_ddenv.cli.main import main as cli
 
     path = tmp_path / "yard.yaml"
     yard(300).save(path)
@@ -124,3 +124,8 @@ def test_ddenv_reduce_of_a_300_object_yard_reports_the_cut_and_finds_the_back_wa
     probes = [record for record in logged if record["event"] == "probe"]
     assert any(record["size"] == cut["kept"] and record["attempt"] == 0 for record in probes)
     assert summary["simulations"] >= len(probes), "every simulation is counted, the cut's included"
+    assert cli(["reduce", str(path), "-p", STUCK, "--media", "none", "--workers", "1", "--out", str(out),
+                "--quiet"]) == 0  # resumed from its log: the cut's verdict is read, not simulated again
+    again = json.loads((out / "summary.json").read_text())
+    assert again["minimal_models"] == ["pocket_back"] and again["first_cut"]["holds"]
+    assert again["first_cut"]["simulations"] == 0 and again["first_cut"]["kept"] == cut["kept"]
