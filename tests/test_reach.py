@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import sys
 from dataclasses import replace
@@ -10,8 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pytest_ddenv.driver.reach import reach_cut
-from pytest_ddenv.oracle import make_predicate
+from pytest_ddenv.driver import ReductionPlan, run, run_reduction
+from pytest_ddenv.driver.markers import ReductionSpec
+from pytest_ddenv.driver.reach import ReachCut, reach_cut
+from pytest_ddenv.driver.scenario_job import ScenarioJob
+from pytest_ddenv.execution import LocalPool
+from pytest_ddenv.oracle import PredicateSpec, make_predicate
+from pytest_ddenv.scenario.probe import FailureReference
 from pytest_ddenv.scenario.reported import REPORTED
 from pytest_ddenv.sim import Run, simulate
 from pytest_ddenv.world import Model, Pose, Scenario, Shape, World
@@ -129,3 +135,31 @@ def test_ddenv_reduce_of_a_300_object_yard_reports_the_cut_and_finds_the_back_wa
     again = json.loads((out / "summary.json").read_text())
     assert again["minimal_models"] == ["pocket_back"] and again["first_cut"]["holds"]
     assert again["first_cut"]["simulations"] == 0 and again["first_cut"]["kept"] == cut["kept"]
+
+
+@pytest.mark.slow  # a reduction (the driver finds its code's identity with a subprocess)
+def test_a_cut_that_does_not_reproduce_the_failure_falls_back_to_the_whole_world(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    world = World(models=(box("wall", (3.6, 0.0, 0.4), 0.8), box("left", (2.0, 4.0, 0.25)),
+                          box("right", (2.0, -4.0, 0.25))),
+                  scenario=Scenario(goal=(7.0, 0.0, None), timeout=15.0), name="wall")
+    # a cut that drops what matters (as one that missed a rolling ball would): the probe says so
+    monkeypatch.setattr(run, "reach_cut", lambda world, run: ReachCut(("left", "right"), ("wall",), 12.0))
+    job = ScenarioJob((PredicateSpec("stuck", {"window": 5.0, "min_progress": 0.2}),))
+    with LocalPool(job, 1, in_process=job.handler()) as pool:
+        original = pool.call(world, 0)
+        assert original.error is not None and original.run is not None
+        spec = dataclasses.replace(ReductionSpec(), stages=("models",))
+        plan = ReductionPlan(world=world, test_id="wall", reference=FailureReference.of(original.error),
+                             reference_run=original.run, spec=spec, artifacts=tmp_path, replay_command="",
+                             fingerprint={}, confirmed=True, media="none")
+        outcome = run_reduction(plan, pool)
+    reduction = outcome.reduction
+    assert reduction is not None and reduction.minimal == ("wall",) and reduction.one_minimal
+    assert reduction.first_cut is not None and not reduction.first_cut.holds and reduction.first_cut.kept == 2
+    assert reduction.first_cut.simulations >= 2, "the cut was re-run by the deflake rule before it was rejected"
+    logged = [json.loads(line) for line in (tmp_path / "runs.jsonl").read_text().splitlines()]
+    assert [record["decision"] for record in logged if record["event"] == "first-cut"] == ["does-not-hold"]
+    cut_runs = [record for record in logged if record["event"] == "probe" and record["candidate"] == ["left", "right"]]
+    assert len(cut_runs) == reduction.first_cut.simulations
+    assert outcome.report is not None and outcome.report.cost.simulations >= reduction.simulations
