@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pytest_ddenv.driver import ReductionPlan, run, run_reduction
+from pytest_ddenv.driver import ReductionPlan, run_reduction
+from pytest_ddenv.driver import run as driver_run
 from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.driver.reach import ReachCut, reach_cut
 from pytest_ddenv.driver.scenario_job import ScenarioJob
@@ -71,7 +72,8 @@ def test_the_cut_world_runs_exactly_as_the_original(yard_and_run: tuple[World, R
 def test_the_laser_range_counts_only_when_the_run_has_laser_rays(yard_and_run: tuple[World, Run]) -> None:
     world, run = yard_and_run
     blind = replace(run, settings=replace(run.settings, laser_rays=0))
-    assert reach_cut(world, blind).robot_reach == pytest.approx(reach_cut(world, run).robot_reach - run.settings.laser_range)
+    laser = run.settings.laser_range
+    assert reach_cut(world, blind).robot_reach == pytest.approx(reach_cut(world, run).robot_reach - laser)
     assert set(reach_cut(world, blind).kept) < set(reach_cut(world, run).kept)
 
 
@@ -144,7 +146,7 @@ def test_a_cut_that_does_not_reproduce_the_failure_falls_back_to_the_whole_world
                           box("right", (2.0, -4.0, 0.25))),
                   scenario=Scenario(goal=(7.0, 0.0, None), timeout=15.0), name="wall")
     # a cut that drops what matters (as one that missed a rolling ball would): the probe says so
-    monkeypatch.setattr(run, "reach_cut", lambda world, run: ReachCut(("left", "right"), ("wall",), 12.0))
+    monkeypatch.setattr(driver_run, "reach_cut", lambda world, run: ReachCut(("left", "right"), ("wall",), 12.0))
     job = ScenarioJob((PredicateSpec("stuck", {"window": 5.0, "min_progress": 0.2}),))
     with LocalPool(job, 1, in_process=job.handler()) as pool:
         original = pool.call(world, 0)
