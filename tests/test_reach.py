@@ -59,7 +59,6 @@ def test_the_cut_keeps_every_model_the_robot_touched_or_sensed_and_drops_only_fa
     gaps = world.distances(run.positions, cut.dropped).min(axis=0)  # the shapes' true surfaces
     assert (gaps > cut.robot_reach).all()
     assert cut.robot_reach > run.settings.laser_range
-    assert cut.describe().startswith(f"first cut by reach: 300 -> {len(cut.kept)} models")
 
 
 def test_the_cut_world_runs_exactly_as_the_original(yard_and_run: tuple[World, Run]) -> None:
@@ -110,7 +109,6 @@ def test_the_cut_is_skipped_with_a_reason_when_the_reach_is_not_bounded(yard_and
     ]:
         cut = reach_cut(world, given)
         assert cut.reason == reason and cut.kept == world.names and not cut.dropped and not cut.made
-        assert cut.describe() == f"first cut by reach skipped: {reason}"
 
 
 @pytest.mark.slow

@@ -59,12 +59,6 @@ class ReachCut:
     def made(self) -> bool:
         return not self.reason and bool(self.dropped)
 
-    def describe(self) -> str:
-        if self.reason:
-            return f"first cut by reach skipped: {self.reason}"
-        return (f"first cut by reach: {len(self.kept) + len(self.dropped)} -> {len(self.kept)} models "
-                f"(within {self.robot_reach:.1f} m of the original run's path)")
-
 
 def reach_cut(world: World, run: Run | None) -> ReachCut:
     """The models of `world` within reach of its original run `run` (see the module's text)."""
