@@ -37,6 +37,8 @@ UNIT_MODULES = (
     # the simulation, in this process's own pybullet client
     "sim/test_controllers.py", "sim/test_driving.py", "sim/test_oracle_ditch.py", "sim/test_predicates.py",
     "sim/test_shapes_sim.py", "sim/test_urdf_robot.py", "sim/test_validation.py",
+    # the first cut by reach, on real runs
+    "test_reach.py",
     # the settings each front end takes, declared once
     "test_settings.py",
     # this tier's own check

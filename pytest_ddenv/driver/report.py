@@ -161,6 +161,7 @@ class ReductionReport:
             "needed_models": list(reduction.needed),
             "precondition_kept": [{"model": name, "reason": reason} for name, reason in reduction.precondition_kept],
             "without_precondition_kept": _rate_json(reduction.without_precondition_kept),
+            "first_cut": None if reduction.first_cut is None else reduction.first_cut.to_json(),
             "wall_time": round(reduction.wall_time, 3),
             "schemas": {"partition": reduction.partition, "priority": reduction.priority,
                         "granularity": reduction.granularity, "deflake": reduction.deflake},

@@ -43,6 +43,7 @@ def result_lines(report: ReductionReport) -> list[str]:
         *reproduction_lines(report),
         f"minimal world: {', '.join(reduction.minimal) or '(no models)'}",
         *needed_lines(reduction),
+        *([] if reduction.first_cut is None else [reduction.first_cut.describe()]),
         f"removed ({len(removed)}): {listing(removed)}",
         probes_line(reduction, earlier),
         (f"simulations run: {report.cost.simulations} (confirmation, fresh-run, "

@@ -27,6 +27,7 @@ from pytest_ddenv.driver.cross_engine import CrossEngine, confirm_in_engines
 from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.driver.other_failures import original_reproduction, other_failures
 from pytest_ddenv.driver.problem import ENGINE_PART, Problem, problem_of
+from pytest_ddenv.driver.reach import reach_cut
 from pytest_ddenv.driver.report import (
     Cost,
     ReductionReport,
@@ -333,7 +334,7 @@ class _Locked:
                 partition=partition, priority=priority, n_partitions=spec.n_partitions,
                 granularity=spec.granularity, deflake=spec.deflake, keep=tuple(sorted(keep)),
                 preconditions=(keeps_start_support(world),), max_probes=left, max_seconds=seconds, seed=spec.seed,
-                workers=pool.size, check_independence=True,
+                workers=pool.size, check_independence=True, first_cut=self.first_cut(),
             )
             reduction = reduce(
                 world.names, probe, settings, geometry=world,
@@ -351,6 +352,17 @@ class _Locked:
         finally:
             if threads is not None:
                 threads.shutdown(wait=clean, cancel_futures=True)
+
+    def first_cut(self) -> tuple[str, ...] | None:
+        """The models within reach of the original run (`reach.py`) for the engine to try first; None (logged
+        as a "first-cut" event "skipped", with the reason) when there is nothing to cut or the reach is not
+        bounded."""
+        cut = reach_cut(self.plan.world, self.plan.reference_run)
+        if cut.made:
+            return cut.kept
+        self.log.write(events.FirstCut(original=len(self.plan.world), kept=len(cut.kept), decision="skipped",
+                                       reason=cut.reason or "every model is within reach of the original run"))
+        return None
 
     def runs_to_show(self, reduction: Reduction, confirmations: tuple[ConfirmationRun, ...]
                      ) -> tuple[Run | None, list[Shown]]:

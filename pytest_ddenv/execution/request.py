@@ -4,13 +4,18 @@ test may inject, and `serve_requests`, the loop every job's `serve` runs (local 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
+import pickle
 import signal
 import sys
+import threading
 import time
+import weakref
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, runtime_checkable
 
 from pytest_ddenv.detail import recording_detail
 from pytest_ddenv.execution.errors import PoolConfigError
@@ -83,6 +88,69 @@ class ProbeRequest:
     attempt: int
     fault: FaultKind | None = None
     record: bool = False
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """A large world travels as its pickled bytes (made once per `World` object on this side) and its
+        digest; the receiving process keeps the last worlds it unpickled by digest (`SharedWorld`)."""
+        world: Any = self.world
+        if len(self.world) >= SHARED_WORLD_MODELS:
+            world = SharedWorld.of(self.world)
+        return (_request, (world, self.attempt, self.fault, self.record))
+
+
+SHARED_WORLD_MODELS = 1000
+"""Worlds of at least this many models are sent as `SharedWorld`s: pickling a 10 000-model world cost 0.2-0.35
+s and unpickling it 0.17-0.25 s (a busy machine), every probe of the original world (its confirmation,
+calibration and failure-rate runs); at 1 000 models both are about 15 ms."""
+SHARED_WORLDS_KEPT = 2
+"""Worlds a process keeps, by digest, of those it sent or received."""
+
+
+@dataclass(frozen=True)
+class SharedWorld:
+    """A `World` as it crosses a process boundary again and again: its pickled bytes and their digest. The
+    sender pickles a `World` object once (`of`); the receiver unpickles one digest once (`world`): the same
+    world every time, so the runs are those of the world sent."""
+
+    digest: str
+    data: bytes
+
+    _sent: ClassVar[OrderedDict[int, tuple[weakref.ref[World], SharedWorld]]] = OrderedDict()
+    _received: ClassVar[OrderedDict[str, World]] = OrderedDict()
+    _lock: ClassVar[threading.Lock] = threading.Lock()
+
+    @classmethod
+    def of(cls, world: World) -> SharedWorld:
+        with cls._lock:
+            known = cls._sent.get(id(world))
+            if known is not None and known[0]() is world:
+                cls._sent.move_to_end(id(world))
+                return known[1]
+        data = pickle.dumps(world, protocol=pickle.HIGHEST_PROTOCOL)
+        shared = cls(hashlib.blake2b(data, digest_size=16).hexdigest(), data)
+        with cls._lock:
+            cls._sent[id(world)] = (weakref.ref(world), shared)
+            while len(cls._sent) > SHARED_WORLDS_KEPT:
+                cls._sent.popitem(last=False)
+        return shared
+
+    def world(self) -> World:
+        with self._lock:
+            known = self._received.get(self.digest)
+            if known is not None:
+                self._received.move_to_end(self.digest)
+                return known
+        world: World = pickle.loads(self.data)
+        with self._lock:
+            self._received[self.digest] = world
+            while len(self._received) > SHARED_WORLDS_KEPT:
+                self._received.popitem(last=False)
+        return world
+
+
+def _request(world: World | SharedWorld, attempt: int, fault: FaultKind | None, record: bool) -> ProbeRequest:
+    """A `ProbeRequest` unpickled (`ProbeRequest.__reduce__`)."""
+    return ProbeRequest(world.world() if isinstance(world, SharedWorld) else world, attempt, fault, record)
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,8 @@
 """What the schemas may look at: the geometry, the latest failing trace, and the verdicts so far.
 
-One `Context` lives for one reduction. It caches the geometry queries: element centroids once, and the
-distance from every trace point to every element once per trace (the trace changes only when a smaller
-failing world is adopted).
+One `Context` lives for one reduction. It caches the geometry queries: an element's centroid once, and the
+distance from every trace point to an element once per trace, when a schema first asks for it (the trace
+changes only when a smaller failing world is adopted, and then only the current elements are asked for).
 """
 
 from __future__ import annotations
@@ -39,9 +39,9 @@ class Context:
     history: list[Verdict] = field(default_factory=list)
     """Verdicts in the order the serial algorithm consults them (identical with and without an executor)."""
     _index: dict[str, int] = field(default_factory=dict, init=False, repr=False)
-    _centroids: FloatArray | None = field(default=None, init=False, repr=False)
+    _centroids: dict[str, FloatArray] = field(default_factory=dict, init=False, repr=False)
     _distance_trace: Trace | None = field(default=None, init=False, repr=False)
-    _distances: FloatArray | None = field(default=None, init=False, repr=False)
+    _distances: dict[str, FloatArray] = field(default_factory=dict, init=False, repr=False)
     _points: FloatArray | None = field(default=None, init=False, repr=False)
     _point_times: FloatArray | None = field(default=None, init=False, repr=False)
 
@@ -62,15 +62,18 @@ class Context:
         """(E, 3) centroids of the named elements, or None without geometry."""
         if self.geometry is None:
             return None
-        if self._centroids is None:
-            centroids = np.asarray(self.geometry.centroids(list(self.elements)), dtype=np.float64)
-            if centroids.shape != (len(self.elements), 3) or not np.all(np.isfinite(centroids)):
+        missing = [name for name in dict.fromkeys(names) if name not in self._centroids]
+        if missing:
+            centroids = np.asarray(self.geometry.centroids(missing), dtype=np.float64)
+            if centroids.shape != (len(missing), 3) or not np.all(np.isfinite(centroids)):
                 raise ReductionError(
-                    f"geometry.centroids() must return finite values of shape ({len(self.elements)}, 3), "
+                    f"geometry.centroids() must return finite values of shape ({len(missing)}, 3), "
                     f"got shape {centroids.shape}"
                 )
-            self._centroids = centroids
-        return self._centroids[[self._index[name] for name in names]]
+            self._centroids.update(zip(missing, centroids, strict=True))
+        if not names:
+            return np.zeros((0, 3))
+        return np.stack([self._centroids[name] for name in names])
 
     def trace_points(self) -> tuple[FloatArray, FloatArray] | None:
         """(points (N, 3), times (N,)) of the current trace, subsampled (the carried path's points after the
@@ -87,16 +90,18 @@ class Context:
         self._refresh_trace_cache()
         if self._points is None:
             return None
-        if self._distances is None:
-            self._distances = self._measure(self._points)
-        return self._distances[:, [self._index[name] for name in names]]
+        missing = [name for name in dict.fromkeys(names) if name not in self._distances]
+        if missing:
+            self._distances.update(zip(missing, self._measure(self._points, missing).T, strict=True))
+        if not names:
+            return np.zeros((len(self._points), 0))
+        return np.stack([self._distances[name] for name in names], axis=1)
 
     def point_distances(self, point: FloatArray, names: Sequence[str]) -> FloatArray | None:
         """(E,) distance from one point to each named element, or None without geometry."""
         if self.geometry is None:
             return None
-        distances = self._measure(np.asarray(point, dtype=np.float64).reshape(1, 3))
-        row: FloatArray = distances[0, [self._index[name] for name in names]]
+        row: FloatArray = self._measure(np.asarray(point, dtype=np.float64).reshape(1, 3), list(names))[0]
         return row
 
     def failure_point(self) -> FloatArray | None:
@@ -110,10 +115,10 @@ class Context:
             return last
         return None
 
-    def _measure(self, points: FloatArray) -> FloatArray:
+    def _measure(self, points: FloatArray, names: list[str]) -> FloatArray:
         assert self.geometry is not None
-        distances = np.asarray(self.geometry.distances(points, list(self.elements)), dtype=np.float64)
-        expected = (points.shape[0], len(self.elements))
+        distances = np.asarray(self.geometry.distances(points, names), dtype=np.float64)
+        expected = (points.shape[0], len(names))
         if distances.shape != expected or not np.all(np.isfinite(distances)):
             raise ReductionError(
                 f"geometry.distances() must return finite values of shape {expected}, got shape {distances.shape}"
@@ -124,7 +129,7 @@ class Context:
         if self._distance_trace is self.trace:
             return
         self._distance_trace = self.trace
-        self._distances = None
+        self._distances = {}
         self._points = None
         self._point_times = None
         if self.trace is None or len(self.trace) == 0:

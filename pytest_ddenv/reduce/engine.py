@@ -36,6 +36,7 @@ from pytest_ddenv.reduce.trial import Trial
 from pytest_ddenv.reduce.types import (
     Candidate,
     Decision,
+    FirstCutResult,
     Geometry,
     Outcome,
     Probe,
@@ -204,6 +205,9 @@ class _Engine:
         self.verifying = False
         self.calibration: tuple[int, int] | None = None
         self.independent = False
+        self.first_cut: FirstCutResult | None = None
+        self.cutting: Trial | None = None
+        """The first cut's trial while it is decided: what idle workers run ahead (not the whole world's round)."""
 
     # -- driver -------------------------------------------------------------------------------------------
 
@@ -236,6 +240,7 @@ class _Engine:
             if self.settings.check_independence and self.reproduces_without_elements():
                 return False, WORLD_INDEPENDENT
             self.calibrate()
+            self.try_first_cut()
             while True:
                 one_minimal = self.reduce_to_one_minimal()
                 if one_minimal and self.unverified:
@@ -254,9 +259,13 @@ class _Engine:
         """Whether the world without every reducible element the preconditions allow to remove reproduces f
         in one run (attempt 0, the reference's): then the failure does not depend on the elements. Logged
         with purpose "independence" (a resumed log answers without a simulation)."""
-        needed = tuple(name for name in self.current if self.refused(self.full(tuple(
-            other for other in self.current if other != name))) is not None)
-        empty = self.full(needed)
+        empty = self.full(())
+        needed: tuple[str, ...] = ()
+        if self.refused(empty) is not None:  # only then look for the elements the preconditions need (N checks)
+            whole = self.full(self.current)
+            needed = tuple(name for at, name in enumerate(whole) if name not in self.settings.keep
+                           and self.refused(whole[:at] + whole[at + 1:]) is not None)
+            empty = self.full(needed)
         if len(needed) == len(self.current) or self.refused(empty) is not None:
             return False
         known = self.log.measured(INDEPENDENCE, empty) if self.log is not None else {}
@@ -336,6 +345,31 @@ class _Engine:
         self.probing.decider.policy = rule
         self.minimal_runs = 1 + runs  # the failure-rate runs of an unreduced world continue after these
 
+    def try_first_cut(self) -> None:
+        """The caller's first cut (`first_cut`: the driver's cut by reach), tried as one trial judged like any
+        other (deflake rule, log, cache: a resumed log answers without a simulation) before the rounds; adopted
+        as a step when it reproduces f. Its simulations count as any other's."""
+        if self.settings.first_cut is None:
+            return
+        whole = self.full(self.current)
+        trial = Trial(self.full(tuple(name for name in self.current if name in self.settings.first_cut)), "reach")
+        if len(trial.candidate) == len(whole):
+            return
+        before = self.probing.counters.simulations
+        self.cutting = trial
+        try:
+            found = self.probing.scheduler.first_reproducing([trial])
+        finally:
+            self.cutting = None
+        self.first_cut = FirstCutResult(len(whole), len(trial.candidate), found is not None,
+                                        self.probing.counters.simulations - before)
+        self.write(events.FirstCut(original=len(whole), kept=len(trial.candidate),
+                                   decision="holds" if found is not None else "does-not-hold",
+                                   simulations=self.first_cut.simulations))
+        if found is not None:
+            self.adopt(trial, found[1])
+            self.granularity = min(self.settings.n_partitions, len(self.current))
+
     def reduce_to_one_minimal(self) -> bool:
         """ddmin rounds until the finest round fails, then the verification pass; True when 1-minimal."""
         while self.current:
@@ -411,6 +445,8 @@ class _Engine:
     def lookahead(self) -> list[tuple[Candidate, int]]:
         """The probes the engine starts next if the current round (or verification pass) finds nothing:
         prefetched on idle workers (see prefetch.py). A guess: a schema error here is left to the real round."""
+        if self.cutting is not None:
+            return self.probing.scheduler.planned([self.cutting])
         if self.verifying or not self.current:
             runs = self.rates.looks[0] if self.rates.looks else 0
             return [(self.full(self.current), attempt)
@@ -573,6 +609,7 @@ class _Engine:
             precondition_kept=self.precondition_kept(),
             without_precondition_kept=self.precondition_check,
             independent=self.independent,
+            first_cut=self.first_cut,
         )
 
     def write_start(self) -> None:

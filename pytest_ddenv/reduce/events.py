@@ -346,6 +346,19 @@ class FailurePath(Event, name="path"):
 
 
 @dataclass(frozen=True, kw_only=True)
+class FirstCut(Event, name="first-cut"):
+    """The first cut by reach (driver/reach.py): `original` models, `kept` of them within reach; `decision`
+    "holds" (one trial reproduced f: the rounds start from the kept world), "does-not-hold" (they start from
+    the whole world) or "skipped" (not tried: `reason`); `simulations` the trial's."""
+
+    original: Count
+    kept: Count
+    decision: str
+    simulations: Count = 0
+    reason: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
 class End(Event, name="end"):
     """A reduction ended: its result, as counted."""
 
@@ -377,7 +390,7 @@ class End(Event, name="end"):
 
 KINDS: Mapping[str, type[Event]] = {kind.NAME: kind for kind in (
     Problem, Session, Usage, Start, Round, Probe, Accept, Reject, Errored, CacheHit, RateBelow, Skip, Step,
-    BackOff, Calibration, FailureRate, PreconditionCheck, RateCheck, FailurePath, EngineRun, End)}
+    BackOff, Calibration, FailureRate, PreconditionCheck, RateCheck, FailurePath, EngineRun, FirstCut, End)}
 """Every kind of event, by the name a line spells it with."""
 VERDICTS: tuple[type[Decided], ...] = (Accept, Reject, CacheHit, RateBelow)
 """The decisions a resumed reduction reuses (unless `errored`)."""

@@ -53,6 +53,8 @@ class Settings:
     check_independence: bool = False
     workers: int = 1
     """How many probes a round keeps running at once on `executor`."""
+    first_cut: frozenset[str] | None = None
+    """The elements a first candidate keeps (the driver's cut by reach), tried before the rounds."""
 
     @property
     def reducible(self) -> tuple[str, ...]:
@@ -104,6 +106,10 @@ class ReductionSettings:
     without one)."""
     cache: MutableMapping[Any, Any] | None = None
     """Verdicts shared between reductions of the same elements (candidate -> outcomes)."""
+    first_cut: Collection[str] | None = None
+    """A first candidate, tried in one trial (deflake rule and all) after the calibration and before the
+    rounds: the elements it keeps (the driver's cut by reach, driver/reach.py). When it reproduces f the
+    rounds start from it; otherwise from the whole world. None: no first cut."""
 
 
 SETTING_NAMES: tuple[str, ...] = tuple(field.name for field in fields(ReductionSettings))
@@ -158,6 +164,7 @@ def validate(
         on_progress=on_progress,
         check_independence=_flag("check_independence", given.check_independence),
         workers=_workers(given.workers),
+        first_cut=None if given.first_cut is None else _names_of("first_cut", given.first_cut, names),
     )
 
 
@@ -184,6 +191,17 @@ def _elements(elements: Sequence[str]) -> tuple[str, ...]:
         raise ReductionError(expected("distinct element names", names, "elements",
                                       got=f"{', '.join(duplicates)} more than once"))
     return names
+
+
+def _names_of(field: str, given: Collection[str], names: tuple[str, ...]) -> frozenset[str]:
+    """`given` as a set of element names (a collection, not a string, of names among `names`)."""
+    if isinstance(given, str) or not isinstance(given, Collection):
+        raise ReductionError(expected("a collection of element names, not a string", given, field))
+    chosen = frozenset(given)
+    unknown = sorted(chosen - set(names), key=str)
+    if unknown:
+        raise ReductionError(f"{field} names elements that are not in the world: {', '.join(map(str, unknown))}")
+    return chosen
 
 
 def _keep(keep: Collection[str], names: tuple[str, ...]) -> frozenset[str]:

@@ -172,6 +172,27 @@ class ProgressEvent:
 
 
 @dataclass(frozen=True)
+class FirstCutResult:
+    """A first cut tried: `original` elements, `kept` of them in its candidate, whether it reproduced f
+    (`holds`: the rounds started from it) and the simulations its trial started."""
+
+    original: int
+    kept: int
+    holds: bool
+    simulations: int
+
+    def describe(self) -> str:
+        runs = f"{self.simulations} simulation{'' if self.simulations == 1 else 's'}"
+        if self.holds:
+            return f"first cut by reach: {self.original} -> {self.kept} models in {runs}"
+        return (f"first cut by reach: {self.original} -> {self.kept} models did not reproduce the failure "
+                f"({runs}); reduced from the whole world")
+
+    def to_json(self) -> dict[str, int | bool]:
+        return {"original": self.original, "kept": self.kept, "holds": self.holds, "simulations": self.simulations}
+
+
+@dataclass(frozen=True)
 class Reduction:
     """The result of `reduce`: the minimal world and how it was reached."""
 
@@ -237,6 +258,8 @@ class Reduction:
     """`check_independence`: the world without its reducible elements (but those the preconditions need)
     reproduced f, so the failure does not depend on them and nothing was reduced (`incomplete_reason`
     "world-independent")."""
+    first_cut: FirstCutResult | None = None
+    """The first cut (`ReductionSettings.first_cut`) when it was tried."""
 
     @property
     def original_failure_rate(self) -> tuple[int, int] | None:

@@ -158,7 +158,7 @@ def make_probe(world: World, call: ProbeCall, reference: FailureReference, *,
     def probe(candidate: Candidate, attempt: int) -> ProbeObservation:
         started = time.perf_counter()
         try:
-            result = call(world.select(candidate) if build is None else build(candidate), attempt)
+            result = call(_world_of(world, candidate) if build is None else build(candidate), attempt)
         except Exception as error:  # noqa: BLE001 - the pool could not run it: an error, with its reason
             return ProbeObservation(Outcome.ERROR, wall_time=time.perf_counter() - started,
                                     detail=f"{type(error).__name__}: {error}"[:DETAIL_LIMIT])
@@ -178,6 +178,12 @@ def make_probe(world: World, call: ProbeCall, reference: FailureReference, *,
         )
 
     return probe
+
+
+def _world_of(world: World, candidate: Candidate) -> World:
+    """`world.select(candidate)`, or `world` itself when the candidate is all of it: the same object every
+    time, which a pool sends to its workers once pickled (`execution.request.SharedWorld`)."""
+    return world if tuple(candidate) == world.names else world.select(candidate)
 
 
 def start_support(world: World) -> str | None:
