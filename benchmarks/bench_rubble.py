@@ -109,7 +109,9 @@ def extract(ref: str, into: Path) -> Path:
 
 
 def deviation(a: list[list[float]], b: list[list[float]]) -> float:
-    return max((sum((x - y) ** 2 for x, y in zip(p, q)) ** 0.5 for p, q in zip(a, b)), default=0.0)
+    """The largest distance between the positions of `a` and `b` over their common samples."""
+    common = zip(a, b, strict=False)  # a run that ends earlier has fewer samples
+    return max((sum((x - y) ** 2 for x, y in zip(p, q, strict=True)) ** 0.5 for p, q in common), default=0.0)
 
 
 def main() -> None:
@@ -153,7 +155,7 @@ def main() -> None:
         if not args.no_reduce:
             print("\n| code | seed | minimal world | simulations | rate check | wall |\n|---|---:|---|---:|---|---:|")
             for label, done in reductions.items():
-                for seed, row in zip(args.seeds, done):
+                for seed, row in zip(args.seeds, done, strict=True):
                     print(f"| {label} | {seed} | {len(row['minimal'])}: {', '.join(row['minimal'])} | "
                           f"{row['simulations']} | {row['rate']} | {row['wall']:.0f} s |")
 
