@@ -122,7 +122,12 @@ def main() -> None:
     parser.add_argument("--no-reduce", action="store_true", help="real-time factors only")
     parser.add_argument("--probe", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.probe:
+    if args.probe:  # `measure` runs this child in the checkout it means to measure, with PYTHONPATH first
+        import pytest_ddenv
+
+        imported = Path(pytest_ddenv.__file__).resolve().parent.parent
+        if imported != Path.cwd().resolve():
+            raise SystemExit(f"bench_rubble: imported pytest_ddenv from {imported}, not from {Path.cwd()}")
         print(json.dumps(probe_rows(args.seeds, args.repeats)))
         return
     with tempfile.TemporaryDirectory(prefix="bench-rubble-") as tmp:
