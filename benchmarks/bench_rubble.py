@@ -13,7 +13,8 @@ failure-rate check, stages `models` only, `--workers 2`, no media): the minimal 
 it took (`summary.json`).
 
 With `--compare REF` the ref's files (`git archive REF`) go to a temporary folder and every measurement runs
-there as well (`PYTHONPATH` first on the path), one checkout after the other for each seed; the "largest
+there as well (`PYTHONPATH` first on the path): the probes of one checkout and then the other's, the
+reductions in turn for each seed; the "largest
 deviation" column is the largest distance between the robot's recorded positions (x, y, z) of the two runs
 of a seed over their common samples, to read against the oracle's 0.5 m tolerance.
 """
@@ -73,12 +74,14 @@ def probe_rows(seeds: list[int], repeats: int) -> list[dict[str, Any]]:
 
 def measure(root: Path, seeds: list[int], repeats: int) -> list[dict[str, Any]]:
     """The probe rows of the checkout at `root`, measured in a fresh process that imports it."""
-    out = subprocess.run(
+    done = subprocess.run(
         [sys.executable, str(Path(__file__).resolve()), "--probe", "--seeds", *map(str, seeds),
          "--repeats", str(repeats)],
-        env=_env(root), cwd=root, capture_output=True, text=True, check=True,
-    ).stdout
-    rows: list[dict[str, Any]] = json.loads(out.strip().splitlines()[-1])
+        env=_env(root), cwd=root, capture_output=True, text=True, check=False,
+    )
+    if done.returncode != 0:
+        raise SystemExit(f"the probes in {root} exited with {done.returncode}:\n{done.stderr[-2000:]}")
+    rows: list[dict[str, Any]] = json.loads(done.stdout.strip().splitlines()[-1])
     return rows
 
 
@@ -89,7 +92,9 @@ def reduce(root: Path, seed: int, out: Path) -> dict[str, Any]:
                "--priority", "avg-trajectory", "--seed", str(seed), "--workers", "2", "--media", "none",
                "--stages", "models", "-q", "--out", str(out)]
     started = time.perf_counter()
-    subprocess.run(command, env=_env(root), cwd=root, capture_output=True, text=True, check=True)
+    done = subprocess.run(command, env=_env(root), cwd=root, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(command[1:])} in {root} exited with {done.returncode}:\n{done.stderr[-2000:]}")
     summary = json.loads((out / "summary.json").read_text())
     rate = summary.get("rate_check") or {}
     return {"minimal": summary["minimal_models"], "simulations": summary["simulations"],
