@@ -72,13 +72,13 @@ def xyz(vector: Any) -> np.ndarray:
 # -- fixtures ---------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def runs() -> list[tuple[str, World, Run]]:
-    """The rubble world (35 moving models; high-centred at 4.25 s) and a 2-model sub-world that fails too (stuck
-    at 11.15 s), as in tests/test_recording.py."""
+    """The rubble world (35 moving models; high-centred at 4.2 s) and a 2-model sub-world that fails too (stuck
+    at 15.35 s), as in tests/test_recording.py."""
     world = World.load(ROOT / "worlds" / "rubble.yaml")
     original = failing_run(world)
     if original.engine != "pybullet":
         pytest.skip("needs pybullet: the 2-model rubble sub-world fails in PyBullet only")
-    minimal = world.select(["asphalt_plane", "cinder_block"])
+    minimal = world.select(["asphalt_plane", "cinder_block_0"])
     chosen = [("original", world, original), ("minimal", minimal, failing_run(minimal))]
     for label, _, run in chosen:
         assert run.failure is not None, f"the {label} world no longer fails: pick another sub-world"
@@ -101,7 +101,7 @@ def test_every_run_has_every_channel_in_its_foxglove_schema(runs: list[tuple[str
     expected = {f"/{label}/{topic}": schema for label, _, _ in runs for topic, schema in SCHEMAS.items()}
     assert read.schemas == expected and set(info.topics) == set(expected)
     assert info.messages == sum(len(messages) for messages in read.messages.values())
-    assert info.to_dict()["topics"] == len(expected) and info.time_range == (0.0, 11.15)
+    assert info.to_dict()["topics"] == len(expected) and info.time_range == (0.0, 15.35)
 
 
 def test_the_robot_moves_at_the_simulated_times(runs: list[tuple[str, World, Run]],

@@ -76,7 +76,7 @@ def _build_model(p: Any, client: int, model: Model, source: str | None, friction
             baseVisualShapeIndex=-1,
             basePosition=[pose.x, pose.y, pose.z],
             baseOrientation=_quaternion(p, pose.roll, pose.pitch, pose.yaw),
-            useMaximalCoordinates=model.static,
+            useMaximalCoordinates=True,  # a rigid body: Bullet's cheaper solver path (docs/simulation.md)
             physicsClientId=client,
         )
         links: list[int] = [-1]
