@@ -35,9 +35,8 @@ def probe_pool(item: pytest.Function, example: GivenExample | None = None,
     from pytest_ddenv.pytest_plugin.worker import ItemHandler, PytestJob
 
     config = item.config
-    default = "1" if hasattr(config, "workerinput") else "auto"  # xdist already uses every core
     options = options_of(config)
-    workers = options.workers or default
+    workers = default_workers(config)
     count = int(workers) if str(workers).isdigit() else workers
     executor = check_executor(options.executor)
     watchdog = options.watchdog
@@ -49,6 +48,13 @@ def probe_pool(item: pytest.Function, example: GivenExample | None = None,
         cluster = config.stash[_CLUSTER] = make_cluster(executor, count)
     return make_pool(PytestJob.of(item, capture="sys", example=example, seed=seed), count, executor,
                      cluster=cluster, watchdog=watchdog)
+
+
+def default_workers(config: pytest.Config) -> str:
+    """`--ddenv-workers` as given, else "auto" (the idle cores: `execution.idle_cores`), or "1" in a
+    pytest-xdist worker (xdist already uses every core)."""
+    given = options_of(config).workers
+    return str(given) if given else "1" if hasattr(config, "workerinput") else "auto"
 
 
 def close_cluster(config: pytest.Config) -> None:
