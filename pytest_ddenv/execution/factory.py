@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from pytest_ddenv.execution.ray_pool import RayCluster
 
 
-IDLE_SAMPLE_SECONDS = 0.25
+IDLE_SAMPLE_SECONDS = 0.1
 """How long `idle_cores` watches the machine's CPU time (/proc/stat) to see how much of it others use."""
 
 
