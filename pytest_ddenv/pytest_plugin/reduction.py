@@ -239,8 +239,8 @@ def _with_result(item: pytest.Item, call: pytest.CallInfo[None], report: Any) ->
     html = item.config.pluginmanager.getplugin("html")
     if html is not None and hasattr(html, "extras"):
         media = item.stash.get(_media_key, None)
-        if media is not None:  # the HTML report embeds the animations: they must be there
-            media.finish()
+        if media is not None and getattr(item.config.option, "htmlpath", None):  # an HTML report is written:
+            media.finish()  # it embeds the animations, which must be there
         extras = list(getattr(report, "extras", []))
         for path in sorted(attachments, key=_html_order):  # the report shows the first image: the animation
             if not Path(path).exists():  # a medium that could not be made (a warning says why)
