@@ -399,7 +399,8 @@ SETTINGS: tuple[Setting, ...] = (
             "is an error, not a verdict (default: $DDENV_PROBE_TIMEOUT, else auto)", probe_timeout, "SECONDS",
             option="probe-timeout", flag="probe-timeout"),
     Setting("workers", "simulation worker processes: a number, 'auto' for the cores other processes leave idle "
-            "(the default; at least 1), or 1 to simulate in the main process", workers, "N", "auto", option="workers", flag="workers"),
+            "(the default; at least 1), or 1 to simulate in the main process", workers, "N", "auto",
+            option="workers", flag="workers"),
     Setting("executor", "where probes simulate: 'local' worker processes (default), 'dask' (a local dask "
             "cluster), tcp://HOST:PORT of a dask scheduler, 'ray' (a local Ray cluster started for the session) "
             "or ray://HOST:PORT of a running Ray cluster (through the Ray client)", executor, "ADDRESS",

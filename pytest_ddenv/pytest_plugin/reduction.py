@@ -129,11 +129,16 @@ def _warm_up(config: pytest.Config) -> None:
     """At the session's first robot test: start the probe workers' forkserver (it imports the simulation, pytest
     and its plugins once, in its own process) while the test runs, so that a failing test's reduction finds it
     warm. Nothing when the probes would not run in local worker processes (one worker, a cluster, an xdist
-    worker's default of one)."""
+    worker's default of one), nor on a machine without a core to spare beside this process (1-minute load
+    average above the cores minus one): a session whose tests pass must not pay for it there."""
+    import os
+
+    from pytest_ddenv.execution import cpu_count
     from pytest_ddenv.pytest_plugin.pools import default_workers
 
     options = options_of(config)
-    if options.executor in (None, "", "local") and default_workers(config) != "1":
+    if options.executor in (None, "", "local") and default_workers(config) != "1" and \
+            os.getloadavg()[0] <= cpu_count() - 1:
         from pytest_ddenv.execution.factory import start_forkserver
 
         start_forkserver()
