@@ -433,10 +433,10 @@ class _Locked:
         pending: PendingMedia | None = None
         later: LaterMedia | None = None
         try:
-            if interrupted is None and shown and not plan.media_later:  # with worker processes, an animation
-                pending = PendingMedia(paths.directory, shown, failure_text=plan.reference.describe(),  # renders
-                                       helper=self.pool.size > 1 and not self.pool.in_process,  # beside the
-                                       media=plan.media)  # pictures
+            if interrupted is None and shown and not plan.media_later:
+                # with worker processes, an animation renders beside the pictures
+                pending = PendingMedia(paths.directory, shown, failure_text=plan.reference.describe(),
+                                       helper=self.pool.size > 1 and not self.pool.in_process, media=plan.media)
             if interrupted is None and plan.media != "none":
                 with timed(self.timings, "pictures"):
                     attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
