@@ -41,8 +41,11 @@ def probe_pool(item: pytest.Function, example: GivenExample | None = None,
     executor = check_executor(options.executor)
     watchdog = options.watchdog
     if executor is None:
-        return make_pool(PytestJob.of(item, example=example, seed=seed), count,
-                         in_process=ItemHandler(item, example, seed), watchdog=watchdog, warn=warn)
+        # Probes run in this process only when one worker is asked for; 'auto' on a machine with one idle core
+        # starts one worker process, where each probe runs the whole test as with more workers.
+        in_process = ItemHandler(item, example, seed) if count == 1 else None
+        return make_pool(PytestJob.of(item, example=example, seed=seed), count, in_process=in_process,
+                         watchdog=watchdog, warn=warn)
     cluster = config.stash.get(_CLUSTER, None)
     if cluster is None:
         cluster = config.stash[_CLUSTER] = make_cluster(executor, count)
