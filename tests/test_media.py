@@ -17,6 +17,7 @@ from pytest_ddenv.media.recording import recording_available
 from pytest_ddenv.detail import recording_detail
 from pytest_ddenv.execution import LocalPool
 from pytest_ddenv.media.writer import (
+    BackgroundMedia,
     MediaChoiceError,
     PendingMedia,
     Shown,
@@ -156,6 +157,43 @@ def test_an_animation_whose_helper_dies_is_rendered_here(tmp_path: Path) -> None
     assert len(read_gif(tmp_path / "original.gif")) == written.info["original.gif"]["frames"]
 
 
+@pytest.mark.slow  # a media process: the full tier only
+@pytest.mark.pybullet
+def test_media_made_in_the_background_are_the_files_made_here(tmp_path: Path) -> None:
+    world, run = failing_run("ditch")
+    shown = [Shown("minimal", world, run, True)]
+    (tmp_path / "here").mkdir()
+    (tmp_path / "later").mkdir()
+    here = write_media(tmp_path / "here", shown, failure_text="stuck", media="pictures,animations")
+    later = BackgroundMedia(tmp_path / "later", shown, failure_text="stuck", media="pictures,animations")
+    assert later.expected_paths() == [tmp_path / "later" / "minimal.gif"]
+    written = later.finish()
+    assert later.process.exitcode == 0 and later.finish() is written  # waited for once, no zombie
+    assert [path.name for path in written.paths] == [path.name for path in here.paths] == ["minimal.gif"]
+    assert (tmp_path / "later" / "minimal.gif").read_bytes() == (tmp_path / "here" / "minimal.gif").read_bytes()
+
+
+@pytest.mark.slow  # a media process: the full tier only
+@pytest.mark.pybullet
+def test_media_whose_background_process_dies_are_made_here(tmp_path: Path) -> None:
+    world, run = failing_run("ditch")
+    later = BackgroundMedia(tmp_path, [Shown("minimal", world, run, True)], media="pictures,animations")
+    later.process.kill()
+    with pytest.warns(UserWarning, match=r"ddenv: the media process \d+ ended with status -9; making the media"):
+        written = later.finish()
+    assert [path.name for path in written.paths] == ["minimal.gif"] and len(read_gif(tmp_path / "minimal.gif")) > 2
+
+
+@pytest.mark.slow  # a media process: the full tier only
+@pytest.mark.pybullet
+def test_a_medium_that_fails_in_the_background_is_a_warning_here(tmp_path: Path) -> None:
+    world, run = failing_run("ditch")
+    later = BackgroundMedia(tmp_path / "missing", [Shown("minimal", world, run, True)], media="pictures,animations")
+    with pytest.warns(UserWarning, match=r"ddenv: minimal.gif not written: "):
+        written = later.finish()
+    assert written.paths == [] and later.process.exitcode == 0
+
+
 # -- the media setting --------------------------------------------------------------------------------------
 def test_media_choice_reads_the_option_then_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("DDENV_MEDIA", raising=False)
@@ -260,6 +298,10 @@ def test_a_reduction_leaves_animations_counted_runs_and_an_inline_html_animation
     summary = json.loads((folder / "summary.json").read_text())
     logged = sum(1 for r in records if r.get("event") == "probe")  # + speculative probes cancelled unlogged
     assert summary["simulations"] >= logged and set(summary["media"]["files"]) >= {"original.gif", "minimal.gif"}
+    timings = summary["timings"]  # the media were made after the summary, beside the rest, and waited for
+    assert set(timings) >= {"test_run", "pool_start", "confirmation", "reduction", "recording_runs", "files",
+                            "pictures", "media", "media_wait"}
+    assert timings["media"] == summary["media"]["seconds"] > 0 and timings["media_wait"] <= timings["media"]
     html = (pytester.path / "report.html").read_text()
     assert "image/gif" in html and "minimal.gif" in html and "original.gif" in html
     xml = (pytester.path / "junit.xml").read_text()

@@ -37,7 +37,7 @@ from pytest_ddenv.driver.report import (
 )
 from pytest_ddenv.execution import Pool
 from pytest_ddenv.execution.base import world_size
-from pytest_ddenv.media.writer import DEFAULT_MEDIA, PendingMedia, Shown, records_runs
+from pytest_ddenv.media.writer import DEFAULT_MEDIA, BackgroundMedia, PendingMedia, Shown, records_runs
 from pytest_ddenv.oracle.predicates import FailureSignature
 from pytest_ddenv.oracle.verdict import ErrorInfo, FailureReference, SameFailureRule, classify_result
 from pytest_ddenv.reduce import (
@@ -121,6 +121,9 @@ class ReductionPlan:
     """Why there is no `reference_run` when the caller knows better than "no run was made" (the run raised)."""
     same_failure: SameFailureRule | None = None
     """Which failures are the reference failure (None: `spec`'s match and tolerance, `spec.same_failure_rule()`)."""
+    media_later: bool = False
+    """Render the animations and recordings in a background process once the summary and pictures are written
+    (the outcome's `media`, which the caller finishes), instead of before `run_reduction` returns."""
 
     @property
     def rule(self) -> SameFailureRule:
@@ -140,6 +143,9 @@ class ReductionOutcome:
     attachments: list[Path] = field(default_factory=list)
     interrupted: ReductionInterrupted | None = None
     minimal_run: Run | None = None
+    media: LaterMedia | None = None
+    """The animations and recordings still rendering (`plan.media_later`): `media.finish()` waits for them and
+    adds them to `summary.json`; their files are among the `attachments` already."""
 
     @property
     def reduction(self) -> Reduction | None:
@@ -180,13 +186,15 @@ def run_reduction(plan: ReductionPlan, pool: Pool[ProbeResult], *, note: Note = 
         pool.expect(plan.reference_run.wall_time, world_size(world))
     # This process waits for the workers: import meanwhile (a caller may have started it earlier).
     ahead = None if pool.in_process else import_ahead()
+    timings: dict[str, float] = {}
     try:
         check_rule(plan.reference, plan.rule)  # a user's rule that cannot match the failure itself fails now
         calls = Calls(pool, plan.reference, plan.rule, deadline)
         with _sigterm_as_interrupt():
-            confirmation = Confirmation() if plan.confirmed else confirm(
-                world, plan.reference, plan.rule, calls, deflake=spec.deflake, max_probes=spec.max_probes,
-                record=records_runs(plan.media), note=note)
+            with timed(timings, "confirmation"):
+                confirmation = Confirmation() if plan.confirmed else confirm(
+                    world, plan.reference, plan.rule, calls, deflake=spec.deflake, max_probes=spec.max_probes,
+                    record=records_runs(plan.media), note=note)
             if confirmation.status != "confirmed":
                 return ReductionOutcome(confirmation.status, message=confirmation.message)
             partition, priority, notes = _schemas(spec, plan.reference_run, plan.no_run_reason)
@@ -206,7 +214,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool[ProbeResult], *, note: Note = 
                     note(text)
                 try:
                     return _reduce_locked(plan, pool, calls, paths, log, problem, partition, priority,
-                                          notes + prepared + log.notes, confirmation.runs, on_progress)
+                                          notes + prepared + log.notes, confirmation.runs, on_progress, timings)
                 finally:
                     log.close()
     finally:
@@ -217,14 +225,17 @@ def run_reduction(plan: ReductionPlan, pool: Pool[ProbeResult], *, note: Note = 
 def _reduce_locked(plan: ReductionPlan, pool: Pool[ProbeResult], calls: Calls, paths: artifacts.ArtifactPaths,
                    log: ProbeLog, problem: Problem, partition: str, priority: str, notes: list[str],
                    confirmations: tuple[ConfirmationRun, ...],
-                   on_progress: Callable[[ProgressEvent], None] | None) -> ReductionOutcome:
+                   on_progress: Callable[[ProgressEvent], None] | None,
+                   timings: dict[str, float]) -> ReductionOutcome:
     """The reduction once its folder is locked and its log open, in its phases: the model-level reduction,
     the runs to show, the stages, the other engines (`cross_engine.py`), the files (`_Locked`). Ctrl-C in a
     phase skips the phases after it but the files."""
     locked = _Locked(plan, pool, calls, paths, log, problem, notes, on_progress)
+    locked.timings = timings
     for attempt, result, verdict in confirmations:
         _log_run(log, "confirmation", plan.world.names, attempt, result, verdict)
-    reduction, interrupted = locked.reduce_models(partition, priority)
+    with timed(timings, "reduction"):
+        reduction, interrupted = locked.reduce_models(partition, priority)
     if reduction.independent:
         return locked.world_independent(reduction)
     locked.notes = list(dict.fromkeys([*locked.notes, *reduction.notes]))
@@ -234,12 +245,15 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool[ProbeResult], calls: Calls, p
     crossed: CrossEngine | None = None
     try:
         if interrupted is None:
-            minimal_run, shown = locked.runs_to_show(reduction, confirmations)
+            with timed(timings, "recording_runs"):
+                minimal_run, shown = locked.runs_to_show(reduction, confirmations)
         if interrupted is None and len(plan.spec.stages or DEFAULT_STAGES) > 1 and reduction.minimal:
-            staged = _run_stages(plan, pool, reduction, calls, log, paths, minimal_run)
+            with timed(timings, "stages"):
+                staged = _run_stages(plan, pool, reduction, calls, log, paths, minimal_run)
         if interrupted is None and plan.spec.confirm_engines:
-            crossed = confirm_in_engines(plan.spec.confirm_engines, plan.world, reduction, calls, log, pool,
-                                         max_probes=plan.spec.max_probes)
+            with timed(timings, "other_engines"):
+                crossed = confirm_in_engines(plan.spec.confirm_engines, plan.world, reduction, calls, log, pool,
+                                             max_probes=plan.spec.max_probes)
     except KeyboardInterrupt as stop:  # the models are reduced: the summary says so, no pictures
         pool.close()
         interrupted = ReductionInterrupted(reduction)
@@ -265,6 +279,13 @@ class _Locked:
         log.write(events.Session(pid=os.getpid(), time=time.strftime("%Y-%m-%dT%H:%M:%S")))
         self.best = _last_step(log.own_events()) or plan.world.names
         self.fresh = log.started_with() is None
+        self.timings: dict[str, float] = {}
+        """Seconds of each phase so far (`timed`), for `summary.json`'s `timings` (with the caller's own)."""
+
+    def run_settings(self) -> dict[str, Any]:
+        """The caller's entries of `summary.json` with the phases' `timings` added to the caller's own."""
+        earlier = self.plan.run_settings.get("timings", {})
+        return {**self.plan.run_settings, "timings": {**earlier, **rounded(self.timings)}}
 
     def cost(self, probes: int) -> Cost:
         stats = self.pool.stats
@@ -390,6 +411,7 @@ class _Locked:
         while the files are written waits until the summary is (the reduction's result is never left "in
         progress"), and stops the pictures and media; the outcome's `interrupted` is then set."""
         plan, paths = self.plan, self.paths
+        started = time.perf_counter()
         with interrupts_deferred() as deferred:
             self.record_usage(final=True)
             how = artifacts.write_minimal_world(paths, plan.world, plan.world.select(reduction.minimal),
@@ -414,31 +436,83 @@ class _Locked:
                 world_notes=tuple(plan.world.notes), stages=staged,
                 stage_files=artifacts.write_stage_worlds(paths, staged) if staged is not None else {},
                 run_settings=plan.run_settings, other_failures=others, cross_engine=crossed)
+            self.timings["files"] = time.perf_counter() - started
+            report = replace(report, run_settings=self.run_settings())
             artifacts.write_json(paths.summary, report.to_json())
         if deferred and interrupted is None:
             interrupted = ReductionInterrupted(reduction)
         attachments = [paths.minimal_yaml, paths.log, paths.summary, *map(Path, report.stage_files.values()),
                        *other_worlds]
         pending: PendingMedia | None = None
+        later: LaterMedia | None = None
         try:
-            if interrupted is None and shown:  # with worker processes, an animation renders beside the pictures
+            if interrupted is None and shown and not plan.media_later:
+                # with worker processes, an animation renders beside the pictures
                 pending = PendingMedia(paths.directory, shown, failure_text=plan.reference.describe(),
                                        helper=self.pool.size > 1 and not self.pool.in_process, media=plan.media)
             if interrupted is None and plan.media != "none":
-                attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
+                with timed(self.timings, "pictures"):
+                    attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
+                report = replace(report, run_settings=self.run_settings())
+                artifacts.write_json(paths.summary, report.to_json())
+            if interrupted is None and shown and plan.media_later:
+                later = LaterMedia(BackgroundMedia(paths.directory, shown, failure_text=plan.reference.describe(),
+                                                   media=plan.media), report, paths.summary)
             if pending is not None:
                 media = pending.finish()
                 attachments += media.paths
                 if media.info:  # what was made and what it took, in the summary
-                    report = report.with_media(media.info, media.seconds)
+                    self.timings["media"] = media.seconds
+                    report = replace(report.with_media(media.info, media.seconds), run_settings=self.run_settings())
                     artifacts.write_json(paths.summary, report.to_json())
         except KeyboardInterrupt as stop:  # the summary is written: only pictures and media are missing
             interrupted = interrupted or ReductionInterrupted(reduction)
             interrupted.__cause__ = interrupted.__cause__ or stop
             if pending is not None and pending.elsewhere is not None:  # its helper finishes on its own
                 pending.elsewhere[1].shutdown(wait=False, cancel_futures=True)
-        return ReductionOutcome("reduced", report=report, attachments=[path for path in attachments if path.exists()],
-                                interrupted=interrupted, minimal_run=minimal_run)
+        existing = [path for path in attachments if path.exists()]
+        return ReductionOutcome("reduced", report=report,
+                                attachments=existing + ([] if later is None else later.media.expected_paths()),
+                                interrupted=interrupted, minimal_run=minimal_run, media=later)
+
+
+class LaterMedia:
+    """A reduction's animations and recordings rendering in a background process (`plan.media_later`) after
+    its summary was written: `finish()` waits for them, says what could not be made (warnings, as when they are
+    made before `run_reduction` returns) and adds them to `summary.json` (`media`, `timings.media` the seconds
+    they took, `timings.media_wait` the seconds `finish()` waited)."""
+
+    def __init__(self, media: BackgroundMedia, report: ReductionReport, summary: Path) -> None:
+        self.media, self.report, self.summary = media, report, summary
+        self.done: list[Path] | None = None
+
+    def finish(self) -> list[Path]:
+        """The files made (waits for the background process once; later calls return the same list)."""
+        if self.done is not None:
+            return self.done
+        started = time.perf_counter()
+        written = self.media.finish()
+        timings = {**self.report.run_settings.get("timings", {}), "media": round(written.seconds, 3),
+                   "media_wait": round(time.perf_counter() - started, 3)}
+        report = replace(self.report.with_media(written.info, written.seconds) if written.info else self.report,
+                         run_settings={**self.report.run_settings, "timings": timings})
+        artifacts.write_json(self.summary, report.to_json())
+        self.done = written.paths
+        return self.done
+
+
+@contextlib.contextmanager
+def timed(timings: dict[str, float], phase: str) -> Iterator[None]:
+    """Add the block's wall-clock seconds to `timings[phase]` (even when it raises)."""
+    started = time.perf_counter()
+    try:
+        yield
+    finally:
+        timings[phase] = timings.get(phase, 0.0) + time.perf_counter() - started
+
+
+def rounded(timings: Mapping[str, float]) -> dict[str, float]:
+    return {phase: round(seconds, 3) for phase, seconds in timings.items()}
 
 
 def _run_stages(plan: ReductionPlan, pool: Pool[ProbeResult], reduction: Reduction, calls: Calls, log: ProbeLog,

@@ -129,7 +129,7 @@ def failure_rate(value: Any, where: str, text: bool) -> float:
 
 
 def workers(value: Any, where: str, text: bool) -> int | str:
-    """'auto' (one per core) or a number of worker processes >= 1."""
+    """'auto' (the idle cores) or a number of worker processes >= 1."""
     if value == "auto":
         return "auto"
     number = at_least(value, 1, text=text)
@@ -401,8 +401,9 @@ SETTINGS: tuple[Setting, ...] = (
             "max(60 s, 10 x the longest of the original run and the slowest probe)) or 'none'; a probe past it "
             "is an error, not a verdict (default: $DDENV_PROBE_TIMEOUT, else auto)", probe_timeout, "SECONDS",
             option="probe-timeout", flag="probe-timeout"),
-    Setting("workers", "simulation worker processes: a number, 'auto' for one per core (the default), or 1 to "
-            "simulate in the main process", workers, "N", "auto", option="workers", flag="workers"),
+    Setting("workers", "simulation worker processes: a number, 'auto' for the cores other processes leave idle "
+            "(the default; at least 1), or 1 to simulate in the main process", workers, "N", "auto",
+            option="workers", flag="workers"),
     Setting("executor", "where probes simulate: 'local' worker processes (default), 'dask' (a local dask "
             "cluster), tcp://HOST:PORT of a dask scheduler, 'ray' (a local Ray cluster started for the session) "
             "or ray://HOST:PORT of a running Ray cluster (through the Ray client)", executor, "ADDRESS",

@@ -2,17 +2,71 @@
 
 from __future__ import annotations
 
+import os
+import time
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.execution.base import Pool
 from pytest_ddenv.execution.dask_pool import DaskCluster, DaskPool
 from pytest_ddenv.execution.errors import PoolConfigError
-from pytest_ddenv.execution.local import LocalPool, resolve_workers
+from pytest_ddenv.execution.local import LocalPool, cpu_count, default_context, probe_context, resolve_workers
 from pytest_ddenv.execution.request import Handler, Job
 from pytest_ddenv.validation import expected
 
 if TYPE_CHECKING:
     from pytest_ddenv.execution.ray_pool import RayCluster
+
+
+IDLE_SAMPLE_SECONDS = 0.1
+"""How long `idle_cores` watches the machine's CPU time (/proc/stat) to see how much of it others use."""
+
+
+def idle_cores(sample: float = IDLE_SAMPLE_SECONDS) -> int:
+    """How many cores other processes leave idle now, at least 1 and at most the cores this process may use
+    (`cpu_count`: its affinity): the idle share of the machine's CPU time over `sample` seconds (Linux's
+    /proc/stat), else the cores minus the 1-minute load average (which lags by a minute). This process sleeps
+    while it measures, so its own work is not counted."""
+    cores = cpu_count()
+    try:
+        idle = _idle_share(sample) * (os.cpu_count() or 1)
+    except (OSError, ValueError, IndexError):  # not Linux
+        try:
+            idle = cores - os.getloadavg()[0]
+        except OSError:  # pragma: no cover - no load average either
+            return cores
+    return max(1, min(cores, round(idle)))
+
+
+def _idle_share(sample: float) -> float:
+    """The share of the machine's CPU time spent idle over `sample` seconds (/proc/stat's first line: user,
+    nice, system, idle, iowait, irq, softirq, steal)."""
+    def times() -> list[int]:
+        with open("/proc/stat", encoding="ascii") as stat:
+            return [int(value) for value in stat.readline().split()[1:9]]
+
+    before = times()
+    time.sleep(sample)
+    spent = [b - a for a, b in zip(before, times(), strict=True)]
+    total = sum(spent)
+    return 1.0 if total <= 0 else (spent[3] + spent[4]) / total
+
+
+def default_workers(workers: int | str) -> int:
+    """The worker count of `workers` ('auto': `idle_cores()`, the cores other processes leave idle; a number
+    stays as given)."""
+    return idle_cores() if workers == "auto" else resolve_workers(workers)
+
+
+def start_forkserver() -> None:
+    """Start the forkserver the local workers are forked from (`probe_context`: it imports the simulation,
+    pytest and its plugins once, in its own process), if it is not running: a caller that knows it will soon
+    start workers calls this first, and they start from a warm server. Returns at once (the imports happen
+    in the server); nothing where the workers are spawned."""
+    if default_context() == "forkserver":
+        import multiprocessing.forkserver
+
+        probe_context()  # sets the server's preloads
+        multiprocessing.forkserver.ensure_running()
 
 
 def executor_problem(executor: str) -> str | None:
@@ -77,15 +131,16 @@ def make_pool(
 ) -> Pool[Any]:
     """The pool for `--ddenv-workers` / `--ddenv-executor` (and the `ddenv` command's `--workers`/`--executor`).
 
-    `executor` None (or "local"): `workers` local worker processes serving `job`; with 1 worker and an
+    `executor` None (or "local"): `workers` local worker processes serving `job` ('auto': the cores idle
+    now, `idle_cores`: a loaded machine gets no more workers than it can run); with 1 worker and an
     `in_process` handler, probes run in this process instead. "dask" / "ray": a local dask / Ray cluster of
     `workers` processes; "tcp://host:port" / "tls://...": a running dask scheduler, "ray://host:port": a
     running Ray cluster (`workers` is then ignored). Pass `cluster` (from `make_cluster`) to reuse a
     connection (it is then not closed with the pool). `options` go to the pool class (watchdog,
     fault_injection, ...). Raises PoolConfigError for invalid values.
     """
-    count = resolve_workers(workers)
     kind = check_executor(executor)
+    count = default_workers(workers) if kind is None else resolve_workers(workers)
     if kind is None:
         return LocalPool(job, count, in_process=in_process if count == 1 else None, **options)
     if cluster is None:

@@ -183,6 +183,80 @@ class PendingMedia:
         return written
 
 
+class BackgroundMedia:
+    """`write_media` in a background process (started like the probe workers, not a daemon: MuJoCo's renderer
+    starts its own helper from it), started now; `finish()` waits for it. What could not be made is a warning
+    here, as with `write_media`; a background process that dies makes them in this process instead."""
+
+    def __init__(self, directory: Path, shown: Sequence[Shown], *, failure_text: str = "",
+                 media: str = DEFAULT_MEDIA) -> None:
+        from pytest_ddenv.execution.local import main_module_hidden, probe_context
+
+        self.directory, self.shown, self.failure_text, self.media = directory, list(shown), failure_text, media
+        context = probe_context()
+        self.receive, send = context.Pipe(duplex=False)
+        self.process = context.Process(target=_media_process, args=(send, directory, self.shown, failure_text, media),
+                                       name="ddenv-media", daemon=False)
+        with main_module_hidden():  # the process starts here: it must not re-import a user's script
+            self.process.start()
+        send.close()
+        self.written: MediaWritten | None = None
+
+    def expected_paths(self) -> list[Path]:
+        """The files `finish()` makes when nothing goes wrong (`<label>.gif`, `recording.rrd`, `recording.mcap`)."""
+        parts = media_parts(self.media)
+        recorded = [item for item in self.shown if item.run is not None]
+        paths = [self.directory / f"{item.label}.gif" for item in recorded] if "animations" in parts else []
+        if recorded and "rrd" in parts:
+            from pytest_ddenv.media.recording import recording_available
+
+            paths += [self.directory / "recording.rrd"] if recording_available() else []
+        if recorded and "mcap" in parts:
+            from pytest_ddenv.media.mcap import mcap_available
+
+            paths += [self.directory / "recording.mcap"] if mcap_available() else []
+        return paths
+
+    def finish(self) -> MediaWritten:
+        """The media made (waits for the background process, once)."""
+        if self.written is not None:
+            return self.written
+        written: MediaWritten
+        messages: list[str]
+        try:
+            written, messages = self.receive.recv()
+        except (EOFError, OSError):  # the process died: make them here
+            self.process.join()
+            warnings.warn(f"ddenv: the media process {self.process.pid} ended with status {self.process.exitcode}; "
+                          "making the media in this process", stacklevel=1)
+            written, messages = write_media(self.directory, self.shown, failure_text=self.failure_text,
+                                            media=self.media), []
+        finally:
+            self.receive.close()
+        self.process.join()
+        for message in messages:  # the warnings of the background process, here, where pytest shows them
+            warnings.warn(message, stacklevel=1)
+        self.written = written
+        return written
+
+    def cancel(self) -> None:
+        """Stop the background process (Ctrl-C): the media it had not finished are not made."""
+        if self.written is None and self.process.is_alive():
+            self.process.terminate()
+        self.process.join()
+        self.receive.close()
+
+
+def _media_process(send: Any, directory: Path, shown: Sequence[Shown], failure_text: str, media: str) -> None:
+    """The background process of `BackgroundMedia`: the media, and the warnings said while making them."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        written = write_media(directory, shown, failure_text=failure_text, media=media)
+    said = [str(warning.message) for warning in caught]
+    send.send((written, [message for message in said if message.startswith("ddenv:")]))
+    send.close()
+
+
 def _render_elsewhere(directory: Path, item: Shown, failure_text: str
                       ) -> tuple[Shown, concurrent.futures.ProcessPoolExecutor, concurrent.futures.Future[Any]]:
     """`item`'s animation started in a helper process (forkserver with the workers' preloads)."""

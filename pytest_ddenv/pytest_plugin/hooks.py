@@ -162,6 +162,6 @@ def header_line(config: pytest.Config) -> str | None:
         return f"ddenv: reduction off (--ddenv-reduce to reduce failing robot tests), seed {seed_text}{world}{engine}"
     workers = options.workers or "auto"
     if workers == "auto":
-        workers = f"auto ({os.cpu_count() or 1} cores)"
+        workers = f"auto (the idle cores of {os.cpu_count() or 1})"
     return (f"ddenv: reduction on, seed {seed_text}, workers {workers}, executor {options.executor or 'local'}, "
             f"media {options.media}, artifacts {options.artifacts}{engine}")

@@ -35,20 +35,29 @@ def probe_pool(item: pytest.Function, example: GivenExample | None = None,
     from pytest_ddenv.pytest_plugin.worker import ItemHandler, PytestJob
 
     config = item.config
-    default = "1" if hasattr(config, "workerinput") else "auto"  # xdist already uses every core
     options = options_of(config)
-    workers = options.workers or default
+    workers = default_workers(config)
     count = int(workers) if str(workers).isdigit() else workers
     executor = check_executor(options.executor)
     watchdog = options.watchdog
     if executor is None:
-        return make_pool(PytestJob.of(item, example=example, seed=seed), count,
-                         in_process=ItemHandler(item, example, seed), watchdog=watchdog, warn=warn)
+        # Probes run in this process only when one worker is asked for; 'auto' on a machine with one idle core
+        # starts one worker process, where each probe runs the whole test as with more workers.
+        in_process = ItemHandler(item, example, seed) if count == 1 else None
+        return make_pool(PytestJob.of(item, example=example, seed=seed), count, in_process=in_process,
+                         watchdog=watchdog, warn=warn)
     cluster = config.stash.get(_CLUSTER, None)
     if cluster is None:
         cluster = config.stash[_CLUSTER] = make_cluster(executor, count)
     return make_pool(PytestJob.of(item, capture="sys", example=example, seed=seed), count, executor,
                      cluster=cluster, watchdog=watchdog)
+
+
+def default_workers(config: pytest.Config) -> str:
+    """`--ddenv-workers` as given, else "auto" (the idle cores: `execution.idle_cores`), or "1" in a
+    pytest-xdist worker (xdist already uses every core)."""
+    given = options_of(config).workers
+    return str(given) if given else "1" if hasattr(config, "workerinput") else "auto"
 
 
 def close_cluster(config: pytest.Config) -> None:

@@ -14,6 +14,7 @@ import contextlib
 import dataclasses
 import functools
 import shlex
+import time
 import traceback
 from collections.abc import Generator
 from pathlib import Path
@@ -28,11 +29,14 @@ from pytest_ddenv.pytest_plugin.progress import PytestProgress, open_log
 from pytest_ddenv.scenario.robot_world import FIXTURE
 
 if TYPE_CHECKING:
+    from pytest_ddenv.driver.run import LaterMedia
     from pytest_ddenv.pytest_plugin.given_example import GivenExample
 
 REPORT_KEY = "ddenv"
 SECTION = "ddenv reduction"
 _result_key = pytest.StashKey[dict[str, Any]]()
+_media_key = pytest.StashKey["LaterMedia"]()
+"""A reduced test's animations and recordings, rendering in the background (`LaterMedia`)."""
 
 
 class ReductionPlugin:
@@ -40,19 +44,39 @@ class ReductionPlugin:
 
     def __init__(self, config: pytest.Config) -> None:
         self.config = config
+        self.media: list[LaterMedia] = []
+        """The reductions' animations and recordings rendering in the background: the session waits for them."""
+        self.warmed = False
         open_log(config)
 
     @pytest.hookimpl(wrapper=True)
     def pytest_pyfunc_call(self, pyfuncitem: pytest.Function) -> Generator[None, object, object]:
         __tracebackhide__ = True  # the failure's traceback is the test's, not this wrapper's
         calls: list[dict[str, Any]] = []
+        if not self.warmed and FIXTURE in pyfuncitem.fixturenames:
+            self.warmed = True
+            _warm_up(pyfuncitem.config)
+        started = time.perf_counter()
         try:
             with _recording_given_calls(pyfuncitem) as calls:
                 return (yield)
         except Exception as error:
             if _should_reduce(pyfuncitem, error):
-                _reduce_failed_test(pyfuncitem, error, calls[-1] if calls else None)
+                test_run = time.perf_counter() - started
+                media = _reduce_failed_test(pyfuncitem, error, calls[-1] if calls else None, test_run)
+                if media is not None:
+                    self.media.append(media)
             raise
+
+    def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
+        """Wait for the animations and recordings still rendering (Ctrl-C: stop them)."""
+        interrupted = exitstatus == pytest.ExitCode.INTERRUPTED
+        while self.media:
+            media = self.media.pop(0)
+            if interrupted:
+                media.media.cancel()
+            else:
+                media.finish()
 
     @pytest.hookimpl(wrapper=True)
     def pytest_runtest_makereport(self, item: pytest.Item, call: pytest.CallInfo[None]) -> Generator[None, Any, Any]:
@@ -101,7 +125,28 @@ def _given_example(item: pytest.Function, call: dict[str, Any] | None) -> GivenE
     return GivenExample.of(call, robot_world.latest.world, fixtures)  # type: ignore[attr-defined]
 
 
-def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call: dict[str, Any] | None) -> None:
+def _warm_up(config: pytest.Config) -> None:
+    """At the session's first robot test: start the probe workers' forkserver (it imports the simulation, pytest
+    and its plugins once, in its own process) while the test runs, so that a failing test's reduction finds it
+    warm. Nothing when the probes would not run in local worker processes (one worker, a cluster, an xdist
+    worker's default of one), nor on a machine without a core to spare beside this process (1-minute load
+    average above the cores minus one): a session whose tests pass must not pay for it there."""
+    import os
+
+    from pytest_ddenv.execution import cpu_count
+    from pytest_ddenv.pytest_plugin.pools import default_workers
+
+    options = options_of(config)
+    if options.executor in (None, "", "local") and default_workers(config) != "1" and \
+            os.getloadavg()[0] <= cpu_count() - 1:
+        from pytest_ddenv.execution.factory import start_forkserver
+
+        start_forkserver()
+
+
+def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call: dict[str, Any] | None,
+                        test_run: float = 0.0) -> LaterMedia | None:
+    """Reduce the failed test's world; the animations and recordings still rendering, if any."""
     from pytest_ddenv.pytest_plugin.pools import probe_pool, warn_about_shared_fixtures
     from pytest_ddenv.pytest_plugin.rate_runs import FailureRateExceeded
     from pytest_ddenv.pytest_plugin.session import ReductionSession
@@ -136,11 +181,15 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call:
         keep_other=options.keep_other,
         seconds=progress.seconds,
         verbose=item.config.get_verbosity() > 0,
+        timings={"test_run": test_run},
     )
     try:
         session.example = _given_example(item, given_call)
+        started = time.perf_counter()
         with probe_pool(item, session.example, lambda text: progress(text, final=True),
                         seed=None if failing is None else failing.seed) as pool:
+            assert session.timings is not None
+            session.timings["pool_start"] = time.perf_counter() - started
             if pool.in_process:
                 warn_about_shared_fixtures(item)
             result = session.run(pool)
@@ -171,6 +220,9 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call:
     attachments = _attachment_lines(result)
     if attachments:  # a stdout section: JUnit's <system-out> (junit_logging = system-out); not the terminal's
         item.add_report_section("call", "stdout", attachments)
+    if session.later_media is not None:
+        item.stash[_media_key] = session.later_media
+    return session.later_media
 
 
 def _attachment_lines(result: dict[str, Any]) -> str:
@@ -191,8 +243,13 @@ def _with_result(item: pytest.Item, call: pytest.CallInfo[None], report: Any) ->
     attachments = result.get("attachments", [])
     html = item.config.pluginmanager.getplugin("html")
     if html is not None and hasattr(html, "extras"):
+        media = item.stash.get(_media_key, None)
+        if media is not None and getattr(item.config.option, "htmlpath", None):  # an HTML report is written:
+            media.finish()  # it embeds the animations, which must be there
         extras = list(getattr(report, "extras", []))
         for path in sorted(attachments, key=_html_order):  # the report shows the first image: the animation
+            if not Path(path).exists():  # a medium that could not be made (a warning says why)
+                continue
             if path.endswith((".png", ".gif")):  # embedded: survives --self-contained-html and moves
                 content = base64.b64encode(Path(path).read_bytes()).decode("ascii")
                 kind = Path(path).suffix[1:]

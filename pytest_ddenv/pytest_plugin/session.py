@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -19,7 +19,7 @@ from pytest_ddenv.driver import artifacts
 from pytest_ddenv.driver.code_identity import CodeIdentity, collected_elsewhere, identify
 from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.driver.report_text import result_lines, status_of
-from pytest_ddenv.driver.run import ReductionOutcome, ReductionPlan, interrupted_outcome, run_reduction
+from pytest_ddenv.driver.run import LaterMedia, ReductionOutcome, ReductionPlan, interrupted_outcome, run_reduction
 from pytest_ddenv.errors import DdenvError
 from pytest_ddenv.media.writer import DEFAULT_MEDIA
 from pytest_ddenv.oracle.verdict import FailureReference
@@ -59,6 +59,11 @@ class ReductionSession:
     failing: RateRun | None = None
     """The failing run of a failure-rate verdict that is reduced (`--ddenv-rate`): its failure is the reference,
     its last run the reference run, its seed the reduction's (`spec.seed`); None: the test's own failure."""
+    timings: dict[str, float] | None = None
+    """Seconds of what happened before the reduction (the test's own run, starting the pool), for
+    `summary.json`'s `timings` beside the driver's phases."""
+    later_media: LaterMedia | None = None
+    """After `run`: the animations and recordings still rendering in the background (`finish()` waits)."""
 
     def run(self, pool: Pool[ProbeResult]) -> dict[str, Any]:
         fixture: RobotWorld = self.item.funcargs[FIXTURE]  # type: ignore[assignment]
@@ -90,8 +95,11 @@ class ReductionSession:
             },
             model_paths=self.model_paths, media=self.media, keep_other=self.keep_other,
             other_replay=self._other_replay, no_run_reason=no_run_reason(robot_world),
-            same_failure=self.spec.same_failure_rule(robot_world.predicates),
+            same_failure=self.spec.same_failure_rule(robot_world.predicates), media_later=True,
         )
+        if self.timings:
+            plan = replace(plan, run_settings={**plan.run_settings, "timings": {
+                phase: round(seconds, 3) for phase, seconds in self.timings.items()}})
         try:
             outcome = run_reduction(plan, pool, note=self.progress, on_progress=self._on_progress)
         except ReductionInterrupted as stop:
@@ -101,6 +109,7 @@ class ReductionSession:
             raise
         except DdenvError as error:  # the folder is locked or cannot be written: say so, keep the test's failure
             outcome = ReductionOutcome("error", message=f"the reduction stopped: {error}")
+        self.later_media = outcome.media
         result = self._describe(outcome)
         if failing is not None:  # which of the failure rate's runs was reduced
             which = f"reduced run {failing.index} of the failure-rate runs (seed {failing.seed})"

@@ -1,0 +1,67 @@
+"""The default number of workers is what the machine has idle (issue 33): real CPU-bound processes beside the
+test, the count measured from /proc/stat; an explicit count stays as given."""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+from pytest_ddenv.execution import LocalPool, cpu_count, make_pool
+from pytest_ddenv.execution.factory import default_workers, idle_cores, start_forkserver
+
+from .conftest import stuck_job
+
+
+def _burn() -> None:  # pragma: no cover - runs in a child process until terminated
+    while True:
+        sum(i * i for i in range(10_000))
+
+
+@contextlib.contextmanager
+def every_core_busy() -> Iterator[None]:
+    """One CPU-bound process per core (and one more), running for the block."""
+    processes = [multiprocessing.get_context("spawn").Process(target=_burn, daemon=True)
+                 for _ in range(cpu_count() + 1)]
+    for process in processes:
+        process.start()
+    try:
+        time.sleep(1.0)  # they have started (spawn imports) and are burning
+        yield
+    finally:
+        for process in processes:
+            process.terminate()
+        for process in processes:
+            process.join()
+
+
+def test_idle_cores_is_at_least_one_and_at_most_the_cores() -> None:
+    assert 1 <= idle_cores() <= cpu_count()
+
+
+def test_a_busy_machine_gets_one_worker_in_this_process_and_an_explicit_count_stays() -> None:
+    job = stuck_job()
+    with every_core_busy():
+        assert idle_cores() == 1
+        assert default_workers("auto") == 1
+        with make_pool(job, "auto", in_process=job.handler()) as pool:  # the plugin's default
+            assert isinstance(pool, LocalPool) and pool.in_process and pool.size == 1
+        assert default_workers(3) == 3 and default_workers("2") == 2  # the user's --ddenv-workers N
+
+
+def _parent_of(pid: int) -> int:
+    return int(Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[1])
+
+
+def test_workers_are_forked_from_the_forkserver_started_ahead() -> None:
+    import multiprocessing.forkserver
+
+    start_forkserver()
+    server = multiprocessing.forkserver._forkserver._forkserver_pid  # type: ignore[attr-defined]
+    start_forkserver()  # the second call finds it running
+    assert server is not None and multiprocessing.forkserver._forkserver._forkserver_pid == server  # type: ignore[attr-defined]
+    with make_pool(stuck_job(), 2) as pool:
+        assert pool.size == 2 and not pool.in_process
+        assert [_parent_of(pid) for pid in pool.pids] == [server, server]
