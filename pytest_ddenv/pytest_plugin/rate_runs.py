@@ -2,8 +2,8 @@
 
 Run i (0 <= i < N) of a test runs with the seed `seed + i * ATTEMPT_SEED_STRIDE`: run 0 is the test's own
 call, runs 1..N-1 are probes with attempt i on the worker pool. Each is passed, failed or error (a worker that
-crashed twice, a watchdog kill, an error of pytest-ddenv itself, a skip: never a verdict); the verdict is
-computed from (failures, runs with a verdict) by `reduce.rates`.
+crashed twice, a watchdog kill, a run past its wall-clock cap, an error of pytest-ddenv itself, a skip: never
+a verdict); the verdict is computed from (failures, runs with a verdict) by `reduce.rates`.
 """
 
 from __future__ import annotations
@@ -82,10 +82,13 @@ class RateRun:
 
 
 def outcome_of(error: ErrorInfo | None) -> RunOutcome:
-    """Passed (nothing raised), error (pytest-ddenv's own error, a broken setup or teardown, a skip), or failed."""
+    """Passed (nothing raised), error (pytest-ddenv's own error, a broken setup or teardown, a run stopped by its
+    wall-clock cap, a skip), or failed."""
+    from pytest_ddenv.oracle.verdict import is_run_error
+
     if error is None:
         return "passed"
-    if error.ddenv_error or error.phase != "call" or error.type_name in NOT_VERDICTS:
+    if is_run_error(error) or error.type_name in NOT_VERDICTS:
         return "error"
     return "failed"
 

@@ -43,6 +43,8 @@ def test_erring_runs_are_left_out_of_the_rate_and_counted() -> None:
     assert json.loads(str(props["ddenv_run_1"]))["outcome"] == "error"
     assert outcome_of(ErrorInfo("Failed", "", "x.py:1", phase="setup")) == "error"
     assert outcome_of(ErrorInfo("Skipped", "", "x.py:1")) == "error"
+    assert outcome_of(ErrorInfo("ControllerTimeout", "took 301 s", "x.py:1")) == "error"  # the run's wall-clock cap
+    assert outcome_of(ErrorInfo("ControllerError", "controller raised", "x.py:1")) == "failed"
 
 
 def test_the_run_records_have_the_contracts_keys() -> None:
