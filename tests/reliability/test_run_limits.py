@@ -114,7 +114,7 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
 
 
 def test_ddenv_run_past_its_cap_is_an_error(capsys: pytest.CaptureFixture[str], wall_project: Path) -> None:
-    code, out, err = run(capsys, "run", "wall.yaml", "-p", STUCK, "--run-timeout", "0.05", "--no-picture", "--json")
+    code, out, err = run(capsys, "run", "wall.yaml", "-p", STUCK, "--run-timeout", "0.001", "--no-picture", "--json")
     data = json.loads(out)
     assert code == 1 and data["outcome"] == "error" and data["exception"] == "ControllerTimeout", err
     assert "ddenv run --run-timeout SECONDS" in data["message"]
@@ -122,7 +122,7 @@ def test_ddenv_run_past_its_cap_is_an_error(capsys: pytest.CaptureFixture[str], 
 
 def test_reduce_of_a_world_whose_original_run_passes_its_cap_says_it_cannot_be_reduced(
         capsys: pytest.CaptureFixture[str], wall_project: Path) -> None:
-    code, out, err = run(capsys, "reduce", "wall.yaml", "-p", STUCK, "--run-timeout", "0.05", "--workers", "1",
+    code, out, err = run(capsys, "reduce", "wall.yaml", "-p", STUCK, "--run-timeout", "0.001", "--workers", "1",
                          "--out", "art", "--quiet", "--json")
     assert code == 1, err
     message = json.loads(out)["error"]
@@ -145,7 +145,7 @@ def test_a_probe_stopped_by_the_wall_clock_cap_is_logged_as_an_error(capsys: pyt
     assert all("ControllerTimeout" in r["detail"] and "wall-clock limit of 3 s" in r["detail"] for r in capped)
     assert summary["errors"] >= len(capped)  # counted as errors, and as simulations
     assert summary["workers"]["simulations"] >= len(probes)
-    code, out, err = run(capsys, "replay", "art", "--runs", "2", "--run-timeout", "0.01", "--json")
+    code, out, err = run(capsys, "replay", "art", "--runs", "2", "--run-timeout", "0.001", "--json")
     replayed = json.loads(out)
     assert code == 1 and replayed["errors"] == 2 and replayed["rate"] is None, out
     assert {r["outcome"] for r in replayed["runs"]} == {"error"}
@@ -160,7 +160,7 @@ def test_a_test_whose_own_failure_is_the_cap_is_not_reduced_and_says_why(project
         @pytest.mark.ddenv(world='yard.yaml')
         @pytest.mark.robot_failure('stuck', window=2.0, min_progress=0.2)
         def test_reaches_goal(robot_world):
-            assert robot_world.run(max_wall_time=0.01).reached_goal
+            assert robot_world.run(max_wall_time=0.001).reached_goal
         """))
     result = project.run(project.pytest_command("--ddenv-workers", "1"))
     assert result.returncode == pytest.ExitCode.TESTS_FAILED, result.stdout
