@@ -32,6 +32,7 @@ def probe_pool(item: pytest.Function, example: GivenExample | None = None,
     """A pool serving this test's probes: worker processes that run the test (or this process, with one
     worker), or the session's cluster. `seed`: the probes' base seed (None: the test's own)."""
     from pytest_ddenv.execution import check_executor, make_cluster, make_pool
+    from pytest_ddenv.execution.factory import idle_cores
     from pytest_ddenv.pytest_plugin.worker import ItemHandler, PytestJob
 
     config = item.config
@@ -41,9 +42,13 @@ def probe_pool(item: pytest.Function, example: GivenExample | None = None,
     executor = check_executor(options.executor)
     watchdog = options.watchdog
     if executor is None:
-        # Probes run in this process only when one worker is asked for; 'auto' on a machine with one idle core
-        # starts one worker process, where each probe runs the whole test as with more workers.
+        # Probes run in this process when one worker is asked for, or when 'auto' finds one idle core and the
+        # test has no function-scoped fixture a probe would share (else one worker process, where each probe
+        # runs the whole test as with more workers).
         in_process = ItemHandler(item, example, seed) if count == 1 else None
+        if count == "auto" and idle_cores() == 1:
+            count = 1
+            in_process = None if shared_fixtures(item) else ItemHandler(item, example, seed)
         return make_pool(PytestJob.of(item, example=example, seed=seed), count, in_process=in_process,
                          watchdog=watchdog, warn=warn)
     cluster = config.stash.get(_CLUSTER, None)
@@ -68,17 +73,23 @@ def close_cluster(config: pytest.Config) -> None:
         cluster.close()
 
 
-def warn_about_shared_fixtures(item: pytest.Function) -> None:
-    """With one worker (this process), the test's function-scoped fixtures are not made again for each run."""
+def shared_fixtures(item: pytest.Function) -> list[str]:
+    """The test's function-scoped fixtures that probes run in this process would share (not made again for
+    each run), `robot_world` and stateless ones left out."""
     parameters = set(inspect.signature(item.obj).parameters)
     fixture_info = getattr(item, "_fixtureinfo", None)
     definitions = getattr(fixture_info, "name2fixturedefs", {}) or {}
-    shared = sorted(
+    return sorted(
         name
         for name in parameters & set(item.funcargs)
         if name != FIXTURE and name not in _STATELESS_FIXTURES
         and all(getattr(d, "scope", "function") == "function" for d in definitions.get(name, ()))
     )
+
+
+def warn_about_shared_fixtures(item: pytest.Function) -> None:
+    """With one worker (this process), the test's function-scoped fixtures are not made again for each run."""
+    shared = shared_fixtures(item)
     if shared:
         warnings.warn(
             pytest.PytestWarning(

@@ -301,3 +301,33 @@ def test_indirect_parametrization_gives_each_case_its_world_and_keep_is_honoured
     result.assert_outcomes(failed=1, errors=1)
     result.stdout.fnmatch_lines(["*ddenv(keep=...) names model(s) not in *open.yaml: *ball*"])
     assert summary_of(wall_project)["minimal_models"] == ["wall", "ball"]  # file order; ball kept on request
+
+
+PID_TEST = (
+    "import os\n"
+    "import pytest\n"
+    "@pytest.mark.ddenv(world='wall.yaml')\n"
+    "@pytest.mark.robot_failure('stuck', window=2.0, min_progress=0.2)\n"
+    "def test_reaches_goal(robot_world{fixture}):\n"
+    "    with open('pids.txt', 'a') as pids:\n"
+    "        pids.write(f'{{os.getpid()}}\\n')\n"
+    "    assert robot_world.run().reached_goal\n"
+)
+
+
+@pytest.mark.slow  # pytest in a subprocess beside burners
+@pytest.mark.parametrize("fixture", ["", ", tmp_path"])
+def test_auto_on_a_busy_machine_runs_probes_here_unless_a_fixture_would_be_shared(
+        wall_project: pytest.Pytester, fixture: str) -> None:
+    from tests.execution.test_idle_workers import every_core_busy
+
+    wall_project.makepyfile(test_scenario=PID_TEST.format(fixture=fixture))
+    with every_core_busy():
+        result = wall_project.runpytest_subprocess("--ddenv-reduce", "-p", "no:cacheprovider")
+    result.assert_outcomes(failed=1)
+    pids = (wall_project.path / "pids.txt").read_text().split()
+    assert summary_of(wall_project)["minimal_models"] == ["wall"] and len(pids) > 3
+    if fixture:  # tmp_path would be shared by probes in this process: one worker process runs them
+        assert len(set(pids)) == 2 and "re-created" not in result.stdout.str()
+    else:  # the test's own run and every probe in the pytest process (no worker to start per test)
+        assert len(set(pids)) == 1
