@@ -3,38 +3,14 @@ test, the count measured from /proc/stat; an explicit count stays as given."""
 
 from __future__ import annotations
 
-import contextlib
-import multiprocessing
-import time
-from collections.abc import Iterator
 from pathlib import Path
+
+from burners import every_core_busy
 
 from pytest_ddenv.execution import LocalPool, cpu_count, make_pool
 from pytest_ddenv.execution.factory import default_workers, idle_cores, start_forkserver
 
 from .conftest import stuck_job
-
-
-def _burn() -> None:  # pragma: no cover - runs in a child process until terminated
-    while True:
-        sum(i * i for i in range(10_000))
-
-
-@contextlib.contextmanager
-def every_core_busy() -> Iterator[None]:
-    """One CPU-bound process per core (and one more), running for the block."""
-    processes = [multiprocessing.get_context("spawn").Process(target=_burn, daemon=True)
-                 for _ in range(cpu_count() + 1)]
-    for process in processes:
-        process.start()
-    try:
-        time.sleep(1.0)  # they have started (spawn imports) and are burning
-        yield
-    finally:
-        for process in processes:
-            process.terminate()
-        for process in processes:
-            process.join()
 
 
 def test_idle_cores_is_at_least_one_and_at_most_the_cores() -> None:

@@ -9,6 +9,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+from burners import every_core_busy
 from engines import engine_option
 
 from pytest_ddenv import World
@@ -319,8 +320,6 @@ PID_TEST = (
 @pytest.mark.parametrize("fixture", ["", ", tmp_path"])
 def test_auto_on_a_busy_machine_runs_probes_here_unless_a_fixture_would_be_shared(
         wall_project: pytest.Pytester, fixture: str) -> None:
-    from tests.execution.test_idle_workers import every_core_busy
-
     wall_project.makepyfile(test_scenario=PID_TEST.format(fixture=fixture))
     with every_core_busy():
         result = wall_project.runpytest_subprocess("--ddenv-reduce", "-p", "no:cacheprovider")
