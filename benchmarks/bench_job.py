@@ -5,7 +5,7 @@
 
 Runs `pytest examples --ddenv-reduce` exactly as the README's user does (a fresh process in the checkout, the
 artifacts in a temporary folder, `--ddenv-workers W` unless W is `default`), once per workers x burners x
-repetition, with `--burners N` real CPU-bound processes (a Python loop each) running beside it the whole time.
+repetition, with `--burners N` real CPU-bound processes (`yes > /dev/null` each) running beside it the whole time.
 Then prints, from what the plugin records in each reduction's `summary.json` (`timings`, seconds):
 
 - per test: the failing test's own run (`test_run`), starting the probe pool (`pool_start`), `confirmation`
@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import multiprocessing
 import os
 import subprocess
 import sys
@@ -37,29 +36,23 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_loaded import start_burners, stop_burners
+
 ROOT = Path(__file__).resolve().parent.parent
 PHASES = ("test_run", "pool_start", "confirmation", "reduction", "recording_runs", "stages", "files", "pictures",
           "media", "media_wait")
 
 
-def burn() -> None:  # pragma: no cover - a CPU-bound loop, killed by the benchmark
-    while True:
-        sum(i * i for i in range(10_000))
-
-
 @contextlib.contextmanager
 def burners(count: int) -> Iterator[None]:
-    """`count` CPU-bound processes running for the block's duration."""
-    processes = [multiprocessing.get_context("spawn").Process(target=burn, daemon=True) for _ in range(count)]
-    for process in processes:
-        process.start()
+    """`count` CPU-bound processes running for the block's duration (bench_loaded's)."""
+    processes = start_burners(count)
     try:
         yield
     finally:
-        for process in processes:
-            process.terminate()
-        for process in processes:
-            process.join()
+        stop_burners(processes)
 
 
 def load() -> float:
