@@ -159,7 +159,10 @@ def needed_lines(reduction: Reduction) -> list[str]:
     kept = ", ".join(f"{name} ({reason})" for name, reason in reduction.precondition_kept)
     lines = [f"needed for the failure: {', '.join(reduction.needed) or '(no models)'}",
              f"kept by a precondition, not shown needed: {kept}"]
-    if reduction.without_precondition_kept is not None:
+    if reduction.without_precondition_kept is None:
+        lines.append("without them: not checked (the explain stage simulates each one's removal when the stages "
+                     "are asked for)")
+    else:
         fails, runs = reduction.without_precondition_kept
         lines.append(f"without them (precondition bypassed) the failure reproduced in {fails}/{runs} runs" if runs
                      else "without them (precondition bypassed) the check could not run (none of its runs finished)")

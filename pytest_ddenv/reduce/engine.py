@@ -217,7 +217,7 @@ class _Engine:
                 self.write_start()
                 one_minimal, incomplete = self.reduce_and_check()
                 failure_rate = (0, 0) if self.independent else self.final_rate()
-                if not self.independent:
+                if not self.independent and self.settings.precondition_check:
                     self.check_without_precondition_kept()
             except KeyboardInterrupt as interrupt:
                 if isinstance(interrupt, ReductionInterrupted):

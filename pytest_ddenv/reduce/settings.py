@@ -55,6 +55,7 @@ class Settings:
     """How many probes a round keeps running at once on `executor`."""
     first_cut: frozenset[str] | None = None
     """The elements a first candidate keeps (the driver's cut by reach), tried before the rounds."""
+    precondition_check: bool = False
 
     @property
     def reducible(self) -> tuple[str, ...]:
@@ -110,6 +111,10 @@ class ReductionSettings:
     """A first candidate, tried in one trial (deflake rule and all) after the calibration and before the
     rounds: the elements it keeps (the driver's cut by reach, driver/reach.py). When it reproduces f the
     rounds start from it; otherwise from the whole world. None: no first cut."""
+    precondition_check: bool = False
+    """At the end, run the minimal world without the elements a precondition kept 3 times, the precondition
+    bypassed (`Reduction.without_precondition_kept`): information for the reader, no verdict, so off by default
+    (the plugin's `explain` stage simulates each such model's removal when the stages are asked for)."""
 
 
 SETTING_NAMES: tuple[str, ...] = tuple(field.name for field in fields(ReductionSettings))
@@ -165,6 +170,7 @@ def validate(
         check_independence=_flag("check_independence", given.check_independence),
         workers=_workers(given.workers),
         first_cut=None if given.first_cut is None else _names_of("first_cut", given.first_cut, names),
+        precondition_check=_flag("precondition_check", given.precondition_check),
     )
 
 

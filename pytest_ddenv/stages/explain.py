@@ -3,8 +3,9 @@ passes, fails another way (which), or still fails the same way but less often.
 
 Read from the probes already made where possible: the 1-minimality check of the models stage (and of the
 shapes stage) ran exactly "the minimal world without this element". Only what the log does not hold (an
-element kept by a precondition, a check cut short by the budget) is simulated, on the final world, if
-`simulate` allows it.
+element kept by a precondition, the precondition bypassed; a check cut short by the budget) is simulated, on
+the final world, if `simulate` allows it (the reduction itself no longer pays for the precondition-kept
+elements' check: `ReductionSettings.precondition_check` is off by default).
 """
 
 from __future__ import annotations
@@ -89,14 +90,14 @@ def run(context: StageContext, models: Reduction, shapes: StageResult | None, *,
         else:
             counts = logged_without(context.log.view("shapes"), stage.reduction.minimal, element)
             source = "log: the shapes stage's world without it"
-        kept_by = dict(models.precondition_kept) | dict.fromkeys(named, "named by the scenario")
         if counts is None and simulate and kind == "model" and not final.model(element).keep \
-                and element not in kept_by:
+                and element not in named:
             decided = context.decide(STAGE, f"without {element}", final.without([element]), stage_begin=begin)
             if decided.runs:
                 counts = _summary(probe for probe in context.log.view(STAGE).probes()
                                   if probe.candidate == (f"without {element}",))
-                source = "simulated: the final world without it"
+                source = "simulated: the final world without it" + (
+                    " (the precondition that kept it bypassed)" if element in dict(models.precondition_kept) else "")
         entry: dict[str, Any] = {"element": element, "kind": kind, "source": source if counts else "not run"}
         if counts is not None:
             entry.update(counts)
@@ -120,7 +121,8 @@ def _why_not_run(models: Reduction, element: str) -> str:
     for name, reason in models.precondition_kept:
         if name == element:
             bypassed = models.without_precondition_kept
-            tail = "" if bypassed is None else (
+            tail = "; not simulated without it (the explain stage does, when the stages are asked for)" \
+                if bypassed is None else (
                 f"; with the precondition bypassed for every such model the failure reproduced in {bypassed[0]}/"
                 f"{bypassed[1]} runs" if bypassed[1] else "; with the precondition bypassed for every such model the "
                 "check could not run (none of its runs finished)")

@@ -171,7 +171,7 @@ def test_preconditions_skip_candidates_without_probing() -> None:
         return None if ground in candidate else "the robot spawns on m0000"
 
     oracle = SetOracle(CULPRITS)
-    result = reduce(names(24), oracle, preconditions=[needs_ground], deflake=0)
+    result = reduce(names(24), oracle, preconditions=[needs_ground], deflake=0, precondition_check=True)
     without_ground = [(candidate, attempt) for candidate, attempt in oracle.calls if ground not in candidate]
     assert without_ground == [(tuple(sorted(CULPRITS)), attempt) for attempt in range(3)], (
         "only the check of the minimal world without what a precondition kept")
@@ -181,6 +181,22 @@ def test_preconditions_skip_candidates_without_probing() -> None:
     assert result.precondition_kept == ((ground, "the robot spawns on m0000"),)
     assert set(result.needed) == CULPRITS
     assert result.without_precondition_kept == (3, 3), "the failure reproduces without the ground too"
+
+
+def test_the_precondition_bypass_check_is_off_by_default_and_the_report_says_not_checked() -> None:
+    """Issue 33: information only, so a reduction does not pay for it unless asked (`precondition_check`)."""
+    from pytest_ddenv.driver.report_text import needed_lines
+    from pytest_ddenv.stages.explain import _why_not_run
+
+    ground = "m0000"
+    oracle = SetOracle(CULPRITS)
+    result = reduce(names(24), oracle, preconditions=[lambda c: None if ground in c else "spawns on m0000"], deflake=0)
+    assert not [candidate for candidate, _ in oracle.calls if ground not in candidate], "no run without the ground"
+    assert result.precondition_kept == ((ground, "spawns on m0000"),)
+    assert result.without_precondition_kept is None
+    assert result.simulations == len(oracle.calls)
+    assert needed_lines(result)[-1].startswith("without them: not checked (the explain stage")
+    assert "not simulated without it (the explain stage does" in _why_not_run(result, ground)
 
 
 def test_a_precondition_bypass_check_whose_runs_all_errored_says_it_could_not_run() -> None:
@@ -195,7 +211,8 @@ def test_a_precondition_bypass_check_whose_runs_all_errored_says_it_could_not_ru
             return ProbeObservation(Outcome.ERROR, seed=attempt)
         return oracle(candidate, attempt)
 
-    result = reduce(names(24), probe, preconditions=[lambda c: None if ground in c else "spawns on m0000"], deflake=0)
+    result = reduce(names(24), probe, preconditions=[lambda c: None if ground in c else "spawns on m0000"], deflake=0,
+                    precondition_check=True)
     assert result.without_precondition_kept == (0, 0)
     lines = needed_lines(result)
     assert lines[-1] == "without them (precondition bypassed) the check could not run (none of its runs finished)"

@@ -244,3 +244,16 @@ def test_a_model_kept_by_a_precondition_is_drawn_in_its_own_style(
     styles = {(color, style) for color, style, _ in picture["halos"]}
     assert len(picture["halos"]) == 2 and len(styles) == 2, picture["halos"]
     assert {gid for _, _, gid in picture["halos"]} == {"precondition:start_pad", "needed:wall"}
+
+
+def test_the_explain_stage_simulates_a_precondition_kept_model_the_reduction_no_longer_checks(tmp_path: Path) -> None:
+    """Issue 33: the reduction does not pay for the check without the precondition-kept pad (information only);
+    the explain stage, when asked for, runs the final world without the pad (its precondition bypassed)."""
+    summary = reduce(tmp_path, PAD_AND_WALL, "-p", STUCK, "--stages", "models,explain", "--media", "none")
+    assert summary["minimal_models"] == ["start_pad", "wall"]
+    assert summary["without_precondition_kept"] is None, "not the reduction's any more"
+    entries = {entry["element"]: entry for entry in stage(summary, "explain")["elements"]}
+    pad = entries["start_pad"]
+    assert pad["source"] == "simulated: the final world without it (the precondition that kept it bypassed)", pad
+    assert pad["same"] + pad["pass"] + pad["other"] >= 1, pad
+    assert entries["wall"]["source"].startswith("log:"), "the wall's removal was decided by the reduction"
