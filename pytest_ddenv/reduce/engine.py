@@ -29,7 +29,7 @@ from pytest_ddenv.reduce.context import Context, Verdict
 from pytest_ddenv.reduce.deflake import CalibratedReruns
 from pytest_ddenv.reduce.log import ProbeLog
 from pytest_ddenv.reduce.prober import probing
-from pytest_ddenv.reduce.rate_check import RateChecker
+from pytest_ddenv.reduce.rate_check import Drift, DriftWatch, RateChecker
 from pytest_ddenv.reduce.rates import RateComparison
 from pytest_ddenv.reduce.settings import SETTING_NAMES, ReductionSettings, Settings, validate
 from pytest_ddenv.reduce.trial import Trial
@@ -199,6 +199,8 @@ class _Engine:
         self.rates = RateChecker(self.probing.extra_runs, self.log, settings.elements, settings.failure_rate_runs,
                                  self.write)
         self.rate_check: RateComparison | None = None
+        self.drift = DriftWatch(self.rates)
+        self.probing.scheduler.after_rejection = self.watch_drift
         self.backoffs = 0
         self.backoff_notes: list[str] = []
         self.precondition_check: tuple[int, int] | None = None
@@ -242,7 +244,13 @@ class _Engine:
             self.calibrate()
             self.try_first_cut()
             while True:
-                one_minimal = self.reduce_to_one_minimal()
+                try:
+                    one_minimal = self.reduce_to_one_minimal()
+                except Drift as drift:  # caught during the reduction: back off from there
+                    self.rate_check = drift.comparison
+                    if not self.back_off():
+                        return False, "budget: the rate comparison was stopped"
+                    continue
                 if one_minimal and self.unverified:
                     return False, f"not verified: {plural(self.unverified, 'candidate')} errored"
                 if len(self.chain) == 1:  # nothing removed: no comparison to make
@@ -254,6 +262,13 @@ class _Engine:
                     return one_minimal, None
         except BudgetExhausted as exhausted:
             return False, exhausted.reason
+
+    def watch_drift(self) -> None:
+        """A round's first rejection: watch the current accepted world for drift (rate_check.DriftWatch)."""
+        if len(self.chain) > 1 and self.backoffs < MAX_BACKOFFS:
+            step = self.chain[-1]
+            decision = self.cache.get(frozenset(step.world))
+            self.drift.check(step.world, step.fresh_from, decision if isinstance(decision, Decision) else None)
 
     def reproduces_without_elements(self) -> bool:
         """Whether the world without every reducible element the preconditions allow to remove reproduces f

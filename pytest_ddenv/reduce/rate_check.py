@@ -8,6 +8,11 @@ logged with purpose "failure-rate", so a resumed reduction reuses them; the orig
 runs (deflake="auto") count as its first fresh runs, once: they are the original's attempts 1, 2, ... and a
 fresh run is one attempt, whatever made it. At each look the reduced world runs first; the original's runs
 of the look that no outcome could make matter are not started (`rates.settled`).
+
+Drift is watched during the reduction too (`DriftWatch`): an accepted world that showed a non-failing run
+while being decided, or whose one confirming fresh run (its first fresh attempt, made at the first rejection
+after it was accepted) does not fail, is compared there, while the original has failed every fresh run so
+far; "below" ends the round (`Drift`) and the engine backs off, before a whole reduction is built on it.
 """
 
 from __future__ import annotations
@@ -19,7 +24,15 @@ from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.extra_runs import ExtraRuns
 from pytest_ddenv.reduce.log import ProbeLog
 from pytest_ddenv.reduce.rates import Rate, RateComparison, compare, looks_up_to, settled
-from pytest_ddenv.reduce.types import Candidate, Outcome
+from pytest_ddenv.reduce.types import Candidate, Decision, Outcome
+
+
+class Drift(Exception):
+    """An accepted world's rate compared "below" the original's during the reduction (`DriftWatch`)."""
+
+    def __init__(self, comparison: RateComparison) -> None:
+        super().__init__(comparison.describe())
+        self.comparison = comparison
 
 
 class RateChecker:
@@ -103,3 +116,44 @@ class RateChecker:
         if frozenset(world) == frozenset(self.original):
             logged = {**self.log.measured("calibration", world), **logged}
         return logged
+
+
+class DriftWatch:
+    """Drift during the reduction: each accepted world is watched once, at the first rejection after it was
+    accepted (the engine calls `check`), while every fresh run of the original so far failed.
+
+    - The runs that decided the world included a non-failing one (`Decision.fails < Decision.runs`): it is
+      compared with the original at once (its fresh runs, never the ones that decided it).
+    - Accepted on one failing run alone (any-of-N, the paper's rule): one confirming fresh run (its first
+      fresh attempt, the one the end-of-run comparison would make first); a failing run leaves it be, any
+      other starts the comparison there, that run its first. (Accepted on two failing runs or more, as by
+      `auto`'s 2-of-3 on a solid failure, it is left to the end of the run.)
+    The comparison is `RateChecker.compare`, the same test on the same fresh attempts the end of the run would
+    use (so a world that stays the minimal one is decided exactly as before and its runs are reused then);
+    "below" raises `Drift`. Every run is logged, so a resumed reduction answers from the log."""
+
+    def __init__(self, rates: RateChecker) -> None:
+        self.rates = rates
+        self.watched: set[frozenset[str]] = set()
+
+    def check(self, world: Candidate, first: int, decision: Decision | None) -> RateComparison | None:
+        """Watch `world` (fresh attempts from `first`, accepted on `decision`) unless it was already watched
+        or the original has shown a non-failing fresh run; the comparison made, if any. Raises `Drift`
+        when it is "below"."""
+        key = frozenset(world)
+        if key in self.watched or not self.rates.looks:
+            return None
+        original = self.rates.known_original(self.rates.looks[-1])
+        if original.fails < original.runs:  # a flaky original: a pass says nothing; the end of the run tells
+            return None
+        self.watched.add(key)
+        if decision is None or decision.fails == decision.runs:
+            if decision is not None and decision.fails > 1:  # two failing runs or more: confirmed already
+                return None
+            confirmed = self.rates.rate(world, first, 1)
+            if confirmed.runs == 0 or confirmed.fails == 1:
+                return None
+        comparison = self.rates.compare(world, first)
+        if comparison is not None and comparison.decision == "below":
+            raise Drift(comparison)
+        return comparison

@@ -6,6 +6,10 @@ stay sequential, exactly as the deflake policy asks for them), and the answer is
 order: a later candidate that reproduces f first in wall time is not taken while an earlier one is
 undecided. So, for a probe that is a deterministic function of (candidate, attempt), the result is the
 serial one; only counters and the order of log lines differ.
+
+`after_rejection` (the engine's drift watch) is called at the round's first rejection in trial order (a
+precondition's skip is none), serially and concurrently alike, so it sees the same state either way; it may
+raise to end the round.
 """
 
 from __future__ import annotations
@@ -42,6 +46,8 @@ class Scheduler:
         self.lookahead = lookahead
         """The engine's probes to start next if the current round finds nothing (prefetched on idle workers)."""
         self._ahead: list[tuple[Candidate, int]] | None = None
+        self.after_rejection: Callable[[], None] | None = None
+        """Called once per round, at its first rejection in trial order (before any later trial is applied)."""
 
     def first_reproducing(self, trials: Sequence[Trial], *, quiet: bool = False) -> tuple[int, Decision] | None:
         """Index and verdict of the first trial that reproduces f, or None if none does.
@@ -67,6 +73,7 @@ class Scheduler:
     # -- serially ----------------------------------------------------------------------------------------
 
     def _serial(self, trials: Sequence[Trial], quiet: bool) -> tuple[int, Decision] | None:
+        rejected = False
         for index, trial in enumerate(trials):
             status = self.decider.status(trial)
             if isinstance(status, str):
@@ -80,6 +87,9 @@ class Scheduler:
                 self.journal.consult(trial, decision, cached=False, quiet=quiet)
             if decision.reproduces:
                 return index, decision
+            if self.after_rejection is not None and not rejected:
+                rejected = True
+                self.after_rejection()
         return None
 
     def _decide_serially(self, state: OpenCandidate) -> Decision:
@@ -122,7 +132,13 @@ class Scheduler:
     def _run_round(self, statuses: list[Status], futures: Futures) -> int | None:
         """Start and collect attempts until the round's answer is known: the first reproducing index or None."""
         position = {id(status): index for index, status in enumerate(statuses)}
-        while not (resolution := _resolve(statuses))[0]:
+        rejected = False
+        while True:
+            if not rejected and self.after_rejection is not None and _first_rejects(statuses):
+                rejected = True
+                self.after_rejection()
+            if (resolution := _resolve(statuses))[0]:
+                break
             reason = self._submit(statuses, futures)
             if not futures:
                 raise BudgetExhausted(reason or "budget: max_probes")
@@ -223,6 +239,12 @@ def _undecided(statuses: Sequence[Status]) -> list[OpenCandidate]:
         if isinstance(status, OpenCandidate) and status.decision is None:
             undecided.append(status)
     return undecided
+
+
+def _first_rejects(statuses: Sequence[Status]) -> bool:
+    """The first trial in order that is not skipped is decided, and does not reproduce f."""
+    decision = next((_decision_of(status) for status in statuses if not isinstance(status, str)), None)
+    return decision is not None and not decision.reproduces
 
 
 def _resolve(statuses: Sequence[Status]) -> tuple[bool, int | None]:

@@ -122,15 +122,17 @@ def test_confirmed_runs_stop_as_soon_as_the_verdict_is_certain() -> None:
 def test_auto_deflake_runs_the_original_first_then_the_calibrated_rule(rate: float, salt: int) -> None:
     elements = names(16)
     oracle = SetOracle(CULPRITS, rate=rate, salt=salt)
-    result = reduce(elements, oracle, deflake="auto", partition="even", failure_rate_runs=3)
+    log = ProbeLog()
+    result = reduce(elements, oracle, deflake="auto", partition="even", failure_rate_runs=3, log=log)
     assert result.calibration is not None
     fails, runs = result.calibration
     assert oracle.calls[:runs] == [(elements, attempt) for attempt in range(1, runs + 1)]
     rule = CalibratedReruns().rule_for(fails, runs)
     assert result.deflake == f"auto:{rule.label}"
-    during = oracle.calls[runs:-3]
-    assert max(attempt for _, attempt in during) < rule.max_runs, "every candidate gets at most max_runs runs"
-    assert result.probes == len(oracle.calls) - 3, "calibration runs are counted as probes"
+    decided = log.probes("reduce")
+    assert max(probe.attempt for probe in decided) < rule.max_runs, "every candidate gets at most max_runs runs"
+    assert result.probes == len(decided) + runs, "calibration runs are counted as probes"
+    assert result.simulations == len(oracle.calls) == result.probes + len(log.probes("failure-rate"))
     assert set(result.minimal) >= CULPRITS
 
 
