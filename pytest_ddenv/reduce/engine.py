@@ -248,7 +248,7 @@ class _Engine:
                     one_minimal = self.reduce_to_one_minimal()
                 except Drift as drift:  # caught during the reduction: back off from there
                     self.rate_check = drift.comparison
-                    if not self.back_off():
+                    if not self.back_off(during=True):
                         return False, "budget: the rate comparison was stopped"
                     continue
                 if one_minimal and self.unverified:
@@ -293,8 +293,9 @@ class _Engine:
         return next((str(reason) for check in self.probing.preconditions if (reason := check(candidate)) is not None),
                     None)
 
-    def back_off(self) -> bool:
-        """The minimal world fails significantly less often than the original: find (binary search over
+    def back_off(self, *, during: bool = False) -> bool:
+        """The minimal world (`during`: an accepted one, the drift watch) fails significantly less often than
+        the original: find (binary search over
         the accepted worlds) the last one whose rate holds, reject every later one ("rate-below") and go on
         reducing from it. False when the budget stopped the search."""
         below = self.rate_check
@@ -327,9 +328,11 @@ class _Engine:
         self.steps.append((self.probes(), len(back.world)))
         self.write(events.BackOff(candidate=back.world, size=len(back.world), probes=self.probes()))
         self.backoff_notes.append(
-            f"back-off {self.backoffs}: a {len(rejected[-1].world)}-element minimal world failed significantly "
-            f"less often than the original ({below.describe()}); {plural(len(rejected), 'accepted world')} "
-            f"rejected for it, reduction resumed from {len(back.world)} elements")
+            f"back-off {self.backoffs}: a {len(rejected[-1].world)}-element "
+            f"{'accepted world (drift watch, during the reduction)' if during else 'minimal world'} failed "
+            f"significantly less often than the original ({below.describe()}); "
+            f"{plural(len(rejected), 'accepted world')} rejected for it, reduction resumed from "
+            f"{len(back.world)} elements")
         self.emit("step", candidate=back.world)
         return True
 

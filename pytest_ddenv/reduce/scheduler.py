@@ -7,9 +7,10 @@ order: a later candidate that reproduces f first in wall time is not taken while
 undecided. So, for a probe that is a deterministic function of (candidate, attempt), the result is the
 serial one; only counters and the order of log lines differ.
 
-`after_rejection` (the engine's drift watch) is called at the round's first rejection in trial order (a
-precondition's skip is none), serially and concurrently alike, so it sees the same state either way; it may
-raise to end the round.
+`after_rejection` (the engine's drift watch) is called at the round's first rejection, in trial order, of a
+candidate no earlier round consulted (a precondition's skip is none; a verdict an earlier round made or read
+costs nothing now), serially and concurrently alike and the same on a resumed log, so it sees the same state
+either way; it may raise to end the round.
 """
 
 from __future__ import annotations
@@ -47,7 +48,9 @@ class Scheduler:
         """The engine's probes to start next if the current round finds nothing (prefetched on idle workers)."""
         self._ahead: list[tuple[Candidate, int]] | None = None
         self.after_rejection: Callable[[], None] | None = None
-        """Called once per round, at its first rejection in trial order (before any later trial is applied)."""
+        """Called once per round, at its first rejection of a candidate no earlier round consulted."""
+        self.consulted: set[frozenset[str]] = set()
+        """The candidates of the rounds so far (decided, cached or skipped)."""
 
     def first_reproducing(self, trials: Sequence[Trial], *, quiet: bool = False) -> tuple[int, Decision] | None:
         """Index and verdict of the first trial that reproduces f, or None if none does.
@@ -55,9 +58,11 @@ class Scheduler:
         `quiet` (the verification pass) does not count or log verdicts already known.
         Raises BudgetExhausted when a budget runs out before the answer is known.
         """
+        earlier = set(self.consulted)
+        self.consulted.update(frozenset(trial.candidate) for trial in trials)
         if self.runner.executor is None:
-            return self._serial(trials, quiet)
-        return self._concurrent(trials, quiet)
+            return self._serial(trials, quiet, earlier)
+        return self._concurrent(trials, quiet, earlier)
 
     def planned(self, trials: Sequence[Trial]) -> list[tuple[Candidate, int]]:
         """The probes deciding `trials` would start first: a first attempt of each undecided candidate, then
@@ -72,7 +77,8 @@ class Scheduler:
 
     # -- serially ----------------------------------------------------------------------------------------
 
-    def _serial(self, trials: Sequence[Trial], quiet: bool) -> tuple[int, Decision] | None:
+    def _serial(self, trials: Sequence[Trial], quiet: bool, earlier: set[frozenset[str]]
+                ) -> tuple[int, Decision] | None:
         rejected = False
         for index, trial in enumerate(trials):
             status = self.decider.status(trial)
@@ -87,7 +93,7 @@ class Scheduler:
                 self.journal.consult(trial, decision, cached=False, quiet=quiet)
             if decision.reproduces:
                 return index, decision
-            if self.after_rejection is not None and not rejected:
+            if self.after_rejection is not None and not rejected and frozenset(trial.candidate) not in earlier:
                 rejected = True
                 self.after_rejection()
         return None
@@ -101,7 +107,8 @@ class Scheduler:
 
     # -- concurrently ------------------------------------------------------------------------------------
 
-    def _concurrent(self, trials: Sequence[Trial], quiet: bool) -> tuple[int, Decision] | None:
+    def _concurrent(self, trials: Sequence[Trial], quiet: bool, earlier: set[frozenset[str]]
+                    ) -> tuple[int, Decision] | None:
         self.runner.cancel_prefetched_except({frozenset(trial.candidate) for trial in trials})
         self._ahead = None
         statuses: list[Status] = [self.decider.status(trial) for trial in trials]
@@ -111,7 +118,7 @@ class Scheduler:
         futures: Futures = {}
         finished = False
         try:
-            answer = self._run_round(statuses, futures)
+            answer = self._run_round(statuses, futures, [frozenset(trial.candidate) in earlier for trial in trials])
             finished = True
         finally:
             self._wind_up(statuses, futures, finished)
@@ -129,12 +136,13 @@ class Scheduler:
         assert decision is not None
         return answer, decision
 
-    def _run_round(self, statuses: list[Status], futures: Futures) -> int | None:
-        """Start and collect attempts until the round's answer is known: the first reproducing index or None."""
+    def _run_round(self, statuses: list[Status], futures: Futures, old: list[bool]) -> int | None:
+        """Start and collect attempts until the round's answer is known: the first reproducing index or None.
+        `old`: which trials an earlier round consulted."""
         position = {id(status): index for index, status in enumerate(statuses)}
         rejected = False
         while True:
-            if not rejected and self.after_rejection is not None and _first_rejects(statuses):
+            if not rejected and self.after_rejection is not None and _first_new_rejects(statuses, old):
                 rejected = True
                 self.after_rejection()
             if (resolution := _resolve(statuses))[0]:
@@ -241,10 +249,18 @@ def _undecided(statuses: Sequence[Status]) -> list[OpenCandidate]:
     return undecided
 
 
-def _first_rejects(statuses: Sequence[Status]) -> bool:
-    """The first trial in order that is not skipped is decided, and does not reproduce f."""
-    decision = next((_decision_of(status) for status in statuses if not isinstance(status, str)), None)
-    return decision is not None and not decision.reproduces
+def _first_new_rejects(statuses: Sequence[Status], old: Sequence[bool]) -> bool:
+    """The serial loop would now reach its first rejection of a trial no earlier round consulted: every trial
+    before it skipped or rejected, it decided and rejected."""
+    for status, consulted in zip(statuses, old, strict=True):
+        if isinstance(status, str):
+            continue
+        decision = _decision_of(status)
+        if decision is None or decision.reproduces:
+            return False
+        if not consulted:
+            return True
+    return False
 
 
 def _resolve(statuses: Sequence[Status]) -> tuple[bool, int | None]:
