@@ -3,6 +3,7 @@
     python benchmarks/bench_honesty.py --quick [--out honesty.json]    # ditch, seed 0: 2.6 min at load 6-10
     python benchmarks/bench_honesty.py [--out honesty.json]            # 3 scenarios x 3 rules x 3 seeds: hours
     python benchmarks/bench_honesty.py --scenarios friction --seeds 0  # 16.9 min at load 6-12
+    python benchmarks/bench_honesty.py --picire-from honesty.json      # ours again, picire's rows reused
 
 Per row (scenario x deflake rule: any-of-1 is `deflake=0`, any-of-4 `deflake=3`, and `auto`): our mean
 simulations with the end-of-run rate comparison on (`failure_rate_runs=20`, the plugin's default; every
@@ -13,13 +14,19 @@ picire gets the rule our calibration chose and is charged its runs), and both mi
 on the same 10 fresh seeds (attempts 100-109 of the reduction seed, never used by a reduction).
 
 The failure is the scenario test's own failing run (noise seed 0); each seed is a reduction seed, as in
-paper_tables.py's default protocol. Our engine runs with `--workers` probe processes (default 1: serial
+paper_tables.py's default protocol. `--picire-from FILE` takes picire's rows (its best settings, chosen on the
+first seed as above, and their fresh runs) from an earlier `--out` FILE instead of running picire again: they
+do not depend on our engine (with `auto`, picire's rule is our calibration's, which only depends on the
+original world's runs; a different one is refused), and a row the file lacks is refused before anything
+runs. Our engine runs with `--workers` probe processes (default 1: serial
 like picire, so no speculative run is started; 2 counts the speculative ones too).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
 import statistics
 import sys
 import time
@@ -80,6 +87,45 @@ def verdict(our_rows: list[Row], their_rows: list[Row]) -> str:
     return f"{fewer}; fresh rate {'>=' if rate_mine >= rate_theirs else '<'} picire's"
 
 
+Key = tuple[str, str]
+"""(scenario, rule name)."""
+
+
+def picire_rows(path: str, scenarios: list[str], rules: list[str], seeds: list[int]
+                ) -> tuple[dict[Key, str], dict[tuple[str, str, int], Row]]:
+    """picire's best settings and their rows by (scenario, rule, seed) from an earlier `--out` file; SystemExit
+    naming the file and the first row it lacks."""
+    try:
+        data = json.loads(Path(path).read_text())
+        rows = [Row(**{f.name: item[f.name] for f in dataclasses.fields(Row) if f.name in item})
+                for item in data["rows"] if str(item["tool"]).startswith("picire")]
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise SystemExit(f"--picire-from {path}: not an --out file of bench_honesty.py ({error})") from error
+    config = {row.tool: row.priority for row in rows}  # "picire 21.8 default" -> "default"
+    by_key: dict[tuple[str, str, int, str], Row] = {
+        (row.world, str(row.extra.get("rule")), row.seed, config[row.tool]): row for row in rows}
+    best: dict[Key, str] = {}
+    for name in scenarios:
+        for rule in rules:
+            named = data.get("picire_best", {}).get(f"{name} {rule}")
+            tried = sorted({(seed, c) for (w, r, seed, c) in by_key if (w, r) == (name, rule)})
+            first = [c for seed, c in tried if seed == tried[0][0]] if tried else []
+            if named is None and set(first) >= set(PICIRE_CONFIGS):
+                named = min(PICIRE_CONFIGS, key=lambda c: (by_key[(name, rule, tried[0][0], c)].simulations,
+                                                           list(PICIRE_CONFIGS).index(c)))
+            if named is None:
+                raise SystemExit(f"--picire-from {path}: no best picire settings for {name} {rule} (its rows: "
+                                 f"{sorted(set(first)) or 'none'}, the first seed's must cover {list(PICIRE_CONFIGS)})")
+            best[(name, rule)] = named
+            for seed in seeds:
+                if (name, rule, seed, named) not in by_key:
+                    raise SystemExit(f"--picire-from {path}: no picire row for {name} {rule} seed {seed} "
+                                     f"(settings {named}); run without --picire-from for it")
+    chosen = {(name, rule, seed): by_key[(name, rule, seed, best[(name, rule)])]
+              for (name, rule) in best for seed in seeds}
+    return best, chosen
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="ditch only, seed 0 (picire's sweep still runs)")
@@ -88,9 +134,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--workers", type=int, default=1, help="our engine's probe processes (1: serial)")
     parser.add_argument("--out", help="write every measurement to this JSON file")
+    parser.add_argument("--picire-from", metavar="FILE",
+                        help="reuse picire's rows from an earlier --out FILE (refused when it lacks one)")
     args = parser.parse_args(argv)
     scenarios = ["ditch"] if args.quick else args.scenarios
     seeds = args.seeds[:1] if args.quick else args.seeds
+    reused = picire_rows(args.picire_from, scenarios, args.rules, seeds) if args.picire_from else None
 
     info = machine()
     info["command"] = " ".join(["python", "benchmarks/bench_honesty.py", *(argv if argv is not None else sys.argv[1:])])
@@ -131,6 +180,18 @@ def main(argv: list[str] | None = None) -> int:
                         rule = calibrated
                     configs = list(PICIRE_CONFIGS) if (name, rule_name) not in best else [best[(name, rule_name)]]
                     tried: dict[str, Row] = {}
+                    if reused is not None:
+                        best[(name, rule_name)] = config = reused[0][(name, rule_name)]
+                        earlier = tried[config] = reused[1][(name, rule_name, seed)]
+                        label = rule.label if not isinstance(rule, int) else rule
+                        if earlier.deflake != str(label):
+                            raise SystemExit(f"--picire-from {args.picire_from}: picire's {name} {rule_name} seed "
+                                             f"{seed} ran with rule {earlier.deflake}, ours calibrated {label}")
+                        earlier.extra["reused_from"] = args.picire_from
+                        results["rows"].append(earlier.to_dict())
+                        print(f"  picire {config} (from {args.picire_from}): {earlier.simulations} sims, "
+                              f"fresh {earlier.failure_rate[0]}/{earlier.failure_rate[1]}", flush=True)
+                        configs = []
                     for config in configs:
                         theirs_row = picire_reduce(problem, config_name=config, deflake=rule,
                                                    failure_rate_runs=FRESH_RUNS, world_label=name,

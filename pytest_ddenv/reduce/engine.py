@@ -294,13 +294,14 @@ class _Engine:
                     None)
 
     def back_off(self, *, during: bool = False) -> bool:
-        """The minimal world (`during`: an accepted one, the drift watch) fails significantly less often than
-        the original: find (binary search over
+        """The minimal world fails significantly less often than the original: find (binary search over
         the accepted worlds) the last one whose rate holds, reject every later one ("rate-below") and go on
-        reducing from it. False when the budget stopped the search."""
+        reducing from it. `during` (the drift watch caught the last accepted world): reject it alone and go on
+        from the world before it, unsearched (the watch and the end of the run still compare it). False when
+        the budget stopped the search."""
         below = self.rate_check
         assert below is not None
-        good, bad = 0, len(self.chain) - 1
+        good, bad = (len(self.chain) - 2 if during else 0), len(self.chain) - 1
         while bad - good > 1:
             middle = (good + bad) // 2
             comparison = self.rates.compare(self.chain[middle].world, self.chain[middle].fresh_from)
