@@ -118,16 +118,22 @@ class RateChecker:
         return logged
 
 
+WATCHED_RUNS = 3
+"""An accepted world whose deciding runs all failed is watched until its first `WATCHED_RUNS` attempts are
+made: a world failing at rate p shows a non-failing one among them with probability 1 - p^3 (78 % at 50 %,
+94 % at 40 %), a world failing every run costs its confirming runs only when it is not the minimal one."""
+
+
 class DriftWatch:
     """Drift during the reduction: each accepted world is watched once, at the first rejection after it was
     accepted (the engine calls `check`), while every fresh run of the original so far failed.
 
     - The runs that decided the world included a non-failing one (`Decision.fails < Decision.runs`): it is
       compared with the original at once (its fresh runs, never the ones that decided it).
-    - Accepted on one failing run alone (any-of-N, the paper's rule): one confirming fresh run (its first
-      fresh attempt, the one the end-of-run comparison would make first); a failing run leaves it be, any
-      other starts the comparison there, that run its first. (Accepted on two failing runs or more, as by
-      `auto`'s 2-of-3 on a solid failure, it is left to the end of the run.)
+    - Otherwise confirming fresh runs up to its attempt `WATCHED_RUNS` - 1 (any-of-N accepts on one failing
+      run: attempts 1 and 2; `auto`'s 2-of-3 on two: attempt 2), the first fresh attempts, those the end-of-run
+      comparison would make first; all failing leaves it be, any other outcome starts the comparison there,
+      with them as its first runs.
     The comparison is `RateChecker.compare`, the same test on the same fresh attempts the end of the run would
     use (so a world that stays the minimal one is decided exactly as before and its runs are reused then);
     "below" raises `Drift`. Every run is logged, so a resumed reduction answers from the log."""
@@ -148,10 +154,9 @@ class DriftWatch:
             return None
         self.watched.add(key)
         if decision is None or decision.fails == decision.runs:
-            if decision is not None and decision.fails > 1:  # two failing runs or more: confirmed already
-                return None
-            confirmed = self.rates.rate(world, first, 1)
-            if confirmed.runs == 0 or confirmed.fails == 1:
+            confirming = WATCHED_RUNS - (1 if decision is None else decision.runs)
+            confirmed = self.rates.rate(world, first, confirming) if confirming > 0 else Rate(0, 0)
+            if confirmed.runs == 0 or confirmed.fails == confirmed.runs:
                 return None
         comparison = self.rates.compare(world, first)
         if comparison is not None and comparison.decision == "below":

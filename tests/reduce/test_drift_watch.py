@@ -72,16 +72,16 @@ def assert_evidence_is_fresh(log: Path, calls: list[tuple[tuple[str, ...], int]]
             assert min(attempts) >= decided[frozenset(world)], (world, attempts, decided[frozenset(world)])
 
 
-def test_a_confirming_run_that_fails_starts_no_comparison_and_is_the_minimal_worlds_first_fresh_run(
+def test_confirming_runs_that_fail_start_no_comparison_and_is_the_minimal_worlds_first_fresh_run(
         tmp_path: Path) -> None:
     log = tmp_path / "runs.jsonl"
     result, calls = run(needs_a_and_h, log)
     assert result.minimal == ("a", "h") and result.one_minimal and result.rate_backoffs == 0
     runs = fresh_runs(log)
     intermediate = {world: attempts for world, attempts in runs.items() if world not in (("a", "h"), ELEMENTS)}
-    assert intermediate and all(attempts == [1] for attempts in intermediate.values()), (
-        "one confirming run (attempt 1: attempt 0 accepted it) of each world accepted on one run")
-    assert runs[("a", "h")] == [1, 2, 3, 4, 5], "the confirming run counts once, as the first of the look's 5"
+    assert intermediate and all(attempts == [1, 2] for attempts in intermediate.values()), (
+        "confirming runs (attempts 1 and 2: attempt 0 accepted it) of each world accepted on one run")
+    assert runs[("a", "h")] == [1, 2, 3, 4, 5], "the confirming runs count once, as the first of the look's 5"
     checks = [event for event in ProbeLog.load(log).own_events() if isinstance(event, events.RateCheck)]
     assert [check.candidate for check in checks] == [("a", "h")], "no comparison but the end's"
     assert result.simulations == len(calls) == result.probes + sum(map(len, runs.values()))
@@ -118,14 +118,22 @@ def test_a_pass_among_the_deciding_runs_starts_the_comparison_without_a_confirmi
     assert_evidence_is_fresh(log, calls)
 
 
-def test_accepted_on_two_failing_runs_nothing_is_confirmed(tmp_path: Path) -> None:
-    """`auto` on a solid failure (2-of-3) accepts on two failing runs: the default costs no confirming run."""
+def test_accepted_on_two_failing_runs_one_run_is_confirmed(tmp_path: Path) -> None:
+    """`auto` on a solid failure (2-of-3) accepts on two failing runs: one confirming run (attempt 2) of an
+    accepted world a later round rejects a new candidate of; none of a world whose first candidate holds."""
     log = tmp_path / "runs.jsonl"
-    result, calls = run(needs_a_and_b, log, deflake="auto")
-    assert result.minimal == ("a", "b") and result.deflake == "auto:2-of-3"
-    assert set(fresh_runs(log)) == {("a", "b")}
-    assert result.simulations == len(calls) == result.probes + 5
+    result, calls = run(needs_a_and_h, log, deflake="auto")
+    assert result.minimal == ("a", "h") and result.deflake == "auto:2-of-3"
+    runs = fresh_runs(log)
+    intermediate = {world: attempts for world, attempts in runs.items() if world not in (("a", "h"), ELEMENTS)}
+    assert intermediate and all(attempts == [2] for attempts in intermediate.values()), intermediate
+    assert runs[("a", "h")] == [2, 3, 4, 5, 6]
+    assert result.simulations == len(calls) == result.probes + 5 + len(intermediate)
     assert_evidence_is_fresh(log, calls)
+
+    log_b = tmp_path / "runs-b.jsonl"
+    result, calls = run(needs_a_and_b, log_b, deflake="auto")  # every accepted world holds its round's first
+    assert set(fresh_runs(log_b)) == {("a", "b")} and result.simulations == result.probes + 5
 
 
 def test_no_drift_watch_once_the_original_has_passed_a_fresh_run(tmp_path: Path) -> None:

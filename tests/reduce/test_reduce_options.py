@@ -17,6 +17,7 @@ from pytest_ddenv.reduce import (
     PRIORITIES,
     Outcome,
     ProbeCancelled,
+    ProbeLog,
     ProbeObservation,
     ProgressEvent,
     ReductionInterrupted,
@@ -54,24 +55,30 @@ def test_a_probe_budget_gives_the_best_world_so_far(budget: int) -> None:
     assert result.incomplete_reason == "budget: max_probes" and not result.one_minimal
     assert reproduces(result.minimal)
     fresh = result.simulations - result.probes  # the drift watch's confirming runs, within the budget
-    assert result.failure_rate in ((0, 0), (1, 1)) and result.failure_rate[1] <= fresh, (
-        "the failure-rate runs are simulations too: none left but a confirming run already made")
+    assert result.failure_rate[0] == result.failure_rate[1] <= fresh, (
+        "the failure-rate runs are simulations too: none left but the confirming runs already made")
     assert len(result.minimal) == result.steps[-1][1]
 
 
 def test_the_budget_covers_the_failure_rate_and_calibration_runs() -> None:
-    complete = reduce(names(64), SetOracle(CULPRITS), deflake="auto", failure_rate_runs=5)
+    log = ProbeLog()
+    complete = reduce(names(64), SetOracle(CULPRITS), deflake="auto", failure_rate_runs=5, log=log)
     assert complete.one_minimal and complete.calibration == (3, 3) and complete.rate_check is not None
     assert complete.rate_check.decision == "holds" and complete.failure_rate == (5, 5)
     # 5 fresh runs of the minimal world; the original's 3 calibration runs are not topped up to 5: with the
-    # minimal world failing 5/5 no outcome of theirs could change the decision
-    assert complete.simulations == complete.probes + 5 and complete.rate_check.skipped == 2
+    # minimal world failing 5/5 no outcome of theirs could change the decision; the drift watch's confirming
+    # runs (attempt 2 of accepted worlds, 2-of-3 accepted them on attempts 0 and 1) besides
+    fresh = log.probes("failure-rate")
+    confirming = [probe for probe in fresh if probe.candidate != complete.minimal]
+    assert {probe.attempt for probe in confirming} == {2} and len(fresh) - len(confirming) == 5
+    assert complete.simulations == complete.probes + len(fresh) and complete.rate_check.skipped == 2
     oracle = SetOracle(CULPRITS)
-    result = reduce(names(64), oracle, max_probes=complete.probes + 2, deflake="auto", failure_rate_runs=5)
+    budget = complete.simulations - 3  # all but the minimal world's last 3 fresh runs
+    result = reduce(names(64), oracle, max_probes=budget, deflake="auto", failure_rate_runs=5)
     assert result.one_minimal and result.minimal == complete.minimal and result.incomplete_reason is None
     assert result.failure_rate == (2, 2), "measured with what the budget left"
     assert result.rate_check is not None and result.rate_check.decision == "continue", "no verdict on 2 runs"
-    assert len(oracle.calls) == result.simulations == complete.probes + 2
+    assert len(oracle.calls) == result.simulations == budget
     early = reduce(names(64), SetOracle(CULPRITS), max_probes=2, deflake="auto")
     assert early.incomplete_reason == "budget: max_probes" and early.simulations == 2
     assert early.minimal == names(64) and early.calibration is None, "the budget ran out while calibrating"

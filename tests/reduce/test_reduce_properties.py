@@ -73,9 +73,9 @@ def test_monotone_failure_reduces_to_exactly_the_culprits(
     assert result.one_minimal and result.incomplete_reason is None
     assert result.failure_rate == (2, 2)
     # fresh runs: the minimal world's 2 (failing both: no run of the original can change the decision) and the
-    # drift watch's one confirming run of each accepted world followed by a rejection (deflake=0: one run accepts)
+    # drift watch's two confirming runs of each accepted world followed by a rejection (deflake=0: one run accepts)
     fresh_runs = len(oracle.calls) - result.probes
-    assert 2 <= fresh_runs <= 2 + max(0, len(result.steps) - 2)
+    assert 2 <= fresh_runs <= 2 + 2 * max(0, len(result.steps) - 2)
     assert result.simulations == len(oracle.calls)
     assert len(set(oracle.calls)) == len(oracle.calls), "a (candidate, attempt) was simulated twice"
     sizes = [size for _, size in result.steps]
