@@ -15,6 +15,15 @@ and prints, for the old procedure (both worlds topped up to every look) and the 
 
 The two procedures make the same decision on every outcome, so P(below) must agree to rounding; only the
 runs differ.
+
+Then the drift watch (reduce/rate_check.py `DriftWatch`, issue 33's second session): an accepted world whose
+deciding runs all failed (k of them: 1 under any-of-N, 2 under auto's 2-of-3) gets confirming fresh runs up to
+its attempt 2 (3 - k runs), while the original has failed every fresh run; a non-failing one starts the same
+comparison there, those runs its first. Per accepted world failing at rate p against an original failing
+100 %: P(flagged), P(caught: flagged and "below"), P(caught later, at the end, if it stayed the minimal world:
+"below" with its confirming runs all failed), and the confirming runs a world failing every run pays when it
+is not the minimal world (the minimal world's are the first runs of its comparison). The end-of-run test is
+unchanged, so its level and power above are the guarantee's.
 """
 
 from __future__ import annotations
@@ -94,12 +103,15 @@ def old_design(original: float, reduced: float, calibration: int, level: float =
     return Characteristics(below, holds, reduced_runs, original_runs)
 
 
-def curtailed_design(original: float, reduced: float, calibration: int, level: float = LEVEL) -> Characteristics:
-    """The minimal world first; the original topped up to a look only when `settled` says its runs matter."""
+def curtailed_design(original: float, reduced: float, calibration: int, level: float = LEVEL,
+                     failed_first: int = 0) -> Characteristics:
+    """The minimal world first; the original topped up to a look only when `settled` says its runs matter.
+    `failed_first`: the minimal world's first runs are known to fail (the conditional characteristics)."""
     below = holds = reduced_runs = original_runs = 0.0
     # (original fails, original runs, reduced fails) -> probability; the original starts with its calibration
-    states = {(fo, min(calibration, LOOKS[0]), 0): p for fo, p in binomial(min(calibration, LOOKS[0]), original)}
-    previous = 0
+    states = {(fo, min(calibration, LOOKS[0]), failed_first): p
+              for fo, p in binomial(min(calibration, LOOKS[0]), original)}
+    previous = failed_first
     for look in LOOKS:
         following: dict[tuple[int, int, int], float] = {}
         for (fo, made, fr), chance in states.items():
@@ -131,6 +143,26 @@ def largest_false_below(level: float = LEVEL) -> tuple[float, float]:
                key=lambda pair: pair[1])
 
 
+DRIFT_RATES = (0.8, 0.6, 0.5, 0.4, 0.2, 0.0)
+"""The accepted (drifted) world's true rate, against an original failing every run."""
+WATCHED_RUNS = 3
+"""rate_check.WATCHED_RUNS: confirming runs up to an accepted world's attempt 2."""
+
+
+def drift_rows(level: float = LEVEL) -> list[list[str]]:
+    """The drift watch per accepted world (original 100 %): see the module docstring."""
+    lines = []
+    for deciding, rule in ((1, "any-of-N"), (2, "auto 2-of-3")):
+        confirming = WATCHED_RUNS - deciding
+        for rate in DRIFT_RATES:
+            unflagged = rate**confirming
+            below = curtailed_design(1.0, rate, 0, level).below
+            below_unflagged = curtailed_design(1.0, rate, 0, level, failed_first=confirming).below if unflagged else 0.0
+            lines.append([rule, f"{rate:.0%}", str(confirming), f"{1.0 - unflagged:.2%}",
+                          f"{below - unflagged * below_unflagged:.2%}", f"{unflagged * below_unflagged:.2%}"])
+    return lines
+
+
 def rows(calibration: int, level: float = LEVEL) -> list[list[str]]:
     lines = []
     for original, reduced in CASES:
@@ -160,6 +192,11 @@ def main(argv: list[str] | None = None) -> int:
         print(table(["original / minimal rate", "", "P(below) old", "P(below) new",
                      "runs old (minimal + original)", "runs new (minimal + original)", "saved"],
                     rows(calibration, args.level)))
+    print("\nthe drift watch, per accepted world, original failing 100 % (no calibration runs)\n")
+    print(table(["rule", "world's rate", "confirming runs", "P(flagged)", "P(caught during the reduction)",
+                 "P(missed, caught at the end if minimal)"], drift_rows(args.level)))
+    print("\na world failing every run is never flagged; its confirming runs are spent unless it is the minimal "
+          "world (they are the first runs of the minimal world's comparison)")
     return 0
 
 
