@@ -202,6 +202,8 @@ class _Engine:
         self.drift = DriftWatch(self.rates)
         self.probing.scheduler.after_rejection = self.watch_drift
         self.backoffs = 0
+        self.drift_backoffs = 0
+        """Back-offs of the drift watch (during the reduction); the end of the run has MAX_BACKOFFS of its own."""
         self.backoff_notes: list[str] = []
         self.precondition_check: tuple[int, int] | None = None
         self.verifying = False
@@ -248,6 +250,7 @@ class _Engine:
                     one_minimal = self.reduce_to_one_minimal()
                 except Drift as drift:  # caught during the reduction: back off from there
                     self.rate_check = drift.comparison
+                    self.drift_backoffs += 1
                     if not self.back_off(during=True):
                         return False, "budget: the rate comparison was stopped"
                     continue
@@ -256,7 +259,8 @@ class _Engine:
                 if len(self.chain) == 1:  # nothing removed: no comparison to make
                     return one_minimal, None
                 self.rate_check = self.rates.compare(self.chain[-1].world, self.chain[-1].fresh_from)
-                if self.rate_check is None or self.rate_check.decision != "below" or self.backoffs >= MAX_BACKOFFS:
+                if self.rate_check is None or self.rate_check.decision != "below" or \
+                        self.backoffs - self.drift_backoffs >= MAX_BACKOFFS:
                     return one_minimal, None
                 if not self.back_off():
                     return one_minimal, None
@@ -265,7 +269,7 @@ class _Engine:
 
     def watch_drift(self) -> None:
         """A round's first rejection: watch the current accepted world for drift (rate_check.DriftWatch)."""
-        if len(self.chain) > 1 and self.backoffs < MAX_BACKOFFS:
+        if len(self.chain) > 1 and self.drift_backoffs < MAX_BACKOFFS:
             step = self.chain[-1]
             decision = self.cache.get(frozenset(step.world))
             self.drift.check(step.world, step.fresh_from, decision if isinstance(decision, Decision) else None)
@@ -502,6 +506,9 @@ class _Engine:
                     continue
                 seen.add(members)
                 trials.append((Trial(self.full(tuple(members)), kind), part))
+        below = self.rates.below_worlds()
+        if below:  # a sub-world of a world that failed significantly less often: likely the same drift, tried last
+            trials.sort(key=lambda entry: any(frozenset(entry[0].candidate) <= world for world in below))
         return trials
 
     def adopt(self, trial: Trial, decision: Decision) -> None:

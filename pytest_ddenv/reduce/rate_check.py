@@ -45,6 +45,8 @@ class RateChecker:
         self.original = original
         self.looks = looks_up_to(max_runs)
         self.write = write
+        self.below: list[frozenset[str]] = []
+        """Worlds this reduction's comparisons called "below"."""
         self.outcomes: dict[frozenset[str], dict[int, Outcome]] = {}
         """world -> attempt -> outcome of its fresh runs so far (ERROR runs included; they are not counted)."""
 
@@ -103,11 +105,18 @@ class RateChecker:
             if comparison.decision != "continue":
                 break
         if comparison is not None:
+            if comparison.decision == "below":
+                self.below.append(frozenset(world))
             self.write(events.RateCheck(
                 candidate=tuple(world), original=(comparison.original.fails, comparison.original.runs),
                 reduced=(comparison.reduced.fails, comparison.reduced.runs), p_value=comparison.p_value,
                 decision=comparison.decision))
         return comparison
+
+    def below_worlds(self) -> list[frozenset[str]]:
+        """The worlds this reduction's comparisons called "below" so far (a resumed one makes the same
+        comparisons at the same points, from its log, so it knows them at the same points too)."""
+        return self.below
 
     def _logged(self, world: Candidate) -> dict[int, Outcome]:
         if self.log is None:
