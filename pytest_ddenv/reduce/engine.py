@@ -113,6 +113,21 @@ def reduce(
     return _Engine(checked).run()
 
 
+def _accepted_before_rate_below(log: ProbeLog) -> dict[frozenset[str], Decision]:
+    """The acceptances a rate comparison undid later in `log`: a resumed reduction accepts them again and
+    undoes them at the same point, from the logged runs (the drift watch's or the end's comparison), so it
+    takes the same path without a new simulation."""
+    accepted: dict[frozenset[str], Decision] = {}
+    undone: dict[frozenset[str], Decision] = {}
+    for event in log.own_events():
+        key = frozenset(event.candidate) if isinstance(event, (events.Accept, events.RateBelow)) else None
+        if isinstance(event, events.Accept) and key is not None:
+            accepted[key] = Decision(reproduces=True, fails=event.fails, runs=event.runs)
+        elif isinstance(event, events.RateBelow) and key in accepted:
+            undone[key] = accepted[key]
+    return undone
+
+
 _ARGUMENTS = ("elements", "probe", "settings", "geometry", "reference", "log", "executor", "on_progress")
 
 
@@ -164,7 +179,7 @@ class _Engine:
         self.unverified = 0
         """Single removals of the result that were rejected on ERROR runs alone (even after a retry)."""
         if self.log is not None:
-            for key, decision in self.log.decisions().items():
+            for key, decision in {**self.log.decisions(), **_accepted_before_rate_below(self.log)}.items():
                 self.cache.setdefault(key, decision)
             preloaded = self.log.partial_runs()
         self.current: tuple[str, ...] = settings.reducible
@@ -325,7 +340,8 @@ class _Engine:
         back = self.chain[good]
         del self.chain[good + 1:]
         self.current = tuple(name for name in back.world if name not in self.settings.keep)
-        self.context.trace = back.trace
+        if back.trace is not None:  # a world accepted from a resumed log has none: keep the one the schemas read
+            self.context.trace = back.trace
         self.minimal_runs = back.fresh_from
         self.granularity = min(self.settings.n_partitions, len(self.current))
         self.carried = None

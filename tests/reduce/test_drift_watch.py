@@ -106,7 +106,8 @@ def test_a_drifted_world_is_caught_during_the_reduction_and_a_resumed_log_simula
 
     again, calls_again = run(lucky_without_b(0), log)
     assert calls_again == [], "every run is in the log"
-    assert again.minimal == result.minimal and again.rate_check is not None
+    assert again.minimal == result.minimal and again.rate_check is not None and again.rate_backoffs == 1
+    assert again.notes == result.notes, "the same back-off, replayed from the logged runs"
     assert again.rate_check.decision == "holds"
 
 
