@@ -10,9 +10,10 @@ fresh run is one attempt, whatever made it. At each look the reduced world runs 
 of the look that no outcome could make matter are not started (`rates.settled`).
 
 Drift is watched during the reduction too (`DriftWatch`): an accepted world that showed a non-failing run
-while being decided, or whose one confirming fresh run (its first fresh attempt, made at the first rejection
-after it was accepted) does not fail, is compared there, while the original has failed every fresh run so
-far; "below" ends the round (`Drift`) and the engine backs off, before a whole reduction is built on it.
+while being decided, or whose confirming fresh runs (its first fresh attempts up to attempt 2, made at the
+first rejection of a new candidate after it was accepted) do not all fail, is compared there, while the
+original has failed every fresh run so far; "below" ends the round (`Drift`) and the engine backs off, before
+a whole reduction is built on it.
 """
 
 from __future__ import annotations
