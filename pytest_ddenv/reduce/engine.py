@@ -50,6 +50,8 @@ INDEPENDENCE = "independence"
 """The log's purpose of the run of the world without its reducible elements (`check_independence`)."""
 WORLD_INDEPENDENT = "world-independent"
 """The incomplete reason of a reduction that found the failure independent of the elements."""
+GROWN_MIN_PARTS = 8
+"""The fewest parts a carried round needs for a grown removal (`_Engine.grown_removal`)."""
 MAX_BACKOFFS = 3
 """How many times a reduction backs off from a minimal world that fails significantly less often than the
 original before it reports that world with its rate as it is."""
@@ -419,9 +421,10 @@ class _Engine:
         """After `streak` carried rounds in a row adopted their first candidate (the parts being removed one by
         one do not matter), the next 2**streak parts in removal order removed at once, tried before the
         round's own candidates (ddmin's one part a round costs a probe per part; this, about log2 of them).
-        Never more than half of the other parts (at 4 parts or fewer, none): a wrong guess costs one probe.
+        Never more than half of the other parts, and only from GROWN_MIN_PARTS parts on: a wrong guess costs
+        a rejection (with `deflake=N`, N + 1 runs), more than ddmin's one part a probe saves in a small round.
         None before a streak and with the paper's granularity."""
-        if self.streak == 0 or self.settings.granularity != "ddmin":
+        if self.streak == 0 or self.settings.granularity != "ddmin" or len(plan.removal) < GROWN_MIN_PARTS:
             return None
         count = min(2**self.streak, (len(plan.removal) - 1) // 2)
         if count < 2:
