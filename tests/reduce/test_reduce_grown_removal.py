@@ -25,7 +25,7 @@ def test_after_the_masking_element_the_rest_goes_in_a_few_probes() -> None:
     assert set(result.minimal) == culprits and result.one_minimal
     (found_at, size), *later = result.steps[1:]
     assert size == 63  # the finest round removed the masking element
-    # one element per probe would take 61 probes (310 in all); growing removals 2, 4, 8, 16 parts: 11 (260)
+    # one element per probe would take 61 probes (310 in all); growing removals of 2, 4, 8, ... parts: 12 (261)
     assert result.probes - found_at <= 12
     assert any(before - after > 1 for (_, before), (_, after) in zip(result.steps[1:], later, strict=False))
     assert result.probes == len(oracle.calls)
