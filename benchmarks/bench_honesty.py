@@ -221,6 +221,14 @@ def main(argv: list[str] | None = None) -> int:
     print(table(["scenario", "rule", "seeds", "ours", "ours: probes + rate runs + precondition info",
                  "picire best", "picire settings", "our minimal fails",
                  "picire's minimal fails", "ours <= picire"], lines))
+    for (name, rule_name), rows in mine.items():  # picire's aborted runs reduced nothing: say what they hide
+        other = theirs.get((name, rule_name), [])
+        done = {r.seed for r in other if not r.note.startswith("picire aborted")}
+        if other and len(done) < len(other) and done:
+            print(f"{name} {rule_name}: picire aborted on seed(s) {sorted({r.seed for r in other} - done)} (no minimal "
+                  f"world; counted above with its simulations); on the other seeds ours "
+                  f"{statistics.mean(ours(r) for r in rows if r.seed in done):.1f}, picire "
+                  f"{statistics.mean(r.simulations for r in other if r.seed in done):.1f}")
     print(f"\ntotal {total / 60:.1f} min; load average at the end {load()}")
     write_json(args.out, results)
     return 0

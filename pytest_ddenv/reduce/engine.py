@@ -50,6 +50,8 @@ INDEPENDENCE = "independence"
 """The log's purpose of the run of the world without its reducible elements (`check_independence`)."""
 WORLD_INDEPENDENT = "world-independent"
 """The incomplete reason of a reduction that found the failure independent of the elements."""
+GROWN_MIN_PARTS = 8
+"""The fewest parts a carried round needs for a grown removal (`_Engine.grown_removal`)."""
 MAX_BACKOFFS = 3
 """How many times a reduction backs off from a minimal world that fails significantly less often than the
 original before it reports that world with its rate as it is."""
@@ -153,13 +155,14 @@ class _Plan:
     subsets: bool
     """False when every part alone is already known not to reproduce f (a carried-over round)."""
 
-    def without(self, removed: Part) -> _Plan:
-        """The next round after removing `removed`: same parts and order, continuing after the removed one
-        (picire's complement offset), subsets not tried again (they all failed in this round)."""
-        at = self.removal.index(removed)
+    def without(self, removed: Sequence[Part]) -> _Plan:
+        """The next round after removing the parts `removed` (one, or the next few in removal order: a grown
+        removal): same parts and order, continuing after the first removed one (picire's complement offset),
+        subsets not tried again (they all failed in this round)."""
+        at, gone = self.removal.index(removed[0]), set(removed)
         return _Plan(
-            ordered=[part for part in self.ordered if part != removed],
-            removal=self.removal[at + 1 :] + self.removal[:at],
+            ordered=[part for part in self.ordered if part not in gone],
+            removal=[part for part in self.removal[at + 1 :] + self.removal[:at] if part not in gone],
             subsets=False,
         )
 
@@ -191,6 +194,9 @@ class _Engine:
         self.round_index = 0
         self.carried: _Plan | None = None
         """After a complement was adopted, ddmin goes on with the remaining n-1 parts."""
+        self.streak = 0
+        """Carried rounds in a row whose first candidate was adopted: the next one first tries removing the
+        next 2**streak parts at once (`grown_removal`)."""
         self.minimal_runs = 1  # the reference run of the original world is its attempt 0
         self.probing = probing(
             probe=settings.probe,
@@ -345,6 +351,7 @@ class _Engine:
         self.minimal_runs = back.fresh_from
         self.granularity = min(self.settings.n_partitions, len(self.current))
         self.carried = None
+        self.streak = 0
         self.unverified = 0
         self.steps.append((self.probes(), len(back.world)))
         self.write(events.BackOff(candidate=back.world, size=len(back.world), probes=self.probes()))
@@ -425,11 +432,13 @@ class _Engine:
 
     def play_round(self) -> Trial | None:
         """One round at the current granularity; adopts and returns the accepted trial, if any."""
-        plan = self.carried if self.carried is not None and len(self.carried.ordered) == self.granularity else None
+        carried = self.carried if self.carried is not None and len(self.carried.ordered) == self.granularity else None
         self.carried = None
-        if plan is None:
-            plan = self.fresh_plan(self.granularity)
+        plan = carried if carried is not None else self.fresh_plan(self.granularity)
         trials = self.trials_of(plan)
+        grown = self.grown_removal(plan) if carried is not None else None
+        if grown is not None:
+            trials.insert(0, grown)
         self.write(events.Round(index=self.round_index, granularity=self.granularity, size=len(self.full(self.current)),
                                 parts=tuple(tuple(part) for part in plan.ordered),
                                 removal_order=tuple(plan.ordered.index(part) for part in plan.removal),
@@ -437,14 +446,31 @@ class _Engine:
         self.emit("round")
         self.round_index += 1
         found = self.probing.scheduler.first_reproducing([trial for trial, _ in trials])
+        self.streak = self.streak + 1 if found is not None and found[0] == 0 and carried is not None else 0
         if found is None:
             return None
-        trial, part = trials[found[0]]
+        trial, parts = trials[found[0]]
         self.adopt(trial, found[1])
-        self.granularity = self.coarser_or_finer(progress=trial.kind)
+        self.granularity = self.coarser_or_finer(progress=trial.kind, removed=len(parts))
         if trial.kind == "complement" and self.settings.granularity == "ddmin":
-            self.carried = plan.without(part)
+            self.carried = plan.without(parts)
         return trial
+
+    def grown_removal(self, plan: _Plan) -> tuple[Trial, tuple[Part, ...]] | None:
+        """After `streak` carried rounds in a row adopted their first candidate (the parts being removed one by
+        one do not matter), the next 2**streak parts in removal order removed at once, tried before the
+        round's own candidates (ddmin's one part a round costs a probe per part; this, about log2 of them).
+        Never more than half of the other parts, and only from GROWN_MIN_PARTS parts on: a wrong guess costs
+        a rejection (with `deflake=N`, N + 1 runs), more than ddmin's one part a probe saves in a small round.
+        None before a streak and with the paper's granularity."""
+        if self.streak == 0 or self.settings.granularity != "ddmin" or len(plan.removal) < GROWN_MIN_PARTS:
+            return None
+        count = min(2**self.streak, (len(plan.removal) - 1) // 2)
+        if count < 2:
+            return None
+        parts = tuple(plan.removal[:count])
+        removed = {name for part in parts for name in part}
+        return Trial(self.full(tuple(name for name in self.current if name not in removed)), "complement"), parts
 
     def fresh_plan(self, granularity: int) -> _Plan:
         """The parts of a new round of the current world (partition schema), in priority order."""
@@ -499,29 +525,30 @@ class _Engine:
         trials = self.trials_of(plan)
         return self.probing.scheduler.planned([trial for trial, _ in trials])
 
-    def coarser_or_finer(self, progress: str | None) -> int:
-        """The next granularity after a round that adopted a subset, a complement, or nothing (None)."""
+    def coarser_or_finer(self, progress: str | None, removed: int = 1) -> int:
+        """The next granularity after a round that adopted a subset, a complement (of `removed` parts), or
+        nothing (None)."""
         n, size = self.granularity, len(self.current)
         if self.settings.granularity == "paper":
             return max(1, min(n + 1, size))
         if progress == "subset":
             return max(1, min(self.settings.n_partitions, size))
         if progress == "complement":
-            return max(1, min(max(n - 1, 2), size))
+            return max(1, min(max(n - removed, 2), size))
         return max(1, min(2 * n, size))
 
-    def trials_of(self, plan: _Plan) -> list[tuple[Trial, Part]]:
+    def trials_of(self, plan: _Plan) -> list[tuple[Trial, tuple[Part, ...]]]:
         """Subsets in priority order, then complements in removal order, without repeats or no-ops."""
         current = set(self.current)
         seen = {frozenset(self.current)}
-        trials: list[tuple[Trial, Part]] = []
+        trials: list[tuple[Trial, tuple[Part, ...]]] = []
         for kind, parts in (("subset", plan.ordered if plan.subsets else []), ("complement", plan.removal)):
             for part in parts:
                 members = frozenset(part) if kind == "subset" else frozenset(current - set(part))
                 if members in seen:
                     continue
                 seen.add(members)
-                trials.append((Trial(self.full(tuple(members)), kind), part))
+                trials.append((Trial(self.full(tuple(members)), kind), (part,)))
         below = self.rates.below_worlds()
         if below:  # a sub-world of a world that failed significantly less often: likely the same drift, tried last
             trials.sort(key=lambda entry: any(frozenset(entry[0].candidate) <= world for world in below))
