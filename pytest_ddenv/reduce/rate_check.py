@@ -184,12 +184,11 @@ class DriftWatch:
         look = self.rates.looks[0]
         reduced = self.rates.rate(world, first, look)
         decided = search_below(self.rates.known_original(look), reduced, look)
-        if decided is None and reduced.runs == look:  # the original's missing runs could change the decision
+        if decided is None:  # the original's missing runs could change the decision
             original = self.rates.original_rate(look)
-            decided = search_below(original, reduced, look) if original.runs == look else None
-        if decided is None:
-            decided = RateComparison(self.rates.known_original(look), reduced, 1.0, "continue", SEARCH_LEVEL,
-                                     search=True)
+            decided = search_below(original, reduced, look) if original.runs == look else \
+                RateComparison(original, reduced, 1.0, "continue", SEARCH_LEVEL, search=True)  # the budget ran out
+            assert decided is not None
         self.rates.write(events.RateCheck(
             candidate=tuple(world), original=(decided.original.fails, decided.original.runs),
             reduced=(decided.reduced.fails, decided.reduced.runs), p_value=decided.p_value,

@@ -159,6 +159,8 @@ def search_below(original: Rate, reduced: Rate, look: int, level: float = SEARCH
     ones: one look, one-sided Fisher exact at `level`, "below" or "holds" ("continue" when `reduced` has fewer
     runs: the budget stopped them). When the original has made fewer than `look`, the decision its missing
     runs cannot change (`settled`), else None: they are needed."""
+    if reduced.runs < look:
+        return RateComparison(original, reduced, 1.0, "continue", level, search=True)
     if original.runs >= look:
         return replace(compare(original, reduced, (look,), level), search=True)
     early = settled(original, look, reduced, (look,), level)
