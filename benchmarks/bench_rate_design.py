@@ -16,14 +16,17 @@ and prints, for the old procedure (both worlds topped up to every look) and the 
 The two procedures make the same decision on every outcome, so P(below) must agree to rounding; only the
 runs differ.
 
-Then the drift watch (reduce/rate_check.py `DriftWatch`, issue 33's second session): an accepted world whose
-deciding runs all failed (k of them: 1 under any-of-N, 2 under auto's 2-of-3) gets confirming fresh runs up to
-its attempt 2 (3 - k runs), while the original has failed every fresh run; a non-failing one starts the same
-comparison there, those runs its first. Per accepted world failing at rate p against an original failing
-100 %: P(flagged), P(caught: flagged and "below"), P(caught later, at the end, if it stayed the minimal world:
-"below" with its confirming runs all failed), and the confirming runs a world failing every run pays when it
-is not the minimal world (the minimal world's are the first runs of its comparison). The end-of-run test is
-unchanged, so its level and power above are the guarantee's.
+Then the drift watch (reduce/rate_check.py `DriftWatch`), per accepted world failing at rate p against an
+original failing 100 %. A world is tested when a run that decided it did not fail ("at once") or, its
+deciding runs all failing (k of them: 1 under any-of-N, 2 under auto's 2-of-3), when one of its confirming
+fresh runs up to its attempt 2 (3 - k runs) does not fail. The old watch (issue 33's second session, w33f-2)
+ran the end-of-run comparison there, at the documented level; the new one (w33f-3) makes a search decision:
+the world's first 5 fresh runs (the confirming ones included) against the original's first 5 (calibration
+included), one-sided Fisher exact at `rates.SEARCH_LEVEL`, one look (`rates.search_below`). Printed: P(back
+off) for each (for worlds at 100 %, 90 %, 80 %: a wrong back-off, which costs minimality, never honesty; at
+50 %, 40 %: the catch rate) and the new watch's expected runs per accepted world (the world's beyond its
+deciding runs + the original's beyond `--calibration`). The end-of-run test is unchanged, so its level and
+power above are the guarantee's.
 """
 
 from __future__ import annotations
@@ -40,7 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import table
 
-from pytest_ddenv.reduce.rates import LEVEL, LOOKS, Rate, compare, settled
+from pytest_ddenv.reduce.rates import LEVEL, LOOKS, SEARCH_LEVEL, Rate, compare, search_below, settled
 
 CASES: tuple[tuple[float, float], ...] = (
     (1.0, 1.0), (0.9, 0.9), (0.8, 0.8), (0.6, 0.6), (0.5, 0.5), (0.3, 0.3),
@@ -143,23 +146,51 @@ def largest_false_below(level: float = LEVEL) -> tuple[float, float]:
                key=lambda pair: pair[1])
 
 
-DRIFT_RATES = (0.8, 0.6, 0.5, 0.4, 0.2, 0.0)
-"""The accepted (drifted) world's true rate, against an original failing every run."""
+DRIFT_RATES = (1.0, 0.9, 0.8, 0.5, 0.4)
+"""The accepted world's true rate, against an original failing every run: wrongly backed off, then caught."""
 WATCHED_RUNS = 3
 """rate_check.WATCHED_RUNS: confirming runs up to an accepted world's attempt 2."""
+WATCH_RULES = (("any-of-N", 2), ("auto 2-of-3", 1), ("a pass decided it", 0))
+"""(how a world was accepted, its confirming runs): the last is tested at once."""
 
 
-def drift_rows(level: float = LEVEL) -> list[list[str]]:
+def old_watch(rate: float, confirming: int, level: float = LEVEL) -> float:
+    """P(back off) of the old watch: flagged, then the end-of-run comparison (curtailed) says "below"."""
+    below = curtailed_design(1.0, rate, 0, level).below
+    unflagged = rate**confirming if confirming else 0.0
+    return below - (unflagged * curtailed_design(1.0, rate, 0, level, failed_first=confirming).below
+                    if unflagged else 0.0)
+
+
+def new_watch(rate: float, confirming: int, calibration: int,
+              level: float = SEARCH_LEVEL) -> tuple[float, float]:
+    """(P(back off), expected runs) of the search decision on the first look (the original fails every run)."""
+    look = LOOKS[0]
+    back_off = runs = 0.0
+    for first_fails, p_first in binomial(confirming, rate):
+        if confirming and first_fails == confirming:  # not flagged: the confirming runs only
+            runs += p_first * confirming
+            continue
+        for more, p_more in binomial(look - confirming, rate):
+            reduced = Rate(first_fails + more, look)
+            known = Rate(min(calibration, look), min(calibration, look))
+            decided = search_below(known, reduced, look, level) or search_below(Rate(look, look), reduced, look, level)
+            assert decided is not None
+            extra = 0 if decided.skipped or known.runs == look else look - known.runs
+            back_off += p_first * p_more * (decided.decision == "below")
+            runs += p_first * p_more * (look + extra)
+    return back_off, runs
+
+
+def drift_rows(calibration: int, level: float = LEVEL, search_level: float = SEARCH_LEVEL) -> list[list[str]]:
     """The drift watch per accepted world (original 100 %): see the module docstring."""
     lines = []
-    for deciding, rule in ((1, "any-of-N"), (2, "auto 2-of-3")):
-        confirming = WATCHED_RUNS - deciding
+    for rule, confirming in WATCH_RULES:
         for rate in DRIFT_RATES:
-            unflagged = rate**confirming
-            below = curtailed_design(1.0, rate, 0, level).below
-            below_unflagged = curtailed_design(1.0, rate, 0, level, failed_first=confirming).below if unflagged else 0.0
-            lines.append([rule, f"{rate:.0%}", str(confirming), f"{1.0 - unflagged:.2%}",
-                          f"{below - unflagged * below_unflagged:.2%}", f"{unflagged * below_unflagged:.2%}"])
+            back_off, runs = new_watch(rate, confirming, calibration, search_level)
+            what = "wrong back-off" if rate >= 0.8 else "catch"
+            lines.append([rule, f"{rate:.0%}", what, f"{old_watch(rate, confirming, level):.2%}", f"{back_off:.2%}",
+                          f"{runs:.2f}"])
     return lines
 
 
@@ -182,6 +213,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="runs of the original made before the comparison (deflake=auto: 3 or 5; else 0)")
     parser.add_argument("--level", type=float, default=LEVEL,
                         help=f"overall level, split evenly over the looks (default {LEVEL}: the engine's)")
+    parser.add_argument("--search-level", type=float, default=SEARCH_LEVEL,
+                        help=f"the drift watch's search level (default {SEARCH_LEVEL}: the engine's)")
     args = parser.parse_args(argv)
     print(f"looks {LOOKS}, one-sided Fisher exact, {args.level:.3g} overall ({args.level / len(LOOKS):.3g} per "
           "look, Bonferroni); exact sums over every outcome")
@@ -192,10 +225,13 @@ def main(argv: list[str] | None = None) -> int:
         print(table(["original / minimal rate", "", "P(below) old", "P(below) new",
                      "runs old (minimal + original)", "runs new (minimal + original)", "saved"],
                     rows(calibration, args.level)))
-    print("\nthe drift watch, per accepted world, original failing 100 % (no calibration runs)\n")
-    print(table(["rule", "world's rate", "confirming runs", "P(flagged)", "P(caught during the reduction)",
-                 "P(missed, caught at the end if minimal)"], drift_rows(args.level)))
-    print("\na world failing every run is never flagged; its confirming runs are spent unless it is the minimal "
+    print(f"\nthe drift watch, per accepted world, original failing 100 %: old (the end-of-run comparison, "
+          f"{args.level:.3g} overall) and new (a search decision on the first look, {args.search_level:.3g})")
+    for calibration in args.calibration:
+        print(f"\ncalibration runs of the original already made: {calibration}\n")
+        print(table(["accepted on", "world's rate", "", "P(back off) old", "P(back off) new",
+                     "runs new (world + original)"], drift_rows(calibration, args.level, args.search_level)))
+    print("\na world failing every run is never backed off; its confirming runs are spent unless it is the minimal "
           "world (they are the first runs of the minimal world's comparison)")
     return 0
 

@@ -358,7 +358,7 @@ class _Engine:
         self.backoff_notes.append(
             f"back-off {self.backoffs}: a {len(rejected[-1].world)}-element "
             f"{'accepted world (drift watch, during the reduction)' if during else 'minimal world'} failed "
-            f"significantly less often than the original ({below.describe()}); "
+            f"{'' if below.search else 'significantly '}less often than the original ({below.describe()}); "
             f"{plural(len(rejected), 'accepted world')} rejected for it, reduction resumed from "
             f"{len(back.world)} elements")
         self.emit("step", candidate=back.world)

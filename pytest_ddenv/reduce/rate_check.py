@@ -11,9 +11,11 @@ of the look that no outcome could make matter are not started (`rates.settled`).
 
 Drift is watched during the reduction too (`DriftWatch`): an accepted world that showed a non-failing run
 while being decided, or whose confirming fresh runs (its first fresh attempts up to attempt 2, made at the
-first rejection of a new candidate after it was accepted) do not all fail, is compared there, while the
-original has failed every fresh run so far; "below" ends the round (`Drift`) and the engine backs off, before
-a whole reduction is built on it.
+first rejection of a new candidate after it was accepted) do not all fail, is tested there, while the
+original has failed every fresh run so far: a search decision on the comparison's first look at
+`rates.SEARCH_LEVEL` (`rates.search_below`), not the guarantee; "below" ends the round (`Drift`) and the
+engine backs off, before a whole reduction is built on it. The end-of-run comparison of the minimal world is
+unchanged and makes the guarantee.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from dataclasses import replace
 from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.extra_runs import ExtraRuns
 from pytest_ddenv.reduce.log import ProbeLog
-from pytest_ddenv.reduce.rates import Rate, RateComparison, compare, looks_up_to, settled
+from pytest_ddenv.reduce.rates import SEARCH_LEVEL, Rate, RateComparison, compare, looks_up_to, search_below, settled
 from pytest_ddenv.reduce.types import Candidate, Decision, Outcome
 
 
@@ -139,13 +141,15 @@ class DriftWatch:
     accepted (the engine calls `check`), while every fresh run of the original so far failed.
 
     - The runs that decided the world included a non-failing one (`Decision.fails < Decision.runs`): it is
-      compared with the original at once (its fresh runs, never the ones that decided it).
+      tested at once (its fresh runs, never the ones that decided it).
     - Otherwise confirming fresh runs up to its attempt `WATCHED_RUNS` - 1 (any-of-N accepts on one failing
       run: attempts 1 and 2; `auto`'s 2-of-3 on two: attempt 2), the first fresh attempts, those the end-of-run
-      comparison would make first; all failing leaves it be, any other outcome starts the comparison there,
-      with them as its first runs.
-    The comparison is `RateChecker.compare`, the same test on the same fresh attempts the end of the run would
-    use (so a world that stays the minimal one is decided exactly as before and its runs are reused then);
+      comparison would make first; all failing leaves it be, any other outcome starts the test there, with
+      them as its first runs.
+    The test is a search decision (`rates.search_below` at `rates.SEARCH_LEVEL`): the world's fresh runs up
+    to the comparison's first look against the original's first ones (calibration runs included; the
+    original's runs no outcome could make matter are not started). Every run is one the end-of-run comparison
+    reuses if the world stays the minimal one, and it decides that world at its own level, unchanged;
     "below" raises `Drift`. Every run is logged, so a resumed reduction answers from the log."""
 
     def __init__(self, rates: RateChecker) -> None:
@@ -154,8 +158,8 @@ class DriftWatch:
 
     def check(self, world: Candidate, first: int, decision: Decision | None) -> RateComparison | None:
         """Watch `world` (fresh attempts from `first`, accepted on `decision`) unless it was already watched
-        or the original has shown a non-failing fresh run; the comparison made, if any. Raises `Drift`
-        when it is "below"."""
+        or the original has shown a non-failing fresh run; the test made, if any. Raises `Drift` when it is
+        "below"."""
         key = frozenset(world)
         if key in self.watched or not self.rates.looks:
             return None
@@ -168,7 +172,25 @@ class DriftWatch:
             confirmed = self.rates.rate(world, first, confirming) if confirming > 0 else Rate(0, 0)
             if confirmed.runs == 0 or confirmed.fails == confirmed.runs:
                 return None
-        comparison = self.rates.compare(world, first)
-        if comparison is not None and comparison.decision == "below":
+        comparison = self.test(world, first)
+        if comparison.decision == "below":
+            self.rates.below.append(key)
             raise Drift(comparison)
         return comparison
+
+    def test(self, world: Candidate, first: int) -> RateComparison:
+        """The search decision on `world`'s fresh runs up to the first look (logged as a "rate-check" record);
+        "continue" when the budget stopped the runs."""
+        look = self.rates.looks[0]
+        reduced = self.rates.rate(world, first, look)
+        decided = search_below(self.rates.known_original(look), reduced, look)
+        if decided is None:  # the original's missing runs could change the decision
+            original = self.rates.original_rate(look)
+            decided = search_below(original, reduced, look) if original.runs == look else \
+                RateComparison(original, reduced, 1.0, "continue", SEARCH_LEVEL, search=True)  # the budget ran out
+            assert decided is not None
+        self.rates.write(events.RateCheck(
+            candidate=tuple(world), original=(decided.original.fails, decided.original.runs),
+            reduced=(decided.reduced.fails, decided.reduced.runs), p_value=decided.p_value,
+            decision=decided.decision))
+        return decided

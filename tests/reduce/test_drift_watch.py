@@ -7,7 +7,10 @@ from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 
+import pytest
+
 from pytest_ddenv.reduce import Outcome, ProbeLog, ProbeObservation, Reduction, events, reduce
+from pytest_ddenv.reduce.rates import SEARCH_LEVEL, Rate, compare, search_below
 
 ELEMENTS = ("a", "b", "c", "d", "e", "f", "g", "h")
 Probe = Callable[[tuple[str, ...], int], ProbeObservation]
@@ -152,4 +155,61 @@ def test_no_drift_watch_once_the_original_has_passed_a_fresh_run(tmp_path: Path)
     assert set(fresh_runs(log)) <= {("a", "b"), ELEMENTS}, "no accepted world watched"
     checks = [event for event in ProbeLog.load(log).own_events() if isinstance(event, events.RateCheck)]
     assert [check.candidate for check in checks] == [("a", "b")]
+    assert_evidence_is_fresh(log, calls)
+
+
+def test_the_search_decision_on_the_first_look() -> None:
+    """`rates.search_below`: 5 fresh runs of the world against the original's first 5, one-sided Fisher exact at
+    SEARCH_LEVEL (0.1): 2 of 5 against 5/5 is below (p = 0.083, the end-of-run test's first look says
+    "continue" at 0.0167), 3 of 5 is not (p = 0.22); the original's runs are started only when they matter."""
+    assert SEARCH_LEVEL == 0.1
+    below = search_below(Rate(5, 5), Rate(2, 5), 5)
+    assert below is not None and below.decision == "below" and below.search and below.p_value == pytest.approx(1 / 12)
+    assert compare(Rate(5, 5), Rate(2, 5)).decision == "continue", "the guarantee's test needs its second look"
+    held = search_below(Rate(5, 5), Rate(3, 5), 5)
+    assert held is not None and held.decision == "holds" and held.p_value == pytest.approx(2 / 9)
+    unneeded = search_below(Rate(0, 0), Rate(3, 5), 5)
+    assert unneeded is not None and unneeded.decision == "holds" and unneeded.skipped == 5, "no run of the original"
+    assert search_below(Rate(0, 0), Rate(2, 5), 5) is None, "the original's 5 runs decide it"
+    assert search_below(Rate(3, 3), Rate(2, 5), 5) is None
+    from_calibration = search_below(Rate(3, 3), Rate(0, 5), 5)
+    assert from_calibration is not None and from_calibration.decision == "below" and from_calibration.skipped == 2
+    short = search_below(Rate(5, 5), Rate(1, 4), 5)
+    assert short is not None and short.decision == "continue", "the budget stopped the world's runs: no verdict"
+    assert "search level" in below.describe() and "significantly" not in below.describe()
+
+
+def test_two_failures_in_the_first_look_back_off_where_the_old_watch_ran_a_second_look(tmp_path: Path) -> None:
+    """{'a'} is accepted on attempt 0 and fails attempts 1 and 3 of its 5 first fresh ones: the watch backs off
+    on those 5 and the original's first 5 (the runs the end-of-run comparison would make first), no more."""
+    log = tmp_path / "runs.jsonl"
+    result, calls = run(lucky_without_b(0, 1, 3), log)
+    assert result.minimal == ("a", "b") and result.one_minimal and result.rate_backoffs == 1
+    runs = fresh_runs(log)
+    assert runs[("a",)] == [1, 2, 3, 4, 5] and runs[ELEMENTS] == [1, 2, 3, 4, 5], "one look, each run once"
+    checks = [event for event in ProbeLog.load(log).own_events() if isinstance(event, events.RateCheck)]
+    assert checks[0].candidate == ("a",) and (checks[0].reduced, checks[0].original) == ((2, 5), (5, 5))
+    assert checks[0].decision == "below" and checks[0].p_value == pytest.approx(1 / 12)
+    assert any("less often than the original (fails 2/5" in note and "search level" in note for note in result.notes)
+    assert result.simulations == len(calls) == result.probes + sum(map(len, runs.values()))
+    assert_evidence_is_fresh(log, calls)
+
+
+def test_three_failures_in_the_first_look_hold_and_the_end_of_run_comparison_still_decides(tmp_path: Path) -> None:
+    """{'a'} fails attempts 0, 1, 3 and 4 only: 3 of its first 5 fresh runs hold the search decision (no run of
+    the original: none could change it), the reduction goes on from {'a'}, and the end-of-run comparison,
+    unchanged, reuses those 5 runs, needs its second look and backs off (3/10 against 10/10)."""
+    log = tmp_path / "runs.jsonl"
+    result, calls = run(lucky_without_b(0, 1, 3, 4), log)
+    checks = [event for event in ProbeLog.load(log).own_events() if isinstance(event, events.RateCheck)]
+    assert checks[0].candidate == ("a",) and (checks[0].reduced, checks[0].original) == ((3, 5), (0, 0))
+    assert checks[0].decision == "holds", "the watch's search decision"
+    assert checks[1].candidate == ("a",) and checks[1].reduced == (3, 10) and checks[1].original == (10, 10)
+    assert checks[1].decision == "below", "the end-of-run comparison at its own level"
+    assert result.minimal == ("a", "b") and result.rate_backoffs == 1
+    assert any(note.startswith("back-off 1: a 1-element minimal world failed significantly less often")
+               for note in result.notes), result.notes
+    runs = fresh_runs(log)
+    assert runs[("a",)] == list(range(1, 11)), "the watch's 5 runs are the end's first 5, each made once"
+    assert result.simulations == len(calls) == result.probes + sum(map(len, runs.values()))
     assert_evidence_is_fresh(log, calls)
