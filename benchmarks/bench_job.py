@@ -18,8 +18,10 @@ Then prints, from what the plugin records in each reduction's `summary.json` (`t
   the session's end).
 
 A checkout without the `timings` (before issue 33) shows the wall time, simulations and media seconds only.
-The load average (1 min) before and after each run is printed beside it: figures from a shared machine are
-only comparable to figures taken at the same load.
+The load average (1 min) before and after each run is printed beside it, and the CPU seconds of the job's
+whole process tree (pytest, the forkserver, the probe workers, the media processes; sampled every 0.1 s with
+psutil, which `.[dev]` installs through dask: a process's last 0.1 s may be missed): figures from a shared
+machine are only comparable to figures taken at the same load, the CPU seconds less so.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -67,6 +70,44 @@ def collection_seconds(checkout: Path, extra: Sequence[str]) -> float:
     return time.perf_counter() - started
 
 
+class TreeCpu:
+    """The CPU seconds (user + system) of a process and all its descendants, sampled in a thread while it runs:
+    each process's largest reading, summed (a process's children's times are not added: they are sampled
+    themselves)."""
+
+    def __init__(self, pid: int, interval: float = 0.1) -> None:
+        self.pid, self.interval = pid, interval
+        self.seen: dict[tuple[int, float], float] = {}
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._sample, daemon=True)
+        self.thread.start()
+
+    def _sample(self) -> None:
+        try:
+            import psutil
+        except ImportError:  # no psutil: no CPU figure
+            return
+        while not self.stop.is_set():
+            try:
+                root = psutil.Process(self.pid)
+                processes = [root, *root.children(recursive=True)]
+            except psutil.Error:
+                processes = []
+            for process in processes:
+                try:
+                    times = process.cpu_times()
+                    key = (process.pid, process.create_time())
+                except psutil.Error:
+                    continue
+                self.seen[key] = max(self.seen.get(key, 0.0), times.user + times.system)
+            self.stop.wait(self.interval)
+
+    def seconds(self) -> float | None:
+        self.stop.set()
+        self.thread.join()
+        return round(sum(self.seen.values()), 1) if self.seen else None
+
+
 def run_job(checkout: Path, workers: str, extra: Sequence[str]) -> dict[str, Any]:
     """One run of the README job in a fresh artifacts folder: wall time, exit status, the summaries."""
     with tempfile.TemporaryDirectory(prefix="ddenv-bench-job-") as folder:
@@ -74,11 +115,16 @@ def run_job(checkout: Path, workers: str, extra: Sequence[str]) -> dict[str, Any
                    "-p", "no:cacheprovider", *([] if workers == "default" else ["--ddenv-workers", workers]), *extra]
         before = load()
         started = time.perf_counter()
-        done = subprocess.run(command, cwd=checkout, capture_output=True, text=True, check=False)
+        with subprocess.Popen(command, cwd=checkout, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True) as job:
+            cpu = TreeCpu(job.pid)
+            stdout, _ = job.communicate()
         wall = time.perf_counter() - started
+        cpu_seconds = cpu.seconds()
         summaries = [json.loads(path.read_text()) for path in sorted(Path(folder).glob("*/summary.json"))]
-    tail = done.stdout.strip().splitlines()[-1:] or [""]
-    return {"command": " ".join(command), "exit": done.returncode, "wall": round(wall, 2), "load_before": before,
+    tail = stdout.strip().splitlines()[-1:] or [""]
+    return {"command": " ".join(command), "exit": job.returncode, "wall": round(wall, 2), "cpu": cpu_seconds,
+            "load_before": before,
             "load_after": load(), "last_line": tail[0], "tests": [test_row(summary) for summary in summaries]}
 
 
@@ -91,8 +137,8 @@ def test_row(summary: dict[str, Any]) -> dict[str, Any]:
 
 
 def show(result: dict[str, Any]) -> None:
-    print(f"\n## workers {result['workers']}, burners {result['burners']}: {result['wall']:.1f} s wall "
-          f"(exit {result['exit']}, load {result['load_before']} -> {result['load_after']}), start-up and "
+    print(f"\n## workers {result['workers']}, burners {result['burners']}: {result['wall']:.1f} s wall, "
+          f"{result['cpu']} CPU-s (exit {result['exit']}, load {result['load_before']} -> {result['load_after']}), start-up and "
           f"collection {result['collection']:.1f} s; {result['last_line']}")
     headers = ["test", "sims", *PHASES]
     print("| " + " | ".join(headers) + " |")
@@ -136,10 +182,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                     results.append(result)
                     if args.out is not None:
                         args.out.write_text(json.dumps(results, indent=1) + "\n")
-    print("\n| burners | workers | wall s | load before | simulations |")
-    print("|---|---|---|---|---|")
+    print("\n| burners | workers | wall s | CPU-s | load before | simulations |")
+    print("|---|---|---|---|---|---|")
     for result in results:
-        print(f"| {result['burners']} | {result['workers']} | {result['wall']:.1f} | {result['load_before']} | "
+        print(f"| {result['burners']} | {result['workers']} | {result['wall']:.1f} | {result['cpu']} | "
+              f"{result['load_before']} | "
               f"{sum(row['simulations'] or 0 for row in result['tests'])} |")
     return 0
 
