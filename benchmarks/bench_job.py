@@ -10,7 +10,8 @@ Then prints, from what the plugin records in each reduction's `summary.json` (`t
 
 - per test: the failing test's own run (`test_run`), starting the probe pool (`pool_start`), `confirmation`
   (the failure on the pool: worker start-up is paid here), `reduction` (the models), `recording_runs` (the
-  runs the pictures and media are drawn from), `stages`, `files` (minimal worlds, summary), `pictures`,
+  runs the pictures and media are drawn from), `stages`, `files` (minimal worlds, summary), `pictures`
+  (`pictures_background` since issue 33's second session: drawn in the media's background process),
   `media` (animations and recordings: in a background process since issue 33, beside the next test) and
   `media_wait` (how long the session waited for them at its end);
 - in total: the command's wall time, pytest's start-up and collection (`pytest examples --collect-only -q`
@@ -45,7 +46,9 @@ from bench_loaded import start_burners, stop_burners
 
 ROOT = Path(__file__).resolve().parent.parent
 PHASES = ("test_run", "pool_start", "confirmation", "reduction", "recording_runs", "stages", "files", "pictures",
-          "media", "media_wait")
+          "pictures_background", "media", "media_wait")
+BACKGROUND = ("pictures_background", "media")
+"""The phases made in a background process beside the rest (not on the job's critical path)."""
 
 
 @contextlib.contextmanager
@@ -122,9 +125,11 @@ def run_job(checkout: Path, workers: str, extra: Sequence[str]) -> dict[str, Any
         wall = time.perf_counter() - started
         cpu_seconds = cpu.seconds()
         summaries = [json.loads(path.read_text()) for path in sorted(Path(folder).glob("*/summary.json"))]
-    tail = stdout.strip().splitlines()[-1:] or [""]
+    lines = stdout.strip().splitlines()
+    tail = lines[-1:] or [""]
+    warned = [line.strip() for line in lines if "Warning" in line]  # pytest's warnings summary, one line each
     return {"command": " ".join(command), "exit": job.returncode, "wall": round(wall, 2), "cpu": cpu_seconds,
-            "load_before": before,
+            "load_before": before, "warnings": warned,
             "load_after": load(), "last_line": tail[0], "tests": [test_row(summary) for summary in summaries]}
 
 
@@ -155,9 +160,11 @@ def show(result: dict[str, Any]) -> None:
         print(f"| {row['test']} | {row['simulations']} | " + " | ".join(cells) + " |")
     print(f"| total ({len(result['tests'])} reductions) | {sum(r['simulations'] or 0 for r in result['tests'])} | "
           + " | ".join(f"{totals[phase]:.1f}" for phase in PHASES) + " |")
-    critical = sum(totals[phase] for phase in PHASES if phase != "media")  # media run beside the rest
+    critical = sum(totals[phase] for phase in PHASES if phase not in BACKGROUND)
     print(f"rest (start-up, collection, passing tests, the doorway's rate, session end): "
           f"{result['wall'] - critical:.1f} s of which start-up and collection {result['collection']:.1f} s")
+    for line in result["warnings"]:
+        print(f"warning: {line}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

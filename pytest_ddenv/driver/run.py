@@ -485,8 +485,9 @@ class _Locked:
 class LaterMedia:
     """A reduction's pictures, animations and recordings made in a background process (`plan.media_later`)
     after its summary was written: `finish()` waits for them, says what could not be made (warnings, as when
-    they are made before `run_reduction` returns) and adds them to `summary.json` (`media`, `timings.pictures`
-    and `timings.media` the seconds they took, `timings.media_wait` the seconds `finish()` waited)."""
+    they are made before `run_reduction` returns) and adds them to `summary.json` (`media`,
+    `timings.pictures_background` and `timings.media` the seconds they took, `timings.media_wait` the seconds
+    `finish()` waited)."""
 
     def __init__(self, media: BackgroundMedia, report: ReductionReport, summary: Path) -> None:
         self.media, self.report, self.summary = media, report, summary
@@ -498,9 +499,9 @@ class LaterMedia:
             return self.done
         started = time.perf_counter()
         written = self.media.finish()
-        timings = {**self.report.run_settings.get("timings", {}),
-                   **({"pictures": round(written.picture_seconds, 3)} if self.media.pictures is not None else {}),
-                   "media": round(written.seconds, 3), "media_wait": round(time.perf_counter() - started, 3)}
+        drawn = {} if self.media.pictures is None else {"pictures_background": round(written.picture_seconds, 3)}
+        timings = {**self.report.run_settings.get("timings", {}), **drawn, "media": round(written.seconds, 3),
+                   "media_wait": round(time.perf_counter() - started, 3)}
         report = replace(self.report.with_media(written.info, written.seconds) if written.info else self.report,
                          run_settings={**self.report.run_settings, "timings": timings})
         artifacts.write_json(self.summary, report.to_json())

@@ -43,15 +43,16 @@ def probe_pool(item: pytest.Function, example: GivenExample | None = None,
     executor = check_executor(options.executor)
     watchdog = options.watchdog
     if executor is None:
-        # Probes run in this process when one worker is asked for, or when 'auto' finds one idle core and the
-        # test has no function-scoped fixture a probe would share (else one worker process, where each probe
-        # runs the whole test as with more workers). The earlier reductions' media, rendering in the
-        # background, do not count as busy: they end within seconds, the reduction lasts longer.
+        # Probes run in this process when one worker is asked for, or when the default (1 in a pytest-xdist
+        # worker, 'auto' elsewhere) comes to one core and the test has no function-scoped fixture a probe
+        # would share (else one worker process, where each probe runs the whole test as with more workers).
+        # 'auto' counts the earlier reductions' media, made in the background, as idle: they end within
+        # seconds, the reduction lasts longer.
         in_process = ItemHandler(item, example, seed) if count == 1 else None
         if count == "auto":
             count = idle_cores(ours=background_pids())
-            if count == 1:
-                in_process = None if shared_fixtures(item) else ItemHandler(item, example, seed)
+        if count == 1 and not options.workers:
+            in_process = None if shared_fixtures(item) else ItemHandler(item, example, seed)
         return make_pool(PytestJob.of(item, example=example, seed=seed), count, in_process=in_process,
                          watchdog=watchdog, warn=warn)
     cluster = config.stash.get(_CLUSTER, None)
