@@ -451,13 +451,14 @@ class _Locked:
                 # with worker processes, an animation renders beside the pictures
                 pending = PendingMedia(paths.directory, shown, failure_text=plan.reference.describe(),
                                        helper=self.pool.size > 1 and not self.pool.in_process, media=plan.media)
-            drawn_later = interrupted is None and plan.media != "none" and plan.media_later
-            if interrupted is None and plan.media != "none" and not plan.media_later:
+            # with animations or recordings to make in a background process, the pictures are drawn there first
+            drawn_later = interrupted is None and plan.media != "none" and plan.media_later and bool(shown)
+            if interrupted is None and plan.media != "none" and not drawn_later:
                 with timed(self.timings, "pictures"):
                     attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
                 report = replace(report, run_settings=self.run_settings())
                 artifacts.write_json(paths.summary, report.to_json())
-            if drawn_later:  # the pictures first, then the animations and recordings, beside the next test
+            if drawn_later:  # beside the next test
                 pictures = functools.partial(_pictures, plan.world, reduction, paths, plan.reference_run,
                                              minimal_run, staged)
                 later = LaterMedia(BackgroundMedia(paths.directory, shown, failure_text=plan.reference.describe(),
