@@ -136,7 +136,9 @@ def run_job(checkout: Path, workers: str, extra: Sequence[str]) -> dict[str, Any
 def test_row(summary: dict[str, Any]) -> dict[str, Any]:
     timings = summary.get("timings", {})
     media = summary.get("media") or {}
+    pool = summary.get("workers") or {}
     return {"test": str(summary.get("test", "?")).split("::")[-1], "simulations": summary.get("simulations"),
+            "workers": pool.get("workers"),
             "timings": {phase: timings.get(phase) for phase in PHASES},
             "media_seconds": media.get("seconds")}
 
@@ -145,7 +147,7 @@ def show(result: dict[str, Any]) -> None:
     print(f"\n## workers {result['workers']}, burners {result['burners']}: {result['wall']:.1f} s wall, "
           f"{result['cpu']} CPU-s (exit {result['exit']}, load {result['load_before']} -> {result['load_after']}), start-up and "
           f"collection {result['collection']:.1f} s; {result['last_line']}")
-    headers = ["test", "sims", *PHASES]
+    headers = ["test", "sims", "workers", *PHASES]
     print("| " + " | ".join(headers) + " |")
     print("|" + "---|" * len(headers))
     totals = dict.fromkeys(PHASES, 0.0)
@@ -157,8 +159,8 @@ def show(result: dict[str, Any]) -> None:
                 value = row["media_seconds"]
             totals[phase] += value or 0.0
             cells.append("" if value is None else f"{value:.1f}")
-        print(f"| {row['test']} | {row['simulations']} | " + " | ".join(cells) + " |")
-    print(f"| total ({len(result['tests'])} reductions) | {sum(r['simulations'] or 0 for r in result['tests'])} | "
+        print(f"| {row['test']} | {row['simulations']} | {row.get('workers')} | " + " | ".join(cells) + " |")
+    print(f"| total ({len(result['tests'])} reductions) | {sum(r['simulations'] or 0 for r in result['tests'])} | | "
           + " | ".join(f"{totals[phase]:.1f}" for phase in PHASES) + " |")
     critical = sum(totals[phase] for phase in PHASES if phase not in BACKGROUND)
     print(f"rest (start-up, collection, passing tests, the doorway's rate, session end): "

@@ -123,8 +123,9 @@ class ReductionPlan:
     same_failure: SameFailureRule | None = None
     """Which failures are the reference failure (None: `spec`'s match and tolerance, `spec.same_failure_rule()`)."""
     media_later: bool = False
-    """Draw the pictures, then render the animations and recordings, in a background process once the summary is
-    written (the outcome's `media`, which the caller finishes), instead of before `run_reduction` returns."""
+    """Render the animations and recordings in a background process once the summary is written, the pictures
+    first in that process (the outcome's `media`, which the caller finishes), instead of before `run_reduction`
+    returns. Without animations or recordings to make, the pictures are drawn before it returns."""
 
     @property
     def rule(self) -> SameFailureRule:

@@ -291,7 +291,7 @@ def _pictures_and_media(directory: Path, shown: Sequence[Shown], failure_text: s
     drawn = [] if pictures is None else pictures()
     drawn_in = time.perf_counter() - started
     written = write_media(directory, shown, failure_text=failure_text, media=media)
-    written.pictures, written.picture_seconds = drawn, drawn_in if pictures is not None else 0.0
+    written.pictures, written.picture_seconds = drawn, drawn_in
     return written
 
 
