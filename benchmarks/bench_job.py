@@ -129,8 +129,7 @@ def run_job(checkout: Path, workers: str, extra: Sequence[str]) -> dict[str, Any
     tail = lines[-1:] or [""]
     warned = [line.strip() for line in lines if "Warning" in line]  # pytest's warnings summary, one line each
     return {"command": " ".join(command), "exit": job.returncode, "wall": round(wall, 2), "cpu": cpu_seconds,
-            "load_before": before, "warnings": warned,
-            "load_after": load(), "last_line": tail[0], "tests": [test_row(summary) for summary in summaries]}
+            "load_before": before, "load_after": load(), "warnings": warned, "last_line": tail[0], "tests": [test_row(summary) for summary in summaries]}
 
 
 def test_row(summary: dict[str, Any]) -> dict[str, Any]:
@@ -145,8 +144,8 @@ def test_row(summary: dict[str, Any]) -> dict[str, Any]:
 
 def show(result: dict[str, Any]) -> None:
     print(f"\n## workers {result['workers']}, burners {result['burners']}: {result['wall']:.1f} s wall, "
-          f"{result['cpu']} CPU-s (exit {result['exit']}, load {result['load_before']} -> {result['load_after']}), start-up and "
-          f"collection {result['collection']:.1f} s; {result['last_line']}")
+          f"{result['cpu']} CPU-s (exit {result['exit']}, load {result['load_before']} -> {result['load_after']}), "
+          f"start-up and collection {result['collection']:.1f} s; {result['last_line']}")
     headers = ["test", "sims", "workers", *PHASES]
     print("| " + " | ".join(headers) + " |")
     print("|" + "---|" * len(headers))
