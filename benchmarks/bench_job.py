@@ -129,7 +129,8 @@ def run_job(checkout: Path, workers: str, extra: Sequence[str]) -> dict[str, Any
     tail = lines[-1:] or [""]
     warned = [line.strip() for line in lines if "Warning" in line]  # pytest's warnings summary, one line each
     return {"command": " ".join(command), "exit": job.returncode, "wall": round(wall, 2), "cpu": cpu_seconds,
-            "load_before": before, "load_after": load(), "warnings": warned, "last_line": tail[0], "tests": [test_row(summary) for summary in summaries]}
+            "load_before": before, "load_after": load(), "warnings": warned, "last_line": tail[0],
+            "tests": [test_row(summary) for summary in summaries]}
 
 
 def test_row(summary: dict[str, Any]) -> dict[str, Any]:

@@ -17,8 +17,8 @@ pytest.importorskip("mujoco", reason="the MuJoCo engine is the mujoco extra: pip
 
 from hypothesis import HealthCheck, given, settings
 
-from pytest_ddenv.media.animate import HEIGHT, WIDTH
 from pytest_ddenv.cli.main import main
+from pytest_ddenv.media.animate import HEIGHT, WIDTH
 from pytest_ddenv.oracle import PredicateSpec
 from pytest_ddenv.scenario.robot_world import RobotFailure, RobotWorld
 from pytest_ddenv.sim import simulate
