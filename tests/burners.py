@@ -16,15 +16,15 @@ def _burn() -> None:  # pragma: no cover - runs in a child process until termina
 
 
 @contextlib.contextmanager
-def every_core_busy() -> Iterator[None]:
-    """One CPU-bound process per core (and one more), running for the block."""
+def every_core_busy() -> Iterator[list[int]]:
+    """One CPU-bound process per core (and one more), running for the block; their process ids."""
     processes = [multiprocessing.get_context("spawn").Process(target=_burn, daemon=True)
                  for _ in range(cpu_count() + 1)]
     for process in processes:
         process.start()
     try:
         time.sleep(1.0)  # they have started (spawn imports) and are burning
-        yield
+        yield [process.pid for process in processes if process.pid is not None]
     finally:
         for process in processes:
             process.terminate()

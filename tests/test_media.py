@@ -3,6 +3,7 @@ worker processes, real GIF files read back with imageio)."""
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import shutil
@@ -12,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pytest_ddenv.media.animate import HEIGHT, WIDTH, frame_times, write_animation
+from pytest_ddenv.media.animate import FPS, HEIGHT, HOLD_SECONDS, MIN_STEP, WIDTH, frame_times, write_animation
 from pytest_ddenv.media.recording import recording_available
 from pytest_ddenv.detail import recording_detail
 from pytest_ddenv.execution import LocalPool
@@ -101,6 +102,22 @@ def test_animation_frames_size_and_the_failure_moment(name: str, tmp_path: Path)
     assert len({frame.tobytes() for frame in frames[:info.frames]}) > info.frames // 2, "the picture moves"
 
 
+def test_a_gif_has_a_frame_every_min_step_shown_at_fps_in_the_frame_size(tmp_path: Path) -> None:
+    from PIL import Image
+
+    world, run = failing_run("friction")
+    info = write_animation(tmp_path / "friction.gif", world, run)
+    steps = int((run.times[-1] - run.times[0]) / MIN_STEP)
+    assert info.frames == len(frame_times(run)) and steps + 1 <= info.frames <= steps + 3  # + the failure, the end
+    with Image.open(info.path) as gif:
+        assert gif.size == (WIDTH, HEIGHT) and gif.n_frames == info.frames
+        durations = []
+        for index in range(gif.n_frames):
+            gif.seek(index)
+            durations.append(gif.info["duration"])
+    assert durations[:-1] == [1000 / FPS] * (info.frames - 1) and durations[-1] == 1000 * HOLD_SECONDS
+
+
 def test_frames_are_spread_over_the_run_and_include_the_failure() -> None:
     _, run = failing_run("ditch")
     indices = frame_times(run, max_frames=10)
@@ -182,6 +199,50 @@ def test_media_whose_background_process_dies_are_made_here(tmp_path: Path) -> No
     with pytest.warns(UserWarning, match=r"ddenv: the media process \d+ ended with status -9; making the media"):
         written = later.finish()
     assert [path.name for path in written.paths] == ["minimal.gif"] and len(read_gif(tmp_path / "minimal.gif")) > 2
+
+
+def background_pictures(directory: Path) -> tuple[functools.partial[list[Path]], list[Path]]:
+    """The pictures of a rubble reduction to 3 models (a real drawing, picklable), and the files it writes."""
+    from pytest_ddenv.driver import pictures
+    from pytest_ddenv.driver.artifacts import ArtifactPaths
+    from pytest_ddenv.reduce import Reduction
+
+    world, run = failing_run("rubble")
+    reduction = Reduction(
+        original=world.names, minimal=world.names[:3], kept=(), probes=4, cache_hits=0, skipped=0, errors=0,
+        steps=((0, len(world)), (3, 3)), one_minimal=True, incomplete_reason=None, failure_rate=(5, 5),
+        wall_time=1.0, partition="model2model", priority="avg-trajectory", granularity="ddmin", deflake=3, seed=0)
+    paths = ArtifactPaths(directory)
+    return (functools.partial(pictures.write_reduction_pictures, world, reduction, paths, original_run=run,
+                              minimal_run=run), [paths.reduction_png, paths.progress_png])
+
+
+@pytest.mark.slow  # a media process: the full tier only
+@pytest.mark.pybullet
+def test_pictures_are_drawn_in_the_background_process_before_the_media(tmp_path: Path) -> None:
+    world, run = failing_run("ditch")
+    draw, expected = background_pictures(tmp_path)
+    later = BackgroundMedia(tmp_path, [Shown("minimal", world, run, True)], media="pictures,animations",
+                            pictures=draw, picture_paths=expected)
+    assert later.expected_paths() == [*expected, tmp_path / "minimal.gif"]
+    written = later.finish()
+    assert later.process.exitcode == 0 and written.pictures == expected and written.picture_seconds > 0
+    assert [path.name for path in written.paths] == ["minimal.gif"]
+    assert all(path.stat().st_size > 5_000 for path in later.expected_paths())
+
+
+@pytest.mark.slow  # a media process: the full tier only
+@pytest.mark.pybullet
+def test_a_killed_background_process_loses_none_of_the_pictures_and_media_it_promised(tmp_path: Path) -> None:
+    world, run = failing_run("ditch")
+    draw, expected = background_pictures(tmp_path)
+    later = BackgroundMedia(tmp_path, [Shown("minimal", world, run, True)], media="pictures,animations",
+                            pictures=draw, picture_paths=expected)
+    later.process.kill()
+    with pytest.warns(UserWarning, match=r"ddenv: the media process \d+ ended with status -9; making the media"):
+        written = later.finish()
+    assert [*written.pictures, *written.paths] == later.expected_paths()
+    assert all(path.stat().st_size > 5_000 for path in later.expected_paths())
 
 
 @pytest.mark.slow  # a media process: the full tier only
@@ -300,9 +361,12 @@ def test_a_reduction_leaves_animations_counted_runs_and_an_inline_html_animation
     assert summary["simulations"] >= logged and set(summary["media"]["files"]) >= {"original.gif", "minimal.gif"}
     timings = summary["timings"]  # the media were made after the summary, beside the rest, and waited for
     assert set(timings) >= {"test_run", "pool_start", "confirmation", "reduction", "recording_runs", "files",
-                            "pictures", "media", "media_wait"}
-    assert timings["media"] == summary["media"]["seconds"] > 0 and timings["media_wait"] <= timings["media"]
+                            "pictures_background", "media", "media_wait"}  # the pictures too, in the background
+    assert "pictures" not in timings and (folder / "reduction.png").is_file() and (folder / "progress.png").is_file()
+    assert timings["media"] == summary["media"]["seconds"] > 0 and timings["media_wait"] >= 0  # (how long: no
+    # assertion: the wait includes the process's start on a machine of any load)
     html = (pytester.path / "report.html").read_text()
     assert "image/gif" in html and "minimal.gif" in html and "original.gif" in html
     xml = (pytester.path / "junit.xml").read_text()
     assert f"[[ATTACHMENT|{folder / 'minimal.gif'}]]" in xml and "original.gif" in xml
+    assert f"[[ATTACHMENT|{folder / 'reduction.png'}]]" in xml and "reduction.png" in html

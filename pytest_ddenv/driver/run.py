@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import functools
 import os
 import signal
 import threading
@@ -122,8 +123,9 @@ class ReductionPlan:
     same_failure: SameFailureRule | None = None
     """Which failures are the reference failure (None: `spec`'s match and tolerance, `spec.same_failure_rule()`)."""
     media_later: bool = False
-    """Render the animations and recordings in a background process once the summary and pictures are written
-    (the outcome's `media`, which the caller finishes), instead of before `run_reduction` returns."""
+    """Render the animations and recordings in a background process once the summary is written, the pictures
+    first in that process (the outcome's `media`, which the caller finishes), instead of before `run_reduction`
+    returns. Without animations or recordings to make, the pictures are drawn before it returns."""
 
     @property
     def rule(self) -> SameFailureRule:
@@ -144,8 +146,8 @@ class ReductionOutcome:
     interrupted: ReductionInterrupted | None = None
     minimal_run: Run | None = None
     media: LaterMedia | None = None
-    """The animations and recordings still rendering (`plan.media_later`): `media.finish()` waits for them and
-    adds them to `summary.json`; their files are among the `attachments` already."""
+    """The pictures, animations and recordings still being made (`plan.media_later`): `media.finish()` waits for
+    them and adds them to `summary.json`; their files are among the `attachments` already."""
 
     @property
     def reduction(self) -> Reduction | None:
@@ -450,14 +452,20 @@ class _Locked:
                 # with worker processes, an animation renders beside the pictures
                 pending = PendingMedia(paths.directory, shown, failure_text=plan.reference.describe(),
                                        helper=self.pool.size > 1 and not self.pool.in_process, media=plan.media)
-            if interrupted is None and plan.media != "none":
+            # with animations or recordings to make in a background process, the pictures are drawn there first
+            drawn_later = interrupted is None and plan.media != "none" and plan.media_later and bool(shown)
+            if interrupted is None and plan.media != "none" and not drawn_later:
                 with timed(self.timings, "pictures"):
                     attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
                 report = replace(report, run_settings=self.run_settings())
                 artifacts.write_json(paths.summary, report.to_json())
-            if interrupted is None and shown and plan.media_later:
+            if drawn_later:  # beside the next test
+                pictures = functools.partial(_pictures, plan.world, reduction, paths, plan.reference_run,
+                                             minimal_run, staged)
                 later = LaterMedia(BackgroundMedia(paths.directory, shown, failure_text=plan.reference.describe(),
-                                                   media=plan.media), report, paths.summary)
+                                                   media=plan.media, pictures=pictures,
+                                                   picture_paths=_picture_paths(paths, staged)),
+                                   report, paths.summary)
             if pending is not None:
                 media = pending.finish()
                 attachments += media.paths
@@ -477,10 +485,11 @@ class _Locked:
 
 
 class LaterMedia:
-    """A reduction's animations and recordings rendering in a background process (`plan.media_later`) after
-    its summary was written: `finish()` waits for them, says what could not be made (warnings, as when they are
-    made before `run_reduction` returns) and adds them to `summary.json` (`media`, `timings.media` the seconds
-    they took, `timings.media_wait` the seconds `finish()` waited)."""
+    """A reduction's pictures, animations and recordings made in a background process (`plan.media_later`)
+    after its summary was written: `finish()` waits for them, says what could not be made (warnings, as when
+    they are made before `run_reduction` returns) and adds them to `summary.json` (`media`,
+    `timings.pictures_background` and `timings.media` the seconds they took, `timings.media_wait` the seconds
+    `finish()` waited)."""
 
     def __init__(self, media: BackgroundMedia, report: ReductionReport, summary: Path) -> None:
         self.media, self.report, self.summary = media, report, summary
@@ -492,12 +501,13 @@ class LaterMedia:
             return self.done
         started = time.perf_counter()
         written = self.media.finish()
-        timings = {**self.report.run_settings.get("timings", {}), "media": round(written.seconds, 3),
+        drawn = {} if self.media.pictures is None else {"pictures_background": round(written.picture_seconds, 3)}
+        timings = {**self.report.run_settings.get("timings", {}), **drawn, "media": round(written.seconds, 3),
                    "media_wait": round(time.perf_counter() - started, 3)}
         report = replace(self.report.with_media(written.info, written.seconds) if written.info else self.report,
                          run_settings={**self.report.run_settings, "timings": timings})
         artifacts.write_json(self.summary, report.to_json())
-        self.done = written.paths
+        self.done = [*written.pictures, *written.paths]
         return self.done
 
 
@@ -678,6 +688,16 @@ def _recorded_original(plan: ReductionPlan, call: Calls, log: ProbeLog,
     if not call.may_start(plan.spec.max_probes):
         return None, False
     return _logged_run(call, log, plan.world, 0, "recording", True)
+
+
+def _picture_paths(paths: artifacts.ArtifactPaths, staged: StagesOutcome | None) -> list[Path]:
+    """The pictures `_pictures` writes when nothing goes wrong."""
+    written = [paths.reduction_png, paths.progress_png]
+    if staged is not None and staged.changed and staged.final is not None:
+        written.append(paths.directory / "simplified.png")
+    if staged is not None and staged.passing is not None:
+        written.append(paths.directory / "passing.png")
+    return written
 
 
 def _pictures(world: World, reduction: Reduction, paths: artifacts.ArtifactPaths, original_run: Run | None,

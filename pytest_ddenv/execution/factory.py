@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.execution.base import Pool
@@ -21,14 +22,15 @@ IDLE_SAMPLE_SECONDS = 0.1
 """How long `idle_cores` watches the machine's CPU time (/proc/stat) to see how much of it others use."""
 
 
-def idle_cores(sample: float = IDLE_SAMPLE_SECONDS) -> int:
+def idle_cores(sample: float = IDLE_SAMPLE_SECONDS, ours: Sequence[int] = ()) -> int:
     """How many cores other processes leave idle now, at least 1 and at most the cores this process may use
     (`cpu_count`: its affinity): the idle share of the machine's CPU time over `sample` seconds (Linux's
     /proc/stat), else the cores minus the 1-minute load average (which lags by a minute). This process sleeps
-    while it measures, so its own work is not counted."""
+    while it measures, so its own work is not counted, nor the work of the processes `ours` names (this
+    session's background media, which end within seconds: they must not make a reduction run on one core)."""
     cores = cpu_count()
     try:
-        idle = _idle_share(sample) * (os.cpu_count() or 1)
+        idle = _idle_share(sample, ours) * (os.cpu_count() or 1)
     except (OSError, ValueError, IndexError):  # not Linux
         try:
             idle = cores - os.getloadavg()[0]
@@ -37,18 +39,33 @@ def idle_cores(sample: float = IDLE_SAMPLE_SECONDS) -> int:
     return max(1, min(cores, round(idle)))
 
 
-def _idle_share(sample: float) -> float:
+def _idle_share(sample: float, ours: Sequence[int] = ()) -> float:
     """The share of the machine's CPU time spent idle over `sample` seconds (/proc/stat's first line: user,
-    nice, system, idle, iowait, irq, softirq, steal)."""
+    nice, system, idle, iowait, irq, softirq, steal), the time the processes `ours` used counted as idle
+    (/proc/PID/stat's utime and stime, in the same clock ticks; a process that ended counts as nothing)."""
     def times() -> list[int]:
         with open("/proc/stat", encoding="ascii") as stat:
             return [int(value) for value in stat.readline().split()[1:9]]
 
-    before = times()
+    before, mine = times(), _ticks(ours)
     time.sleep(sample)
     spent = [b - a for a, b in zip(before, times(), strict=True)]
     total = sum(spent)
-    return 1.0 if total <= 0 else (spent[3] + spent[4]) / total
+    used_by_ours = sum(max(0, after - ticks) for ticks, after in zip(mine, _ticks(ours), strict=True))
+    return 1.0 if total <= 0 else min(total, spent[3] + spent[4] + used_by_ours) / total
+
+
+def _ticks(pids: Sequence[int]) -> list[int]:
+    """The user + system clock ticks of each process (0: it is gone)."""
+    ticks = []
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/stat", encoding="ascii") as stat:
+                fields = stat.read().rsplit(")", 1)[1].split()  # after the command's name, which may hold spaces
+            ticks.append(int(fields[11]) + int(fields[12]))  # utime, stime: fields 14 and 15 of proc(5)
+        except (OSError, ValueError, IndexError):
+            ticks.append(0)
+    return ticks
 
 
 def default_workers(workers: int | str) -> int:

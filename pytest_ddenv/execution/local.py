@@ -67,13 +67,17 @@ STARTUP_TIMEOUT = 120.0
 """Seconds a new worker may take to start its job (import pybullet, the test module and what it imports)."""
 CLOSE_GRACE = 1.0
 """Seconds `close()` lets workers exit on their own before terminating them."""
-_PRELOAD = ["pytest_ddenv.execution.worker", "pytest_ddenv.sim", "pytest"]
+_PRELOAD = ["pytest_ddenv.execution.worker", "pytest_ddenv.sim", "pytest", "matplotlib.pyplot",
+            "matplotlib.backends.backend_agg"]
+"""matplotlib for the background media process (media/writer.py `BackgroundMedia`) of each reduction, which
+draws its pictures first: 0.25 CPU-s once in the forkserver instead of in every one of them."""
 
 
 def forkserver_preload() -> list[str]:
     """Modules the forkserver imports once, so that every worker forked from it starts with them: the
     simulation, pytest and the installed pytest plugins (a worker's pytest session loads them all; some,
-    like hypothesis's, take a second to import). Import errors are ignored by multiprocessing."""
+    like hypothesis's, take a second to import), matplotlib's pyplot (`_PRELOAD`). Import errors are ignored
+    by multiprocessing."""
     from importlib.metadata import entry_points
 
     plugins = sorted({entry.module for entry in entry_points(group="pytest11")})

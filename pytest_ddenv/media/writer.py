@@ -16,7 +16,8 @@ import concurrent.futures.process
 import os
 import time
 import warnings
-from collections.abc import Sequence
+import weakref
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -114,6 +115,14 @@ class MediaWritten:
     paths: list[Path] = field(default_factory=list)
     info: dict[str, dict[str, Any]] = field(default_factory=dict)
     seconds: float = 0.0
+    pictures: list[Path] = field(default_factory=list)
+    """The pictures drawn before the media (`BackgroundMedia(pictures=...)`), and the seconds they took."""
+    picture_seconds: float = 0.0
+
+
+Pictures = Callable[[], list[Path]]
+"""Draws a reduction's PNG pictures and returns the paths written (warns, never raises); picklable, to run in
+`BackgroundMedia`'s process."""
 
 
 def write_media(directory: Path, shown: Sequence[Shown], *, failure_text: str = "",
@@ -183,30 +192,42 @@ class PendingMedia:
         return written
 
 
+def background_pids() -> list[int]:
+    """The process ids of this process's `BackgroundMedia` still running (`execution.idle_cores(ours=...)`)."""
+    return [media.process.pid for media in list(_RUNNING) if media.process.pid is not None
+            and media.process.is_alive()]
+
+
 class BackgroundMedia:
     """`write_media` in a background process (started like the probe workers, not a daemon: MuJoCo's renderer
-    starts its own helper from it), started now; `finish()` waits for it. What could not be made is a warning
-    here, as with `write_media`; a background process that dies makes them in this process instead."""
+    starts its own helper from it), started now, after `pictures` (the PNG pictures, drawn first when given,
+    expected at `picture_paths`); `finish()` waits for it. What could not be made is a warning here, as with
+    `write_media`; a background process that dies makes them in this process instead."""
 
     def __init__(self, directory: Path, shown: Sequence[Shown], *, failure_text: str = "",
-                 media: str = DEFAULT_MEDIA) -> None:
+                 media: str = DEFAULT_MEDIA, pictures: Pictures | None = None,
+                 picture_paths: Sequence[Path] = ()) -> None:
         from pytest_ddenv.execution.local import main_module_hidden, probe_context
 
         self.directory, self.shown, self.failure_text, self.media = directory, list(shown), failure_text, media
+        self.pictures, self.picture_paths = pictures, list(picture_paths)
         context = probe_context()
         self.receive, send = context.Pipe(duplex=False)
-        self.process = context.Process(target=_media_process, args=(send, directory, self.shown, failure_text, media),
-                                       name="ddenv-media", daemon=False)
+        self.process = context.Process(target=_media_process, name="ddenv-media", daemon=False,
+                                       args=(send, directory, self.shown, failure_text, media, pictures))
         with main_module_hidden():  # the process starts here: it must not re-import a user's script
             self.process.start()
         send.close()
         self.written: MediaWritten | None = None
+        _RUNNING.add(self)
 
     def expected_paths(self) -> list[Path]:
-        """The files `finish()` makes when nothing goes wrong (`<label>.gif`, `recording.rrd`, `recording.mcap`)."""
+        """The files `finish()` makes when nothing goes wrong (the pictures, `<label>.gif`, `recording.rrd`,
+        `recording.mcap`)."""
         parts = media_parts(self.media)
         recorded = [item for item in self.shown if item.run is not None]
-        paths = [self.directory / f"{item.label}.gif" for item in recorded] if "animations" in parts else []
+        paths = [*self.picture_paths]
+        paths += [self.directory / f"{item.label}.gif" for item in recorded] if "animations" in parts else []
         if recorded and "rrd" in parts:
             from pytest_ddenv.media.recording import recording_available
 
@@ -229,8 +250,8 @@ class BackgroundMedia:
             self.process.join()
             warnings.warn(f"ddenv: the media process {self.process.pid} ended with status {self.process.exitcode}; "
                           "making the media in this process", stacklevel=1)
-            written, messages = write_media(self.directory, self.shown, failure_text=self.failure_text,
-                                            media=self.media), []
+            written, messages = _pictures_and_media(self.directory, self.shown, self.failure_text, self.media,
+                                                    self.pictures), []
         finally:
             self.receive.close()
         self.process.join()
@@ -247,14 +268,31 @@ class BackgroundMedia:
         self.receive.close()
 
 
-def _media_process(send: Any, directory: Path, shown: Sequence[Shown], failure_text: str, media: str) -> None:
-    """The background process of `BackgroundMedia`: the media, and the warnings said while making them."""
+_RUNNING: weakref.WeakSet[BackgroundMedia] = weakref.WeakSet()
+"""The background media started by this process (`background_pids`)."""
+
+
+def _media_process(send: Any, directory: Path, shown: Sequence[Shown], failure_text: str, media: str,
+                   pictures: Pictures | None = None) -> None:
+    """The background process of `BackgroundMedia`: the pictures and media, and the warnings said while making
+    them."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        written = write_media(directory, shown, failure_text=failure_text, media=media)
+        written = _pictures_and_media(directory, shown, failure_text, media, pictures)
     said = [str(warning.message) for warning in caught]
     send.send((written, [message for message in said if message.startswith("ddenv:")]))
     send.close()
+
+
+def _pictures_and_media(directory: Path, shown: Sequence[Shown], failure_text: str, media: str,
+                        pictures: Pictures | None) -> MediaWritten:
+    """`pictures()` (when given), then `write_media`."""
+    started = time.perf_counter()
+    drawn = [] if pictures is None else pictures()
+    drawn_in = time.perf_counter() - started
+    written = write_media(directory, shown, failure_text=failure_text, media=media)
+    written.pictures, written.picture_seconds = drawn, drawn_in
+    return written
 
 
 def _render_elsewhere(directory: Path, item: Shown, failure_text: str

@@ -33,6 +33,7 @@ def probe_pool(item: pytest.Function, example: GivenExample | None = None,
     worker), or the session's cluster. `seed`: the probes' base seed (None: the test's own)."""
     from pytest_ddenv.execution import check_executor, make_cluster, make_pool
     from pytest_ddenv.execution.factory import idle_cores
+    from pytest_ddenv.media.writer import background_pids
     from pytest_ddenv.pytest_plugin.worker import ItemHandler, PytestJob
 
     config = item.config
@@ -44,11 +45,13 @@ def probe_pool(item: pytest.Function, example: GivenExample | None = None,
     if executor is None:
         # Probes run in this process when one worker is asked for, or when 'auto' finds one idle core and the
         # test has no function-scoped fixture a probe would share (else one worker process, where each probe
-        # runs the whole test as with more workers).
+        # runs the whole test as with more workers). 'auto' counts the earlier reductions' media, made in the
+        # background, as idle: they end within seconds, the reduction lasts longer.
         in_process = ItemHandler(item, example, seed) if count == 1 else None
-        if count == "auto" and idle_cores() == 1:
-            count = 1
-            in_process = None if shared_fixtures(item) else ItemHandler(item, example, seed)
+        if count == "auto":
+            count = idle_cores(ours=background_pids())
+            if count == 1:
+                in_process = None if shared_fixtures(item) else ItemHandler(item, example, seed)
         return make_pool(PytestJob.of(item, example=example, seed=seed), count, in_process=in_process,
                          watchdog=watchdog, warn=warn)
     cluster = config.stash.get(_CLUSTER, None)
@@ -59,10 +62,11 @@ def probe_pool(item: pytest.Function, example: GivenExample | None = None,
 
 
 def default_workers(config: pytest.Config) -> str:
-    """`--ddenv-workers` as given, else "auto" (the idle cores: `execution.idle_cores`), or "1" in a
-    pytest-xdist worker (xdist already uses every core)."""
+    """`--ddenv-workers` as given, else "auto" (the idle cores: `execution.idle_cores`), in a pytest-xdist
+    worker too: while the other xdist workers run tests that is one core (the probes in this process), and the
+    idle cores when the last long reductions run alone at the session's end."""
     given = options_of(config).workers
-    return str(given) if given else "1" if hasattr(config, "workerinput") else "auto"
+    return str(given) if given else "auto"
 
 
 def close_cluster(config: pytest.Config) -> None:

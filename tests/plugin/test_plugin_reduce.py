@@ -263,6 +263,21 @@ def test_probe_workers_run_the_whole_test_with_fresh_function_fixtures(wall_proj
     assert summary_of(wall_project)["minimal_models"] == ["wall"]
 
 
+def test_under_xdist_on_a_busy_machine_a_test_with_a_function_scoped_fixture_gets_one_probe_worker_process(
+    wall_project: pytest.Pytester,
+) -> None:
+    """An xdist worker's default is `auto`: on a busy machine one core, and a test whose fixture probes would
+    share runs them in one worker process, each probe with fresh fixtures, and nothing warns."""
+    wall_project.makepyfile(test_scenario=SCENARIO_TEST_WITH_FIXTURE.replace(
+        "    counter.append(1)\n", "    counter.append(1)\n    assert counter == [1], 'a fixture value was reused'\n"))
+    with every_core_busy():
+        result = wall_project.runpytest_subprocess("-n", "1", "--ddenv-reduce")
+    result.assert_outcomes(failed=1)
+    assert "PytestWarning" not in result.stdout.str()
+    summary = summary_of(wall_project)
+    assert summary["minimal_models"] == ["wall"] and summary["workers"]["workers"] == 1
+
+
 SCENARIO_TEST_WITH_FIXTURE = (
     "import pytest\n"
     "@pytest.fixture\n"

@@ -18,6 +18,7 @@ pytest.importorskip("mujoco", reason="the MuJoCo engine is the mujoco extra: pip
 from hypothesis import HealthCheck, given, settings
 
 from pytest_ddenv.cli.main import main
+from pytest_ddenv.media.animate import HEIGHT, WIDTH
 from pytest_ddenv.oracle import PredicateSpec
 from pytest_ddenv.scenario.robot_world import RobotFailure, RobotWorld
 from pytest_ddenv.sim import simulate
@@ -87,7 +88,7 @@ def test_a_mujoco_reduction_with_shapes_and_attributes_writes_its_worlds_picture
         assert image.ndim == 3 and min(image.shape[:2]) > 100 and image.std() > 10, picture
     for animation in ("original.gif", "minimal.gif"):
         frames = iio.imread(out / animation, index=None)
-        assert len(frames) > 2 and frames[0].shape == (240, 320, 3), animation
+        assert len(frames) > 2 and frames[0].shape == (HEIGHT, WIDTH, 3), animation
     from rerun.chunk import RrdReader
 
     chunks = list(RrdReader(out / "recording.rrd").stream().to_chunks())
