@@ -366,9 +366,11 @@ def test_the_failure_rate_line_compares_with_the_original_and_warns() -> None:
                    failure_rate_runs=4)
     assert solid.rate_check is not None and solid.rate_check.decision == "holds"
     assert failure_rate_line(solid) == ("minimal world fails 4/4 fresh runs: not significantly less often than the "
-                                        "original (3/3 fresh runs; 1 more could not change that)")
+                                        "original (3/3 fresh runs; 1 more could not change that; its rate: 51-100 % at 95 % "
+                                        "confidence)")
     full = replace(solid, rate_check=replace(solid.rate_check, original=Rate(4, 4), skipped=0))
-    assert failure_rate_line(full) == "minimal world fails as often as the original: 4/4 vs 4/4 fresh runs"
+    assert failure_rate_line(full) == ("minimal world fails as often as the original: 4/4 vs 4/4 fresh runs (its "
+                                      "rate: 51-100 % at 95 % confidence)")
     below = replace(solid, rate_check=replace(solid.rate_check, reduced=Rate(0, 4), decision="below"),
                     rate_backoffs=3)
     assert failure_rate_line(below).endswith("(warning: significantly less often, after 3 back-offs)")

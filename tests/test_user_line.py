@@ -87,15 +87,17 @@ def test_the_failure_rate_line_says_in_words_how_often_the_minimal_world_fails()
     solid = _solid()
     assert solid.rate_check is not None and solid.rate_check.decision == "holds"
     assert failure_rate_line(solid) == ("minimal world fails 5/5 fresh runs: not significantly less often than the "
-                                        "original (3/3 fresh runs; 2 more could not change that)")
+                                        "original (3/3 fresh runs; 2 more could not change that; its rate: 57-100 % at 95 % "
+                                        "confidence)")
     check = replace(solid.rate_check, original=Rate(5, 5), skipped=0)
     assert failure_rate_line(replace(solid, rate_check=check)) == (
-        "minimal world fails as often as the original: 5/5 vs 5/5 fresh runs")
+        "minimal world fails as often as the original: 5/5 vs 5/5 fresh runs (its rate: 57-100 % at 95 % confidence)")
     fewer = replace(solid, rate_check=replace(check, original=Rate(20, 20), reduced=Rate(17, 20)))
     assert failure_rate_line(fewer) == ("minimal world fails about as often as the original: 17/20 vs 20/20 fresh "
-                                        "runs (fewer, within chance)")
+                                        "runs (fewer, within chance; its rate: 64-95 % at 95 % confidence)")
     more = replace(solid, rate_check=replace(check, original=Rate(4, 5)))
-    assert failure_rate_line(more) == "minimal world fails at least as often as the original: 5/5 vs 4/5 fresh runs"
+    assert failure_rate_line(more) == ("minimal world fails at least as often as the original: 5/5 vs 4/5 fresh runs "
+                                       "(its rate: 57-100 % at 95 % confidence)")
     below = replace(solid, rate_check=replace(check, reduced=Rate(0, 5), decision="below"), rate_backoffs=3)
     assert failure_rate_line(below) == ("minimal world fails less often than the original: 0/5 vs 5/5 fresh runs "
                                         "(warning: significantly less often, after 3 back-offs)")

@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from pytest_ddenv.driver.report import ReductionReport
+from pytest_ddenv.reduce.rates import VERDICT_CONFIDENCE, Rate, wilson_interval
 from pytest_ddenv.reduce.types import Reduction
 
 LINE_LIMIT = 2000
@@ -113,6 +114,13 @@ def other_failure_lines(report: ReductionReport, limit: int = OTHER_FAILURES_SHO
     return lines
 
 
+def interval_text(rate: Rate) -> str:
+    """The minimal world's failure rate as its runs bound it ("its rate: 57-100 % at 95 % confidence" for 5/5):
+    a comparison that holds on a few runs says no more than that."""
+    low, high = wilson_interval(rate, VERDICT_CONFIDENCE)
+    return f"its rate: {round(100 * low)}-{round(100 * high)} % at {round(100 * VERDICT_CONFIDENCE)} % confidence"
+
+
 def failure_rate_line(reduction: Reduction) -> str:
     """How often the minimal world fails on fresh runs, compared with the original world (rates.py), with a
     warning when it is significantly lower, when the budget stopped the comparison, or when it rarely fails."""
@@ -129,17 +137,18 @@ def failure_rate_line(reduction: Reduction) -> str:
         made = (f"{check.original} fresh runs; {check.skipped} more" if check.original.runs
                 else f"its {check.skipped} fresh runs")
         return (f"minimal world fails {check.reduced} fresh runs: not significantly less often than the original "
-                f"({made} could not change that)")
+                f"({made} could not change that; {interval_text(check.reduced)})")
     if check is not None:  # in words; the test's statistics are in summary.json (rate_check) and under -v
         runs_text = f"{check.reduced} vs {check.original} fresh runs"
         if check.decision == "below":
             return (f"minimal world fails less often than the original: {runs_text} (warning: significantly less "
                     f"often, after {reduction.rate_backoffs} back-offs)")
+        bound = interval_text(check.reduced)
         if check.reduced.value < check.original.value:
-            return f"minimal world fails about as often as the original: {runs_text} (fewer, within chance)"
+            return f"minimal world fails about as often as the original: {runs_text} (fewer, within chance; {bound})"
         if check.reduced.value > check.original.value:
-            return f"minimal world fails at least as often as the original: {runs_text}"
-        return f"minimal world fails as often as the original: {runs_text}"
+            return f"minimal world fails at least as often as the original: {runs_text} ({bound})"
+        return f"minimal world fails as often as the original: {runs_text} ({bound})"
     line = f"minimal world fails {fails}/{runs} fresh runs"
     original = reduction.original_failure_rate
     if original is not None:

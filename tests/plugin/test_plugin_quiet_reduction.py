@@ -45,7 +45,8 @@ def test_a_ci_log_shows_progress_that_agrees_with_the_result_and_no_attachment_l
     assert one_models(output) == [] and "(1/2)" not in output
     # the rate line in words, the statistics in summary.json (and under -v)
     result.stdout.fnmatch_lines(["minimal world fails 5/5 fresh runs: not significantly less often than the "
-                                 "original (its 5 fresh runs could not change that)"])
+                                 "original (its 5 fresh runs could not change that; its rate: 57-100 % at 95 % "
+                                 "confidence)"])
     assert "Fisher" not in output
     # the attachments: in the JUnit XML only
     assert "[[ATTACHMENT|" not in output, output
@@ -59,7 +60,7 @@ def test_verbose_shows_the_attachments_and_the_rate_statistics(wall_project: pyt
     result.stdout.fnmatch_lines([
         "*Captured stdout call*", "[[][[]ATTACHMENT|*minimal.yaml[]][]]",
         "minimal world fails 5/5 fresh runs: not significantly less often than the original (its 5 fresh runs "
-        "could not change that)",
+        "could not change that; its rate: 57-100 % at 95 % confidence)",
         "rate check (one-sided Fisher exact test): p = 1, level 0.0167 per look, decision 'holds' on 5/5 vs 0/0 "
         "fresh runs",
     ])
