@@ -217,13 +217,18 @@ def background_pictures(directory: Path) -> tuple[functools.partial[list[Path]],
                               minimal_run=run), [paths.reduction_png, paths.progress_png])
 
 
+def ditch_media_with_pictures(directory: Path) -> tuple[BackgroundMedia, list[Path]]:
+    """The ditch's minimal GIF made in a background process that draws the pictures first, and their paths."""
+    world, run = failing_run("ditch")
+    draw, expected = background_pictures(directory)
+    return BackgroundMedia(directory, [Shown("minimal", world, run, True)], media="pictures,animations",
+                           pictures=draw, picture_paths=expected), expected
+
+
 @pytest.mark.slow  # a media process: the full tier only
 @pytest.mark.pybullet
 def test_pictures_are_drawn_in_the_background_process_before_the_media(tmp_path: Path) -> None:
-    world, run = failing_run("ditch")
-    draw, expected = background_pictures(tmp_path)
-    later = BackgroundMedia(tmp_path, [Shown("minimal", world, run, True)], media="pictures,animations",
-                            pictures=draw, picture_paths=expected)
+    later, expected = ditch_media_with_pictures(tmp_path)
     assert later.expected_paths() == [*expected, tmp_path / "minimal.gif"]
     written = later.finish()
     assert later.process.exitcode == 0 and written.pictures == expected and written.picture_seconds > 0
@@ -234,10 +239,7 @@ def test_pictures_are_drawn_in_the_background_process_before_the_media(tmp_path:
 @pytest.mark.slow  # a media process: the full tier only
 @pytest.mark.pybullet
 def test_a_killed_background_process_loses_none_of_the_pictures_and_media_it_promised(tmp_path: Path) -> None:
-    world, run = failing_run("ditch")
-    draw, expected = background_pictures(tmp_path)
-    later = BackgroundMedia(tmp_path, [Shown("minimal", world, run, True)], media="pictures,animations",
-                            pictures=draw, picture_paths=expected)
+    later, expected = ditch_media_with_pictures(tmp_path)
     later.process.kill()
     with pytest.warns(UserWarning, match=r"ddenv: the media process \d+ ended with status -9; making the media"):
         written = later.finish()
