@@ -116,34 +116,47 @@ class Scheduler:
             if isinstance(status, OpenCandidate):
                 self.decider.settle(status)
         futures: Futures = {}
+        consulted = 0
+
+        def consult_through(last: int) -> None:
+            """The serial loop's skip and consult records of the trials up to `last`, in trial order."""
+            nonlocal consulted
+            for trial, status in zip(trials[consulted: last + 1], statuses[consulted: last + 1], strict=True):
+                if isinstance(status, str):
+                    self.journal.skip(trial, status, quiet=quiet)
+                else:
+                    decision = _decision_of(status)
+                    assert decision is not None
+                    self.journal.consult(trial, decision, cached=isinstance(status, Decision), quiet=quiet)
+            consulted = max(consulted, last + 1)
+
         finished = False
         try:
-            answer = self._run_round(statuses, futures, [frozenset(trial.candidate) in earlier for trial in trials])
+            answer = self._run_round(statuses, futures, [frozenset(trial.candidate) in earlier for trial in trials],
+                                     consult_through)
             finished = True
         finally:
             self._wind_up(statuses, futures, finished)
-        last = len(statuses) - 1 if answer is None else answer
-        for trial, status in zip(trials[: last + 1], statuses[: last + 1], strict=True):
-            if isinstance(status, str):
-                self.journal.skip(trial, status, quiet=quiet)
-            else:
-                decision = _decision_of(status)
-                assert decision is not None
-                self.journal.consult(trial, decision, cached=isinstance(status, Decision), quiet=quiet)
+        consult_through(len(statuses) - 1 if answer is None else answer)
         if answer is None:
             return None
         decision = _decision_of(statuses[answer])
         assert decision is not None
         return answer, decision
 
-    def _run_round(self, statuses: list[Status], futures: Futures, old: list[bool]) -> int | None:
+    def _run_round(self, statuses: list[Status], futures: Futures, old: list[bool],
+                   consult_through: Callable[[int], None]) -> int | None:
         """Start and collect attempts until the round's answer is known: the first reproducing index or None.
-        `old`: which trials an earlier round consulted."""
+        `old`: which trials an earlier round consulted. Before the drift watch runs at the first new rejection,
+        the trials up to it are consulted (`consult_through`) as the serial loop would have by then: the watch
+        may end the round, and the learner's history must not depend on the executor."""
         position = {id(status): index for index, status in enumerate(statuses)}
         rejected = False
         while True:
-            if not rejected and self.after_rejection is not None and _first_new_rejects(statuses, old):
+            if not rejected and self.after_rejection is not None \
+                    and (first := _first_new_rejection(statuses, old)) is not None:
                 rejected = True
+                consult_through(first)
                 self.after_rejection()
             if (resolution := _resolve(statuses))[0]:
                 break
@@ -249,18 +262,18 @@ def _undecided(statuses: Sequence[Status]) -> list[OpenCandidate]:
     return undecided
 
 
-def _first_new_rejects(statuses: Sequence[Status], old: Sequence[bool]) -> bool:
-    """The serial loop would now reach its first rejection of a trial no earlier round consulted: every trial
-    before it skipped or rejected, it decided and rejected."""
-    for status, consulted in zip(statuses, old, strict=True):
+def _first_new_rejection(statuses: Sequence[Status], old: Sequence[bool]) -> int | None:
+    """The index of the serial loop's first rejection of a trial no earlier round consulted, if the loop would
+    reach it now (every trial before it skipped or rejected, it decided and rejected); else None."""
+    for index, (status, consulted) in enumerate(zip(statuses, old, strict=True)):
         if isinstance(status, str):
             continue
         decision = _decision_of(status)
         if decision is None or decision.reproduces:
-            return False
+            return None
         if not consulted:
-            return True
-    return False
+            return index
+    return None
 
 
 def _resolve(statuses: Sequence[Status]) -> tuple[bool, int | None]:

@@ -8,7 +8,7 @@ from types import ModuleType
 from typing import Any
 
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pytest_ddenv.reduce import PARTITIONS, PRIORITIES, VOLATILE_FIELDS, ProbeLog, Reduction, reduce
@@ -151,7 +151,6 @@ def test_parallel_probing_never_changes_the_result(
     oracle = synthetic.SetOracle(culprits, rate=0.7, salt=salt, trace=scenario["reference"])
     parallel = reduce(probe=oracle, deflake=deflake, executor=pool, workers=3, **scenario)
     assert len(oracle.calls) == len(set(oracle.calls)), "a (candidate, attempt) was simulated twice"
-    assume(not _drift_backed_off(serial) and not _drift_backed_off(parallel))  # a known defect: see below
     assert parallel.minimal == serial.minimal
     assert [size for _, size in parallel.steps] == [size for _, size in serial.steps]
     assert parallel.one_minimal == serial.one_minimal
@@ -162,9 +161,6 @@ def _drift_backed_off(result: Reduction) -> bool:
     return any("drift watch" in note for note in result.notes)
 
 
-@pytest.mark.xfail(strict=True, reason="known defect (issue 33, second session): after the drift watch backs off "
-                   "during a round, the candidates that round decided speculatively on other workers change the "
-                   "path of a parallel reduction; a serial one goes on differently")
 def test_parallel_probing_after_a_drift_back_off_is_the_serial_reduction(
     synthetic: ModuleType, pool: ThreadPoolExecutor
 ) -> None:
@@ -177,6 +173,7 @@ def test_parallel_probing_after_a_drift_back_off_is_the_serial_reduction(
                       executor=pool, workers=3, **scenario)
     assert _drift_backed_off(serial) and _drift_backed_off(parallel)
     assert [size for _, size in parallel.steps] == [size for _, size in serial.steps]
+    assert parallel.minimal == serial.minimal
 
 
 @given(scenario=scenarios(), salt=st.integers(0, 10**6))
