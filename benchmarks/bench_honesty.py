@@ -7,11 +7,13 @@
 
 Per row (scenario x deflake rule: any-of-1 is `deflake=0`, any-of-4 `deflake=3`, and `auto`): our mean
 simulations with the end-of-run rate comparison on (`failure_rate_runs=20`, the plugin's default; every
-simulation started is counted: calibration, reduction, speculative, rate comparison, back-offs and the
-precondition check), picire's best settings' mean simulations (the configuration of `common.PICIRE_CONFIGS`
-with the fewest simulations on the first seed, then run on every seed; same probe, same rule; with `auto`
-picire gets the rule our calibration chose and is charged its runs), and both minimal worlds' failure rates
-on the same 10 fresh seeds (attempts 100-109 of the reduction seed, never used by a reduction).
+simulation started is counted: calibration, reduction, speculative, rate comparison, drift watch and
+back-offs), picire's best settings' mean simulations (the configuration of `common.PICIRE_CONFIGS` with the
+fewest simulations on the first seed, then run on every seed; same probe, same rule; with `auto` picire gets
+the rule our calibration chose and is charged its runs), and both minimal worlds' failure rates on the same
+10 fresh seeds (attempts 100-109 of the reduction seed, never used by a reduction). The verdict compares the
+means on the seeds where picire returned a minimal world: where its original run did not fail under the rule
+it aborts, reducing nothing (the table says so and which seeds).
 
 The failure is the scenario test's own failing run (noise seed 0); each seed is a reduction seed, as in
 paper_tables.py's default protocol. `--picire-from FILE` takes picire's rows (its best settings, chosen on the
@@ -67,21 +69,33 @@ def ours(row: Row) -> int:
 
 def split(rows: list[Row]) -> str:
     """Mean simulations by purpose: decided probes (calibration included), the rest (fresh runs of the rate
-    comparison and its back-offs, speculative runs), the precondition check's information runs."""
+    comparison, the drift watch and the back-offs, speculative runs)."""
     probes = statistics.mean(int(r.extra["probes"]) for r in rows)
-    info = statistics.mean((r.extra["precondition_check"] or (0, 0))[1] for r in rows)
-    return f"{probes:.1f} + {statistics.mean(map(ours, rows)) - probes - info:.1f} + {info:.1f}"
+    return f"{probes:.1f} + {statistics.mean(map(ours, rows)) - probes:.1f}"
 
 
 def fails(rows: list[Row]) -> str:
     return f"{sum(r.failure_rate[0] for r in rows)}/{sum(r.failure_rate[1] for r in rows)}"
 
 
+def aborted(row: Row) -> bool:
+    """picire stopped without a minimal world (its original run did not fail under the rule)."""
+    return row.note.startswith("picire aborted")
+
+
 def verdict(our_rows: list[Row], their_rows: list[Row]) -> str:
+    """Fewer simulations than picire's best on the seeds where picire returned a minimal world (a run that
+    aborted reduced nothing: its simulations are no reduction's cost), and the fresh failure rates."""
     if not their_rows:
         return "-"
-    mine, theirs = statistics.mean(map(ours, our_rows)), statistics.mean(r.simulations for r in their_rows)
+    seeds = {row.seed for row in their_rows if not aborted(row)}
+    if not seeds:
+        return "picire reduced nothing"
+    mine = statistics.mean(ours(r) for r in our_rows if r.seed in seeds)
+    theirs = statistics.mean(r.simulations for r in their_rows if r.seed in seeds)
     fewer = "yes" if mine <= theirs else f"NO (+{mine - theirs:.1f})"
+    if len(seeds) < len(their_rows):
+        fewer += f" on seeds {sorted(seeds)} ({mine:.1f} vs {theirs:.1f})"
     rate_mine = sum(r.failure_rate[0] for r in our_rows) / max(1, sum(r.failure_rate[1] for r in our_rows))
     rate_theirs = sum(r.failure_rate[0] for r in their_rows) / max(1, sum(r.failure_rate[1] for r in their_rows))
     return f"{fewer}; fresh rate {'>=' if rate_mine >= rate_theirs else '<'} picire's"
@@ -218,17 +232,14 @@ def main(argv: list[str] | None = None) -> int:
                       verdict(rows, other)])
     print(f"\nWith the rate comparison on: mean simulations (every one started) and fresh failures of the minimal "
           f"worlds ({FRESH_RUNS} fresh seeds each)\n")
-    print(table(["scenario", "rule", "seeds", "ours", "ours: probes + rate runs + precondition info",
+    print(table(["scenario", "rule", "seeds", "ours", "ours: probes + rate runs",
                  "picire best", "picire settings", "our minimal fails",
                  "picire's minimal fails", "ours <= picire"], lines))
-    for (name, rule_name), rows in mine.items():  # picire's aborted runs reduced nothing: say what they hide
+    for name, rule_name in mine:  # picire's aborted runs reduced nothing: say which
         other = theirs.get((name, rule_name), [])
-        done = {r.seed for r in other if not r.note.startswith("picire aborted")}
-        if other and len(done) < len(other) and done:
-            print(f"{name} {rule_name}: picire aborted on seed(s) {sorted({r.seed for r in other} - done)} (no minimal "
-                  f"world; counted above with its simulations); on the other seeds ours "
-                  f"{statistics.mean(ours(r) for r in rows if r.seed in done):.1f}, picire "
-                  f"{statistics.mean(r.simulations for r in other if r.seed in done):.1f}")
+        if any(map(aborted, other)):
+            print(f"{name} {rule_name}: picire aborted on seed(s) {sorted(r.seed for r in other if aborted(r))} (no "
+                  f"minimal world; its simulations are in 'picire best', the verdict compares the other seeds)")
     print(f"\ntotal {total / 60:.1f} min; load average at the end {load()}")
     write_json(args.out, results)
     return 0

@@ -319,20 +319,27 @@ class _Engine:
                     None)
 
     def back_off(self, *, during: bool = False) -> bool:
-        """The minimal world fails significantly less often than the original: find (binary search over
-        the accepted worlds) the last one whose rate holds, reject every later one ("rate-below") and go on
-        reducing from it. `during` (the drift watch caught the last accepted world): reject it alone and go on
-        from the world before it, unsearched (the watch and the end of the run still compare it). False when
-        the budget stopped the search."""
+        """The minimal world fails significantly less often than the original: find the last accepted world
+        whose rate holds (back from the end, 1, 2, 4 ... worlds, then a binary search), reject every later one
+        ("rate-below") and go on reducing from it. `during` (the drift watch caught the last accepted world):
+        reject it alone and go on from the world before it, unsearched (the watch and the end of the run still
+        compare it). False when the budget stopped the search."""
         below = self.rate_check
         assert below is not None
         good, bad = (len(self.chain) - 2 if during else 0), len(self.chain) - 1
+        end, distance = bad, 1
         while bad - good > 1:
-            middle = (good + bad) // 2
+            if distance and end - distance > good:  # first back from the end, 1, 2, 4 ... worlds: drift comes late
+                middle, distance = end - distance, 2 * distance
+            else:  # then a binary search between the last world that holds and the first below
+                middle, distance = (good + bad) // 2, 0
             comparison = self.rates.compare(self.chain[middle].world, self.chain[middle].fresh_from)
             if comparison is None or comparison.decision == "continue":
                 return False
-            good, bad = (middle, bad) if comparison.decision == "holds" else (good, middle)
+            if comparison.decision == "holds":
+                good, distance = middle, 0
+            else:
+                bad = middle
         rejected = self.chain[good + 1:]
         for step in rejected:
             outcomes = self.rates.record_of(step.world).values()

@@ -206,6 +206,8 @@ def test_three_failures_in_the_first_look_hold_and_the_end_of_run_comparison_sti
     assert checks[0].decision == "holds", "the watch's search decision"
     assert checks[1].candidate == ("a",) and checks[1].reduced == (3, 10) and checks[1].original == (10, 10)
     assert checks[1].decision == "below", "the end-of-run comparison at its own level"
+    assert checks[2].candidate == ("a", "b") and checks[2].decision == "holds", "the world before it is compared first"
+    assert ("a", "b", "c", "d") not in [check.candidate for check in checks], "a binary search would start there"
     assert result.minimal == ("a", "b") and result.rate_backoffs == 1
     assert any(note.startswith("back-off 1: a 1-element minimal world failed significantly less often")
                for note in result.notes), result.notes
