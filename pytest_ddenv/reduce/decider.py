@@ -149,7 +149,7 @@ class Decider:
         valid = [outcome for outcome in state.outcomes if outcome is not Outcome.ERROR]
         errored = not verdict and errors > 0 and self.policy.verdict(valid) is not False
         decision = Decision(reproduces=verdict, fails=fails, runs=len(state.outcomes), trace=state.trace,
-                            errored=errored)
+                            errors=errors, errored=errored)
         state.decision = decision
         key = frozenset(state.trial.candidate)
         if errored:  # not a verdict: "not f" for this reduction only, tried again on resume

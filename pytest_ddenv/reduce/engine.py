@@ -124,7 +124,7 @@ def _accepted_before_rate_below(log: ProbeLog) -> dict[frozenset[str], Decision]
     for event in log.own_events():
         key = frozenset(event.candidate) if isinstance(event, (events.Accept, events.RateBelow)) else None
         if isinstance(event, events.Accept) and key is not None:
-            accepted[key] = Decision(reproduces=True, fails=event.fails, runs=event.runs)
+            accepted[key] = Decision(reproduces=True, fails=event.fails, runs=event.runs, errors=event.errors or 0)
         elif isinstance(event, events.RateBelow) and key in accepted:
             undone[key] = accepted[key]
     return undone

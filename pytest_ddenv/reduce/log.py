@@ -171,7 +171,7 @@ class ProbeLog:
         for event in self.own_events():
             if isinstance(event, events.VERDICTS) and not event.errored:
                 decided[frozenset(event.candidate)] = Decision(reproduces=event.reproduces, fails=event.fails,
-                                                               runs=event.runs)
+                                                               runs=event.runs, errors=event.errors or 0)
         return decided
 
     def partial_runs(self) -> dict[frozenset[str], list[Outcome]]:

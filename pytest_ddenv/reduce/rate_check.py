@@ -140,8 +140,9 @@ class DriftWatch:
     """Drift during the reduction: each accepted world is watched once, at the first rejection after it was
     accepted (the engine calls `check`), while every fresh run of the original so far failed.
 
-    - The runs that decided the world included a non-failing one (`Decision.fails < Decision.runs`): it is
-      tested at once (its fresh runs, never the ones that decided it).
+    - The runs that decided the world included a non-failing one (a pass or another failure; an ERROR run is
+      no outcome of the world and does not count): it is tested at once (its fresh runs, never the ones that
+      decided it).
     - Otherwise confirming fresh runs up to its attempt `WATCHED_RUNS` - 1 (any-of-N accepts on one failing
       run: attempts 1 and 2; `auto`'s 2-of-3 on two: attempt 2), the first fresh attempts, those the end-of-run
       comparison would make first; all failing leaves it be, any other outcome starts the test there, with
@@ -167,7 +168,7 @@ class DriftWatch:
         if original.fails < original.runs:  # a flaky original: a pass says nothing; the end of the run tells
             return None
         self.watched.add(key)
-        if decision is None or decision.fails == decision.runs:
+        if decision is None or decision.fails == decision.runs - decision.errors:  # an ERROR says nothing
             confirming = WATCHED_RUNS - (1 if decision is None else decision.runs)
             confirmed = self.rates.rate(world, first, confirming) if confirming > 0 else Rate(0, 0)
             if confirmed.runs == 0 or confirmed.fails == confirmed.runs:

@@ -138,6 +138,8 @@ class Decision:
     """How many runs the verdict is based on (the attempts 0 .. runs-1)."""
     trace: Trace | None = field(default=None, compare=False, repr=False)
     """The trace of the first f run, when there was one (not persisted in the log)."""
+    errors: int = field(default=0, compare=False)
+    """How many of the runs were ERROR (no outcome of the world: a crash, a timeout)."""
     errored: bool = False
     """A rejection that rests on ERROR runs: without them the deflake rule would not have rejected. It is
     treated as "not f" for the decisions of this reduction, but it is no verdict: it is never stored in the

@@ -215,3 +215,26 @@ def test_three_failures_in_the_first_look_hold_and_the_end_of_run_comparison_sti
     assert runs[("a",)] == list(range(1, 11)), "the watch's 5 runs are the end's first 5, each made once"
     assert result.simulations == len(calls) == result.probes + sum(map(len, runs.values()))
     assert_evidence_is_fresh(log, calls)
+
+
+def test_an_error_among_the_deciding_runs_is_no_reason_to_test(tmp_path: Path) -> None:
+    """Under any-of-4 the accepted world {a, b, g, h} errs on attempt 0 (a crash, no outcome of the world) and
+    fails on attempt 1: it is watched like a world accepted on failing runs alone (one confirming run, attempt
+    2), not tested at once as if it had passed a run."""
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
+        if set(candidate) == {"a", "b", "g", "h"} and attempt == 0:
+            return ProbeObservation(Outcome.ERROR, signature={"kind": "crash"}, seed=attempt)
+        return needs_a_and_h(candidate, attempt)
+
+    log = tmp_path / "runs.jsonl"
+    result, calls = run(probe, log, deflake=3)
+    assert result.minimal == ("a", "h")
+    accepted = {frozenset(event.candidate): event for event in ProbeLog.load(log).own_events()
+                if isinstance(event, events.Accept)}
+    world = frozenset({"a", "b", "g", "h"})
+    assert world in accepted and (accepted[world].runs, accepted[world].errors) == (2, 1), accepted.keys()
+    tested = [event.candidate for event in ProbeLog.load(log).own_events() if isinstance(event, events.RateCheck)]
+    assert all(frozenset(candidate) != world for candidate in tested), "an ERROR is not a non-failing run"
+    ordered = next(candidate for candidate in fresh_runs(log) if frozenset(candidate) == world)
+    assert fresh_runs(log)[ordered] == [2], "one confirming run: attempt 2"
+    assert_evidence_is_fresh(log, calls)
