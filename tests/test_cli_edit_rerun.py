@@ -73,6 +73,13 @@ def test_an_edited_imported_controller_gives_the_new_answer(project: Path) -> No
     assert after["minimal_models"] == ["right_wall"] and after["resumed_runs"] == 0
     assert "the code under test changed: code/steer.py (edited)" in second.stdout + second.stderr
     assert "in earlier runs" not in second.stdout
+    third = ddenv_reduce(project, "around")  # nothing edited: every probe is in the log
+    assert third.returncode == 0, third.stderr
+    again = summary(project)
+    assert again["minimal_models"] == ["right_wall"] and again["resumed_runs"] == 1
+    total, own = again["simulations"], again["this_run"]["simulations"]
+    assert 0 < own < total, "this run made only its own few runs (confirmation, pictures)"
+    assert f"simulations run: {total}, {own} in this run (" in third.stdout, third.stdout
 
 
 def test_a_failure_without_any_model_is_not_reduced(project: Path) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from pytest_ddenv.driver.report import ReductionReport
+from pytest_ddenv.driver.report import Cost, ReductionReport
 from pytest_ddenv.reduce.rates import VERDICT_CONFIDENCE, Rate, wilson_interval
 from pytest_ddenv.reduce.types import Reduction
 
@@ -47,8 +47,7 @@ def result_lines(report: ReductionReport) -> list[str]:
         *([] if reduction.first_cut is None else [reduction.first_cut.describe()]),
         f"removed ({len(removed)}): {listing(removed)}",
         probes_line(reduction, earlier),
-        (f"simulations run: {report.cost.simulations} (confirmation, fresh-run, "
-         f"speculative and picture runs included; {report.cost.cpu_seconds:.1f} s of worker CPU)"),
+        simulations_line(report.cost),
         f"schemas: {reduction.partition} + {reduction.priority}, deflake={reduction.deflake}",
         *([f"physics engine: {report.engine}"] if report.engine else []),
         *same_failure_lines(report),
@@ -59,6 +58,13 @@ def result_lines(report: ReductionReport) -> list[str]:
         *(f"note: {text}" for text in report.notes),
         *(f"not simulated: {text}" for text in report.world_notes),
     ]
+
+
+def simulations_line(cost: Cost) -> str:
+    """Every simulation the reduction started, with this run's share when a resumed log holds earlier ones."""
+    this_run = f", {cost.this_run_simulations} in this run" if cost.resumed_runs else ""
+    return (f"simulations run: {cost.simulations}{this_run} (confirmation, fresh-run, speculative and picture runs "
+            f"included; {cost.cpu_seconds:.1f} s of worker CPU)")
 
 
 def probes_line(reduction: Reduction, earlier: str) -> str:
