@@ -280,3 +280,22 @@ def test_bench_rate_repetition_agrees_with_the_python_api_run_by_run(bench_rate)
     assert repetition.failures == sum(r["outcome"] == "failed" for r in records)
     assert repetition.interval[0] <= repetition.failures / repetition.runs <= repetition.interval[1]
     assert repetition.verdict == "passed" and repetition.exit_code == 0  # the example allows up to 50 %
+
+
+def test_the_honesty_verdict_compares_the_seeds_where_picire_returned_a_world(bench) -> None:
+    common, _ = bench
+    import bench_honesty
+
+    def row(tool: str, seed: int, simulations: int, note: str = "") -> common.Row:
+        return common.Row(tool=tool, world="rubble", seed=seed, partition="p", priority="q", deflake="0",
+                          original_size=36, final_size=4, minimal=[], simulations=simulations, cache_hits=0,
+                          one_minimal=True, failure_rate=(9, 10), wall_time=1.0, workers=1, failure="f", note=note,
+                          extra={"simulations_started": simulations})
+
+    ours = [row("ddenv", 0, 31), row("ddenv", 1, 76), row("ddenv", 2, 30)]
+    theirs = [row("picire", 0, 52), row("picire", 1, 1, "picire aborted: the original passed"), row("picire", 2, 52)]
+    assert bench_honesty.verdict(ours, theirs).startswith("yes on seeds [0, 2] (30.5 vs 52.0)")
+    assert bench_honesty.verdict(ours, theirs[:1] + theirs[2:]).startswith("yes on seeds") is False
+    assert bench_honesty.verdict(ours[1:2], theirs[1:2]) == "picire reduced nothing"
+    slower = [row("ddenv", 0, 60), row("ddenv", 2, 60)]
+    assert bench_honesty.verdict(slower, theirs[:1] + theirs[2:]).startswith("NO (+8.0)")
