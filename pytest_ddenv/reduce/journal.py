@@ -48,7 +48,7 @@ class Journal:
         key = frozenset(trial.candidate)
         if key not in self._consulted:
             self._consulted.add(key)
-            self.context.history.append(Verdict(frozenset(key - self.keep), decision.reproduces))
+            self.context.history.append(Verdict(frozenset(key - self.keep), decision.reproduces, decision.errored))
         if cached and not quiet:
             self.counters.cache_hits += 1
             self.write(_decision(events.CacheHit, trial, decision, errored=decision.errored or None))
