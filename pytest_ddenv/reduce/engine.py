@@ -557,7 +557,7 @@ class _Engine:
                 seen.add(members)
                 trials.append((Trial(self.full(tuple(members)), kind), (part,)))
         below = self.rates.below_worlds()
-        rejected = [verdict.members for verdict in self.context.history if not verdict.reproduces]
+        rejected = [verdict.members for verdict in self.context.history if not (verdict.reproduces or verdict.errored)]
         if below or rejected:  # likely not to reproduce f: tried last (reordered, never skipped)
             trials.sort(key=lambda entry: self.dominated(frozenset(entry[0].candidate), below, rejected))
         return trials
