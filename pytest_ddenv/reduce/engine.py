@@ -2,7 +2,8 @@
 
 Each round partitions the current world (partition schema), orders the parts (priority schema), and tries
 the parts ("subsets") in priority order, then their complements (by default in reverse priority order:
-the part least likely to matter is removed first). The first candidate that reproduces f (after
+the part least likely to matter is removed first; a candidate inside one already rejected goes to the end of
+the round: a monotone failure cannot reproduce it). The first candidate that reproduces f (after
 deflaking) becomes the current world. Granularity follows ddmin (after a subset: n_partitions; after a
 complement: max(n-1, 2); no progress: min(2n, size)) or the paper (n+1 every round). When no candidate
 of the finest round (every part one element) reproduces f, a verification pass tries removing each single
