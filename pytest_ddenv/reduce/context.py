@@ -25,6 +25,8 @@ class Verdict:
 
     members: frozenset[str]
     reproduces: bool
+    errored: bool = False
+    """A rejection that rests on ERROR runs (`Decision.errored`): no evidence about the world."""
 
 
 @dataclass

@@ -2,7 +2,8 @@
 
 Each round partitions the current world (partition schema), orders the parts (priority schema), and tries
 the parts ("subsets") in priority order, then their complements (by default in reverse priority order:
-the part least likely to matter is removed first). The first candidate that reproduces f (after
+the part least likely to matter is removed first; a candidate inside one already rejected goes to the end of
+the round: a monotone failure cannot reproduce it). The first candidate that reproduces f (after
 deflaking) becomes the current world. Granularity follows ddmin (after a subset: n_partitions; after a
 complement: max(n-1, 2); no progress: min(2n, size)) or the paper (n+1 every round). When no candidate
 of the finest round (every part one element) reproduces f, a verification pass tries removing each single
@@ -557,9 +558,17 @@ class _Engine:
                 seen.add(members)
                 trials.append((Trial(self.full(tuple(members)), kind), (part,)))
         below = self.rates.below_worlds()
-        if below:  # a sub-world of a world that failed significantly less often: likely the same drift, tried last
-            trials.sort(key=lambda entry: any(frozenset(entry[0].candidate) <= world for world in below))
+        rejected = [verdict.members for verdict in self.context.history if not (verdict.reproduces or verdict.errored)]
+        if below or rejected:  # likely not to reproduce f: tried last (reordered, never skipped)
+            trials.sort(key=lambda entry: self.dominated(frozenset(entry[0].candidate), below, rejected))
         return trials
+
+    def dominated(self, candidate: frozenset[str], below: Sequence[frozenset[str]],
+                  rejected: Sequence[frozenset[str]]) -> tuple[bool, bool]:
+        """(inside a world that failed significantly less often: likely the same drift; inside a candidate
+        that did not reproduce f: a monotone failure would not either), the sort key of `trials_of`."""
+        members = candidate - self.settings.keep
+        return (any(candidate <= world for world in below), any(members <= world for world in rejected))
 
     def adopt(self, trial: Trial, decision: Decision) -> None:
         self.unverified = 0

@@ -26,7 +26,8 @@ class Journal:
     counters: Counters
     context: Context
     keep: frozenset[str]
-    _consulted: set[frozenset[str]] = field(default_factory=set, init=False)
+    consulted: set[frozenset[str]] = field(default_factory=set, init=False)
+    """The candidates whose verdict the serial algorithm has looked at (`consult`)."""
 
     def probe(self, trial: Trial, attempt: int, observation: ProbeObservation, *, purpose: str) -> None:
         """One probe whose result is used ("reduce", "calibration" or "failure-rate")."""
@@ -46,9 +47,9 @@ class Journal:
     def consult(self, trial: Trial, decision: Decision, *, cached: bool, quiet: bool) -> None:
         """The serial algorithm looks at this verdict now: feed the learner, count and log cache hits."""
         key = frozenset(trial.candidate)
-        if key not in self._consulted:
-            self._consulted.add(key)
-            self.context.history.append(Verdict(frozenset(key - self.keep), decision.reproduces))
+        if key not in self.consulted:
+            self.consulted.add(key)
+            self.context.history.append(Verdict(frozenset(key - self.keep), decision.reproduces, decision.errored))
         if cached and not quiet:
             self.counters.cache_hits += 1
             self.write(_decision(events.CacheHit, trial, decision, errored=decision.errored or None))

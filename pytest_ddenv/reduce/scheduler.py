@@ -49,8 +49,6 @@ class Scheduler:
         self._ahead: list[tuple[Candidate, int]] | None = None
         self.after_rejection: Callable[[], None] | None = None
         """Called once per round, at its first rejection of a candidate no earlier round consulted."""
-        self.consulted: set[frozenset[str]] = set()
-        """The candidates of the rounds so far (decided, cached or skipped)."""
 
     def first_reproducing(self, trials: Sequence[Trial], *, quiet: bool = False) -> tuple[int, Decision] | None:
         """Index and verdict of the first trial that reproduces f, or None if none does.
@@ -58,8 +56,7 @@ class Scheduler:
         `quiet` (the verification pass) does not count or log verdicts already known.
         Raises BudgetExhausted when a budget runs out before the answer is known.
         """
-        earlier = set(self.consulted)
-        self.consulted.update(frozenset(trial.candidate) for trial in trials)
+        earlier = set(self.journal.consulted)
         if self.runner.executor is None:
             return self._serial(trials, quiet, earlier)
         return self._concurrent(trials, quiet, earlier)
