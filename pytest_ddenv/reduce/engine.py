@@ -5,12 +5,16 @@ the parts ("subsets") in priority order, then their complements (by default in r
 the part least likely to matter is removed first; a candidate inside one already rejected goes to the end of
 the round: a monotone failure cannot reproduce it). The first candidate that reproduces f (after
 deflaking) becomes the current world. Granularity follows ddmin (after a subset: n_partitions; after a
-complement: max(n-1, 2); no progress: min(2n, size)) or the paper (n+1 every round). When no candidate
-of the finest round (every part one element) reproduces f, a verification pass tries removing each single
-remaining element; only if none reproduces f is the result declared 1-minimal. Finally the minimal world's
-failure rate is compared with the original's on fresh runs (rate_check.py); when it is significantly lower,
-the reduction backs off to the last accepted world whose rate holds, rejects the step after it, and reduces
-again from there (at most `backoff.MAX_BACKOFFS` times). See docs/algorithm.md.
+complement of k parts: max(n-k, 2), k > 1 for a grown removal; no progress: min(2n, size)) or the paper (n+1
+every round). When no candidate of the finest round (every part one element) reproduces f, a verification
+pass tries removing each single remaining element; only if none reproduces f is the result declared
+1-minimal. Finally the minimal world's failure rate is compared with the original's on fresh runs
+(rate_check.py); when it is significantly lower, the reduction backs off to the last accepted world whose
+rate holds, rejects every accepted world after it, and reduces again from there (at most
+`backoff.MAX_BACKOFFS` times). See docs/algorithm.md.
+
+What a round tries is `rounds.py`'s, the chain of accepted worlds and the back-off search `backoff.py`'s,
+the result and the start and end records `result.py`'s; the engine keeps the state and calls them in order.
 """
 
 from __future__ import annotations
