@@ -52,7 +52,7 @@ from pytest_ddenv.reduce import (
     reduce,
 )
 from pytest_ddenv.reduce.deflake import make_policy
-from pytest_ddenv.reduce.engine import INDEPENDENCE
+from pytest_ddenv.reduce.independence import INDEPENDENCE
 from pytest_ddenv.scenario.probe import (
     ProbeResult,
     check_rule,

@@ -5,34 +5,44 @@ the parts ("subsets") in priority order, then their complements (by default in r
 the part least likely to matter is removed first; a candidate inside one already rejected goes to the end of
 the round: a monotone failure cannot reproduce it). The first candidate that reproduces f (after
 deflaking) becomes the current world. Granularity follows ddmin (after a subset: n_partitions; after a
-complement: max(n-1, 2); no progress: min(2n, size)) or the paper (n+1 every round). When no candidate
-of the finest round (every part one element) reproduces f, a verification pass tries removing each single
-remaining element; only if none reproduces f is the result declared 1-minimal. Finally the minimal world's
-failure rate is compared with the original's on fresh runs (rate_check.py); when it is significantly lower,
-the reduction backs off to the last accepted world whose rate holds, rejects the step after it, and reduces
-again from there (at most MAX_BACKOFFS times). See docs/algorithm.md.
+complement of k parts: max(n-k, 2), k > 1 for a grown removal; no progress: min(2n, size)) or the paper (n+1
+every round). When no candidate of the finest round (every part one element) reproduces f, a verification
+pass tries removing each single remaining element; only if none reproduces f is the result declared
+1-minimal. Finally the minimal world's failure rate is compared with the original's on fresh runs
+(rate_check.py); when it is significantly lower, the reduction backs off to the last accepted world whose
+rate holds, rejects every accepted world after it, and reduces again from there (at most
+`backoff.MAX_BACKOFFS` times). See docs/algorithm.md.
+
+What a round tries is `rounds.py`'s, the chain of accepted worlds and the back-off search `backoff.py`'s,
+the result and the start and end records `result.py`'s; the engine keeps the state and calls them in order.
 """
 
 from __future__ import annotations
 
 import concurrent.futures
-import functools
 import os
 import time
 from collections.abc import Callable, MutableMapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
-from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import events
+from pytest_ddenv.reduce.backoff import AcceptedChain, Step
 from pytest_ddenv.reduce.budget import Budget, BudgetExhausted
+from pytest_ddenv.reduce.calibration import calibrate
 from pytest_ddenv.reduce.context import Context, Verdict
 from pytest_ddenv.reduce.deflake import CalibratedReruns
+from pytest_ddenv.reduce.independence import WORLD_INDEPENDENT, reproduces_without_elements
+from pytest_ddenv.reduce.keywords import keyword_settings
 from pytest_ddenv.reduce.log import ProbeLog
 from pytest_ddenv.reduce.prober import probing
-from pytest_ddenv.reduce.rate_check import Drift, DriftWatch, RateChecker
+from pytest_ddenv.reduce.rate_check import Drift, RateChecker
 from pytest_ddenv.reduce.rates import RateComparison
-from pytest_ddenv.reduce.settings import SETTING_NAMES, ReductionSettings, Settings, validate
+from pytest_ddenv.reduce.refusals import precondition_kept, rate_without_kept
+from pytest_ddenv.reduce.result import build_reduction, end_event, notes_of, plural, start_event
+from pytest_ddenv.reduce.resume import open_log, resume
+from pytest_ddenv.reduce.rounds import Part, Plan, fresh_plan, grown_removal, next_granularity, trials_of
+from pytest_ddenv.reduce.settings import ReductionSettings, Settings, validate
 from pytest_ddenv.reduce.trial import Trial
 from pytest_ddenv.reduce.types import (
     Candidate,
@@ -47,46 +57,8 @@ from pytest_ddenv.reduce.types import (
     Trace,
 )
 
-INDEPENDENCE = "independence"
-"""The log's purpose of the run of the world without its reducible elements (`check_independence`)."""
-WORLD_INDEPENDENT = "world-independent"
-"""The incomplete reason of a reduction that found the failure independent of the elements."""
-GROWN_MIN_PARTS = 8
-"""The fewest parts a carried round needs for a grown removal (`_Engine.grown_removal`)."""
-MAX_BACKOFFS = 3
-"""How many times a reduction backs off from a minimal world that fails significantly less often than the
-original before it reports that world with its rate as it is."""
 
-
-def plural(count: int, noun: str) -> str:
-    return f"{count} {noun}{'' if count == 1 else 's'}"
-
-
-def _keyword_settings(function: Callable[..., Reduction]) -> Callable[..., Reduction]:
-    """The former spelling `reduce(elements, probe, max_probes=10, deflake=0, ...)` still works: each keyword
-    that names a `ReductionSettings` field goes into the settings (not beside a `settings=` of its own)."""
-
-    @functools.wraps(function)
-    def reduce(*arguments: Any, **keywords: Any) -> Reduction:
-        named = {name: keywords.pop(name) for name in SETTING_NAMES if name in keywords}
-        unknown = sorted(set(keywords) - set(_ARGUMENTS))
-        if unknown:
-            raise ReductionError(f"reduce() got an unknown argument {unknown[0]!r}; its arguments are "
-                                 f"{', '.join(_ARGUMENTS)}, and the settings are "
-                                 f"ReductionSettings({', '.join(SETTING_NAMES)})")
-        if named:
-            given = keywords.pop("settings", None) if len(arguments) < 3 else arguments[2]
-            if given is not None:
-                raise ReductionError(f"reduce(): {', '.join(named)} given beside settings=; put them in the "
-                                     "ReductionSettings")
-            keywords["settings"] = ReductionSettings(**named)
-            arguments = arguments[:2]
-        return function(*arguments, **keywords)
-
-    return reduce
-
-
-@_keyword_settings
+@keyword_settings
 def reduce(
     elements: Sequence[str],
     probe: Probe,
@@ -116,76 +88,20 @@ def reduce(
     return _Engine(checked).run()
 
 
-def _accepted_before_rate_below(log: ProbeLog) -> dict[frozenset[str], Decision]:
-    """The acceptances a rate comparison undid later in `log`: a resumed reduction accepts them again and
-    undoes them at the same point, from the logged runs (the drift watch's or the end's comparison), so it
-    takes the same path without a new simulation."""
-    accepted: dict[frozenset[str], Decision] = {}
-    undone: dict[frozenset[str], Decision] = {}
-    for event in log.own_events():
-        key = frozenset(event.candidate) if isinstance(event, (events.Accept, events.RateBelow)) else None
-        if isinstance(event, events.Accept) and key is not None:
-            accepted[key] = Decision(reproduces=True, fails=event.fails, runs=event.runs, errors=event.errors or 0)
-        elif isinstance(event, events.RateBelow) and key in accepted:
-            undone[key] = accepted[key]
-    return undone
-
-
-_ARGUMENTS = ("elements", "probe", "settings", "geometry", "reference", "log", "executor", "on_progress")
-
-
-Part = tuple[str, ...]
-
-
-@dataclass(frozen=True)
-class _Step:
-    """An accepted world of the reduction (the original first), with the first attempt that was not used
-    to accept it (its fresh runs start there) and the trace of the failure it was accepted on."""
-
-    world: Candidate
-    fresh_from: int
-    trace: Trace | None
-
-
-@dataclass(frozen=True)
-class _Plan:
-    """The parts of one round: `ordered` by priority (subsets), `removal` the order complements are tried."""
-
-    ordered: list[Part]
-    removal: list[Part]
-    subsets: bool
-    """False when every part alone is already known not to reproduce f (a carried-over round)."""
-
-    def without(self, removed: Sequence[Part]) -> _Plan:
-        """The next round after removing the parts `removed` (one, or the next few in removal order: a grown
-        removal): same parts and order, continuing after the first removed one (picire's complement offset),
-        subsets not tried again (they all failed in this round)."""
-        at, gone = self.removal.index(removed[0]), set(removed)
-        return _Plan(
-            ordered=[part for part in self.ordered if part not in gone],
-            removal=[part for part in self.removal[at + 1 :] + self.removal[:at] if part not in gone],
-            subsets=False,
-        )
-
-
 class _Engine:
     """The state of one reduction."""
 
     def __init__(self, settings: Settings) -> None:
         self.settings = settings
         self.started_at = time.monotonic()
-        self.log = self._open_log(settings)
+        self.log = open_log(settings)
         self.cache: MutableMapping[Any, Any] = settings.cache if settings.cache is not None else {}
-        preloaded: dict[frozenset[str], list[Outcome]] = {}
-        self.resumed = self.log is not None and self.log.started_with() is not None
-        self.history = self.log.decided_probes() if self.log is not None else 0
+        resumed = resume(self.log, self.cache)
+        self.resumed = resumed.resumed
+        self.history = resumed.history
         """Probes decided by earlier runs of a resumed log (reported as part of the whole history)."""
         self.unverified = 0
         """Single removals of the result that were rejected on ERROR runs alone (even after a retry)."""
-        if self.log is not None:
-            for key, decision in {**self.log.decisions(), **_accepted_before_rate_below(self.log)}.items():
-                self.cache.setdefault(key, decision)
-            preloaded = self.log.partial_runs()
         self.current: tuple[str, ...] = settings.reducible
         self.context = Context(
             elements=settings.reducible, geometry=settings.geometry, trace=settings.reference, seed=settings.seed
@@ -193,40 +109,26 @@ class _Engine:
         self.context.history.append(Verdict(frozenset(self.current), True))
         self.granularity = min(settings.n_partitions, len(self.current))
         self.round_index = 0
-        self.carried: _Plan | None = None
+        self.carried: Plan | None = None
         """After a complement was adopted, ddmin goes on with the remaining n-1 parts."""
         self.streak = 0
         """Carried rounds in a row whose first candidate was adopted: the next one first tries removing the
         next 2**streak parts at once (`grown_removal`)."""
         self.minimal_runs = 1  # the reference run of the original world is its attempt 0
         self.probing = probing(
-            probe=settings.probe,
-            policy=settings.policy,
-            keep=settings.keep,
-            preconditions=settings.preconditions,
-            cache=self.cache,
-            preloaded=preloaded,
-            budget=Budget(settings.max_probes, settings.max_seconds, self.started_at),
-            executor=settings.executor,
-            workers=settings.workers,
-            log=self.log,
-            context=self.context,
-            elapsed=self.elapsed,
+            probe=settings.probe, policy=settings.policy, keep=settings.keep, preconditions=settings.preconditions,
+            cache=self.cache, preloaded=resumed.preloaded,
+            budget=Budget(settings.max_probes, settings.max_seconds, self.started_at), executor=settings.executor,
+            workers=settings.workers, log=self.log, context=self.context, elapsed=self.elapsed,
             on_probe=lambda candidate, outcome: self.emit("probe", candidate=candidate, outcome=outcome),
             lookahead=self.lookahead if settings.executor is not None else None,
         )
         self.steps: list[tuple[int, int]] = [(0, len(settings.elements))]
-        self.chain: list[_Step] = [_Step(settings.elements, 1, settings.reference)]
-        """The accepted worlds since the original (or since the last back-off's good world), in order."""
         self.rates = RateChecker(self.probing.extra_runs, self.log, settings.elements, settings.failure_rate_runs,
                                  self.write)
         self.rate_check: RateComparison | None = None
-        self.drift = DriftWatch(self.rates)
-        self.probing.scheduler.after_rejection = self.watch_drift
-        self.backoffs = 0
-        self.drift_backoffs = 0
-        """Back-offs of the drift watch (during the reduction); the end of the run has MAX_BACKOFFS of its own."""
-        self.backoff_notes: list[str] = []
+        self.chain = AcceptedChain(Step(settings.elements, 1, settings.reference), self.rates, self.cache)
+        self.probing.scheduler.after_rejection = self.chain.watch_drift
         self.precondition_check: tuple[int, int] | None = None
         self.verifying = False
         self.calibration: tuple[int, int] | None = None
@@ -263,8 +165,12 @@ class _Engine:
         """Reduce to a 1-minimal world, compare its failure rate with the original's and back off while it
         is significantly lower; (1-minimal, incomplete reason)."""
         try:
-            if self.settings.check_independence and self.reproduces_without_elements():
-                return False, WORLD_INDEPENDENT
+            if self.settings.check_independence:
+                self.independent = reproduces_without_elements(
+                    self.settings.preconditions, self.current, self.settings.keep, self.full, log=self.log,
+                    extra_runs=self.probing.extra_runs)
+                if self.independent:
+                    return False, WORLD_INDEPENDENT
             self.calibrate()
             self.try_first_cut()
             while True:
@@ -272,87 +178,36 @@ class _Engine:
                     one_minimal = self.reduce_to_one_minimal()
                 except Drift as drift:  # caught during the reduction: back off from there
                     self.rate_check = drift.comparison
-                    self.drift_backoffs += 1
+                    self.chain.drift_backoffs += 1
                     if not self.back_off(during=True):
                         return False, "budget: the rate comparison was stopped"
                     continue
                 if one_minimal and self.unverified:
                     return False, f"not verified: {plural(self.unverified, 'candidate')} errored"
-                if len(self.chain) == 1:  # nothing removed: no comparison to make
+                if len(self.chain.steps) == 1:  # nothing removed: no comparison to make
                     return one_minimal, None
-                self.rate_check = self.rates.compare(self.chain[-1].world, self.chain[-1].fresh_from)
+                self.rate_check = self.chain.compare_last()
                 if self.rate_check is None or self.rate_check.decision != "below" or \
-                        self.backoffs - self.drift_backoffs >= MAX_BACKOFFS:
+                        not self.chain.may_back_off_at_end():
                     return one_minimal, None
                 if not self.back_off():
                     return one_minimal, None
         except BudgetExhausted as exhausted:
             return False, exhausted.reason
 
-    def watch_drift(self) -> None:
-        """A round's first rejection: watch the current accepted world for drift (rate_check.DriftWatch)."""
-        if len(self.chain) > 1 and self.drift_backoffs < MAX_BACKOFFS:
-            step = self.chain[-1]
-            decision = self.cache.get(frozenset(step.world))
-            self.drift.check(step.world, step.fresh_from, decision if isinstance(decision, Decision) else None)
-
-    def reproduces_without_elements(self) -> bool:
-        """Whether the world without every reducible element the preconditions allow to remove reproduces f
-        in one run (attempt 0, the reference's): then the failure does not depend on the elements. Logged
-        with purpose "independence" (a resumed log answers without a simulation)."""
-        empty = self.full(())
-        needed: tuple[str, ...] = ()
-        if self.refused(empty) is not None:  # only then look for the elements the preconditions need (N checks)
-            whole = self.full(self.current)
-            needed = tuple(name for at, name in enumerate(whole) if name not in self.settings.keep
-                           and self.refused(whole[:at] + whole[at + 1:]) is not None)
-            empty = self.full(needed)
-        if len(needed) == len(self.current) or self.refused(empty) is not None:
-            return False
-        known = self.log.measured(INDEPENDENCE, empty) if self.log is not None else {}
-        fails, runs = self.probing.extra_runs.measure(empty, 0, 1, purpose=INDEPENDENCE, known=known, strict=True)
-        self.independent = runs == 1 and fails == 1
-        return self.independent
-
-    def refused(self, candidate: Candidate) -> str | None:
-        """Why a precondition refuses `candidate` (None: none does)."""
-        return next((str(reason) for check in self.probing.preconditions if (reason := check(candidate)) is not None),
-                    None)
-
     def back_off(self, *, during: bool = False) -> bool:
         """The minimal world fails significantly less often than the original: find the last accepted world
-        whose rate holds (back from the end, 1, 2, 4 ... worlds, then a binary search), reject every later one
-        ("rate-below") and go on reducing from it. `during` (the drift watch caught the last accepted world):
-        reject it alone and go on from the world before it, unsearched (the watch and the end of the run still
-        compare it). False when the budget stopped the search."""
+        whose rate holds (`AcceptedChain.back_off`), reject every later one ("rate-below") and go on reducing
+        from it. `during` (the drift watch caught the last accepted world): reject it alone and go on from the
+        world before it, unsearched (the watch and the end of the run still compare it). False when the budget
+        stopped the search."""
         below = self.rate_check
         assert below is not None
-        good, bad = (len(self.chain) - 2 if during else 0), len(self.chain) - 1
-        end, distance = bad, 1
-        while bad - good > 1:
-            if distance and end - distance > good:  # first back from the end, 1, 2, 4 ... worlds: drift comes late
-                middle, distance = end - distance, 2 * distance
-            else:  # then a binary search between the last world that holds and the first below
-                middle, distance = (good + bad) // 2, 0
-            comparison = self.rates.compare(self.chain[middle].world, self.chain[middle].fresh_from)
-            if comparison is None or comparison.decision == "continue":
-                return False
-            if comparison.decision == "holds":
-                good, distance = middle, 0
-            else:
-                bad = middle
-        rejected = self.chain[good + 1:]
-        for step in rejected:
-            outcomes = self.rates.record_of(step.world).values()
-            fails = sum(outcome is Outcome.FAIL for outcome in outcomes)
-            runs = sum(outcome is not Outcome.ERROR for outcome in outcomes)
-            self.cache[frozenset(step.world)] = Decision(reproduces=False, fails=fails, runs=runs)
-            self.context.history.append(Verdict(frozenset(step.world) - self.settings.keep, False))
-            self.write(events.RateBelow(candidate=step.world, reproduces=False, fails=fails, runs=runs))
-        self.backoffs += 1
+        back = self.chain.back_off(below, during=during, context=self.context, keep=self.settings.keep,
+                                   write=self.write)
+        if back is None:
+            return False
         self.rate_check = None
-        back = self.chain[good]
-        del self.chain[good + 1:]
         self.current = tuple(name for name in back.world if name not in self.settings.keep)
         if back.trace is not None:  # a world accepted from a resumed log has none: keep the one the schemas read
             self.context.trace = back.trace
@@ -363,12 +218,6 @@ class _Engine:
         self.unverified = 0
         self.steps.append((self.probes(), len(back.world)))
         self.write(events.BackOff(candidate=back.world, size=len(back.world), probes=self.probes()))
-        self.backoff_notes.append(
-            f"back-off {self.backoffs}: a {len(rejected[-1].world)}-element "
-            f"{'accepted world (drift watch, during the reduction)' if during else 'minimal world'} failed "
-            f"{'' if below.search else 'significantly '}less often than the original ({below.describe()}); "
-            f"{plural(len(rejected), 'accepted world')} rejected for it, reduction resumed from "
-            f"{len(back.world)} elements")
         self.emit("step", candidate=back.world)
         return True
 
@@ -378,26 +227,10 @@ class _Engine:
         policy = self.settings.policy
         if not isinstance(policy, CalibratedReruns) or not self.current:
             return
-        known = self.log.calibration() if self.log is not None else None
-        if known is None:
-            original = self.settings.elements
-            logged = self.log.measured("calibration", original) if self.log is not None else {}
-            into = self.rates.record_of(original)
-            measure = self.probing.extra_runs.measure
-            fails, runs = measure(original, 1, policy.sure_runs, purpose="calibration", known=logged, strict=True,
-                                  into=into)
-            if fails < runs:
-                more = measure(original, 1 + runs, policy.runs - runs, purpose="calibration", known=logged,
-                               strict=True, into=into)
-                fails, runs = fails + more[0], runs + more[1]
-            rule = policy.rule_for(fails, runs)
-            self.write(events.Calibration(fails=fails, runs=runs, rule=rule.label))
-        else:
-            fails, runs = known
-            rule = policy.rule_for(fails, runs)
-        self.calibration = (fails, runs)
+        self.calibration, rule = calibrate(policy, self.settings.elements, log=self.log, rates=self.rates,
+                                           extra_runs=self.probing.extra_runs, write=self.write)
         self.probing.decider.policy = rule
-        self.minimal_runs = 1 + runs  # the failure-rate runs of an unreduced world continue after these
+        self.minimal_runs = 1 + self.calibration[1]  # an unreduced world's failure-rate runs continue after these
 
     def try_first_cut(self) -> None:
         """The caller's first cut (`first_cut`: the driver's cut by reach), tried as one trial judged like any
@@ -444,7 +277,8 @@ class _Engine:
         self.carried = None
         plan = carried if carried is not None else self.fresh_plan(self.granularity)
         trials = self.trials_of(plan)
-        grown = self.grown_removal(plan) if carried is not None else None
+        grown = grown_removal(plan, self.streak, self.settings.granularity, self.current, self.full) \
+            if carried is not None else None
         if grown is not None:
             trials.insert(0, grown)
         self.write(events.Round(index=self.round_index, granularity=self.granularity, size=len(self.full(self.current)),
@@ -464,29 +298,8 @@ class _Engine:
             self.carried = plan.without(parts)
         return trial
 
-    def grown_removal(self, plan: _Plan) -> tuple[Trial, tuple[Part, ...]] | None:
-        """After `streak` carried rounds in a row adopted their first candidate (the parts being removed one by
-        one do not matter), the next 2**streak parts in removal order removed at once, tried before the
-        round's own candidates (ddmin's one part a round costs a probe per part; this, about log2 of them).
-        Never more than half of the other parts, and only from GROWN_MIN_PARTS parts on: a wrong guess costs
-        a rejection (with `deflake=N`, N + 1 runs), more than ddmin's one part a probe saves in a small round.
-        None before a streak and with the paper's granularity."""
-        if self.streak == 0 or self.settings.granularity != "ddmin" or len(plan.removal) < GROWN_MIN_PARTS:
-            return None
-        count = min(2**self.streak, (len(plan.removal) - 1) // 2)
-        if count < 2:
-            return None
-        parts = tuple(plan.removal[:count])
-        removed = {name for part in parts for name in part}
-        return Trial(self.full(tuple(name for name in self.current if name not in removed)), "complement"), parts
-
-    def fresh_plan(self, granularity: int) -> _Plan:
-        """The parts of a new round of the current world (partition schema), in priority order."""
-        parts = self.settings.partitioner(self.current, granularity, self.context)
-        self.check_parts(parts)
-        ordered = list(self.settings.prioritizer(parts, self.context, self.round_index))
-        removal = ordered[::-1] if self.settings.complement_order == "reverse" else ordered
-        return _Plan(ordered=ordered, removal=removal, subsets=True)
+    def fresh_plan(self, granularity: int) -> Plan:
+        return fresh_plan(self.settings, self.current, granularity, self.context, self.round_index)
 
     def verify(self) -> bool:
         """Try removing each single remaining element; adopt and return True if one still reproduces f.
@@ -536,39 +349,11 @@ class _Engine:
     def coarser_or_finer(self, progress: str | None, removed: int = 1) -> int:
         """The next granularity after a round that adopted a subset, a complement (of `removed` parts), or
         nothing (None)."""
-        n, size = self.granularity, len(self.current)
-        if self.settings.granularity == "paper":
-            return max(1, min(n + 1, size))
-        if progress == "subset":
-            return max(1, min(self.settings.n_partitions, size))
-        if progress == "complement":
-            return max(1, min(max(n - removed, 2), size))
-        return max(1, min(2 * n, size))
+        return next_granularity(self.settings, self.granularity, len(self.current), progress, removed)
 
-    def trials_of(self, plan: _Plan) -> list[tuple[Trial, tuple[Part, ...]]]:
-        """Subsets in priority order, then complements in removal order, without repeats or no-ops."""
-        current = set(self.current)
-        seen = {frozenset(self.current)}
-        trials: list[tuple[Trial, tuple[Part, ...]]] = []
-        for kind, parts in (("subset", plan.ordered if plan.subsets else []), ("complement", plan.removal)):
-            for part in parts:
-                members = frozenset(part) if kind == "subset" else frozenset(current - set(part))
-                if members in seen:
-                    continue
-                seen.add(members)
-                trials.append((Trial(self.full(tuple(members)), kind), (part,)))
-        below = self.rates.below_worlds()
-        rejected = [verdict.members for verdict in self.context.history if not (verdict.reproduces or verdict.errored)]
-        if below or rejected:  # likely not to reproduce f: tried last (reordered, never skipped)
-            trials.sort(key=lambda entry: self.dominated(frozenset(entry[0].candidate), below, rejected))
-        return trials
-
-    def dominated(self, candidate: frozenset[str], below: Sequence[frozenset[str]],
-                  rejected: Sequence[frozenset[str]]) -> tuple[bool, bool]:
-        """(inside a world that failed significantly less often: likely the same drift; inside a candidate
-        that did not reproduce f: a monotone failure would not either), the sort key of `trials_of`."""
-        members = candidate - self.settings.keep
-        return (any(candidate <= world for world in below), any(members <= world for world in rejected))
+    def trials_of(self, plan: Plan) -> list[tuple[Trial, tuple[Part, ...]]]:
+        return trials_of(plan, self.current, self.full, keep=self.settings.keep, below=self.rates.below_worlds(),
+                         context=self.context)
 
     def adopt(self, trial: Trial, decision: Decision) -> None:
         self.unverified = 0
@@ -576,7 +361,7 @@ class _Engine:
         if decision.trace is not None:
             self.context.trace = decision.trace
         self.minimal_runs = decision.runs
-        self.chain.append(_Step(trial.candidate, decision.runs, decision.trace))
+        self.chain.steps.append(Step(trial.candidate, decision.runs, decision.trace))
         self.steps.append((self.probes(), len(trial.candidate)))
         self.write(events.Step(kind=trial.kind, candidate=tuple(trial.candidate), size=len(trial.candidate),
                                probes=self.probes()))
@@ -585,51 +370,28 @@ class _Engine:
     def final_rate(self) -> tuple[int, int]:
         """(fails, runs) of the minimal world's fresh runs: those of the rate comparison, or (nothing was
         removed, or the comparison is off) the original world's first look."""
-        if self.rate_check is not None:
-            rate = self.rate_check.reduced
-        elif self.rates.looks:
-            rate = self.rates.original_rate(self.rates.looks[0]) if len(self.chain) == 1 else self.rates.rate(
-                self.chain[-1].world, self.chain[-1].fresh_from, self.rates.looks[0])
-        else:
+        rate = self.chain.minimal_rate(self.rate_check)
+        if rate is None:
             return (0, 0)
         minimal = self.full(self.current)
         self.write(events.FailureRate(candidate=minimal, fails=rate.fails, runs=rate.runs))
         return rate.fails, rate.runs
 
-    def precondition_kept(self) -> tuple[tuple[str, str], ...]:
-        """(element, reason) for each element of the minimal world whose removal a precondition refused
-        (it was not shown needed for the failure, only for the scenario to be valid)."""
-        kept: list[tuple[str, str]] = []
-        for name in self.current:
-            reason = self.refused(self.full(tuple(other for other in self.current if other != name)))
-            if reason is not None:
-                kept.append((name, reason))
-        return tuple(kept)
-
     def check_without_precondition_kept(self) -> None:
         """Cheap information: does the minimal world without its precondition-kept elements still fail?
         A few runs (the first look), preconditions bypassed, within the budget."""
-        kept = {name for name, _ in self.precondition_kept()}
-        if not kept or not self.rates.looks or self.probing.runner.exhausted():
-            return
-        world = self.full(tuple(name for name in self.current if name not in kept))
-        rate = self.rates.rate(world, 0, min(3, self.rates.looks[0]))
-        self.precondition_check = (rate.fails, rate.runs)
-        self.write(events.PreconditionCheck(candidate=world, fails=rate.fails, runs=rate.runs))
+        checked = rate_without_kept(self.settings.preconditions, self.current, self.full, self.rates,
+                                    self.probing.runner.exhausted)
+        if checked is not None:
+            world, rate = checked
+            self.precondition_check = (rate.fails, rate.runs)
+            self.write(events.PreconditionCheck(candidate=world, fails=rate.fails, runs=rate.runs))
 
     # -- helpers ------------------------------------------------------------------------------------------
 
     def full(self, reducible: Sequence[str]) -> Candidate:
         chosen = set(reducible) | self.settings.keep
         return tuple(name for name in self.settings.elements if name in chosen)
-
-    def check_parts(self, parts: Sequence[Sequence[str]]) -> None:
-        flat = [name for part in parts for name in part]
-        if any(len(part) == 0 for part in parts) or sorted(flat) != sorted(self.current):
-            raise ReductionError(
-                f"partition schema {self.settings.partitioner.name!r} must return non-empty, disjoint parts "
-                f"covering the current world, got {[list(part) for part in parts]!r}"
-            )
 
     def elapsed(self) -> float:
         return time.monotonic() - self.started_at
@@ -641,95 +403,33 @@ class _Engine:
     def emit(self, kind: str, *, candidate: Candidate | None = None, outcome: Outcome | None = None) -> None:
         if self.settings.on_progress is None:
             return
-        self.settings.on_progress(
-            ProgressEvent(
-                kind=kind,
-                size=len(self.full(self.current)),
-                probes=self.probes(),
-                granularity=self.granularity,
-                elapsed=self.elapsed(),
-                candidate=candidate,
-                outcome=outcome,
-            )
-        )
+        self.settings.on_progress(ProgressEvent(
+            kind=kind, size=len(self.full(self.current)), probes=self.probes(), granularity=self.granularity,
+            elapsed=self.elapsed(), candidate=candidate, outcome=outcome))
 
     def write(self, event: events.Event) -> None:
         if self.log is not None:
             self.log.write(replace(event, elapsed=round(self.elapsed(), 6)))
 
     def result(self, *, one_minimal: bool, incomplete: str | None, failure_rate: tuple[int, int]) -> Reduction:
-        settings, counters = self.settings, self.probing.counters
-        notes = [*(self.log.notes if self.log is not None else []), *self.backoff_notes]
-        if self.unverified:
-            notes.append(
-                f"not verified: {plural(self.unverified, 'single removal')} of the minimal world rejected only "
-                "because the runs errored (a worker died or a probe hung), also when tried again; a resumed "
-                "reduction tries again"
-            )
-        return Reduction(
-            original=settings.elements,
-            minimal=self.full(self.current),
-            kept=tuple(name for name in settings.elements if name in settings.keep),
-            probes=self.probes(),
-            cache_hits=counters.cache_hits,
-            skipped=len(counters.skipped),
-            errors=counters.errors,
-            steps=tuple(self.steps),
-            one_minimal=one_minimal,
-            incomplete_reason=incomplete,
-            failure_rate=failure_rate,
-            wall_time=self.elapsed(),
-            partition=settings.partitioner.name,
-            priority=settings.prioritizer.name,
-            granularity=settings.granularity,
-            deflake=settings.policy.label if self.calibration is None else f"auto:{self.probing.decider.policy.label}",
-            seed=settings.seed,
-            calibration=self.calibration,
-            simulations=counters.simulations,
-            resumed_probes=self.history,
-            errored=len(counters.errored),
-            notes=tuple(notes),
-            rate_check=self.rate_check,
-            rate_backoffs=self.backoffs,
-            precondition_kept=self.precondition_kept(),
-            without_precondition_kept=self.precondition_check,
-            independent=self.independent,
+        return build_reduction(
+            self.settings, self.probing.counters,
+            minimal=self.full(self.current), probes=self.probes(), steps=self.steps, one_minimal=one_minimal,
+            incomplete=incomplete, failure_rate=failure_rate, wall_time=self.elapsed(),
+            deflake=self.settings.policy.label if self.calibration is None
+            else f"auto:{self.probing.decider.policy.label}",
+            calibration=self.calibration, resumed_probes=self.history,
+            notes=notes_of(self.log.notes if self.log is not None else [], self.chain.notes, self.unverified),
+            rate_check=self.rate_check, rate_backoffs=self.chain.backoffs,
+            precondition_kept=precondition_kept(self.settings.preconditions, self.current, self.full),
+            without_precondition_kept=self.precondition_check, independent=self.independent,
             first_cut=self.first_cut,
         )
 
     def write_start(self) -> None:
-        settings = self.settings
-        self.write(events.Start(
-            resumed=self.resumed, elements=tuple(settings.elements),
-            keep=tuple(name for name in settings.elements if name in settings.keep),
-            partition=settings.partitioner.name, priority=settings.prioritizer.name,
-            n_partitions=settings.n_partitions, granularity=settings.granularity,
-            complement_order=settings.complement_order, deflake=settings.policy.label, seed=settings.seed,
-            max_probes=settings.max_probes, max_seconds=settings.max_seconds,
-            failure_rate_runs=settings.failure_rate_runs, reference=settings.reference is not None))
+        self.write(start_event(self.settings, resumed=self.resumed))
         self.emit("start")
 
     def write_end(self, reduction: Reduction) -> None:
-        self.write(events.End(
-            minimal=tuple(reduction.minimal), size=len(reduction.minimal), original_size=len(reduction.original),
-            probes=reduction.probes, simulations=reduction.simulations, resumed_probes=reduction.resumed_probes,
-            cache_hits=reduction.cache_hits, skipped=reduction.skipped, errors=reduction.errors,
-            errored=reduction.errored, steps=[list(step) for step in reduction.steps],
-            one_minimal=reduction.one_minimal, incomplete_reason=reduction.incomplete_reason,
-            failure_rate=list(reduction.failure_rate),
-            rate_check=None if reduction.rate_check is None else reduction.rate_check.decision,
-            rate_backoffs=reduction.rate_backoffs, wall_time=reduction.wall_time))
+        self.write(end_event(reduction))
         self.emit("end")
-
-    @staticmethod
-    def _open_log(settings: Settings) -> ProbeLog | None:
-        if settings.log is None:
-            return None
-        log = settings.log if isinstance(settings.log, ProbeLog) else ProbeLog(settings.log, resume=True)
-        started = log.started_with()
-        if started is not None and (started[0] != settings.elements or set(started[1]) != settings.keep):
-            raise ReductionError(
-                f"the probe log {log.path or '(in memory)'} belongs to a reduction of a different world "
-                f"({len(started[0])} elements, keep={list(started[1])}); pass another log path, or move this one away"
-            )
-        return log
