@@ -41,4 +41,5 @@ def test_no_note_when_the_rule_rarely_misses_or_is_calibrated_or_the_original_fa
     assert rule_lines(reduced(2, 3)) == [], "any of 4 runs at about 50 %: misses about 6 %"
     assert rule_lines(reduced(2, "auto")) == [], "auto sizes the rule from the original's rate"
     assert rule_lines(reduced(10**6, 0)) == [], "an original failing every fresh run"
+    assert rule_lines(reduced(1, 0)) == [], "an original failing none: the report's warning up front says so"
     assert rule_lines(reduced(2, 0), misses=0.99) == [], "below the threshold"
