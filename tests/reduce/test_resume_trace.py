@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from pytest_ddenv.reduce import Outcome, ProbeLog, ProbeObservation, Trace, events, reduce
+
 from .conftest import line_geometry, names
 
 ELEMENTS = names(16)
