@@ -43,6 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import table
 
+from pytest_ddenv.reduce.rate_check import SEARCH_LOOKS
 from pytest_ddenv.reduce.rates import LEVEL, LOOKS, SEARCH_LEVEL, Rate, compare, search_below, settled
 
 CASES: tuple[tuple[float, float], ...] = (
@@ -162,23 +163,38 @@ def old_watch(rate: float, confirming: int, level: float = LEVEL) -> float:
                     if unflagged else 0.0)
 
 
-def new_watch(rate: float, confirming: int, calibration: int,
-              level: float = SEARCH_LEVEL) -> tuple[float, float]:
-    """(P(back off), expected runs) of the search decision on the first look (the original fails every run)."""
-    look = LOOKS[0]
+def _search_look(reduced: Rate, look: int, known_runs: int, level: float) -> tuple[str, int]:
+    """The watch's decision at one look, the original failing every run and having made `known_runs` already:
+    (decision, the original's runs made by then)."""
+    known = Rate(min(known_runs, look), min(known_runs, look))
+    decided = search_below(known, reduced, look, level) or search_below(Rate(look, look), reduced, look, level)
+    assert decided is not None
+    return decided.decision, known_runs if decided.skipped or known_runs >= look else look
+
+
+def new_watch(rate: float, confirming: int, calibration: int, level: float = SEARCH_LEVEL,
+              looks: tuple[int, ...] = LOOKS[:SEARCH_LOOKS]) -> tuple[float, float]:
+    """(P(back off), expected runs) of the search decision (the original fails every run): at each of `looks`
+    while it holds and the world showed a non-failing run (`rate_check.DriftWatch.test`)."""
     back_off = runs = 0.0
     for first_fails, p_first in binomial(confirming, rate):
         if confirming and first_fails == confirming:  # not flagged: the confirming runs only
             runs += p_first * confirming
             continue
-        for more, p_more in binomial(look - confirming, rate):
-            reduced = Rate(first_fails + more, look)
-            known = Rate(min(calibration, look), min(calibration, look))
-            decided = search_below(known, reduced, look, level) or search_below(Rate(look, look), reduced, look, level)
-            assert decided is not None
-            extra = 0 if decided.skipped or known.runs == look else look - known.runs
-            back_off += p_first * p_more * (decided.decision == "below")
-            runs += p_first * p_more * (look + extra)
+        # (look index, the world's fails so far, its runs so far, the original's runs so far, chance)
+        stack: list[tuple[int, int, int, int, float]] = [(0, first_fails, confirming, calibration, p_first)]
+        while stack:
+            index, fails, made, original_made, chance = stack.pop()
+            look = looks[index]
+            for more, p_more in binomial(look - made, rate):
+                reduced = Rate(fails + more, look)
+                decision, original = _search_look(reduced, look, original_made, level)
+                p = chance * p_more
+                back_off += p * (decision == "below")
+                if decision != "holds" or index == len(looks) - 1 or reduced.fails == look:
+                    runs += p * (look + original - calibration)
+                else:
+                    stack.append((index + 1, reduced.fails, look, original, p))
     return back_off, runs
 
 
@@ -187,10 +203,11 @@ def drift_rows(calibration: int, level: float = LEVEL, search_level: float = SEA
     lines = []
     for rule, confirming in WATCH_RULES:
         for rate in DRIFT_RATES:
+            one_look, one_look_runs = new_watch(rate, confirming, calibration, search_level, LOOKS[:1])
             back_off, runs = new_watch(rate, confirming, calibration, search_level)
             what = "wrong back-off" if rate >= 0.8 else "catch"
-            lines.append([rule, f"{rate:.0%}", what, f"{old_watch(rate, confirming, level):.2%}", f"{back_off:.2%}",
-                          f"{runs:.2f}"])
+            lines.append([rule, f"{rate:.0%}", what, f"{old_watch(rate, confirming, level):.2%}", f"{one_look:.2%}",
+                          f"{back_off:.2%}", f"{one_look_runs:.2f}", f"{runs:.2f}"])
     return lines
 
 
@@ -226,11 +243,13 @@ def main(argv: list[str] | None = None) -> int:
                      "runs old (minimal + original)", "runs new (minimal + original)", "saved"],
                     rows(calibration, args.level)))
     print(f"\nthe drift watch, per accepted world, original failing 100 %: old (the end-of-run comparison, "
-          f"{args.level:.3g} overall) and new (a search decision on the first look, {args.search_level:.3g})")
+          f"{args.level:.3g} overall), a search decision at {args.search_level:.3g} on the first look (w33f-3), and on "
+          f"up to {SEARCH_LOOKS} looks (now)")
     for calibration in args.calibration:
         print(f"\ncalibration runs of the original already made: {calibration}\n")
-        print(table(["accepted on", "world's rate", "", "P(back off) old", "P(back off) new",
-                     "runs new (world + original)"], drift_rows(calibration, args.level, args.search_level)))
+        print(table(["accepted on", "world's rate", "", "P(back off): end-of-run test", "one look",
+                     f"{SEARCH_LOOKS} looks", "runs, one look (world + original)", f"runs, {SEARCH_LOOKS} looks"],
+                    drift_rows(calibration, args.level, args.search_level)))
     print("\na world failing every run is never backed off; its confirming runs are spent unless it is the minimal "
           "world (they are the first runs of the minimal world's comparison)")
     return 0

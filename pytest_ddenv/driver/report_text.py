@@ -52,6 +52,7 @@ def result_lines(report: ReductionReport) -> list[str]:
         *([f"physics engine: {report.engine}"] if report.engine else []),
         *same_failure_lines(report),
         failure_rate_line(reduction),
+        *rule_lines(reduction),
         *stage_lines(report),
         *([] if report.cross_engine is None else report.cross_engine.lines()),
         *other_failure_lines(report),
@@ -162,6 +163,34 @@ def failure_rate_line(reduction: Reduction) -> str:
     if fails * 2 < runs:
         line += " (warning: it rarely reproduces the failure)"
     return line
+
+
+RULE_MISSES = 0.1
+"""`rule_lines`: a fixed deflake rule that rejects a candidate failing as often as the original world at least
+this often gets a note."""
+
+
+def rule_lines(reduction: Reduction, misses: float = RULE_MISSES) -> list[str]:
+    """A fixed deflake rule (`deflake=N`: a candidate reproduces f when any of N + 1 runs fails) on a failure the
+    original world reproduced in only some of its fresh runs: how often the rule rejects a candidate that fails
+    exactly as often as the original, when that is `misses` or more (such rejections keep models the failure
+    does not need). `auto` sizes the rule from the original's rate: no note."""
+    original = reduction.original_failure_rate
+    if isinstance(reduction.deflake, bool) or not isinstance(reduction.deflake, int) or original is None:
+        return []
+    fails, runs = original
+    if runs < 3 or fails in (0, runs):  # never failing: the warning up front (`reproduction_lines`) says so
+        return []
+    tries = reduction.deflake + 1
+    missed = (1.0 - fails / runs) ** tries
+    if missed < misses:
+        return []
+    plural = "s" if tries != 1 else ""
+    return [(f"note: the original world failed {fails} of {runs} fresh runs, and deflake={reduction.deflake} "
+             f"judges a candidate on {tries} run{plural} (any failing): a candidate that fails as often as the "
+             f"original is rejected about {round(100 * missed)} % of the time, so the minimal world may keep "
+             "models the failure does not need; deflake=auto (the default) sizes the rule from the original's "
+             "rate")]
 
 
 def needed_lines(reduction: Reduction) -> list[str]:

@@ -269,8 +269,13 @@ class Decided(OfCandidate):
     """The verdict rests on ERROR runs: not a verdict a resumed reduction reuses."""
 
 
+@dataclass(frozen=True, kw_only=True)
 class Accept(Decided, name="accept"):
     """The candidate reproduces the failure."""
+
+    trace: JsonObject | None = None
+    """The trace of its first failing run (`Trace.to_json`): the schemas of the rounds after it read it, so a
+    resumed reduction that accepts it from the log orders its rounds as the run that accepted it did."""
 
 
 class Reject(Decided, name="reject"):

@@ -42,7 +42,10 @@ class Journal:
     def verdict(self, trial: Trial, decision: Decision, errors: int) -> None:
         """A candidate just decided, on runs of which `errors` were ERROR."""
         kind = events.Errored if decision.errored else events.Accept if decision.reproduces else events.Reject
-        self.write(_decision(kind, trial, decision, errors=errors or None))
+        event = _decision(kind, trial, decision, errors=errors or None)
+        if isinstance(event, events.Accept) and decision.trace is not None:
+            event = replace(event, trace=decision.trace.to_json())
+        self.write(event)
 
     def consult(self, trial: Trial, decision: Decision, *, cached: bool, quiet: bool) -> None:
         """The serial algorithm looks at this verdict now: feed the learner, count and log cache hits."""

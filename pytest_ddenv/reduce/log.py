@@ -39,7 +39,7 @@ from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import events
 from pytest_ddenv.reduce.events import Event
 from pytest_ddenv.reduce.records import json_value, read_regular
-from pytest_ddenv.reduce.types import Decision, Outcome
+from pytest_ddenv.reduce.types import Decision, Outcome, Trace
 
 VOLATILE_FIELDS: tuple[str, ...] = ("elapsed", "wall_time")
 
@@ -170,8 +170,11 @@ class ProbeLog:
         decided: dict[frozenset[str], Decision] = {}
         for event in self.own_events():
             if isinstance(event, events.VERDICTS) and not event.errored:
-                decided[frozenset(event.candidate)] = Decision(reproduces=event.reproduces, fails=event.fails,
-                                                               runs=event.runs, errors=event.errors or 0)
+                key = frozenset(event.candidate)
+                earlier = decided.get(key)
+                trace = accepted_trace(event) or (earlier.trace if earlier is not None else None)
+                decided[key] = Decision(reproduces=event.reproduces, fails=event.fails, runs=event.runs,
+                                        errors=event.errors or 0, trace=trace if event.reproduces else None)
         return decided
 
     def partial_runs(self) -> dict[frozenset[str], list[Outcome]]:
@@ -350,3 +353,14 @@ def gone_failure(path: Path) -> str:
     where = path.parent if not path.parent.is_dir() else path
     return (f"cannot write {path}: {where} was deleted while the reduction ran, and the records written before "
             "with it; run the reduction again: it starts over")
+
+
+def accepted_trace(event: events.Event) -> Trace | None:
+    """The trace an acceptance was logged with (None: none, or one this version cannot read: the schemas then
+    read the trace before it, as a log written before traces were logged did)."""
+    if not isinstance(event, events.Accept) or event.trace is None:
+        return None
+    try:
+        return Trace.from_json(event.trace)
+    except ReductionError:
+        return None

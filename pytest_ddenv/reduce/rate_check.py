@@ -12,8 +12,9 @@ of the look that no outcome could make matter are not started (`rates.settled`).
 Drift is watched during the reduction too (`DriftWatch`): an accepted world that showed a non-failing run
 while being decided, or whose confirming fresh runs (its first fresh attempts up to attempt 2, made at the
 first rejection of a new candidate after it was accepted) do not all fail, is tested there, while the
-original has failed every fresh run so far: a search decision on the comparison's first look at
-`rates.SEARCH_LEVEL` (`rates.search_below`), not the guarantee; "below" ends the round (`Drift`) and the
+original has failed every fresh run so far: a search decision on the comparison's first look (and its
+second, when the first held on a non-failing run) at `rates.SEARCH_LEVEL` (`rates.search_below`), not the
+guarantee; "below" ends the round (`Drift`) and the
 engine backs off, before a whole reduction is built on it. The end-of-run comparison of the minimal world is
 unchanged and makes the guarantee.
 """
@@ -130,6 +131,9 @@ class RateChecker:
         return logged
 
 
+SEARCH_LOOKS = 2
+"""The drift watch's test looks at most at the comparison's first SEARCH_LOOKS looks (5, then 10 runs)."""
+
 WATCHED_RUNS = 3
 """An accepted world whose deciding runs all failed is watched until its first `WATCHED_RUNS` attempts are
 made: a world failing at rate p shows a non-failing one among them with probability 1 - p^3 (78 % at 50 %,
@@ -149,7 +153,8 @@ class DriftWatch:
       them as its first runs.
     The test is a search decision (`rates.search_below` at `rates.SEARCH_LEVEL`): the world's fresh runs up
     to the comparison's first look against the original's first ones (calibration runs included; the
-    original's runs no outcome could make matter are not started). Every run is one the end-of-run comparison
+    original's runs no outcome could make matter are not started), then, when that held but the world showed a
+    non-failing run, up to its second look (`SEARCH_LOOKS`). Every run is one the end-of-run comparison
     reuses if the world stays the minimal one, and it decides that world at its own level, unchanged;
     "below" raises `Drift`. Every run is logged, so a resumed reduction answers from the log."""
 
@@ -180,9 +185,24 @@ class DriftWatch:
         return comparison
 
     def test(self, world: Candidate, first: int) -> RateComparison:
-        """The search decision on `world`'s fresh runs up to the first look (logged as a "rate-check" record);
-        "continue" when the budget stopped the runs."""
-        look = self.rates.looks[0]
+        """The search decision on `world`'s fresh runs (logged as a "rate-check" record): at the comparison's
+        first look, then, when that held but the world showed a non-failing run, at its second
+        (`SEARCH_LOOKS`); "continue" when the budget stopped the runs."""
+        looks = self.rates.looks[:SEARCH_LOOKS]
+        for index, look in enumerate(looks):
+            decided = self.look(world, first, look)
+            if decided.decision != "holds" or index == len(looks) - 1 or \
+                    decided.reduced.fails == decided.reduced.runs:
+                break
+        self.rates.write(events.RateCheck(
+            candidate=tuple(world), original=(decided.original.fails, decided.original.runs),
+            reduced=(decided.reduced.fails, decided.reduced.runs), p_value=decided.p_value,
+            decision=decided.decision))
+        return decided
+
+    def look(self, world: Candidate, first: int, look: int) -> RateComparison:
+        """One look of the search decision: `world`'s fresh runs up to `look` against the original's first
+        `look` (those no outcome could make matter are not started)."""
         reduced = self.rates.rate(world, first, look)
         decided = search_below(self.rates.known_original(look), reduced, look)
         if decided is None:  # the original's missing runs could change the decision
@@ -190,8 +210,4 @@ class DriftWatch:
             decided = search_below(original, reduced, look) if original.runs == look else \
                 RateComparison(original, reduced, 1.0, "continue", SEARCH_LEVEL, search=True)  # the budget ran out
             assert decided is not None
-        self.rates.write(events.RateCheck(
-            candidate=tuple(world), original=(decided.original.fails, decided.original.runs),
-            reduced=(decided.reduced.fails, decided.reduced.runs), p_value=decided.p_value,
-            decision=decided.decision))
         return decided

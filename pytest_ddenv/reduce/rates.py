@@ -150,8 +150,10 @@ def settled(original: Rate, look: int, reduced: Rate, looks: Sequence[int] = LOO
 SEARCH_LEVEL = 0.1
 """The drift watch's level (`search_below`). A search decision: backing off a world wrongly costs minimality,
 never honesty (the end-of-run comparison is unchanged). On 5 fresh runs of a world against the original's
-5/5 it backs off at 2 failures or fewer (p = 0.083; 3 of 5: p = 0.22): a world failing 80 % is backed off
-5.8 % of the time once tested, one failing 40 % caught 68 % of the time (benchmarks/bench_rate_design.py)."""
+5/5 it backs off at 2 failures or fewer (p = 0.083; 3 of 5: p = 0.22), on 10 against 10/10 at 6 or fewer
+(p = 0.043; 7 of 10: p = 0.105). With the watch's two looks (`rate_check.SEARCH_LOOKS`), a world failing 80 %
+is backed off 13.5 % of the time once tested, one failing 40 % caught 95 % of the time (one look: 5.8 % and
+68 %; benchmarks/bench_rate_design.py)."""
 
 
 def search_below(original: Rate, reduced: Rate, look: int, level: float = SEARCH_LEVEL) -> RateComparison | None:

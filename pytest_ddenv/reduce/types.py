@@ -89,6 +89,31 @@ class Trace:
     def __len__(self) -> int:
         return int(self.times.shape[0])
 
+    def to_json(self) -> dict[str, Any]:
+        """The trace as JSON values (floats exactly: `json` writes the shortest text that reads back the same)."""
+        return {"times": self.times.tolist(), "positions": self.positions.tolist(),
+                "yaw_rates": self.yaw_rates.tolist(),
+                "failure_position": None if self.failure_position is None else self.failure_position.tolist(),
+                "first_sensed": dict(self.first_sensed), "touched": sorted(self.touched),
+                "carried": None if self.carried is None else self.carried.tolist()}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Trace:
+        """The trace `to_json` wrote; ReductionError when `data` is not one."""
+        try:
+            positions = np.asarray(data["positions"], dtype=np.float64).reshape(-1, 3)
+            carried = data.get("carried")
+            position = data.get("failure_position")
+            sensed = dict(data.get("first_sensed", {}))
+            return cls(times=np.asarray(data["times"], dtype=np.float64), positions=positions,
+                       yaw_rates=np.asarray(data["yaw_rates"], dtype=np.float64),
+                       failure_position=None if position is None else np.asarray(position, dtype=np.float64),
+                       first_sensed={str(name): float(time) for name, time in sensed.items()},
+                       touched=frozenset(str(name) for name in data.get("touched", ())),
+                       carried=None if carried is None else np.asarray(carried, dtype=np.float64).reshape(-1, 3))
+        except (KeyError, TypeError, ValueError) as error:
+            raise ReductionError(f"not a trace: {error}") from error
+
 
 @dataclass(frozen=True)
 class ProbeObservation:
@@ -137,7 +162,8 @@ class Decision:
     runs: int
     """How many runs the verdict is based on (the attempts 0 .. runs-1)."""
     trace: Trace | None = field(default=None, compare=False, repr=False)
-    """The trace of the first f run, when there was one (not persisted in the log)."""
+    """The trace of the first f run, when there was one (logged with an acceptance: a resumed reduction's
+    schemas read the same trace as the run that accepted it)."""
     errors: int = field(default=0, compare=False)
     """How many of the runs were ERROR (no outcome of the world: a crash, a timeout)."""
     errored: bool = False

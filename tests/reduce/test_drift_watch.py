@@ -114,6 +114,35 @@ def test_a_drifted_world_is_caught_during_the_reduction_and_a_resumed_log_simula
     assert again.rate_check.decision == "holds"
 
 
+def test_a_world_the_first_look_cannot_call_below_gets_a_second_look(tmp_path: Path) -> None:
+    """{'a'} fails 3 of its first 5 fresh runs: against the original's 5/5 that is not below at the search level
+    (p = 0.22), so the watch looks again at 10 runs: 6 of 10 against 10/10 is (p = 0.043), and it is backed off
+    there, not after the end-of-run comparison's 20 runs of each world (`rate_check.SEARCH_LOOKS`)."""
+    assert search_below(Rate(5, 5), Rate(3, 5), 5).decision == "holds"  # type: ignore[union-attr]
+    log = tmp_path / "runs.jsonl"
+    result, calls = run(lucky_without_b(0, 2, 3, 4, 6, 7, 8), log)
+    assert result.minimal == ("a", "b") and result.rate_backoffs == 1
+    assert any(note.startswith("back-off 1: a 1-element accepted world (drift watch, during the reduction)")
+               for note in result.notes), result.notes
+    checks = [event for event in ProbeLog.load(log).own_events() if isinstance(event, events.RateCheck)]
+    assert (checks[0].candidate, checks[0].reduced, checks[0].original, checks[0].decision) == (
+        ("a",), (6, 10), (10, 10), "below")
+    assert fresh_runs(log)[("a",)] == list(range(1, 11)), "10 fresh runs of it, never 20"
+    assert_evidence_is_fresh(log, calls)
+
+
+def test_a_world_that_fails_every_run_of_the_first_look_gets_no_second(tmp_path: Path) -> None:
+    """Under any-of-4 {'a'} passes attempt 0 and fails attempt 1 (accepted, tested at once for the pass), then
+    fails its 5 fresh runs: it holds on the first look and no second one is made."""
+    log = tmp_path / "runs.jsonl"
+    result, calls = run(lucky_without_b(*range(1, 30)), log, deflake=3)
+    checks = [event for event in ProbeLog.load(log).own_events() if isinstance(event, events.RateCheck)]
+    assert (checks[0].candidate, checks[0].reduced, checks[0].decision) == (("a",), (5, 5), "holds")
+    assert result.minimal == ("a",) and result.rate_backoffs == 0
+    assert fresh_runs(log)[("a",)] == [2, 3, 4, 5, 6], "the first look's 5 runs, reused by the end's comparison"
+    assert_evidence_is_fresh(log, calls)
+
+
 def test_a_pass_among_the_deciding_runs_starts_the_comparison_without_a_confirming_run(tmp_path: Path) -> None:
     log = tmp_path / "runs.jsonl"
     result, calls = run(lucky_without_b(1), log, deflake=3)  # {'a'}: pass, then f on attempt 1: accepted
@@ -195,16 +224,17 @@ def test_two_failures_in_the_first_look_back_off_where_the_old_watch_ran_a_secon
     assert_evidence_is_fresh(log, calls)
 
 
-def test_three_failures_in_the_first_look_hold_and_the_end_of_run_comparison_still_decides(tmp_path: Path) -> None:
-    """{'a'} fails attempts 0, 1, 3 and 4 only: 3 of its first 5 fresh runs hold the search decision (no run of
-    the original: none could change it), the reduction goes on from {'a'}, and the end-of-run comparison,
-    unchanged, reuses those 5 runs, needs its second look and backs off (3/10 against 10/10)."""
+def test_a_world_the_watch_holds_is_still_decided_by_the_end_of_run_comparison(tmp_path: Path) -> None:
+    """{'a'} fails attempts 0, 1, 3, 4 and 6-9 only: 3 of its first 5 fresh runs hold the first look of the
+    search decision, 7 of 10 the second (p = 0.105 even against 10/10: no run of the original is made), the
+    reduction goes on from {'a'}, and the end-of-run comparison, unchanged, reuses those 10 runs, needs its
+    last look and backs off (7/20 against 20/20), comparing the world before {'a'} first."""
     log = tmp_path / "runs.jsonl"
-    result, calls = run(lucky_without_b(0, 1, 3, 4), log)
+    result, calls = run(lucky_without_b(0, 1, 3, 4, 6, 7, 8, 9), log)
     checks = [event for event in ProbeLog.load(log).own_events() if isinstance(event, events.RateCheck)]
-    assert checks[0].candidate == ("a",) and (checks[0].reduced, checks[0].original) == ((3, 5), (0, 0))
+    assert checks[0].candidate == ("a",) and (checks[0].reduced, checks[0].original) == ((7, 10), (0, 0))
     assert checks[0].decision == "holds", "the watch's search decision"
-    assert checks[1].candidate == ("a",) and checks[1].reduced == (3, 10) and checks[1].original == (10, 10)
+    assert checks[1].candidate == ("a",) and checks[1].reduced == (7, 20) and checks[1].original == (20, 20)
     assert checks[1].decision == "below", "the end-of-run comparison at its own level"
     assert checks[2].candidate == ("a", "b") and checks[2].decision == "holds", "the world before it is compared first"
     assert ("a", "b", "c", "d") not in [check.candidate for check in checks], "a binary search would start there"
@@ -212,7 +242,7 @@ def test_three_failures_in_the_first_look_hold_and_the_end_of_run_comparison_sti
     assert any(note.startswith("back-off 1: a 1-element minimal world failed significantly less often")
                for note in result.notes), result.notes
     runs = fresh_runs(log)
-    assert runs[("a",)] == list(range(1, 11)), "the watch's 5 runs are the end's first 5, each made once"
+    assert runs[("a",)] == list(range(1, 21)), "the watch's 10 runs are the end's first 10, each made once"
     assert result.simulations == len(calls) == result.probes + sum(map(len, runs.values()))
     assert_evidence_is_fresh(log, calls)
 
