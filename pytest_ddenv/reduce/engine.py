@@ -209,7 +209,7 @@ class _Engine:
             return False
         self.rate_check = None
         self.current = tuple(name for name in back.world if name not in self.settings.keep)
-        if back.trace is not None:  # a world accepted from a resumed log has none: keep the one the schemas read
+        if back.trace is not None:  # none from a log written before traces were logged: keep the one the schemas read
             self.context.trace = back.trace
         self.minimal_runs = back.fresh_from
         self.granularity = min(self.settings.n_partitions, len(self.current))

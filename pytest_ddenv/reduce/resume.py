@@ -10,7 +10,7 @@ from typing import Any
 
 from pytest_ddenv.errors import ReductionError
 from pytest_ddenv.reduce import events
-from pytest_ddenv.reduce.log import ProbeLog
+from pytest_ddenv.reduce.log import ProbeLog, accepted_trace
 from pytest_ddenv.reduce.settings import Settings
 from pytest_ddenv.reduce.types import Decision, Outcome
 
@@ -62,7 +62,8 @@ def accepted_before_rate_below(log: ProbeLog) -> dict[frozenset[str], Decision]:
     for event in log.own_events():
         key = frozenset(event.candidate) if isinstance(event, (events.Accept, events.RateBelow)) else None
         if isinstance(event, events.Accept) and key is not None:
-            accepted[key] = Decision(reproduces=True, fails=event.fails, runs=event.runs, errors=event.errors or 0)
+            accepted[key] = Decision(reproduces=True, fails=event.fails, runs=event.runs, errors=event.errors or 0,
+                                     trace=accepted_trace(event))
         elif isinstance(event, events.RateBelow) and key in accepted:
             undone[key] = accepted[key]
     return undone
