@@ -193,8 +193,8 @@ def new_watch(rate: float, confirming: int, calibration: int, level: float = SEA
                 back_off += p * (decision == "below")
                 if decision != "holds" or index == len(looks) - 1 or reduced.fails == look:
                     runs += p * (look + original - calibration)
-                else:
-                    stack.append((index + 1, reduced.fails, look, original, p))
+                else:  # before the next look the original's runs of this one are made (are they all failing?)
+                    stack.append((index + 1, reduced.fails, look, max(original, look), p))
     return back_off, runs
 
 

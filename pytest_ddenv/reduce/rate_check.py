@@ -154,7 +154,8 @@ class DriftWatch:
     The test is a search decision (`rates.search_below` at `rates.SEARCH_LEVEL`): the world's fresh runs up
     to the comparison's first look against the original's first ones (calibration runs included; the
     original's runs no outcome could make matter are not started), then, when that held but the world showed a
-    non-failing run, up to its second look (`SEARCH_LOOKS`). Every run is one the end-of-run comparison
+    non-failing run and the original's first look (made then) failed every run, up to its second look
+    (`SEARCH_LOOKS`). Every run is one the end-of-run comparison
     reuses if the world stays the minimal one, and it decides that world at its own level, unchanged;
     "below" raises `Drift`. Every run is logged, so a resumed reduction answers from the log."""
 
@@ -186,13 +187,16 @@ class DriftWatch:
 
     def test(self, world: Candidate, first: int) -> RateComparison:
         """The search decision on `world`'s fresh runs (logged as a "rate-check" record): at the comparison's
-        first look, then, when that held but the world showed a non-failing run, at its second
-        (`SEARCH_LOOKS`); "continue" when the budget stopped the runs."""
+        first look, then, when that held but the world showed a non-failing run while the original's first look
+        failed every run, at its second (`SEARCH_LOOKS`); "continue" when the budget stopped the runs."""
         looks = self.rates.looks[:SEARCH_LOOKS]
         for index, look in enumerate(looks):
             decided = self.look(world, first, look)
             if decided.decision != "holds" or index == len(looks) - 1 or \
                     decided.reduced.fails == decided.reduced.runs:
+                break
+            original = self.rates.original_rate(look)  # made once: every later comparison reuses them
+            if original.fails < original.runs:  # a flaky original: the world's passes say nothing
                 break
         self.rates.write(events.RateCheck(
             candidate=tuple(world), original=(decided.original.fails, decided.original.runs),

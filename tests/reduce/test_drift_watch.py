@@ -226,13 +226,14 @@ def test_two_failures_in_the_first_look_back_off_where_the_old_watch_ran_a_secon
 
 def test_a_world_the_watch_holds_is_still_decided_by_the_end_of_run_comparison(tmp_path: Path) -> None:
     """{'a'} fails attempts 0, 1, 3, 4 and 6-9 only: 3 of its first 5 fresh runs hold the first look of the
-    search decision, 7 of 10 the second (p = 0.105 even against 10/10: no run of the original is made), the
+    search decision; before a second look the original's first 5 runs are made (5/5: not flaky, so the world's
+    passes mean something), then 7 of 10 holds (p = 0.105 even against 10/10: no more run of the original), the
     reduction goes on from {'a'}, and the end-of-run comparison, unchanged, reuses those 10 runs, needs its
     last look and backs off (7/20 against 20/20), comparing the world before {'a'} first."""
     log = tmp_path / "runs.jsonl"
     result, calls = run(lucky_without_b(0, 1, 3, 4, 6, 7, 8, 9), log)
     checks = [event for event in ProbeLog.load(log).own_events() if isinstance(event, events.RateCheck)]
-    assert checks[0].candidate == ("a",) and (checks[0].reduced, checks[0].original) == ((7, 10), (0, 0))
+    assert checks[0].candidate == ("a",) and (checks[0].reduced, checks[0].original) == ((7, 10), (5, 5))
     assert checks[0].decision == "holds", "the watch's search decision"
     assert checks[1].candidate == ("a",) and checks[1].reduced == (7, 20) and checks[1].original == (20, 20)
     assert checks[1].decision == "below", "the end-of-run comparison at its own level"
@@ -267,4 +268,21 @@ def test_an_error_among_the_deciding_runs_is_no_reason_to_test(tmp_path: Path) -
     assert all(frozenset(candidate) != world for candidate in tested), "an ERROR is not a non-failing run"
     ordered = next(candidate for candidate in fresh_runs(log) if frozenset(candidate) == world)
     assert fresh_runs(log)[ordered] == [2], "one confirming run: attempt 2"
+    assert_evidence_is_fresh(log, calls)
+
+
+def test_no_second_look_when_the_original_passes_one_of_its_first_runs(tmp_path: Path) -> None:
+    """{'a'} fails 3 of its first 5 fresh runs; before a second look the original's first 5 are made, and one
+    of them passes: the original is flaky, so the world's passes say nothing and the watch stops there."""
+
+    def probe(candidate: tuple[str, ...], attempt: int) -> ProbeObservation:
+        if candidate == ELEMENTS:
+            return observation(attempt != 4, attempt)
+        return lucky_without_b(0, 1, 3, 4, 6, 7, 8, 9)(candidate, attempt)
+
+    log = tmp_path / "runs.jsonl"
+    result, calls = run(probe, log)
+    checks = [event for event in ProbeLog.load(log).own_events() if isinstance(event, events.RateCheck)]
+    assert (checks[0].candidate, checks[0].reduced, checks[0].decision) == (("a",), (3, 5), "holds")
+    assert fresh_runs(log)[ELEMENTS][:5] == [1, 2, 3, 4, 5], "the original's first look, made once"
     assert_evidence_is_fresh(log, calls)
