@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 from sdformat_build import build_key, build_sdformat_tool
+from suite_order import FIRST, GROUPED
 from unit_tier import PROCESS_FIXTURES, ProcessStarted, in_unit_tier
 
 SOURCE = Path(__file__).resolve().parent / "data" / "sdf" / "sdformat_check.cc"
@@ -86,3 +87,8 @@ def test_the_modules_with_slow_tests_run_first_each_module_together(request: pyt
     slow = {item.path for item in request.session.items if item.get_closest_marker("slow") is not None}
     has_slow = [path in slow for path in in_order]
     assert has_slow == sorted(has_slow, reverse=True), "a module with slow tests after one without"
+
+
+def test_the_modules_the_order_names_exist() -> None:
+    for module in (*FIRST, *GROUPED):
+        assert (Path(__file__).resolve().parent / module).is_file(), module
