@@ -27,10 +27,11 @@ import pytest
 
 FIRST = (
     "test_paper_regression.py", "test_paper_regression_mujoco.py", "test_friction_drift.py", "test_examples.py",
-    "test_tabletop_reduction.py", "test_reduce_scenarios.py", "test_controller_matters.py",
+    "test_tabletop_reduction.py", "test_reduce_scenarios.py", "test_controller_matters.py", "test_cli_edit_rerun.py",
 )
 """Modules (relative to tests/) that start before the other slow ones: their single tests are the longest
-(whole reductions of the shipped scenarios and examples, a minute or more each on a quiet machine)."""
+(whole reductions of the shipped scenarios and examples, and edits re-reduced: 30 s to 2 min each in
+`--durations` on a busy machine)."""
 
 GROUPED = (
     "execution/test_ray_pool.py",  # a Ray head (`ray start --head`) and the pools on it
