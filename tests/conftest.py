@@ -5,6 +5,7 @@
 import os
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import joblib
 import pytest
@@ -12,6 +13,7 @@ import scipy.stats  # noqa: F401
 import yaml  # noqa: F401  # likewise: its C parser (yaml._yaml) outlives a re-import of the yaml package
 from engines import ENGINE_PARAMS, PYBULLET_MODULES, installed, known_gap, skip_reason
 from sdformat_build import build_sdformat_tool
+from suite_order import long_tests_first, make_scheduler
 from unit_tier import in_unit_tier, no_process_started
 
 # For the same reason a test must not import a heavy package (dask.distributed, ...) only to check that it is
@@ -37,7 +39,7 @@ joblib.cpu_count(only_physical_cores=True)
 SDF_DATA = Path(__file__).resolve().parent / "data" / "sdf"
 
 
-# -- the tiers: `-m unit` (tests/unit_tier.py), `-m "not slow"` (the fast tier), all ---------------------------
+# -- the tiers: `-m unit` (tests/unit_tier.py), `-m "not slow"` (the fast tier), all; the order (suite_order.py) --
 @pytest.hookimpl(tryfirst=True)  # before `-m` selects by marker
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
@@ -51,6 +53,12 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         gap = known_gap(item)
         if gap is not None:
             item.add_marker(gap)
+    items[:] = long_tests_first(items)  # tests/suite_order.py: the modules with slow tests start first
+
+
+@pytest.hookimpl(optionalhook=True)  # pytest-xdist's hook, in its controller process
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    return make_scheduler(config, log)  # tests/suite_order.py: an expensive module's tests on one worker
 
 
 @pytest.hookimpl(hookwrapper=True)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 from sdformat_build import build_key, build_sdformat_tool
+from suite_order import FIRST, GROUPED
 from unit_tier import PROCESS_FIXTURES, ProcessStarted, in_unit_tier
 
 SOURCE = Path(__file__).resolve().parent / "data" / "sdf" / "sdformat_check.cc"
@@ -75,3 +76,19 @@ def test_the_checker_is_built_once_and_reused(sdformat_check: Path, sdformat_cac
     assert build_sdformat_tool(SOURCE, sdformat_cache) == sdformat_check
     assert sdformat_check.stat().st_mtime_ns == built
     assert not list(sdformat_cache.glob("*.partial"))
+
+
+def test_the_modules_with_slow_tests_run_first_each_module_together(request: pytest.FixtureRequest) -> None:
+    """tests/suite_order.py: under xdist the long tests start first, not last; a module's tests stay together
+    (its module-scoped fixtures are made once per worker)."""
+    modules = [item.path for item in request.session.items]
+    in_order = list(dict.fromkeys(modules))
+    assert [path for index, path in enumerate(modules) if index == 0 or modules[index - 1] != path] == in_order
+    slow = {item.path for item in request.session.items if item.get_closest_marker("slow") is not None}
+    has_slow = [path in slow for path in in_order]
+    assert has_slow == sorted(has_slow, reverse=True), "a module with slow tests after one without"
+
+
+def test_the_modules_the_order_names_exist() -> None:
+    for module in (*FIRST, *GROUPED):
+        assert (Path(__file__).resolve().parent / module).is_file(), module
