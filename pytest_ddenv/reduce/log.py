@@ -172,7 +172,9 @@ class ProbeLog:
             if isinstance(event, events.VERDICTS) and not event.errored:
                 key = frozenset(event.candidate)
                 earlier = decided.get(key)
-                trace = accepted_trace(event) or (earlier.trace if earlier is not None else None)
+                trace = accepted_trace(event)
+                if trace is None and earlier is not None:  # a cache hit logs no trace: keep the acceptance's
+                    trace = earlier.trace
                 decided[key] = Decision(reproduces=event.reproduces, fails=event.fails, runs=event.runs,
                                         errors=event.errors or 0, trace=trace if event.reproduces else None)
         return decided
