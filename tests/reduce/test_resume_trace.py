@@ -50,7 +50,8 @@ def test_a_resumed_reduction_simulates_nothing_and_takes_the_same_path(tmp_path:
     assert set(first.minimal) == CULPRITS and first_calls
     accepted = [event for event in ProbeLog.load(log).own_events() if isinstance(event, events.Accept)]
     assert accepted and all(event.trace is not None for event in accepted)
-    logged = Trace.from_json(accepted[0].trace)  # type: ignore[arg-type]
+    assert accepted[0].trace is not None
+    logged = Trace.from_json(accepted[0].trace)
     expected = trace_of(tuple(accepted[0].candidate))
     assert np.array_equal(logged.positions, expected.positions) and logged.touched == expected.touched
     assert logged.first_sensed == expected.first_sensed, "the trace reads back exactly"
