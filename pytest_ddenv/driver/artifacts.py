@@ -60,9 +60,14 @@ def artifact_dir_name(test_id: str, seed: int) -> str:
     """A folder name for a test id and the seed of the run reduced ("test_x.py__test_y-seed7-1a2b3c4d"): safe on
     every file system, no traversal, and unique per (id, seed), so that CI pages group a test's folders and a
     rerun of the same test and seed resumes in the same one."""
-    readable = _UNSAFE.sub("_", test_id.replace("::", "__")).strip("._") or "test"
     digest = hashlib.sha1(f"{test_id}\0{seed}".encode()).hexdigest()[:8]
-    return f"{readable[:80]}-seed{seed}-{digest}"
+    return f"{readable_test_id(test_id)}-seed{seed}-{digest}"
+
+
+def readable_test_id(test_id: str) -> str:
+    """The readable start of `artifact_dir_name`: the test id with "::" as "__" and every other character that
+    is not a letter, a digit, ".", "_" or "-" as "_", at most 80 characters."""
+    return (_UNSAFE.sub("_", test_id.replace("::", "__")).strip("._") or "test")[:80]
 
 
 def write_text_atomic(path: Path, text: str) -> None:

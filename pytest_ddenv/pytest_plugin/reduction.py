@@ -59,7 +59,7 @@ class ReductionPlugin:
         started = time.perf_counter()
         try:
             with _recording_given_calls(pyfuncitem) as calls:
-                return (yield)
+                outcome = yield
         except Exception as error:
             if _should_reduce(pyfuncitem, error):
                 test_run = time.perf_counter() - started
@@ -67,6 +67,9 @@ class ReductionPlugin:
                 if media is not None:
                     self.media.append(media)
             raise
+        if FIXTURE in pyfuncitem.fixturenames:
+            _note_earlier_reductions(pyfuncitem)
+        return outcome
 
     def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
         """Wait for the animations and recordings still rendering (Ctrl-C: stop them)."""
@@ -223,6 +226,21 @@ def _reduce_failed_test(item: pytest.Function, error: BaseException, given_call:
     if session.later_media is not None:
         item.stash[_media_key] = session.later_media
     return session.later_media
+
+
+def _note_earlier_reductions(item: pytest.Function) -> None:
+    """A robot test that passes: the folders of its earlier reductions are stale (`driver.superseded`); each
+    gets the mark in its `summary.json`, and the test's report a line in the "ddenv reductions" summary."""
+    from pytest_ddenv.driver.superseded import earlier_reductions, mark_superseded
+
+    folders = [folder for folder in earlier_reductions(options_of(item.config).artifacts, item.nodeid)
+               if mark_superseded(folder)]
+    if folders:
+        shown = ", ".join(str(folder) for folder in folders)
+        line = (f"{item.nodeid}: passes now; the earlier reduction{'s' if len(folders) > 1 else ''} in {shown} "
+                "(of earlier code or an earlier world) marked superseded in summary.json")
+        item.stash[_result_key] = {"text": line + "\n", "line": line, "attachments": [],
+                                   "attachments_shown": True}
 
 
 def _attachment_lines(result: dict[str, Any]) -> str:
