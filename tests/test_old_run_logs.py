@@ -15,8 +15,8 @@ from typing import Any
 
 import pytest
 
-from pytest_ddenv.cli.main import _read_runs
 from pytest_ddenv.cli.replay import recorded_seeds
+from pytest_ddenv.cli.show_command import _read_runs
 from pytest_ddenv.driver import picture_data
 from pytest_ddenv.driver.artifacts import usage_of
 from pytest_ddenv.driver.other_failures import other_failures

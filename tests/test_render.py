@@ -408,7 +408,7 @@ def test_labels_never_hide_the_goal_or_a_failure_outline(name: str, worlds: dict
 
 def test_failure_poses_without_a_run_are_outlined_with_the_worlds_own_robot() -> None:
     """`ddenv show` of a probe log draws the poses with the world's robot (here a URDF diffbot), not a Husky."""
-    from pytest_ddenv.cli.main import _robot_footprint
+    from pytest_ddenv.cli.show_command import _robot_footprint
 
     world = World.load(ROOT / "examples" / "robots" / "diffbot_world.yaml")
     footprint = _robot_footprint(world)

@@ -1,6 +1,6 @@
 """The files `ddenv` writes where the user says (`-o` pictures, `--animate` GIFs, `--record` runs), checked before
 any simulation: the right kind of file in a place that takes one, and one clear error naming the option and the
-path when writing fails."""
+path when writing fails; their default names (`world_stem`) and the animations written."""
 
 from __future__ import annotations
 
@@ -10,10 +10,15 @@ import fcntl
 import os
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from pytest_ddenv.cli.world_options import UsageError
 from pytest_ddenv.errors import shown_path
+
+if TYPE_CHECKING:  # pragma: no cover
+    from pytest_ddenv.media.animate import AnimationInfo
+    from pytest_ddenv.sim import Run
+    from pytest_ddenv.world.model import World
 
 KINDS = {".png": "a PNG picture", ".gif": "a GIF animation"}
 
@@ -77,3 +82,15 @@ def check_matplotlib_backend() -> None:
         value = os.environ.get("MPLBACKEND", "")
         raise UsageError(f"$MPLBACKEND: {shown_path(value)} is not a matplotlib backend, so no picture can be drawn; "
                          "unset it or set MPLBACKEND=agg") from None
+
+
+def world_stem(path: str) -> str:
+    """The world file's name without its suffix: the default names of what a command writes about it."""
+    return Path(path).stem or "world"
+
+
+def write_gif(target: str, world: World, run: Run, title: str) -> AnimationInfo:
+    """The animation of `run` in `world` written to `target` (`--animate`)."""
+    from pytest_ddenv.media.animate import write_animation
+
+    return write_animation(Path(target), world, run, title=title)

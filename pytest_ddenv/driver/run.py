@@ -11,22 +11,22 @@ import concurrent.futures
 import contextlib
 import functools
 import os
-import signal
-import threading
 import time
-import warnings
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.driver import artifacts
 from pytest_ddenv.driver.calls import Calls
-from pytest_ddenv.driver.code_identity import CodeIdentity
 from pytest_ddenv.driver.confirm import Confirmation, ConfirmationRun, confirm
 from pytest_ddenv.driver.cross_engine import CrossEngine, confirm_in_engines
-from pytest_ddenv.driver.markers import ReductionSpec
+from pytest_ddenv.driver.import_ahead import IMPORT_AHEAD_WAIT, import_ahead
+from pytest_ddenv.driver.interrupts import interrupts_deferred, sigterm_as_interrupt
+from pytest_ddenv.driver.logged_runs import log_run, logged_run, recorded_original
+from pytest_ddenv.driver.media_phase import LaterMedia, picture_paths, write_pictures
 from pytest_ddenv.driver.other_failures import original_reproduction, other_failures
+from pytest_ddenv.driver.plan import ReductionOutcome, ReductionPlan, interrupted_outcome, schemas
 from pytest_ddenv.driver.problem import ENGINE_PART, Problem, problem_of
 from pytest_ddenv.driver.reach import reach_cut
 from pytest_ddenv.driver.report import (
@@ -36,9 +36,10 @@ from pytest_ddenv.driver.report import (
     provisional_summary,
     world_independent_summary,
 )
+from pytest_ddenv.driver.stages_phase import run_stages_after_models
 from pytest_ddenv.execution import Pool
 from pytest_ddenv.execution.base import world_size
-from pytest_ddenv.media.writer import DEFAULT_MEDIA, BackgroundMedia, PendingMedia, Shown, records_runs
+from pytest_ddenv.media.writer import BackgroundMedia, PendingMedia, Shown, records_runs
 from pytest_ddenv.oracle.predicates import FailureSignature
 from pytest_ddenv.oracle.verdict import ErrorInfo, FailureReference, SameFailureRule, classify_result
 from pytest_ddenv.reduce import (
@@ -53,111 +54,20 @@ from pytest_ddenv.reduce import (
 )
 from pytest_ddenv.reduce.deflake import make_policy
 from pytest_ddenv.reduce.independence import INDEPENDENCE
-from pytest_ddenv.scenario.probe import (
-    ProbeResult,
-    check_rule,
-    keeps_start_support,
-    make_probe,
-    signature_record,
-    trace_of,
-)
-from pytest_ddenv.stages import (
-    DEFAULT_STAGES,
-    StageBudget,
-    StageContext,
-    StagesOutcome,
-    run_stages,
-    scenario_models,
-    stage_budget,
-    stage_policy,
-)
+from pytest_ddenv.scenario.probe import ProbeResult, check_rule, keeps_start_support, make_probe, trace_of
+from pytest_ddenv.stages import DEFAULT_STAGES, StagesOutcome, scenario_models
 
 if TYPE_CHECKING:
     from pytest_ddenv.sim import Run
-    from pytest_ddenv.world.model import World
 
-TRAJECTORY_PARTITIONS = ("timeseg", "trajectoryseg")
-TRAJECTORY_PRIORITIES = ("failure-proximal", "avg-trajectory-proximal", "min-trajectory-proximal", "timestep")
+__all__ = ["BUDGETS", "IMPORT_AHEAD_WAIT", "LaterMedia", "Note", "ReductionOutcome", "ReductionPlan", "import_ahead",
+           "interrupted_outcome", "interrupts_deferred", "rounded", "run_reduction", "same_reference", "timed"]
+"""This module's own names, and those of the driver's other modules that callers import from here (the plan and
+the outcome, the media made later, the import-ahead thread, the deferred interrupts)."""
+
 BUDGETS = ("max_probes", "max_seconds", "stages", "stage_probes", "confirm_engines")
 """Settings that do not change the problem: a run with another budget (or other stages after the models, or
 other engines to confirm in) resumes the same log."""
-
-
-@dataclass(frozen=True)
-class ReductionPlan:
-    """What to reduce and how.
-
-    `reference` is the failure to reproduce and `reference_run` the run it happened in (None: the test
-    made no run and reported none, so trajectory-guided schemas fall back). `confirmed`: the failure was
-    already seen on the pool (skip the confirmation runs). `fingerprint` (the settings), `test_source`, `code`
-    and the world identify the problem for resume (`problem.problem_of`).
-    """
-
-    world: World
-    test_id: str
-    reference: FailureReference
-    reference_run: Run | None
-    spec: ReductionSpec
-    artifacts: Path
-    replay_command: str
-    fingerprint: Mapping[str, Any]
-    test_source: str = ""
-    code: CodeIdentity = field(default_factory=CodeIdentity)
-    """The code under test (`code_identity.identify`): part of the problem, so an edit starts a fresh log."""
-    confirmed: bool = False
-    run_settings: Mapping[str, Any] = field(default_factory=dict)
-    """The caller's own entries of `summary.json` (predicates, noise seed, command line ...)."""
-    model_paths: tuple[str, ...] = ()
-    """The folders the world's SDF `model://` includes were found in (to cut `minimal.sdf` from the file)."""
-    media: str = DEFAULT_MEDIA
-    """What to show besides the files: "all" (pictures, animations, 3D recording), "pictures" or "none"
-    (`pytest_ddenv.media`)."""
-    keep_other: int = 0
-    """Write the smallest worlds of this many other failures the probes met as `other-<k>.yaml`
-    (`--ddenv-keep-other`, `ddenv reduce --keep-other`; `artifacts.write_other_worlds`)."""
-    other_replay: Callable[[Path, int | None], str] | None = None
-    """The command that replays a kept other failure: (its `other-<k>.yaml`, the run seed it failed with, None
-    when unknown) -> command line; None: no command."""
-    no_run_reason: str = ""
-    """Why there is no `reference_run` when the caller knows better than "no run was made" (the run raised)."""
-    same_failure: SameFailureRule | None = None
-    """Which failures are the reference failure (None: `spec`'s match and tolerance, `spec.same_failure_rule()`)."""
-    media_later: bool = False
-    """Render the animations and recordings in a background process once the summary is written, the pictures
-    first in that process (the outcome's `media`, which the caller finishes), instead of before `run_reduction`
-    returns. Without animations or recordings to make, the pictures are drawn before it returns."""
-
-    @property
-    def rule(self) -> SameFailureRule:
-        return self.same_failure if self.same_failure is not None else self.spec.same_failure_rule()
-
-
-@dataclass
-class ReductionOutcome:
-    """What `run_reduction` did. `status`: "reduced" (maybe incomplete: see the reduction), "not-reproducible"
-    (the confirmation runs never failed the same way), "world-independent" (the world without its removable
-    models fails the same way: nothing to reduce) or "error" (the test could not be run: `message`)."""
-
-    status: str
-    message: str = ""
-    report: ReductionReport | None = None
-    """The result of a reduction (status "reduced"), also written as `summary.json`."""
-    attachments: list[Path] = field(default_factory=list)
-    interrupted: ReductionInterrupted | None = None
-    minimal_run: Run | None = None
-    media: LaterMedia | None = None
-    """The pictures, animations and recordings still being made (`plan.media_later`): `media.finish()` waits for
-    them and adds them to `summary.json`; their files are among the `attachments` already."""
-
-    @property
-    def reduction(self) -> Reduction | None:
-        return None if self.report is None else self.report.reduction
-
-
-def interrupted_outcome(stop: ReductionInterrupted) -> ReductionOutcome | None:
-    """The outcome `run_reduction` wrote before Ctrl-C or SIGTERM stopped it (None: `reduce` itself was
-    interrupted, or a caller of its own)."""
-    return stop.outcome if isinstance(stop.outcome, ReductionOutcome) else None
 
 
 Note = Callable[[str], None]
@@ -177,7 +87,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool[ProbeResult], *, note: Note = 
     written (the log keeps every complete record: run again to resume).
 
     The phases, each a call that returns what the next needs: `confirm` (is the failure there?), the
-    folder (`artifacts.prepare`, the log), `_Locked.reduce_models`, `_Locked.runs_to_show`, `_run_stages`,
+    folder (`artifacts.prepare`, the log), `_Locked.reduce_models`, `_Locked.runs_to_show`, `run_stages_after_models`,
     `_Locked.write` (the files, the report, the pictures and the media)."""
     if plan.spec.engine is not None and plan.world.physics.engine != plan.spec.engine:
         plan = replace(plan, world=plan.world.with_engine(plan.spec.engine))  # every probe's world carries it
@@ -192,14 +102,14 @@ def run_reduction(plan: ReductionPlan, pool: Pool[ProbeResult], *, note: Note = 
     try:
         check_rule(plan.reference, plan.rule)  # a user's rule that cannot match the failure itself fails now
         calls = Calls(pool, plan.reference, plan.rule, deadline)
-        with _sigterm_as_interrupt():
+        with sigterm_as_interrupt():
             with timed(timings, "confirmation"):
                 confirmation = Confirmation() if plan.confirmed else confirm(
                     world, plan.reference, plan.rule, calls, deflake=spec.deflake, max_probes=spec.max_probes,
                     record=records_runs(plan.media), note=note)
             if confirmation.status != "confirmed":
                 return ReductionOutcome(confirmation.status, message=confirmation.message)
-            partition, priority, notes = _schemas(spec, plan.reference_run, plan.no_run_reason)
+            partition, priority, notes = schemas(spec, plan.reference_run, plan.no_run_reason)
             for text in notes:
                 note(text)
             settings = {key: value for key, value in plan.fingerprint.items()
@@ -235,7 +145,7 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool[ProbeResult], calls: Calls, p
     locked = _Locked(plan, pool, calls, paths, log, problem, notes, on_progress)
     locked.timings = timings
     for attempt, result, verdict in confirmations:
-        _log_run(log, "confirmation", plan.world.names, attempt, result, verdict)
+        log_run(log, "confirmation", plan.world.names, attempt, result, verdict)
     with timed(timings, "reduction"):
         reduction, interrupted = locked.reduce_models(partition, priority)
     if reduction.independent:
@@ -251,7 +161,7 @@ def _reduce_locked(plan: ReductionPlan, pool: Pool[ProbeResult], calls: Calls, p
                 minimal_run, shown = locked.runs_to_show(reduction, confirmations)
         if interrupted is None and len(plan.spec.stages or DEFAULT_STAGES) > 1 and reduction.minimal:
             with timed(timings, "stages"):
-                staged = _run_stages(plan, pool, reduction, calls, log, paths, minimal_run)
+                staged = run_stages_after_models(plan, pool, reduction, calls, log, paths, minimal_run)
         if interrupted is None and plan.spec.confirm_engines:
             with timed(timings, "other_engines"):
                 crossed = confirm_in_engines(plan.spec.confirm_engines, plan.world, reduction, calls, log, pool,
@@ -400,11 +310,11 @@ class _Locked:
         shown: list[Shown] = []
         if (minimal_run is None or record) and calls.may_start(plan.spec.max_probes):
             purpose = "recording" if record else "picture"
-            recorded, failed = _logged_run(calls, self.log, minimal_world, 0, purpose, record)
+            recorded, failed = logged_run(calls, self.log, minimal_world, 0, purpose, record)
             minimal_run = minimal_run or recorded
             shown = [Shown("minimal", minimal_world, recorded, failed)] if record else []
         if record:
-            shown.insert(0, Shown("original", plan.world, *_recorded_original(plan, calls, self.log, confirmations)))
+            shown.insert(0, Shown("original", plan.world, *recorded_original(plan, calls, self.log, confirmations)))
         return minimal_run, shown
 
     def write(self, reduction: Reduction, staged: StagesOutcome | None, interrupted: ReductionInterrupted | None,
@@ -456,15 +366,15 @@ class _Locked:
             drawn_later = interrupted is None and plan.media != "none" and plan.media_later and bool(shown)
             if interrupted is None and plan.media != "none" and not drawn_later:
                 with timed(self.timings, "pictures"):
-                    attachments += _pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
+                    attachments += write_pictures(plan.world, reduction, paths, plan.reference_run, minimal_run, staged)
                 report = replace(report, run_settings=self.run_settings())
                 artifacts.write_json(paths.summary, report.to_json())
             if drawn_later:  # beside the next test
-                pictures = functools.partial(_pictures, plan.world, reduction, paths, plan.reference_run,
+                pictures = functools.partial(write_pictures, plan.world, reduction, paths, plan.reference_run,
                                              minimal_run, staged)
                 later = LaterMedia(BackgroundMedia(paths.directory, shown, failure_text=plan.reference.describe(),
                                                    media=plan.media, pictures=pictures,
-                                                   picture_paths=_picture_paths(paths, staged)),
+                                                   picture_paths=picture_paths(paths, staged)),
                                    report, paths.summary)
             if pending is not None:
                 media = pending.finish()
@@ -484,33 +394,6 @@ class _Locked:
                                 interrupted=interrupted, minimal_run=minimal_run, media=later)
 
 
-class LaterMedia:
-    """A reduction's pictures, animations and recordings made in a background process (`plan.media_later`)
-    after its summary was written: `finish()` waits for them, says what could not be made (warnings, as when
-    they are made before `run_reduction` returns) and adds them to `summary.json` (`media`,
-    `timings.pictures_background` and `timings.media` the seconds they took, `timings.media_wait` the seconds
-    `finish()` waited)."""
-
-    def __init__(self, media: BackgroundMedia, report: ReductionReport, summary: Path) -> None:
-        self.media, self.report, self.summary = media, report, summary
-        self.done: list[Path] | None = None
-
-    def finish(self) -> list[Path]:
-        """The files made (waits for the background process once; later calls return the same list)."""
-        if self.done is not None:
-            return self.done
-        started = time.perf_counter()
-        written = self.media.finish()
-        drawn = {} if self.media.pictures is None else {"pictures_background": round(written.picture_seconds, 3)}
-        timings = {**self.report.run_settings.get("timings", {}), **drawn, "media": round(written.seconds, 3),
-                   "media_wait": round(time.perf_counter() - started, 3)}
-        report = replace(self.report.with_media(written.info, written.seconds) if written.info else self.report,
-                         run_settings={**self.report.run_settings, "timings": timings})
-        artifacts.write_json(self.summary, report.to_json())
-        self.done = [*written.pictures, *written.paths]
-        return self.done
-
-
 @contextlib.contextmanager
 def timed(timings: dict[str, float], phase: str) -> Iterator[None]:
     """Add the block's wall-clock seconds to `timings[phase]` (even when it raises)."""
@@ -523,51 +406,6 @@ def timed(timings: dict[str, float], phase: str) -> Iterator[None]:
 
 def rounded(timings: Mapping[str, float]) -> dict[str, float]:
     return {phase: round(seconds, 3) for phase, seconds in timings.items()}
-
-
-def _run_stages(plan: ReductionPlan, pool: Pool[ProbeResult], reduction: Reduction, calls: Calls, log: ProbeLog,
-                paths: artifacts.ArtifactPaths, minimal_run: Run | None) -> StagesOutcome:
-    """The stages after the models (`spec.stages`), from the minimal world, within their budget."""
-    spec = plan.spec
-    left = None if spec.max_probes is None else max(0, spec.max_probes - calls.started)
-    logged = len(log.probes())  # resumed runs too
-    model_cost = max(logged, pool.stats.simulations)  # speculative runs cancelled unlogged count too
-    limit, per_stage = stage_budget(model_cost, spec.stage_probes, left)
-    started = calls.started
-    policy = stage_policy(make_policy(spec.deflake, 0.95), reduction)
-    threads = (concurrent.futures.ThreadPoolExecutor(pool.size, thread_name_prefix="ddenv-stage")
-               if pool.size > 1 else None)
-
-    context = StageContext(
-        base=plan.world.select(reduction.minimal), call=calls, reference=plan.reference, rule=plan.rule,
-        log=log, policy=policy, seed=spec.seed, budget=StageBudget(limit, lambda: calls.started, started, per_stage),
-        executor=threads, workers=pool.size, wrap=calls.cancellable,
-    )
-    try:
-        staged = run_stages(spec.stages or DEFAULT_STAGES, context, reduction, minimal_run=minimal_run,
-                            folder=paths.directory, log_only=spec.stages is None)
-    finally:
-        if threads is not None:
-            threads.shutdown(wait=False, cancel_futures=True)
-    if plan.media != "none":
-        _stage_runs_to_show(staged, calls, log, spec.max_probes)
-    return staged
-
-
-def _stage_runs_to_show(staged: StagesOutcome, calls: Calls, log: ProbeLog, max_probes: int | None) -> None:
-    """A passing run of the nearest passing world for `passing.png` when the stages decided it from the log
-    (by default, they simulate nothing): one run (attempt 0, logged as "picture", counted in the stages'
-    simulations, within their budget and the reduction's), kept only if it passed: a picture never shows a
-    failing run as the passing one."""
-    world = staged.passing
-    if world is None or staged.passing_run is not None or not calls.may_start(max_probes) or (
-            staged.budget is not None and staged.simulations >= staged.budget):
-        return
-    staged.simulations += 1
-    run, _ = _logged_run(calls, log, world, 0, "picture", False)
-    last = log.events[-1]
-    if run is not None and isinstance(last, events.Probe) and last.result is Outcome.PASS:  # as it was classified
-        staged.passing_run = run
 
 
 def _count(number: int, noun: str) -> str:
@@ -591,161 +429,3 @@ def same_reference(logged: Mapping[str, Any], reference: FailureReference, rule:
 def _last_step(logged: list[events.Event]) -> tuple[str, ...] | None:
     """The world adopted last in a log (the best world so far), if any."""
     return next((event.candidate for event in reversed(logged) if isinstance(event, events.Step)), None)
-
-
-def _log_run(log: ProbeLog, purpose: str, names: tuple[str, ...], attempt: int, result: ProbeResult | None,
-             outcome: str) -> None:
-    """A simulation of the driver's own (confirmation, picture) in the run log, as a probe record."""
-    run = None if result is None else result.run
-    log.write(events.Probe(purpose=purpose, kind=purpose, candidate=names, size=len(names), attempt=attempt,
-                           seed=None if run is None else int(run.seed), outcome=outcome,
-                           signature=None if result is None else signature_record(result.error),
-                           sim_time=0.0 if run is None else float(run.sim_time),
-                           wall_time=0.0 if run is None else float(run.wall_time), detail=""))
-
-
-HEAVY_IMPORTS = ("sklearn.cluster", "sklearn.linear_model", "matplotlib.pyplot", "matplotlib.collections")
-"""What the schemas and the pictures import on first use (about 1.5 s together): imported while the first
-probes run in the workers, so that the engine's first round does not wait for scikit-learn."""
-
-
-IMPORT_AHEAD_WAIT = 60.0
-"""Seconds `run_reduction` waits at its end for the import-ahead thread. CPython 3.11 before 3.11.8 can fail
-with "SystemError: AST constructor recursion depth mismatch" when two threads compile source at once (a
-fresh install has no .pyc files yet): a reduction that ends early (a failure that does not reproduce) must
-not leave the thread compiling while pytest goes on importing (and rewriting) its own plugins."""
-
-
-_ahead: threading.Thread | None = None
-_ahead_lock = threading.Lock()
-
-
-def import_ahead() -> threading.Thread:
-    """Start importing the modules the engine and the pictures need (scikit-learn, matplotlib) in a thread,
-    once per process, so that they are loaded by the time they are needed while this process waits for
-    its probe workers; the thread (started now or earlier)."""
-    global _ahead
-    with _ahead_lock:
-        if _ahead is None:
-            _ahead = threading.Thread(target=_import_heavy_modules, name="ddenv-import-ahead", daemon=True)
-            _ahead.start()
-        return _ahead
-
-
-def _import_heavy_modules() -> None:
-    import importlib
-
-    for module in HEAVY_IMPORTS:
-        if module.startswith("matplotlib"):
-            import matplotlib
-
-            matplotlib.use("Agg")  # as render/canvas.py does: no display
-        try:
-            importlib.import_module(module)
-        except ImportError:  # pragma: no cover - the dependencies are installed with the package
-            return
-
-
-NO_RUN = "the test made no robot_world.run() and no robot_world.report(), so there is no trajectory"
-
-
-def _schemas(spec: ReductionSpec, reference_run: Run | None, no_run_reason: str = "") -> tuple[str, str, list[str]]:
-    """The partition and priority to use, and notes on any fallback (no trajectory to guide them)."""
-    partition, priority, notes = spec.partition, spec.priority, []
-    if reference_run is None:
-        why = no_run_reason or NO_RUN
-        if partition in TRAJECTORY_PARTITIONS:
-            notes.append(f"{why}: partition {partition} -> model2model")
-            partition = "model2model"
-        if priority in TRAJECTORY_PRIORITIES:
-            notes.append(f"{why}: priority {priority} -> sequential")
-            priority = "sequential"
-    return partition, priority, notes
-
-
-def _logged_run(call: Calls, log: ProbeLog, world: World, attempt: int, purpose: str,
-                record: bool) -> tuple[Run | None, bool]:
-    """A run of `world` for the pictures (`record`: and the animations, with its full detail), logged: the
-    run (None if it cannot be had) and whether it failed the same way."""
-    try:
-        result = call(world, attempt, record=record)
-    except Exception:  # noqa: BLE001 - pictures are a convenience
-        _log_run(log, purpose, world.names, attempt, None, "error")
-        return None, False
-    outcome = classify_result(result.error, call.reference, call.rule)
-    _log_run(log, purpose, world.names, attempt, result, outcome.value)
-    return result.run, outcome is Outcome.FAIL
-
-
-def _recorded_original(plan: ReductionPlan, call: Calls, log: ProbeLog,
-                       confirmations: tuple[ConfirmationRun, ...]) -> tuple[Run | None, bool]:
-    """The original world's failing run with its full detail: the run that confirmed the failure, else one
-    more run (attempt 0, logged) when the budget allows; and whether it failed the same way."""
-    for _, result, verdict in confirmations:
-        if verdict == Outcome.FAIL.value and result is not None and result.run is not None \
-                and result.run.detail is not None:
-            return result.run, True
-    if not call.may_start(plan.spec.max_probes):
-        return None, False
-    return _logged_run(call, log, plan.world, 0, "recording", True)
-
-
-def _picture_paths(paths: artifacts.ArtifactPaths, staged: StagesOutcome | None) -> list[Path]:
-    """The pictures `_pictures` writes when nothing goes wrong."""
-    written = [paths.reduction_png, paths.progress_png]
-    if staged is not None and staged.changed and staged.final is not None:
-        written.append(paths.directory / "simplified.png")
-    if staged is not None and staged.passing is not None:
-        written.append(paths.directory / "passing.png")
-    return written
-
-
-def _pictures(world: World, reduction: Reduction, paths: artifacts.ArtifactPaths, original_run: Run | None,
-              minimal_run: Run | None, staged: StagesOutcome | None = None) -> list[Path]:
-    """reduction.png and progress.png (the original and the minimal world's failing trajectories), and the
-    stages' simplified.png and passing.png."""
-    try:
-        from pytest_ddenv.driver import pictures
-
-        written = list(pictures.write_reduction_pictures(world, reduction, paths, original_run=original_run,
-                                                         minimal_run=minimal_run))
-        if staged is not None:
-            written += pictures.write_stage_pictures(staged, paths)
-        return written
-    except Exception as error:  # noqa: BLE001 - pictures are a convenience; never lose the reduction over one
-        warnings.warn(f"ddenv: pictures not written: {type(error).__name__}: {error}", stacklevel=1)
-        return []
-
-
-@contextlib.contextmanager
-def interrupts_deferred() -> Iterator[list[int]]:
-    """Ctrl-C and SIGTERM wait until the block is over (in the main thread): the list it yields holds the
-    signals that came meanwhile (empty: none), for the caller to act on afterwards."""
-    if threading.current_thread() is not threading.main_thread():
-        yield []
-        return
-    came: list[int] = []
-    previous = {number: signal.signal(number, lambda signum, frame: came.append(signum))
-                for number in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield came
-    finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
-
-
-@contextlib.contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM (a CI job being cancelled) ends the reduction like Ctrl-C: best world kept, log complete."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def interrupt(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    previous = signal.signal(signal.SIGTERM, interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)

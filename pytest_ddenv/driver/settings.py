@@ -3,7 +3,7 @@ front end gives it.
 
 A `Setting` is taken as the pytest option `--ddenv-{option}` with its ini key `ddenv_{option}`
 (`pytest_plugin/options.py`), as the `ddenv(...)` marker argument `marker` (`driver/markers.py`) and as the
-`ddenv reduce` flag `--{flag}` (`cli/main.py`); each front end builds its options, keys, arguments and flags
+`ddenv reduce` flag `--{flag}` (`cli/parser.py`); each front end builds its options, keys, arguments and flags
 from `SETTINGS`, so that a new setting is one more entry here (and its use where the reduction reads it).
 `Setting.check(value, where)` checks a value given in Python (a marker argument), `Setting.check_text(text,
 where)` one given as text (an option, an ini key, a flag); both raise `SettingError` worded "{where}: expected
