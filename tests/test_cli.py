@@ -253,6 +253,10 @@ def test_reduce_finds_exactly_the_wall(reduced: dict[str, Any]) -> None:
         assert (out / name).stat().st_size > 0, name
     assert World.load(out / "minimal.yaml").names == ("wall",)
     assert "models |" in reduced["stderr"] and "probes" in reduced["stderr"]  # the progress lines
+    records = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
+    probes = [record for record in records if record["event"] == "probe"]
+    assert len(probes) == data["simulations"]  # every simulation has its line: the original's run too
+    assert [(p["purpose"], p["attempt"], p["outcome"]) for p in probes[:1]] == [("confirmation", 0, "fail")]
 
 
 def test_reduce_a_world_that_does_not_fail(capsys: pytest.CaptureFixture[str], worlds: dict[str, Path],

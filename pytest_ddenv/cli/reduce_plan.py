@@ -36,9 +36,10 @@ def reduction_plan(arguments: argparse.Namespace, world: World, original: Any, p
     import dataclasses
 
     from pytest_ddenv.cli.replay import predicates_to_json
+    from pytest_ddenv.driver.confirm import ConfirmationRun
     from pytest_ddenv.driver.markers import ReductionSpec
     from pytest_ddenv.driver.run import ReductionPlan
-    from pytest_ddenv.oracle.verdict import FailureReference
+    from pytest_ddenv.oracle.verdict import FailureReference, classify_result
 
     spec = dataclasses.replace(
         ReductionSpec(), partition=arguments.partition, priority=priority, n_partitions=arguments.n_partitions,
@@ -50,7 +51,7 @@ def reduction_plan(arguments: argparse.Namespace, world: World, original: Any, p
     folder = artifacts_folder(arguments)
     command = "ddenv " + " ".join(shlex.quote(a) for a in _command_line(arguments))
     settings = {key: value for key, value in spec.__dict__.items() if key != "world"}
-    return ReductionPlan(
+    plan = ReductionPlan(
         world=world, test_id=f"ddenv reduce {arguments.world}", reference=FailureReference.of(original.error),
         reference_run=original.run, spec=spec, artifacts=folder,
         replay_command=f"ddenv replay {shlex.quote(str(folder))}" + "".join(
@@ -65,6 +66,8 @@ def reduction_plan(arguments: argparse.Namespace, world: World, original: Any, p
                        "scenario_seed": arguments.seed, "command": command, "controller": arguments.controller,
                        "imports": list(arguments.imports)},
     )
+    verdict = classify_result(original.error, plan.reference, plan.rule).value  # the run the failure came from
+    return dataclasses.replace(plan, confirmations=(ConfirmationRun(0, original, verdict),))
 
 
 def _code_under_test(arguments: argparse.Namespace) -> Any:

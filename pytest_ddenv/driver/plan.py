@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pytest_ddenv.driver.code_identity import CodeIdentity
+from pytest_ddenv.driver.confirm import ConfirmationRun
 from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.driver.report import ReductionReport
 from pytest_ddenv.media.writer import DEFAULT_MEDIA
@@ -31,7 +32,9 @@ class ReductionPlan:
 
     `reference` is the failure to reproduce and `reference_run` the run it happened in (None: the test
     made no run and reported none, so trajectory-guided schemas fall back). `confirmed`: the failure was
-    already seen on the pool (skip the confirmation runs). `fingerprint` (the settings), `test_source`, `code`
+    already seen on the pool (skip the confirmation runs), in `confirmations` (the caller's runs of the
+    original world on the pool, logged as the confirmation runs: every simulation has its line in the run log).
+    `fingerprint` (the settings), `test_source`, `code`
     and the world identify the problem for resume (`problem.problem_of`).
     """
 
@@ -47,6 +50,7 @@ class ReductionPlan:
     code: CodeIdentity = field(default_factory=CodeIdentity)
     """The code under test (`code_identity.identify`): part of the problem, so an edit starts a fresh log."""
     confirmed: bool = False
+    confirmations: tuple[ConfirmationRun, ...] = ()
     run_settings: Mapping[str, Any] = field(default_factory=dict)
     """The caller's own entries of `summary.json` (predicates, noise seed, command line ...)."""
     model_paths: tuple[str, ...] = ()

@@ -104,7 +104,7 @@ def run_reduction(plan: ReductionPlan, pool: Pool[ProbeResult], *, note: Note = 
         calls = Calls(pool, plan.reference, plan.rule, deadline)
         with sigterm_as_interrupt():
             with timed(timings, "confirmation"):
-                confirmation = Confirmation() if plan.confirmed else confirm(
+                confirmation = Confirmation(plan.confirmations) if plan.confirmed else confirm(
                     world, plan.reference, plan.rule, calls, deflake=spec.deflake, max_probes=spec.max_probes,
                     record=records_runs(plan.media), note=note)
             if confirmation.status != "confirmed":
