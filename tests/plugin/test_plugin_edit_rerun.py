@@ -67,6 +67,16 @@ LEFT_THEN_RIGHT = {
                           + TEST_BODY},
         ("steering.py", "SIDE = 1.0", "SIDE = -1.0"),
     ),
+    # a program beside the test that the test runs (a simulator or planner of its own), never imported
+    "script-run-as-a-program": (
+        {"side.py": "print(1.0)\n",
+         "test_walls.py": TEST_HEADER + "import subprocess\nimport sys\nfrom pathlib import Path\n\n"
+                                        "SIDE = float(subprocess.run([sys.executable, Path(__file__).with_name("
+                                        "'side.py')], capture_output=True, text=True, check=True).stdout)\n\n"
+                          + STEERING + "\n\ndef controller(observation):\n    return around(observation, SIDE)\n"
+                          + TEST_BODY},
+        ("side.py", "print(1.0)", "print(-1.0)"),
+    ),
 }
 
 
