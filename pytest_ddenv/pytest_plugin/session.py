@@ -173,9 +173,11 @@ def describe_reduction(test_id: str, report: ReductionReport, attachments: Seque
         f"replay: {report.replay}",
     ]
     rates = f"fails {fails}/{runs}" if report.cross_engine is None else report.cross_engine.terminal()
+    cost = report.cost  # a resumed log's earlier runs are counted: say this run's share (its time is this run's)
+    this_run = f" ({cost.this_run_simulations} in this run)" if cost.resumed_runs else ""
     line = (
         f"{test_id}: {reduction.original_size} -> {reduction.minimal_size} models "
-        f"({report.reduction_percent:.0f}%), {reduction.probes} probes, {report.cost.simulations} simulations, "
+        f"({report.reduction_percent:.0f}%), {reduction.probes} probes, {cost.simulations} simulations{this_run}, "
         f"{reduction.wall_time if seconds is None else seconds:.0f} s, "
         f"{rates}{'' if reduction.one_minimal else ', ' + status} -> {folder}"
     )
