@@ -15,7 +15,7 @@ from engines import installed
 
 from pytest_ddenv import World
 from pytest_ddenv.driver import artifacts
-from pytest_ddenv.driver.code_identity import CodeIdentity, collected_elsewhere, identify
+from pytest_ddenv.driver.code_identity import CodeIdentity, collected_elsewhere, identify, scripts_beside
 from pytest_ddenv.driver.run import same_reference
 from pytest_ddenv.oracle.predicates import FailureSignature
 from pytest_ddenv.scenario.probe import FailureReference
@@ -71,6 +71,16 @@ def test_other_test_files_and_conftests_of_other_folders_cannot_matter(tmp_path:
     collected = [test_file, tmp_path / "tests" / "test_other.py"]
     elsewhere = collected_elsewhere(test_file, collected)
     assert test_file.resolve() not in elsewhere and (tmp_path / "tests" / "test_other.py").resolve() in elsewhere
+
+
+def test_the_scripts_beside_the_test_file_are_code_under_test_but_not_its_test_files(tmp_path: Path) -> None:
+    """A simulator the test runs as a program (`subprocess`) is never imported: it is taken by content."""
+    for name in ("test_rover.py", "rover_sim.py", "conftest.py", "helper.py", "other_test.py"):
+        (tmp_path / name).write_text("X = 1\n")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "deeper.py").write_text("X = 1\n")
+    found = scripts_beside(tmp_path / "test_rover.py", ["test_*.py", "*_test.py"])
+    assert [path.name for path in found] == ["helper.py", "rover_sim.py"]
 
 
 def test_data_files_are_identified_by_content(project: Path) -> None:

@@ -185,6 +185,22 @@ def test_reduction_pictures_in_an_artifacts_folder(worlds: dict[str, World], tmp
     assert picture_data.probe_sizes_from_log(paths.log)[:2] == [(1, 18, "pass"), (2, 18, "fail")]
 
 
+def test_the_progress_note_of_a_resumed_reduction_says_which_probes_and_time_are_this_runs(
+        worlds: dict[str, World]) -> None:
+    """A rerun that resumes its log counts the earlier runs' probes: its wall time is this run's alone."""
+    import dataclasses
+
+    world = worlds["rubble"]
+    fresh = dataclasses.replace(fake_reduction(world, world.names[:3]), probes=81, cache_hits=14, skipped=8,
+                                wall_time=34.2, failure_rate=(5, 5))
+    assert pictures._progress_note(fresh).splitlines() == [
+        "81 probes (14 cached, 8 skipped)", "34 s wall time", "minimal world fails 5/5 seeds"]
+    resumed = dataclasses.replace(fresh, resumed_probes=42, wall_time=13.5)
+    assert pictures._progress_note(resumed).splitlines() == [
+        "81 probes (42 in earlier runs, 14 cached, 8 skipped)", "14 s wall time in this run",
+        "minimal world fails 5/5 seeds"]
+
+
 def test_reduction_picture_with_both_runs(worlds: dict[str, World], tmp_path: Path) -> None:
     world = worlds["friction"]
     reduction = fake_reduction(world, world.names[:4])

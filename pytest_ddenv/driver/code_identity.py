@@ -12,6 +12,7 @@ is taken back in.
 from __future__ import annotations
 
 import ast
+import fnmatch
 import hashlib
 import site
 import sys
@@ -211,6 +212,21 @@ def collected_elsewhere(test_file: Path, collected: Iterable[Path]) -> set[Path]
     others = {path.resolve() for path in collected} - {test_file}
     conftests = {path for path in project_conftests() if path.parent not in ancestors}
     return others | conftests
+
+
+def scripts_beside(test_file: Path, test_patterns: Iterable[str]) -> list[Path]:
+    """The Python files in the test file's own folder that are neither test files (`test_patterns`, pytest's
+    `python_files`) nor conftest.py: a simulator, planner or tool the test may run as a program
+    (`subprocess`), which is never imported and so not among the loaded modules. Taken by content, as data
+    files: an edit of such a script is an edit of the code under test."""
+    patterns = list(test_patterns)
+    folder = test_file.resolve().parent
+    try:
+        candidates = sorted(folder.glob("*.py"))
+    except OSError:
+        return []
+    return [path for path in candidates if path.is_file() and path.name != "conftest.py"
+            and not any(fnmatch.fnmatch(path.name, pattern) for pattern in patterns)]
 
 
 def project_conftests() -> set[Path]:

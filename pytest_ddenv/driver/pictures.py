@@ -79,8 +79,10 @@ def write_stage_pictures(staged: StagesOutcome, paths: ArtifactPaths) -> list[Pa
 
 def _progress_note(reduction: Reduction) -> str:
     fails, runs = reduction.failure_rate
-    lines = [f"{reduction.probes} probes ({reduction.cache_hits} cached, {reduction.skipped} skipped)",
-             f"{reduction.wall_time:.0f} s wall time"]
+    # a resumed log's probes are the whole history's, the wall time this run's: say so (issue 33)
+    earlier = f"{reduction.resumed_probes} in earlier runs, " if reduction.resumed_probes else ""
+    lines = [f"{reduction.probes} probes ({earlier}{reduction.cache_hits} cached, {reduction.skipped} skipped)",
+             f"{reduction.wall_time:.0f} s wall time{' in this run' if reduction.resumed_probes else ''}"]
     if runs:
         lines.append(f"minimal world fails {fails}/{runs} seeds")
     return "\n".join(lines)

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from pytest_ddenv.driver import artifacts
-from pytest_ddenv.driver.code_identity import CodeIdentity, collected_elsewhere, identify
+from pytest_ddenv.driver.code_identity import CodeIdentity, collected_elsewhere, identify, scripts_beside
 from pytest_ddenv.driver.markers import ReductionSpec
 from pytest_ddenv.driver.report_text import result_lines, status_of
 from pytest_ddenv.driver.run import LaterMedia, ReductionOutcome, ReductionPlan, interrupted_outcome, run_reduction
@@ -120,10 +120,12 @@ class ReductionSession:
 
     def _code(self) -> CodeIdentity:
         """The code under test: the project's modules this session loaded, but other test files and the
-        conftests of other folders (unless the test's own files import them)."""
+        conftests of other folders (unless the test's own files import them), and the Python scripts beside
+        the test file that it may run as programs (`scripts_beside`)."""
         collected = {item.path for item in self.item.session.items}
-        return identify([self.item.config.rootpath],
-                        exclude=collected_elsewhere(self.item.path, collected))
+        config = self.item.config
+        return identify([config.rootpath], exclude=collected_elsewhere(self.item.path, collected),
+                        data_files=scripts_beside(self.item.path, config.getini("python_files")))
 
     def _other_replay(self, world_file: Path, seed: int | None) -> str:
         """The command that re-runs the test on a kept other failure's world, with the run seed it failed with
@@ -171,9 +173,11 @@ def describe_reduction(test_id: str, report: ReductionReport, attachments: Seque
         f"replay: {report.replay}",
     ]
     rates = f"fails {fails}/{runs}" if report.cross_engine is None else report.cross_engine.terminal()
+    cost = report.cost  # a resumed log's earlier runs are counted: say this run's share (its time is this run's)
+    this_run = f" ({cost.this_run_simulations} in this run)" if cost.resumed_runs else ""
     line = (
         f"{test_id}: {reduction.original_size} -> {reduction.minimal_size} models "
-        f"({report.reduction_percent:.0f}%), {reduction.probes} probes, {report.cost.simulations} simulations, "
+        f"({report.reduction_percent:.0f}%), {reduction.probes} probes, {cost.simulations} simulations{this_run}, "
         f"{reduction.wall_time if seconds is None else seconds:.0f} s, "
         f"{rates}{'' if reduction.one_minimal else ', ' + status} -> {folder}"
     )

@@ -55,7 +55,7 @@ def draw_progress(steps: Sequence[tuple[int, int]], *, probes: int | None = None
     axes.set_ylim(-0.5, max(ys + [s for _, s, _ in probe_sizes]) * 1.08 + 0.5)
     axes.xaxis.set_major_locator(MaxNLocator(integer=True))
     axes.yaxis.set_major_locator(MaxNLocator(integer=True))
-    axes.set_xlabel("probes (simulations run)")
+    axes.set_xlabel("probes (the runs whose results the reduction used)")
     axes.set_ylabel("world size (models)")
     axes.grid(True, color="#dddddd", linewidth=0.6)
     axes.set_axisbelow(True)

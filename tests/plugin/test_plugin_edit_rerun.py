@@ -67,6 +67,16 @@ LEFT_THEN_RIGHT = {
                           + TEST_BODY},
         ("steering.py", "SIDE = 1.0", "SIDE = -1.0"),
     ),
+    # a program beside the test that the test runs (a simulator or planner of its own), never imported
+    "script-run-as-a-program": (
+        {"side.py": "print(1.0)\n",
+         "test_walls.py": TEST_HEADER + "import subprocess\nimport sys\nfrom pathlib import Path\n\n"
+                                        "SIDE = float(subprocess.run([sys.executable, Path(__file__).with_name("
+                                        "'side.py')], capture_output=True, text=True, check=True).stdout)\n\n"
+                          + STEERING + "\n\ndef controller(observation):\n    return around(observation, SIDE)\n"
+                          + TEST_BODY},
+        ("side.py", "print(1.0)", "print(-1.0)"),
+    ),
 }
 
 
@@ -112,6 +122,12 @@ def test_an_unchanged_rerun_resumes_the_log(pytester: pytest.Pytester) -> None:
     assert again["minimal_models"] == ["left_wall"] and again["resumed_runs"] == 1
     assert "runs.previous" not in result.stdout.str()
     result.stdout.fnmatch_lines(["*in earlier runs*"])
+    # the terminal line gives the whole history's simulations and this run's share: its time is this run's
+    sims = again["simulations"]
+    this_run = again["this_run"]["simulations"]
+    assert 0 < this_run < sims
+    line = f"test_walls.py::test_goes_around: 6 -> 1 models *, {sims} simulations ({this_run} in this run), * s, *"
+    result.stdout.fnmatch_lines([line])
 
 
 def test_a_log_of_another_failure_is_not_resumed_even_when_the_code_is_the_same(pytester: pytest.Pytester) -> None:
