@@ -88,3 +88,22 @@ def test_a_failure_without_any_model_is_not_reduced(project: Path) -> None:
     assert "the failure does not depend on the world: it also happens with no models" in done.stderr
     assert summary(project)["status"] == "world-independent"
     assert not (project / "ddenv-artifacts" / artifact_dir_name("walls", 0) / "minimal.yaml").exists()
+
+
+def test_an_edited_script_the_controller_runs_as_a_program_gives_the_new_answer(project: Path) -> None:
+    steer = project / "code" / "steer.py"  # SIDE comes from a script beside it, run, never imported
+    steer.write_text(steer.read_text().replace("SIDE = 1.0", (
+        "import subprocess, sys\nfrom pathlib import Path\n"
+        "SIDE = float(subprocess.run([sys.executable, str(Path(__file__).with_name('side.py'))],\n"
+        "                            capture_output=True, text=True, check=True).stdout)")))
+    side = project / "code" / "side.py"
+    side.write_text("print(1.0)\n")
+    first = ddenv_reduce(project, "around")
+    assert first.returncode == 0, first.stderr
+    assert summary(project)["minimal_models"] == ["left_wall"]
+    side.write_text("print(-1.0)\n")
+    second = ddenv_reduce(project, "around")
+    assert second.returncode == 0, second.stderr
+    after = summary(project)
+    assert after["minimal_models"] == ["right_wall"] and after["resumed_runs"] == 0
+    assert "the code under test changed: code/side.py" in second.stdout + second.stderr

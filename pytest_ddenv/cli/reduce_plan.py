@@ -72,14 +72,16 @@ def reduction_plan(arguments: argparse.Namespace, world: World, original: Any, p
 
 def _code_under_test(arguments: argparse.Namespace) -> Any:
     """The code under test of `ddenv reduce`: the modules loaded from the current folder and from the folders of
-    the --import and --controller files (all imported by now), with those files themselves."""
-    from pytest_ddenv.driver.code_identity import identify
+    the --import and --controller files (all imported by now), with those files themselves and the Python
+    scripts beside them, which they may run as programs (`code_identity.scripts_beside`)."""
+    from pytest_ddenv.driver.code_identity import identify, scripts_beside
 
     specs = [*arguments.imports, *([arguments.controller.rpartition(":")[0]] if arguments.controller else [])]
     files = [Path(spec).expanduser() if spec.endswith(".py") or os.sep in spec
              else Path(getattr(sys.modules.get(spec), "__file__", None) or "") for spec in specs]
     files = [path for path in files if path.suffix == ".py"]
-    return identify([Path.cwd(), *(path.parent for path in files)], data_files=files)
+    beside = [script for path in files for script in scripts_beside(path, ())]
+    return identify([Path.cwd(), *(path.parent for path in files)], data_files=list(dict.fromkeys([*files, *beside])))
 
 
 def _other_replay(arguments: argparse.Namespace, world_file: Path, seed: int | None) -> str:
