@@ -8,11 +8,7 @@ from pathlib import Path
 
 from pytest_ddenv.cli.console import EXIT_OK, emit
 from pytest_ddenv.cli.world_options import UsageError, check_robot, dropped_models, load_world, same_file
-
-YAML_SUFFIXES = (".yaml", ".yml")
-SDF_SUFFIXES = (".sdf", ".world")
-MJCF_SUFFIXES = (".xml", ".mjcf")
-"""Read only: a world is not written as MJCF (a reduction cuts `minimal.xml` from the scene)."""
+from pytest_ddenv.world.formats import MJCF_SUFFIXES, SDF_SUFFIXES, YAML_SUFFIXES  # MJCF: read only
 
 
 def cmd_check(arguments: argparse.Namespace) -> int:
