@@ -10,8 +10,6 @@ import pytest
 from pytest_ddenv.driver.artifacts import FolderLock, artifact_dir_name
 from pytest_ddenv.driver.superseded import SUPERSEDED_REASON, earlier_reductions, mark_superseded
 
-pytestmark = pytest.mark.unit
-
 TEST = "tests/test_x.py::test_y[a-1]"
 
 

@@ -32,6 +32,8 @@ UNIT_MODULES = (
     # the oracle and the test's view of a run
     "test_oracle.py", "test_same_failure_rule.py", "test_custom_predicates.py", "test_arm_predicates.py", "test_reported_runs.py",
     "test_user_line.py", "test_code_identity.py", "test_report_rule_note.py",
+    # the folders of a test's earlier reductions
+    "test_superseded.py",
     # a run log of the release before, read back
     "test_old_run_logs.py",
     # the simulation, in this process's own pybullet client

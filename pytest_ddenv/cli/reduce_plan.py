@@ -70,17 +70,22 @@ def reduction_plan(arguments: argparse.Namespace, world: World, original: Any, p
     return dataclasses.replace(plan, confirmations=(ConfirmationRun(0, original, verdict),))
 
 
+TEST_FILES = ("test_*.py", "*_test.py")
+"""pytest's default `python_files`: test files beside a controller are not scripts it runs."""
+
+
 def _code_under_test(arguments: argparse.Namespace) -> Any:
     """The code under test of `ddenv reduce`: the modules loaded from the current folder and from the folders of
     the --import and --controller files (all imported by now), with those files themselves and the Python
-    scripts beside them, which they may run as programs (`code_identity.scripts_beside`)."""
+    scripts beside them, which they may run as programs (`code_identity.scripts_beside`; pytest's test files
+    there, `TEST_FILES`, are not code `ddenv reduce` runs)."""
     from pytest_ddenv.driver.code_identity import identify, scripts_beside
 
     specs = [*arguments.imports, *([arguments.controller.rpartition(":")[0]] if arguments.controller else [])]
     files = [Path(spec).expanduser() if spec.endswith(".py") or os.sep in spec
              else Path(getattr(sys.modules.get(spec), "__file__", None) or "") for spec in specs]
     files = [path for path in files if path.suffix == ".py"]
-    beside = [script for path in files for script in scripts_beside(path, ())]
+    beside = [script for path in files for script in scripts_beside(path, TEST_FILES)]
     return identify([Path.cwd(), *(path.parent for path in files)], data_files=list(dict.fromkeys([*files, *beside])))
 
 
